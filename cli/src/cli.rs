@@ -1,0 +1,30 @@
+//! Command-line arguments (clap derive). Doc comments here are the `--help` text.
+
+use crate::commands;
+use clap::{Parser, Subcommand};
+
+/// Calibrate angular encoders and angle sensors from recorded runs.
+///
+/// calib reads a log of synchronized sensor samples (CSV, or MCAP with ROS 2 JointState or JSON
+/// messages) and writes each sensor's error map as a correction table, plus a report.
+///
+/// Start with `calib inspect LOG` to see what a log holds, then run a method, e.g.
+/// `calib csrr run.mcap -o out/`. Exit status: 0 success, 1 bad or insufficient data, 2 bad usage.
+#[derive(Debug, Parser, PartialEq)]
+#[command(name = "calib", version, about, long_about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand, PartialEq)]
+pub enum Command {
+    /// Show what a log holds: channels, rates, gaps, segments and CSRR sessions.
+    Inspect(commands::inspect::Args),
+    /// Write a simulated run with a known truth, from a scenario file.
+    Simulate(commands::simulate::Args),
+    /// Self-calibrate two coaxial sensors by the CSRR method.
+    Csrr(commands::csrr::Args),
+}

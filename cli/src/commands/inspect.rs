@@ -1,0 +1,13 @@
+//! `calib inspect`.
+
+/// Arguments of `calib inspect`.
+#[derive(Debug, clap::Args, PartialEq)]
+pub struct Args {
+    /// The log to read (.csv or .mcap).
+    pub log: std::path::PathBuf,
+}
+
+/// Runs `calib inspect`.
+pub fn run(_args: &Args) -> anyhow::Result<String> {
+    anyhow::bail!("not implemented yet")
+}

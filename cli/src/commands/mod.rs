@@ -1,0 +1,16 @@
+//! One module per subcommand: each loads its inputs, computes with `calib-core`, and renders.
+
+pub mod csrr;
+pub mod inspect;
+pub mod simulate;
+
+use crate::cli::{Cli, Command};
+
+/// Runs a command; returns what to print on standard output.
+pub fn run(cli: Cli) -> anyhow::Result<String> {
+    match cli.command {
+        Command::Inspect(args) => inspect::run(&args),
+        Command::Simulate(args) => simulate::run(&args),
+        Command::Csrr(args) => csrr::run(&args),
+    }
+}

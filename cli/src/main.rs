@@ -1,0 +1,34 @@
+//! `calib`: calibrate angular encoders and angle sensors from recorded runs.
+
+mod cli;
+mod commands;
+mod exit;
+
+use clap::Parser;
+use std::io::Write;
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let cli = cli::Cli::parse();
+    match commands::run(cli) {
+        Ok(output) => {
+            let mut stdout = std::io::stdout().lock();
+            match stdout
+                .write_all(output.as_bytes())
+                .and_then(|()| stdout.flush())
+            {
+                // A closed pipe (`calib … | head`) is not a failure of calib.
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("calib: cannot write to standard output: {e}");
+                    ExitCode::from(exit::DATA)
+                }
+            }
+        }
+        Err(err) => {
+            eprintln!("calib: error: {err:#}");
+            ExitCode::from(exit::code_of(&err))
+        }
+    }
+}

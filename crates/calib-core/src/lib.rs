@@ -1,0 +1,29 @@
+//! `calib-core`: the mathematics and domain types of calib, the offline calibration of angular
+//! encoders and angle sensors from recorded runs.
+//!
+//! The crate does no file or terminal I/O. It takes samples (from `calib-io`'s readers, or from a
+//! caller's own acquisition code) and returns typed results:
+//!
+//! - [`angle`]: radians inside, [`AngleUnit`] conversions at the edges, [`Unwrapper`].
+//! - [`sample`]: [`Sample`]s of named [`Channel`]s.
+//! - [`ErrorMap`]: a sensor's error over one revolution of its own reading; [`FourierSeries`] and
+//!   [`Harmonic`]s in the convention `amplitude·cos(h·θ + phase)`.
+//! - [`Report`]: what `report.json` holds.
+//!
+//! # Conventions
+//! Error `e = reading − true angle`, correction `= −e`; maps are functions of the sensor's own
+//! reading with zero mean; angles in degrees and errors in arcseconds only at the edges.
+#![deny(missing_docs)]
+#![warn(clippy::print_stdout, clippy::print_stderr)]
+
+pub mod angle;
+pub mod error_map;
+pub mod harmonics;
+pub mod report;
+pub mod sample;
+
+pub use angle::{Angle, AngleUnit, Unwrapper};
+pub use error_map::ErrorMap;
+pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
+pub use report::{ChannelReport, Report, SessionReport};
+pub use sample::{Channel, Sample};

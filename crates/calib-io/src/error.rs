@@ -1,0 +1,52 @@
+//! Errors of reading logs and tables and of writing outputs.
+
+use std::path::PathBuf;
+
+/// An error that names the file and, where it applies, the line, message and channel.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The file could not be opened or read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the system said.
+        source: std::io::Error,
+    },
+    /// The file's extension names no format calib reads.
+    #[error("{}: unknown log format; calib reads .csv and .mcap files", path.display())]
+    UnknownFormat {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A CSV file (log, table, readings) has bad content at a line.
+    #[error("{}: line {line}{}: {message}", path.display(), channel.as_ref().map(|c| format!(", column `{c}`")).unwrap_or_default())]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number (the header is line 1).
+        line: u64,
+        /// The column concerned, where one is.
+        channel: Option<String>,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// An MCAP file has bad content.
+    #[error("{}: {}{}{message}", path.display(), message_index.map(|i| format!("message {i}: ")).unwrap_or_default(), channel.as_ref().map(|c| format!("channel `{c}`: ")).unwrap_or_default())]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// 0-based index of the message in file order, where one is concerned.
+        message_index: Option<u64>,
+        /// The channel (joint name, JSON field or topic) concerned, where one is.
+        channel: Option<String>,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// A file holds no samples.
+    #[error("{}: the log holds no samples", path.display())]
+    Empty {
+        /// The file.
+        path: PathBuf,
+    },
+}

@@ -1,0 +1,48 @@
+//! `calib-io`: reading recorded runs into [`calib_core::Sample`]s, and writing calib's tables and
+//! reports.
+//!
+//! - [`csv_log`]: CSV logs (`t`, one column per channel, optional `session`).
+//! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` (CDR) or JSON messages,
+//!   channels joined across topics on equal time stamps.
+//! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
+//!
+//! Every reader streams: memory stays bounded whatever the log's length. Every error names the
+//! file and the line or message it concerns ([`Error`]).
+#![deny(missing_docs)]
+
+pub mod csv_log;
+pub mod error;
+pub mod mcap_log;
+pub mod table;
+
+pub use error::Error;
+
+use calib_core::AngleUnit;
+
+/// How to read a log.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ReadOptions {
+    /// The unit of readings in formats that do not fix it (CSV, JSON messages); degrees if `None`.
+    /// JointState positions are radians by definition and ignore it.
+    pub unit: Option<AngleUnit>,
+}
+
+/// What a reader noticed while reading, for `inspect` and for warnings.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct ReadDiagnostics {
+    /// Messages whose channels could not be joined with the other topics' on an equal time stamp
+    /// (MCAP only), and were dropped.
+    pub unjoined_messages: u64,
+    /// Where the log ended early (a crashed recording): the byte offset of the break and the
+    /// number of messages read before it.
+    pub truncated: Option<Truncation>,
+}
+
+/// A log that ends before its end marker.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Truncation {
+    /// Byte offset at which reading stopped.
+    pub byte_offset: u64,
+    /// Messages read before it.
+    pub messages_read: u64,
+}
