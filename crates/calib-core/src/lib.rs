@@ -17,10 +17,12 @@
 #![warn(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod angle;
+pub mod csrr;
 pub mod error_map;
 pub mod harmonics;
 pub mod report;
 pub mod sample;
+pub mod segment;
 
 pub use angle::{Angle, AngleUnit, Unwrapper};
 pub use error_map::ErrorMap;

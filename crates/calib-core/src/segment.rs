@@ -1,0 +1,357 @@
+//! Splitting a log of two coaxial sensors into stationary, co-rotating and turning segments.
+//!
+//! A CSRR log (seed paper `000_…`, section III-B, Fig. 4) alternates: the locked rotors turn
+//! together for whole revolutions (a *session*), the shaft stops, rotor A alone is turned by Δ
+//! against rotor B, and the next session starts. The [`Segmenter`] classifies short blocks of
+//! samples (≈ [`SegmentOptions::block_s`]) and joins them:
+//!
+//! - **stationary**: neither sensor moves faster than [`SegmentOptions::min_speed`];
+//! - **rotating**: both move, in the same direction, and the relative angle `x − y` stays within
+//!   [`SegmentOptions::relative_tol`] of the segment's first block — a CSRR session;
+//! - **turning**: anything else (one sensor moves alone, or the relative angle drifts).
+//!
+//! The tolerance on the relative angle must exceed the peak-to-peak of `e_a − e_b` (the sensors'
+//! own errors move the relative angle within a session); the default 1° covers sensors of up to
+//! ±0.25° each. The block at each end of a rotating segment is not handed to the session sink,
+//! so that the edges of a relative turn made while rotating never leak into a session.
+//!
+//! The segmenter is streaming: it holds one block of samples and the list of segments.
+
+use crate::angle::{Unwrapper, wrap_2pi};
+use std::f64::consts::TAU;
+
+/// Tuning of the [`Segmenter`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentOptions {
+    /// Speed below which a sensor counts as still, rad/s (default 1°/s).
+    pub min_speed: f64,
+    /// Largest departure of the relative angle within one session, rad (default 1°).
+    pub relative_tol: f64,
+    /// Duration of one classification block, s (default 0.05 s; at least 3 samples).
+    pub block_s: f64,
+    /// Use the log's session marks instead of detecting sessions.
+    pub use_marks: bool,
+}
+
+impl Default for SegmentOptions {
+    fn default() -> Self {
+        SegmentOptions {
+            min_speed: 1f64.to_radians(),
+            relative_tol: 1f64.to_radians(),
+            block_s: 0.05,
+            use_marks: false,
+        }
+    }
+}
+
+/// What a segment of the log is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SegmentKind {
+    /// Neither sensor moves.
+    Stationary,
+    /// Both sensors turn together at a constant relative angle: a CSRR session candidate.
+    Rotating,
+    /// One sensor turns against the other (a relative turn), or motion too irregular to use.
+    Turning,
+}
+
+/// A segment of the log.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Segment {
+    /// Its kind.
+    pub kind: SegmentKind,
+    /// First sample's time, s.
+    pub start_s: f64,
+    /// Last sample's time, s.
+    pub end_s: f64,
+    /// Samples in it.
+    pub samples: u64,
+    /// Revolutions of the first sensor (signed by direction).
+    pub revolutions: f64,
+    /// Mean relative angle `x − y`, rad, wrapped to `[0, 2π)`.
+    pub relative_angle: f64,
+    /// For a rotating segment: the session index it became, or `None` when it was too short.
+    pub session: Option<usize>,
+}
+
+/// Receives the samples of each session as the [`Segmenter`] finds them.
+pub trait SessionSink {
+    /// A sample of session `session`: time, both readings wrapped to `[0, 2π)`, and the relative
+    /// angle `d = x − y` unwrapped continuously within the session (so `d` never jumps by 2π).
+    /// `extra` carries the readings of any further channels fed to the segmenter.
+    fn sample(&mut self, session: usize, t: f64, x: f64, y: f64, d: f64, extra: &[f64]);
+    /// Session `session` is complete; `accepted` is false when it covered less than one
+    /// revolution and must be discarded.
+    fn close(&mut self, session: usize, accepted: bool);
+}
+
+/// A sink that discards samples (for `inspect`, which only wants the segments).
+impl SessionSink for () {
+    fn sample(&mut self, _: usize, _: f64, _: f64, _: f64, _: f64, _: &[f64]) {}
+    fn close(&mut self, _: usize, _: bool) {}
+}
+
+#[derive(Debug, Clone)]
+struct Buffered {
+    t: f64,
+    x: f64,
+    y: f64,
+    d: f64,
+    xu: f64,
+    yu: f64,
+    mark: Option<u32>,
+    extra: Vec<f64>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct BlockStats {
+    kind: SegmentKind,
+    d_mean: f64,
+    direction: f64,
+}
+
+/// Streaming splitter of a two-sensor log into segments and sessions. See the module docs.
+#[derive(Debug)]
+pub struct Segmenter {
+    opts: SegmentOptions,
+    ux: Unwrapper,
+    uy: Unwrapper,
+    block: Vec<Buffered>,
+    /// A rotating block held back until the next block shows whether the session goes on.
+    held: Vec<Buffered>,
+    segments: Vec<Segment>,
+    current: Option<Open>,
+    sessions: usize,
+    opposite_blocks: u64,
+    moving_blocks: u64,
+}
+
+#[derive(Debug)]
+struct Open {
+    kind: SegmentKind,
+    start_s: f64,
+    end_s: f64,
+    samples: u64,
+    x_start: f64,
+    x_end: f64,
+    d_ref: f64,
+    d_sum: f64,
+    direction: f64,
+    mark: Option<u32>,
+    /// The session id handed to the sink, for rotating segments.
+    session: Option<usize>,
+}
+
+impl Segmenter {
+    /// A segmenter with these options.
+    pub fn new(opts: SegmentOptions) -> Self {
+        Segmenter {
+            opts,
+            ux: Unwrapper::new(),
+            uy: Unwrapper::new(),
+            block: Vec::new(),
+            held: Vec::new(),
+            segments: Vec::new(),
+            current: None,
+            sessions: 0,
+            opposite_blocks: 0,
+            moving_blocks: 0,
+        }
+    }
+
+    /// Feeds one sample: time (s), the two sensors' readings (rad, wrapped or not), the log's
+    /// session mark if any, and further channels to pass through to the sink.
+    pub fn push<S: SessionSink>(
+        &mut self,
+        t: f64,
+        x: f64,
+        y: f64,
+        mark: Option<u32>,
+        extra: &[f64],
+        sink: &mut S,
+    ) {
+        let xu = self.ux.unwrap(x);
+        let yu = self.uy.unwrap(y);
+        let full = match self.block.first() {
+            Some(first) => {
+                let mark_changed = self.opts.use_marks && first.mark != mark;
+                (t - first.t >= self.opts.block_s && self.block.len() >= 3) || mark_changed
+            }
+            None => false,
+        };
+        if full {
+            self.flush_block(sink);
+        }
+        self.block.push(Buffered {
+            t,
+            x: wrap_2pi(x),
+            y: wrap_2pi(y),
+            d: xu - yu,
+            xu,
+            yu,
+            mark,
+            extra: extra.to_vec(),
+        });
+    }
+
+    /// Ends the stream: closes the last segment and returns every segment found.
+    pub fn finish<S: SessionSink>(mut self, sink: &mut S) -> Segmentation {
+        if !self.block.is_empty() {
+            self.flush_block(sink);
+        }
+        self.close_current(sink);
+        Segmentation {
+            segments: self.segments,
+            sessions: self.sessions,
+            opposite_direction: self.moving_blocks > 0
+                && self.opposite_blocks * 2 > self.moving_blocks,
+        }
+    }
+
+    fn classify(&mut self, block: &[Buffered]) -> BlockStats {
+        let (first, last) = (&block[0], &block[block.len() - 1]);
+        let dt = (last.t - first.t).max(f64::MIN_POSITIVE);
+        let vx = (last.xu - first.xu) / dt;
+        let vy = (last.yu - first.yu) / dt;
+        let d_mean = block.iter().map(|b| b.d).sum::<f64>() / block.len() as f64;
+        let min = self.opts.min_speed;
+        let (mx, my) = (vx.abs() >= min, vy.abs() >= min);
+        if mx && my {
+            self.moving_blocks += 1;
+            if vx.signum() != vy.signum() {
+                self.opposite_blocks += 1;
+            }
+        }
+        let kind = if !mx && !my {
+            SegmentKind::Stationary
+        } else if mx && my && vx.signum() == vy.signum() {
+            SegmentKind::Rotating
+        } else {
+            SegmentKind::Turning
+        };
+        BlockStats {
+            kind,
+            d_mean,
+            direction: vx.signum(),
+        }
+    }
+
+    fn flush_block<S: SessionSink>(&mut self, sink: &mut S) {
+        let block = std::mem::take(&mut self.block);
+        let mut stats = self.classify(&block);
+        let mark = block[0].mark;
+        if self.opts.use_marks {
+            // The log says which rows are sessions: marked rows are a session whatever the
+            // motion, unmarked rows never are.
+            if mark.is_some() {
+                stats.kind = SegmentKind::Rotating;
+            } else if stats.kind == SegmentKind::Rotating {
+                stats.kind = SegmentKind::Turning;
+            }
+        }
+        let continues = match &self.current {
+            Some(open) if open.kind == stats.kind => match stats.kind {
+                SegmentKind::Rotating if self.opts.use_marks => open.mark == mark,
+                SegmentKind::Rotating => {
+                    (stats.d_mean - open.d_ref).abs() <= self.opts.relative_tol
+                        && stats.direction == open.direction
+                }
+                _ => true,
+            },
+            _ => false,
+        };
+        if !continues {
+            self.close_current(sink);
+            let first = &block[0];
+            let session = (stats.kind == SegmentKind::Rotating).then(|| {
+                self.sessions += 1;
+                self.sessions - 1
+            });
+            self.current = Some(Open {
+                kind: stats.kind,
+                start_s: first.t,
+                end_s: first.t,
+                samples: 0,
+                x_start: first.xu,
+                x_end: first.xu,
+                d_ref: stats.d_mean,
+                d_sum: 0.0,
+                direction: stats.direction,
+                mark,
+                session,
+            });
+        }
+        let open = self.current.as_mut().expect("set above");
+        let last = &block[block.len() - 1];
+        open.end_s = last.t;
+        open.x_end = last.xu;
+        open.samples += block.len() as u64;
+        open.d_sum += block.iter().map(|b| b.d).sum::<f64>();
+        let Some(session) = open.session else { return };
+        if self.opts.use_marks {
+            // Marked sessions are exactly what the log says: no edge trimming.
+            for b in &block {
+                sink.sample(session, b.t, b.x, b.y, b.d, &b.extra);
+            }
+        } else if continues {
+            // Hand over the block held back last time and hold this one: the last block of a
+            // session is dropped with `held` when the session ends.
+            for b in self.held.drain(..) {
+                sink.sample(session, b.t, b.x, b.y, b.d, &b.extra);
+            }
+            self.held = block;
+        }
+        // The first block of a detected session is neither handed over nor held: it is dropped.
+    }
+
+    fn close_current<S: SessionSink>(&mut self, sink: &mut S) {
+        let Some(open) = self.current.take() else {
+            return;
+        };
+        let revolutions = (open.x_end - open.x_start) / TAU;
+        let mut session = open.session;
+        if let Some(k) = open.session {
+            let accepted = revolutions.abs() >= 1.0;
+            sink.close(k, accepted);
+            if !accepted {
+                session = None;
+            }
+        }
+        self.held.clear();
+        self.segments.push(Segment {
+            kind: open.kind,
+            start_s: open.start_s,
+            end_s: open.end_s,
+            samples: open.samples,
+            revolutions,
+            relative_angle: wrap_2pi(open.d_sum / open.samples.max(1) as f64),
+            session,
+        });
+    }
+}
+
+/// The segments of a log, and how many session ids were handed out.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segmentation {
+    /// Every segment, in log order.
+    pub segments: Vec<Segment>,
+    /// Session ids handed to the sink (accepted or not) — ids run `0..sessions`.
+    pub sessions: usize,
+    /// Most moving blocks had the two sensors turning in opposite directions: one channel counts
+    /// the other way round.
+    pub opposite_direction: bool,
+}
+
+impl Segmentation {
+    /// The rotating segments that became sessions.
+    pub fn accepted_sessions(&self) -> impl Iterator<Item = &Segment> {
+        self.segments.iter().filter(|s| s.session.is_some())
+    }
+    /// The rotating segments rejected for covering less than one revolution.
+    pub fn short_segments(&self) -> impl Iterator<Item = &Segment> {
+        self.segments
+            .iter()
+            .filter(|s| s.kind == SegmentKind::Rotating && s.session.is_none())
+    }
+}
