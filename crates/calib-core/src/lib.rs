@@ -20,6 +20,7 @@ pub mod angle;
 pub mod csrr;
 pub mod error_map;
 pub mod harmonics;
+pub mod inspect;
 pub mod report;
 pub mod sample;
 pub mod segment;
