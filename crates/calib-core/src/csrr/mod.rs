@@ -52,6 +52,7 @@ pub mod joint;
 mod nufft;
 pub mod observability;
 pub mod paper;
+pub mod reference;
 
 use crate::angle::ARCSEC_PER_RAD;
 use crate::error_map::ErrorMap;
@@ -59,7 +60,8 @@ use crate::harmonics::FourierSeries;
 use crate::segment::{SegmentOptions, Segmentation, Segmenter, SessionSink};
 use bins::{Bin, SessionBinner};
 use joint::{ExcludedOrder, JointOptions};
-use paper::PaperAccumulator;
+use paper::{PaperAccumulator, PaperPoint};
+use reference::{ReferenceAccumulator, ReferenceCheck};
 
 /// One session, reduced to bins of A's reading.
 #[derive(Debug, Clone, PartialEq)]
@@ -163,6 +165,8 @@ pub struct CsrrOptions {
     pub points: Option<usize>,
     /// Benchmark readings of A and B for the paper method, rad (default 0).
     pub benchmarks: (f64, f64),
+    /// Whether samples carry a reference encoder's reading ([`Csrr::push_with_reference`]).
+    pub reference: bool,
 }
 
 impl Default for CsrrOptions {
@@ -175,6 +179,7 @@ impl Default for CsrrOptions {
             min_observability: 0.01,
             points: None,
             benchmarks: (0.0, 0.0),
+            reference: false,
         }
     }
 }
@@ -232,6 +237,10 @@ pub struct Calibration {
     pub residual_rms: Option<f64>,
     /// Solver iterations (joint method).
     pub iterations: usize,
+    /// The paper method's points, one per session (paper method only).
+    pub paper_points: Vec<PaperPoint>,
+    /// Checks against the reference encoder, when one was given.
+    pub reference: Option<ReferenceCheck>,
     /// Things the user should know.
     pub warnings: Vec<String>,
 }
@@ -239,6 +248,7 @@ pub struct Calibration {
 struct Sinks {
     binner: Option<SessionBinner>,
     paper: Option<PaperAccumulator>,
+    reference: Option<ReferenceAccumulator>,
 }
 
 impl SessionSink for Sinks {
@@ -249,6 +259,9 @@ impl SessionSink for Sinks {
         if let Some(p) = &mut self.paper {
             p.sample(session, t, x, y, d, extra);
         }
+        if let Some(r) = &mut self.reference {
+            r.sample(session, t, x, y, d, extra);
+        }
     }
     fn close(&mut self, session: usize, accepted: bool) {
         if let Some(b) = &mut self.binner {
@@ -256,6 +269,9 @@ impl SessionSink for Sinks {
         }
         if let Some(p) = &mut self.paper {
             p.close(session, accepted);
+        }
+        if let Some(r) = &mut self.reference {
+            r.close(session, accepted);
         }
     }
 }
@@ -274,6 +290,7 @@ impl Csrr {
             binner: (opts.method == Method::Joint).then(|| SessionBinner::new(opts.bins_per_rev)),
             paper: (opts.method == Method::Paper)
                 .then(|| PaperAccumulator::new(opts.benchmarks.0, opts.benchmarks.1)),
+            reference: opts.reference.then(ReferenceAccumulator::new),
         };
         Csrr {
             segmenter: Segmenter::new(opts.segments),
@@ -285,6 +302,12 @@ impl Csrr {
     /// Feeds one synchronized sample: time (s), A's and B's readings (rad), the log's session mark.
     pub fn push(&mut self, t: f64, x: f64, y: f64, mark: Option<u32>) {
         self.segmenter.push(t, x, y, mark, &[], &mut self.sinks);
+    }
+
+    /// Feeds one sample with a reference encoder's reading `r` (rad) on rotor B's shaft; the
+    /// options must have [`CsrrOptions::reference`] set.
+    pub fn push_with_reference(&mut self, t: f64, x: f64, y: f64, r: f64, mark: Option<u32>) {
+        self.segmenter.push(t, x, y, mark, &[r], &mut self.sinks);
     }
 
     /// Solves, once every sample is in.
@@ -302,21 +325,20 @@ impl Csrr {
         if segmentation.accepted_sessions().count() == 0 && segmentation.opposite_direction {
             return Err(CsrrError::OppositeDirections);
         }
-        match self.opts.method {
+        let mut cal = match self.opts.method {
             Method::Joint => {
-                let sessions = self
-                    .sinks
-                    .binner
-                    .take()
-                    .expect("joint sink")
-                    .into_sessions();
-                finish_joint(&self.opts, sessions, segmentation, warnings)
+                let binner = self.sinks.binner.take().expect("joint sink");
+                finish_joint(&self.opts, binner.into_sessions(), segmentation, warnings)
             }
             Method::Paper => {
                 let paper = self.sinks.paper.take().expect("paper sink");
                 finish_paper(&self.opts, paper, segmentation, warnings)
             }
+        }?;
+        if let Some(r) = self.sinks.reference.take() {
+            cal.reference = Some(r.finish(&cal.a_series, &cal.b_series));
         }
+        Ok(cal)
     }
 }
 
@@ -447,6 +469,8 @@ fn finish_joint(
         iterations: sol.iterations,
         a_series: sol.a,
         b_series: sol.b,
+        paper_points: Vec::new(),
+        reference: None,
         warnings,
     })
 }
@@ -516,6 +540,8 @@ fn finish_paper(
         advice: None,
         residual_rms: None,
         iterations: 0,
+        paper_points: points,
+        reference: None,
         warnings,
     })
 }
