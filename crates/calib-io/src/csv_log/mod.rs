@@ -25,5 +25,8 @@ mod fields;
 mod reader;
 mod writer;
 
+pub(crate) use fields::{
+    csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, wrong_width,
+};
 pub use reader::CsvReader;
 pub use writer::CsvWriter;
