@@ -43,6 +43,14 @@ pub enum Error {
         /// What is wrong and what to do.
         message: String,
     },
+    /// What a writer was given cannot be written as a valid file; nothing was written.
+    #[error("{}: cannot write: {message}", path.display())]
+    Write {
+        /// The file that was to be written.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        message: String,
+    },
     /// A file holds no samples.
     #[error("{}: the log holds no samples", path.display())]
     Empty {

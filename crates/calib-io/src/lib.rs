@@ -5,11 +5,13 @@
 //! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` (CDR) or JSON messages,
 //!   channels joined across topics on equal time stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
+//! - [`atomic`]: output files that appear only when complete.
 //!
 //! Every reader streams: memory stays bounded whatever the log's length. Every error names the
 //! file and the line or message it concerns ([`Error`]).
 #![deny(missing_docs)]
 
+pub mod atomic;
 pub mod csv_log;
 pub mod error;
 pub mod mcap_log;

@@ -1,1 +1,391 @@
-//! Correction tables.
+//! Correction tables: the `DIR/<channel>.csv` output of every method, and the input of
+//! `calib apply`.
+//!
+//! # Format
+//! ```text
+//! angle_deg,error_arcsec,correction_arcsec,u_arcsec
+//! 0.000000,1.234567,-1.234567,0.050000
+//! 0.100000,1.301002,-1.301002,0.050000
+//! ```
+//!
+//! One row per point of the uniform grid `angle_deg = i·360/N`, `i = 0..N−1`, in order, starting
+//! at 0 and covering one revolution (360° itself is not repeated). `error_arcsec` is the sensor's
+//! error `e = reading − true angle` at that reading, `correction_arcsec = −e`, and the optional
+//! `u_arcsec` is the standard uncertainty of `e` where the method gives one.
+//!
+//! # Precision
+//! Every number is written with exactly **6 decimals**, so the same map always gives the same bytes
+//! (diffable outputs, snapshot tests):
+//! - angles: rounding moves a grid label by at most 5·10⁻⁷° (1.8 milli-arcsec); the grid itself is
+//!   exact by definition and [`read_table`] rebuilds it from `N`, so nothing is lost;
+//! - errors, corrections and uncertainties: a resolution of 10⁻⁶″, far below any encoder's
+//!   repeatability (the best angle standards reach ~10⁻³″), so the rounding is never meaningful.
+//!
+//! # Mean
+//! Maps are zero-mean ([`ErrorMap`]); [`read_table`] removes the mean of a table that has one
+//! (e.g. written by another tool), since no self-calibration observes an absolute offset.
+
+use crate::Error;
+use crate::atomic::AtomicFile;
+use crate::csv_log::{
+    csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, wrong_width,
+};
+use calib_core::ErrorMap;
+use calib_core::angle::ARCSEC_PER_RAD;
+use csv::ByteRecord;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::Path;
+
+/// The header [`render_table`] writes, without and with uncertainties.
+const HEADER: &str = "angle_deg,error_arcsec,correction_arcsec";
+const U_COLUMN: &str = "u_arcsec";
+
+/// How far (degrees) a row's angle may be from its grid point: above the 5·10⁻⁷° of 6-decimal
+/// rounding, far below any grid spacing in use.
+pub const GRID_TOLERANCE_DEG: f64 = 1e-6;
+
+/// A correction table read back: the error map and, where the table has them, the standard
+/// uncertainties of its points.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CorrectionTable {
+    /// The error map (radians, zero mean) on the table's grid.
+    pub map: ErrorMap,
+    /// One standard uncertainty per grid point (radians), if the table has a `u_arcsec` column.
+    pub u: Option<Vec<f64>>,
+}
+
+/// Why a map cannot be rendered as a table.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RenderError {
+    /// The uncertainties are not one per grid point.
+    #[error("{given} uncertainties for a map of {points} points; give one per grid point")]
+    UncertaintyCount {
+        /// Points of the map.
+        points: usize,
+        /// Uncertainties given.
+        given: usize,
+    },
+    /// A value is NaN or infinite, or an uncertainty is negative.
+    #[error(
+        "the {what} at grid point {index} is {value}, which is not a finite (non-negative) number"
+    )]
+    BadValue {
+        /// 0-based grid point.
+        index: usize,
+        /// `error` or `uncertainty`.
+        what: &'static str,
+        /// The offending value, radians.
+        value: f64,
+    },
+}
+
+/// Renders a correction table (see the [module docs](self) for the format and precision).
+///
+/// `u`, if given, holds one standard uncertainty per grid point in radians. Pure: the same input
+/// always gives the same text.
+///
+/// ```
+/// use calib_core::{ErrorMap, angle::ARCSEC_PER_RAD};
+/// let map = ErrorMap::new(vec![1.5 / ARCSEC_PER_RAD, -1.5 / ARCSEC_PER_RAD]);
+/// let text = calib_io::table::render_table(&map, None)?;
+/// assert_eq!(
+///     text,
+///     "angle_deg,error_arcsec,correction_arcsec\n\
+///      0.000000,1.500000,-1.500000\n\
+///      180.000000,-1.500000,1.500000\n"
+/// );
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn render_table(map: &ErrorMap, u: Option<&[f64]>) -> Result<String, RenderError> {
+    let n = map.len();
+    if let Some(u) = u {
+        if u.len() != n {
+            return Err(RenderError::UncertaintyCount {
+                points: n,
+                given: u.len(),
+            });
+        }
+        if let Some((index, &value)) = u
+            .iter()
+            .enumerate()
+            .find(|&(_, &v)| !(v.is_finite() && v >= 0.0))
+        {
+            return Err(RenderError::BadValue {
+                index,
+                what: "uncertainty",
+                value,
+            });
+        }
+    }
+    if let Some((index, &value)) = map
+        .values()
+        .iter()
+        .enumerate()
+        .find(|&(_, v)| !v.is_finite())
+    {
+        return Err(RenderError::BadValue {
+            index,
+            what: "error",
+            value,
+        });
+    }
+
+    let mut out = String::with_capacity(48 * (n + 1));
+    out.push_str(HEADER);
+    if u.is_some() {
+        out.push(',');
+        out.push_str(U_COLUMN);
+    }
+    out.push('\n');
+    for (i, &e) in map.values().iter().enumerate() {
+        let e = e * ARCSEC_PER_RAD;
+        push_fixed(&mut out, grid_deg(i, n));
+        out.push(',');
+        push_fixed(&mut out, e);
+        out.push(',');
+        push_fixed(&mut out, -e);
+        if let Some(u) = u {
+            out.push(',');
+            push_fixed(&mut out, u[i] * ARCSEC_PER_RAD);
+        }
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+/// Writes a correction table atomically: the file appears complete or not at all.
+///
+/// `u` as for [`render_table`]; a map or `u` it refuses is reported as [`Error::Write`] naming
+/// `path`, and nothing is written.
+pub fn write_table(path: &Path, map: &ErrorMap, u: Option<&[f64]>) -> Result<(), Error> {
+    let text = render_table(map, u).map_err(|e| Error::Write {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let mut file = AtomicFile::create(path)?;
+    file.write_all(text.as_bytes())
+        .map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    file.commit()
+}
+
+/// Reads and validates a correction table.
+///
+/// Checks, with an error naming the file, line and column for each: the header (the three
+/// columns, optionally `u_arcsec`, in any order, nothing else), numbers in every field, finite
+/// values, non-negative uncertainties, `correction_arcsec = −error_arcsec` within the rounding of
+/// the two fields as written, at least 2 rows, and angles on the uniform grid `i·360/N` starting
+/// at 0 (within [`GRID_TOLERANCE_DEG`]).
+pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
+    let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut reader = csv_reader(file);
+    let mut record = ByteRecord::new();
+    let err = |line: u64, column: Option<&str>, message: String| Error::Csv {
+        path: path.to_path_buf(),
+        line,
+        channel: column.map(str::to_string),
+        message,
+    };
+    if !reader
+        .read_byte_record(&mut record)
+        .map_err(|e| from_csv(path, e))?
+    {
+        return Err(err(
+            1,
+            None,
+            format!("the file is empty; a correction table starts with the header `{HEADER}`"),
+        ));
+    }
+    let names = header_names(path, &record)?;
+    let header_line = line_of(path, &record);
+    let column = |name: &str| names.iter().position(|n| n == name);
+    if let Some(unknown) = names.iter().find(|n| {
+        !matches!(
+            n.as_str(),
+            "angle_deg" | "error_arcsec" | "correction_arcsec" | "u_arcsec"
+        )
+    }) {
+        return Err(err(
+            header_line,
+            Some(unknown),
+            format!(
+                "unknown column; a correction table has the columns `{HEADER}` and optionally \
+                 `{U_COLUMN}`"
+            ),
+        ));
+    }
+    let (Some(angle_col), Some(error_col), Some(corr_col)) = (
+        column("angle_deg"),
+        column("error_arcsec"),
+        column("correction_arcsec"),
+    ) else {
+        return Err(err(
+            header_line,
+            None,
+            format!(
+                "the header is `{}`; a correction table has the columns `{HEADER}` (and \
+                 optionally `{U_COLUMN}`)",
+                names.join(",")
+            ),
+        ));
+    };
+    let u_col = column(U_COLUMN);
+
+    // Tables are small (one row per grid point), and the grid can only be checked once N is
+    // known, so they are read whole.
+    let mut positions = Vec::new();
+    let mut angles = Vec::new();
+    let mut errors = Vec::new();
+    let mut u = u_col.map(|_| Vec::new());
+    while reader
+        .read_byte_record(&mut record)
+        .map_err(|e| from_csv(path, e))?
+    {
+        if record.len() != names.len() {
+            return Err(wrong_width(path, &record, &names));
+        }
+        let line = || line_of(path, &record);
+        let number = |col: usize| -> Result<f64, Error> {
+            let raw = record.get(col).unwrap_or_default();
+            let v = parse_f64(raw)
+                .ok_or_else(|| err(line(), Some(&names[col]), not_a_number(raw, "every value")))?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(err(
+                    line(),
+                    Some(&names[col]),
+                    format!("`{v}` is not a finite number; every value must be finite"),
+                ))
+            }
+        };
+        let angle = number(angle_col)?;
+        let e = number(error_col)?;
+        let c = number(corr_col)?;
+        let slack = half_unit(record.get(error_col).unwrap_or_default())
+            + half_unit(record.get(corr_col).unwrap_or_default())
+            // Decimal-to-binary conversion of the two fields.
+            + 1e-12 * (e.abs() + c.abs());
+        if (c + e).abs() > slack {
+            return Err(err(
+                line(),
+                Some("correction_arcsec"),
+                format!(
+                    "correction {c} is not the negated error {e} (error_arcsec); the correction \
+                     must be −error: fix whichever column is wrong"
+                ),
+            ));
+        }
+        if let (Some(u), Some(col)) = (u.as_mut(), u_col) {
+            let v = number(col)?;
+            if v < 0.0 {
+                return Err(err(
+                    line(),
+                    Some(U_COLUMN),
+                    format!("uncertainty {v} is negative; a standard uncertainty is ≥ 0"),
+                ));
+            }
+            u.push(v / ARCSEC_PER_RAD);
+        }
+        // Rows always have positions; the default only satisfies the type.
+        positions.push(
+            record
+                .position()
+                .cloned()
+                .unwrap_or_else(csv::Position::new),
+        );
+        angles.push(angle);
+        errors.push(e / ARCSEC_PER_RAD);
+    }
+
+    let n = angles.len();
+    if n < 2 {
+        return Err(err(
+            positions
+                .first()
+                .map_or(header_line + 1, |p| line_at(path, p) + 1),
+            None,
+            format!(
+                "the table has {n} row{}; a correction table needs at least 2 grid points",
+                if n == 1 { "" } else { "s" }
+            ),
+        ));
+    }
+    for (i, (&angle, pos)) in angles.iter().zip(&positions).enumerate() {
+        let want = grid_deg(i, n);
+        if (angle - want).abs() > GRID_TOLERANCE_DEG {
+            return Err(err(
+                line_at(path, pos),
+                Some("angle_deg"),
+                format!(
+                    "angle {angle}° is off the uniform grid: row {} of {n} must be at {want}° \
+                     (angle_deg = i·360/N from 0, one row per grid point over one revolution, in \
+                     order)",
+                    i + 1
+                ),
+            ));
+        }
+    }
+    Ok(CorrectionTable {
+        map: ErrorMap::new(errors),
+        u,
+    })
+}
+
+/// Grid angle `i·360/N`, degrees.
+fn grid_deg(i: usize, n: usize) -> f64 {
+    i as f64 * 360.0 / n as f64
+}
+
+/// Appends `x` with 6 decimals, never as `-0.000000`: a value that rounds to zero is written the
+/// same whatever its sign, so a map and its negation render symmetrically.
+fn push_fixed(out: &mut String, x: f64) {
+    let start = out.len();
+    // Writing into a String cannot fail.
+    let _ = write!(out, "{x:.6}");
+    if &out[start..] == "-0.000000" {
+        out.remove(start);
+    }
+}
+
+/// Half a unit in the last written digit of a decimal field (`1.25` → 0.005, `-3e-4` →
+/// 0.00005, `12` → 0.5): the most rounding to that many digits can have changed the value.
+fn half_unit(field: &[u8]) -> f64 {
+    let s = std::str::from_utf8(field.trim_ascii()).unwrap_or("");
+    let (mantissa, exp) = match s.find(['e', 'E']) {
+        Some(k) => (&s[..k], s[k + 1..].parse::<i32>().unwrap_or(0)),
+        None => (s, 0),
+    };
+    let decimals = mantissa
+        .split_once('.')
+        .map_or(0, |(_, frac)| frac.len() as i32);
+    0.5 * 10f64.powi(exp.saturating_sub(decimals))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn half_units() {
+        assert_eq!(half_unit(b"1.25"), 0.005);
+        assert_eq!(half_unit(b" 12 "), 0.5);
+        assert!((half_unit(b"-3e-4") - 0.00005).abs() < 1e-20);
+        assert!((half_unit(b"1.5E2") - 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn negative_zero_is_written_as_zero() {
+        let mut s = String::new();
+        push_fixed(&mut s, -1e-9);
+        push_fixed(&mut s, -0.0);
+        push_fixed(&mut s, -0.5);
+        assert_eq!(s, "0.0000000.000000-0.500000");
+    }
+}
