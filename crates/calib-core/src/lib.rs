@@ -21,6 +21,7 @@ pub mod error_map;
 pub mod harmonics;
 pub mod report;
 pub mod sample;
+pub mod simulate;
 
 pub use angle::{Angle, AngleUnit, Unwrapper};
 pub use error_map::ErrorMap;
