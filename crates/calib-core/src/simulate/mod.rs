@@ -127,7 +127,7 @@ use crate::error_map::ErrorMap;
 use crate::sample::{Channel, Sample};
 use motion::{SessionPlan, Timeline, Timing};
 use rng::Rng;
-use sensor::{ErrorModel, Term};
+use sensor::{ErrorModel, FastSeries, Powers, Term};
 use std::f64::consts::TAU;
 
 fn terms(harmonics: &[HarmonicSpec]) -> Vec<Term> {
@@ -223,20 +223,31 @@ impl Scenario {
             .collect();
         // Samples at n/rate for every n with n/rate ≤ duration (float-to-int saturates).
         let count = (timeline.duration() * self.rate_hz).floor() as u64 + 1;
-        let channels = self
+        let channels: Vec<ChannelSim> = self
             .sensors
             .iter()
             .zip(1u64..)
-            .map(|(s, stream)| ChannelSim {
-                mount: self.mount_of(s),
-                model: self.truth_of(s).model,
-                quantum: s.quantization_arcsec / ARCSEC_PER_RAD,
-                noise: s.noise_arcsec / ARCSEC_PER_RAD,
-                rng: Rng::new(self.seed, stream),
+            .map(|(s, stream)| {
+                let model = self.truth_of(s).model;
+                ChannelSim {
+                    mount: self.mount_of(s),
+                    offset: model.offset,
+                    series: FastSeries::new(&model.terms),
+                    quantum: s.quantization_arcsec / ARCSEC_PER_RAD,
+                    noise: s.noise_arcsec / ARCSEC_PER_RAD,
+                    rng: Rng::new(self.seed, stream),
+                }
             })
             .collect();
+        let need = |mount| channel_powers_needed(&channels, mount);
+        let (need_a, need_b) = (need(Mount::A), need(Mount::B));
         Ok(Samples {
             timeline,
+            need_a,
+            need_b,
+            powers_a: Powers::default(),
+            powers_b: Powers::default(),
+            rotation: None,
             windows,
             window: 0,
             channels,
@@ -303,10 +314,42 @@ impl Scenario {
     }
 }
 
+/// How many binary powers of `e^{iθ}` the channels on `mount` need.
+fn channel_powers_needed(channels: &[ChannelSim], mount: Mount) -> usize {
+    channels
+        .iter()
+        .filter(|c| c.mount == mount)
+        .map(|c| c.series.powers_needed())
+        .max()
+        .unwrap_or(0)
+}
+
+/// `r` wrapped to `[0, 2π)` as [`wrap_2pi`] does, without its `fmod`, which is a slow software
+/// routine: `r − k·2π` with `2π` split into a 32-bit head (so `k·HEAD` is exact for
+/// `|k| < 2²¹`, and the subtraction is exact by Sterbenz's lemma) and a tail.
+fn wrap_revolution(r: f64) -> f64 {
+    const HEAD: f64 = f64::from_bits(TAU.to_bits() & !((1u64 << 21) - 1));
+    const TAIL: f64 = TAU - HEAD;
+    let k = (r / TAU).floor();
+    if k.abs() >= (1u64 << 21) as f64 {
+        return wrap_2pi(r);
+    }
+    let w = (r - k * HEAD) - k * TAIL;
+    if w < 0.0 {
+        w + TAU
+    } else if w >= TAU {
+        w - TAU
+    } else {
+        w
+    }
+}
+
 #[derive(Debug, Clone)]
 struct ChannelSim {
     mount: Mount,
-    model: ErrorModel,
+    /// The error model `offset + series(θ)` (see `ErrorModel`), in its fast form.
+    offset: f64,
+    series: FastSeries,
     /// Resolution, radians (0: none).
     quantum: f64,
     /// Noise σ, radians.
@@ -322,6 +365,14 @@ pub struct Samples {
     windows: Vec<(u64, u64)>,
     /// The window of the current or next session.
     window: usize,
+    /// Binary powers of `e^{iθ_A}` and `e^{iθ_B}` needed by the channels on each rotor (0: none
+    /// there), computed once per sample and shared by the channels.
+    need_a: usize,
+    need_b: usize,
+    powers_a: Powers,
+    powers_b: Powers,
+    /// The last relative rotation Δ and its `(sin Δ, cos Δ)`: Δ changes only during turns.
+    rotation: Option<(f64, (f64, f64))>,
     channels: Vec<ChannelSim>,
     next: u64,
     count: u64,
@@ -379,6 +430,23 @@ impl Samples {
             t
         };
         let state = self.timeline.state(instant);
+        if self.need_a > 0 || self.need_b > 0 {
+            let (sb, cb) = state.theta_b.sin_cos();
+            self.powers_b.set((sb, cb), self.need_b);
+            if self.need_a > 0 {
+                let (sd, cd) = match self.rotation {
+                    Some((d, sc)) if d == state.delta => sc,
+                    _ => {
+                        let sc = state.delta.sin_cos();
+                        self.rotation = Some((state.delta, sc));
+                        sc
+                    }
+                };
+                // e^{iθ_A} = e^{iθ_B}·e^{iΔ}.
+                self.powers_a
+                    .set((sb * cd + cb * sd, cb * cd - sb * sd), self.need_a);
+            }
+        }
         let mut values = Vec::with_capacity(self.channels.len());
         for ch in &mut self.channels {
             let theta = match ch.mount {
@@ -388,14 +456,18 @@ impl Samples {
             if let Some(truth) = truth.as_deref_mut() {
                 truth.push(theta);
             }
-            let mut r = theta + ch.model.eval(theta);
+            let powers = match ch.mount {
+                Mount::A => &self.powers_a,
+                Mount::B => &self.powers_b,
+            };
+            let mut r = theta + ch.offset + ch.series.eval_powers(powers);
             if ch.noise > 0.0 {
                 r += ch.noise * ch.rng.normal();
             }
             if ch.quantum > 0.0 {
                 r = (r / ch.quantum).round() * ch.quantum;
             }
-            values.push(if self.wrap { wrap_2pi(r) } else { r });
+            values.push(if self.wrap { wrap_revolution(r) } else { r });
         }
         let session = if self.mark_sessions { in_session } else { None };
         Some((Sample { t, values, session }, state.delta, in_session))
@@ -444,3 +516,23 @@ impl Iterator for WithTruth {
 }
 
 impl ExactSizeIterator for WithTruth {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_wrap_agrees_with_fmod() {
+        for k in -20_000..20_000 {
+            let r = k as f64 * 0.7345 + 1e-9 * k as f64;
+            assert!(
+                (wrap_revolution(r) - wrap_2pi(r)).abs() < 1e-15 * (1.0 + r.abs()),
+                "{r}"
+            );
+            assert!((0.0..TAU).contains(&wrap_revolution(r)));
+        }
+        for r in [0.0, TAU, -TAU, 1e300, -1e-300, 3.0 * TAU - 1e-15] {
+            assert!((0.0..TAU).contains(&wrap_revolution(r)), "{r}");
+        }
+    }
+}

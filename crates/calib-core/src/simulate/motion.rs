@@ -7,8 +7,7 @@
 //! `ε_θ(φ) = Σ m_Ω cos(Ω·φ + ψ_Ω)`. Rotor A is locked to the shaft at the session's relative
 //! rotation: `θ_A = θ_B + Δ(t)`, with `Δ` changing only during turns.
 
-use super::sensor::Term;
-use crate::angle::wrap_2pi;
+use super::sensor::{FastSeries, Powers, Term};
 use std::f64::consts::PI;
 
 /// What the shaft and rotor A do during one segment.
@@ -76,7 +75,8 @@ pub(crate) struct State {
 pub(crate) struct Timeline {
     segments: Vec<Segment>,
     omega: f64,
-    modulation: Vec<Term>,
+    modulation: FastSeries,
+    powers: Powers,
     /// Index of the segment of the last lookup: time mostly moves forward by one sample.
     cursor: usize,
 }
@@ -127,7 +127,8 @@ impl Timeline {
         Timeline {
             segments,
             omega: timing.omega,
-            modulation,
+            modulation: FastSeries::new(&modulation),
+            powers: Powers::default(),
             cursor: 0,
         }
     }
@@ -183,18 +184,10 @@ impl Timeline {
             }
         };
         State {
-            theta_b: phi + self.modulation_at(phi),
+            // ε_θ(φ) of eq. (9).
+            theta_b: phi + self.modulation.eval(phi, &mut self.powers),
             delta,
         }
-    }
-
-    /// `ε_θ(φ)` of eq. (9).
-    fn modulation_at(&self, phi: f64) -> f64 {
-        let p = wrap_2pi(phi);
-        self.modulation
-            .iter()
-            .map(|m| m.amplitude * (m.order * p + m.phase).cos())
-            .sum()
     }
 }
 

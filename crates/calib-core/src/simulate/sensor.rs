@@ -14,6 +14,89 @@ pub(crate) struct Term {
     pub(crate) phase: f64,
 }
 
+/// A sum of terms evaluated by powers of `z = e^{iθ}`, for the generator's hot loop.
+///
+/// One `sin_cos` per call instead of one `cos` per term: `z^{2^k}` by repeated squaring, then
+/// `z^h` as the product of the powers of `h`'s set bits, and `cos(hθ + φ) = Re(z^h·e^{iφ})`.
+/// Each squaring at most doubles the relative rounding error, so for orders below 2^k the phase
+/// error stays below ~2^k·1e-16 rad: 1e-13 rad (2e-8″ on a 200″ term) at order 1000, far below
+/// any resolution; the test below checks it against direct `cos` sums.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(crate) struct FastSeries {
+    /// Number of binary powers `z, z², z⁴, …` the orders need.
+    powers: usize,
+    /// `(order, A·cos φ, A·sin φ)` per term.
+    terms: Vec<(u32, f64, f64)>,
+}
+
+impl FastSeries {
+    pub(crate) fn new(terms: &[Term]) -> Self {
+        // Orders come from the scenario's `u32` orders, so the conversion is exact.
+        let terms: Vec<_> = terms
+            .iter()
+            .map(|t| {
+                let (s, c) = t.phase.sin_cos();
+                (t.order as u32, t.amplitude * c, t.amplitude * s)
+            })
+            .collect();
+        let max = terms.iter().map(|t| t.0).max().unwrap_or(0);
+        FastSeries {
+            powers: (u32::BITS - max.leading_zeros()) as usize,
+            terms,
+        }
+    }
+
+    /// How many binary powers of `z` [`Self::eval_powers`] reads.
+    pub(crate) fn powers_needed(&self) -> usize {
+        self.powers
+    }
+
+    /// `Σ A·cos(h·θ + φ)` from the binary powers of `z = e^{iθ}` (at least
+    /// [`Self::powers_needed`] of them).
+    #[inline]
+    pub(crate) fn eval_powers(&self, pw: &Powers) -> f64 {
+        let mut sum = 0.0;
+        for &(order, a, b) in &self.terms {
+            let (mut x, mut y) = (1.0, 0.0);
+            let mut rest = order;
+            while rest != 0 {
+                let (p, q) = pw.0[rest.trailing_zeros() as usize];
+                (x, y) = (x * p - y * q, x * q + y * p);
+                rest &= rest - 1;
+            }
+            sum += a * x - b * y;
+        }
+        sum
+    }
+
+    /// `Σ A·cos(h·θ + φ)` at `theta` (any revolution), using `buf` for the powers.
+    pub(crate) fn eval(&self, theta: f64, buf: &mut Powers) -> f64 {
+        if self.terms.is_empty() {
+            return 0.0;
+        }
+        buf.set(theta.sin_cos(), self.powers);
+        self.eval_powers(buf)
+    }
+}
+
+/// The binary powers `z, z², z⁴, …` of a unit complex number `z = e^{iθ}`, as `(re, im)`:
+/// computed once per sample and rotor, shared by every channel on that rotor.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct Powers(Vec<(f64, f64)>);
+
+impl Powers {
+    /// Sets the first `n` powers of `z = (sin θ, cos θ)` given as `(s, c)`.
+    #[inline]
+    pub(crate) fn set(&mut self, (s, c): (f64, f64), n: usize) {
+        self.0.resize(n.max(1), (1.0, 0.0));
+        self.0[0] = (c, s);
+        for k in 1..n {
+            let (x, y) = self.0[k - 1];
+            self.0[k] = (x * x - y * y, 2.0 * x * y);
+        }
+    }
+}
+
 /// `e(θ) = offset + Σ amplitude·cos(order·θ + phase)`, θ the true angle the sensor measures.
 ///
 /// A head reading a shared scale at nominal angle `α` with angle error `δ` sees the scale at
@@ -184,6 +267,32 @@ mod tests {
                     phase: p.to_radians(),
                 })
                 .collect(),
+        }
+    }
+
+    #[test]
+    fn fast_series_matches_direct_cos_sums() {
+        let m = model(
+            &[
+                (84.0, 668.95, 10.0),
+                (1000.0, 200.0, -170.0),
+                (810.0, 11.71, 33.0),
+                (1.0, 7.52, 100.0),
+                (255.0, 5.0, 0.0),
+            ],
+            0.0,
+        );
+        let fast = FastSeries::new(&m.terms);
+        let mut buf = Powers::default();
+        assert_eq!(FastSeries::new(&[]).eval(1.0, &mut buf), 0.0);
+        for k in 0..5000 {
+            // Accumulated angles up to ~1000 revolutions, as long runs produce.
+            let th = -10.0 + k as f64 * 1.2345;
+            let d = (fast.eval(th, &mut buf) - m.eval(th)) * ARCSEC_PER_RAD;
+            // `eval` reduces θ by k·TAU, and the f64 TAU is 2.4e-16 below 2π: at k = 1000
+            // revolutions the order-1000 term's phase differs by 2.4e-10 rad, i.e. 5e-8″ on
+            // 200″; both are far below any resolution.
+            assert!(d.abs() < 1e-7, "{th}: {d}″");
         }
     }
 
