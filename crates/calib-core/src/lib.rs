@@ -24,6 +24,7 @@ pub mod inspect;
 pub mod report;
 pub mod sample;
 pub mod segment;
+pub mod simulate;
 
 pub use angle::{Angle, AngleUnit, Unwrapper};
 pub use error_map::ErrorMap;

@@ -1,0 +1,519 @@
+//! The scenario file's types (deserialized by the CLI from TOML) and their validation.
+//!
+//! Every table rejects unknown keys, so a typo (`noise_arcsecs`) is an error rather than a
+//! silently ignored setting. The field docs below are the file format's reference; the module
+//! documentation of [`crate::simulate`] has a complete annotated example.
+
+use serde::{Deserialize, Serialize};
+use std::collections::HashSet;
+
+/// A simulated recorded run: the rig, its sensors, and the procedure it follows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Scenario {
+    /// Seed of the pseudo-random noise and time jitter (default 0). The same scenario and seed
+    /// give the same samples (bit-identical on one platform).
+    pub seed: u64,
+    /// Sample rate, Hz (default 400, the paper's Table I). Samples are at `t = n / rate_hz`.
+    pub rate_hz: f64,
+    /// Nominal speed of the driven shaft while it turns, revolutions per minute (default 10).
+    pub speed_rpm: f64,
+    /// `true` (default): readings wrapped to `[0, 360°)`; `false`: readings accumulate over
+    /// revolutions.
+    pub wrap: bool,
+    /// Standard deviation of the sampling instant, seconds (default 0): sample `n` is stamped
+    /// `n / rate_hz` but taken at `n / rate_hz + δ_n`, `δ_n` Gaussian, the same instant for all
+    /// channels (they are synchronized, as the paper's DAQ is).
+    pub time_jitter_s: f64,
+    /// Mark each sample of session `k`'s constant-speed revolutions with `session = k`
+    /// (default `false`: no marks, as most real logs have none).
+    pub mark_sessions: bool,
+    /// The driven shaft's speed non-uniformity.
+    pub speed: Speed,
+    /// Shared scales (graduated discs) read by several heads: `[[scale]]` tables.
+    #[serde(rename = "scale", skip_serializing_if = "Vec::is_empty")]
+    pub scales: Vec<Scale>,
+    /// The channels of the log, in this order: `[[sensor]]` tables.
+    #[serde(rename = "sensor")]
+    pub sensors: Vec<Sensor>,
+    /// The CSRR procedure: sessions, ramps, pauses and relative turns.
+    pub procedure: Procedure,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Scenario {
+            seed: 0,
+            rate_hz: 400.0,
+            speed_rpm: 10.0,
+            wrap: true,
+            time_jitter_s: 0.0,
+            mark_sessions: false,
+            speed: Speed::default(),
+            scales: Vec::new(),
+            sensors: Vec::new(),
+            procedure: Procedure::default(),
+        }
+    }
+}
+
+/// One harmonic `amplitude_arcsec · cos(order·θ + phase_deg)` — the interface's convention.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HarmonicSpec {
+    /// Cycles per revolution, ≥ 1.
+    pub order: u32,
+    /// Amplitude, arcseconds.
+    pub amplitude_arcsec: f64,
+    /// Phase, degrees (default 0). The paper's `m·sin(x + φ)` is phase `φ − 90°` here.
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
+/// Which rotor a sensor (or scale) turns with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mount {
+    /// Rotor A, locked to the shaft at the session's relative rotation: `θ_A = θ_B + Δ_k`.
+    A,
+    /// Rotor B, the driven shaft (also where a reference encoder or a multi-head scale sits).
+    #[default]
+    B,
+}
+
+/// The driven shaft's sampling non-uniformity, the paper's eq. (9):
+/// `θ(φ) = φ + Σ m_Ω cos(Ω·φ + ψ_Ω)`, `φ` the nominal (uniform-speed) shaft angle.
+///
+/// The modulation is locked to the shaft's position (it repeats every revolution, as bearing and
+/// motor-pole effects do), which makes the speed ripple `1 + Σ Ω·m_Ω·(−sin …)` relative to the
+/// nominal speed — including during ramps.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Speed {
+    /// Shorthand for a once-per-revolution speed ripple of ± this many percent: adds an order-1
+    /// position modulation of amplitude `variation_percent / 100` rad (= 2062.6″ per percent),
+    /// phase 0 (default 0: none).
+    pub variation_percent: f64,
+    /// Position modulation harmonics `m_Ω`, `[[speed.harmonic]]` tables (the paper's Table III
+    /// lists an open-loop rig's).
+    #[serde(rename = "harmonic", skip_serializing_if = "Vec::is_empty")]
+    pub harmonics: Vec<HarmonicSpec>,
+}
+
+/// A graduated scale shared by several heads (multi-head self-calibration).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scale {
+    /// Name that `[[sensor]] scale = "..."` refers to.
+    pub name: String,
+    /// The scale's graduation error `e_s(s)` as a function of the true scale position `s`.
+    #[serde(default)]
+    pub harmonics: Vec<HarmonicSpec>,
+    /// The rotor the scale turns with (default `"b"`).
+    #[serde(default)]
+    pub mount: Mount,
+}
+
+/// One channel of the simulated log: either a sensor with its own error model (`harmonics`,
+/// `mount`), or a head reading a shared `scale` at `head_deg`.
+///
+/// A head at nominal angle `α` with angle error `δ` sees the scale at `s = θ + α + δ` and reports
+/// `s + e_s(s) − α`; its error is therefore `δ + e_s(θ + α + δ)`. A multi-head method sees the
+/// actual head angles `α + δ` in the readings' differences and can estimate `δ`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sensor {
+    /// Channel name (CSV header, JointState name). Unique.
+    pub name: String,
+    /// Rotor the sensor turns with (default `"b"`). Not allowed with `scale` (the scale has one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mount: Option<Mount>,
+    /// The sensor's own error `e(θ)`, a function of the true angle `θ` it measures. Not allowed
+    /// with `scale`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub harmonics: Vec<HarmonicSpec>,
+    /// Name of the `[[scale]]` this head reads.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<String>,
+    /// Nominal angle of the head around the scale, degrees (default 0; only with `scale`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub head_deg: Option<f64>,
+    /// Actual minus nominal head angle, arcseconds (default 0; only with `scale`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub head_error_arcsec: Option<f64>,
+    /// Resolution: readings are rounded to multiples of this step, arcseconds (default 0: none).
+    /// The paper's time-grating sensors resolve 0.09″.
+    #[serde(default)]
+    pub quantization_arcsec: f64,
+    /// Standard deviation of Gaussian reading noise, arcseconds (default 0), independent per
+    /// sample and channel, added before quantization.
+    #[serde(default)]
+    pub noise_arcsec: f64,
+}
+
+/// The CSRR procedure (paper section III-B): sessions at constant speed, rotor A locked to the
+/// shaft at a relative rotation `Δ_k`, turned relative to the stationary shaft between sessions.
+///
+/// Give the sessions either as `relative_deg = [...]` with a common `revolutions`, or as
+/// `[[procedure.sessions]]` tables (each may override `revolutions`) — not both.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Procedure {
+    /// Relative rotation `Δ_k = θ_A − θ_B` of each session, degrees (the CSRR equation
+    /// `e_a(x) − e_b(y) + Δ_k = wrap(x − y)` with readings x of a, y of b).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub relative_deg: Vec<f64>,
+    /// Constant-speed revolutions per session (default 3), counted on the nominal angle; the
+    /// shaft's true angle covers the same whole revolutions, since ε_θ is periodic.
+    pub revolutions: f64,
+    /// Sessions given one by one, instead of `relative_deg`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sessions: Vec<SessionSpec>,
+    /// Duration of the raised-cosine speed ramp at the start and at the end of each session,
+    /// seconds (default 1). A ramp covers `ω·ramp_s/2` of shaft angle.
+    pub ramp_s: f64,
+    /// Stationary pause before the first session, after each session, and after each relative
+    /// turn, seconds (default 1).
+    pub pause_s: f64,
+    /// Duration of each relative turn of rotor A (shaft stationary), seconds (default 2).
+    pub turn_s: f64,
+}
+
+impl Default for Procedure {
+    fn default() -> Self {
+        Procedure {
+            relative_deg: Vec::new(),
+            revolutions: 3.0,
+            sessions: Vec::new(),
+            ramp_s: 1.0,
+            pause_s: 1.0,
+            turn_s: 2.0,
+        }
+    }
+}
+
+/// One session of `[[procedure.sessions]]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SessionSpec {
+    /// Relative rotation `Δ_k = θ_A − θ_B`, degrees.
+    pub relative_deg: f64,
+    /// Constant-speed revolutions (default: the procedure's `revolutions`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub revolutions: Option<f64>,
+}
+
+impl Procedure {
+    /// The sessions as `(relative_deg, revolutions)`, from whichever form the file used.
+    pub fn resolved_sessions(&self) -> Vec<(f64, f64)> {
+        if self.sessions.is_empty() {
+            self.relative_deg
+                .iter()
+                .map(|&d| (d, self.revolutions))
+                .collect()
+        } else {
+            self.sessions
+                .iter()
+                .map(|s| (s.relative_deg, s.revolutions.unwrap_or(self.revolutions)))
+                .collect()
+        }
+    }
+}
+
+/// A scenario that cannot be simulated. Each variant names the field concerned.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScenarioError {
+    /// A number out of its range.
+    #[error("{field} = {value}: must be {expected}")]
+    InvalidValue {
+        /// Where, e.g. `sensor "a" noise_arcsec`.
+        field: String,
+        /// What was given.
+        value: f64,
+        /// What is allowed.
+        expected: &'static str,
+    },
+    /// No `[[sensor]]` table.
+    #[error("the scenario has no [[sensor]]: add at least one")]
+    NoSensors,
+    /// A sensor or scale without a name.
+    #[error("{what} number {index} (counting from 1) has an empty name")]
+    EmptyName {
+        /// `sensor` or `scale`.
+        what: &'static str,
+        /// Its position in the file, from 1.
+        index: usize,
+    },
+    /// Two sensors (channels) or two scales with the same name.
+    #[error("{what} name `{name}` is used twice: names must be unique")]
+    DuplicateName {
+        /// `sensor` or `scale`.
+        what: &'static str,
+        /// The repeated name.
+        name: String,
+    },
+    /// A head refers to a scale that is not defined.
+    #[error("sensor `{sensor}` reads scale `{scale}`, which no [[scale]] defines (defined: {})", if available.is_empty() { "none".to_string() } else { available.join(", ") })]
+    UnknownScale {
+        /// The head.
+        sensor: String,
+        /// The scale it names.
+        scale: String,
+        /// The scales defined.
+        available: Vec<String>,
+    },
+    /// Two fields that exclude each other, or one that needs another.
+    #[error("sensor `{sensor}`: {problem}")]
+    Conflict {
+        /// The sensor.
+        sensor: String,
+        /// What is wrong and what to do.
+        problem: &'static str,
+    },
+    /// Both session forms, or neither.
+    #[error("[procedure]: {problem}")]
+    Sessions {
+        /// What is wrong and what to do.
+        problem: &'static str,
+    },
+    /// An error model (or the speed modulation) so steep that `θ ↦ θ + e(θ)` may not increase
+    /// monotonically: readings would not determine the angle (or the shaft would run backwards).
+    #[error(
+        "{what}: Σ order·|amplitude| = {bound:.3} rad/rad ≥ 1, so θ + e(θ) need not increase with θ and a reading would not determine one angle; reduce the high-order amplitudes"
+    )]
+    TooSteep {
+        /// `sensor "a"`, `scale "disc"` or `speed`.
+        what: String,
+        /// The bound `Σ order·|amplitude|` (radians per radian).
+        bound: f64,
+    },
+}
+
+fn check(
+    field: impl FnOnce() -> String,
+    value: f64,
+    ok: bool,
+    expected: &'static str,
+) -> Result<(), ScenarioError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(ScenarioError::InvalidValue {
+            field: field(),
+            value,
+            expected,
+        })
+    }
+}
+
+fn check_harmonics(what: &str, harmonics: &[HarmonicSpec]) -> Result<(), ScenarioError> {
+    for (i, h) in harmonics.iter().enumerate() {
+        let at = |key: &str| format!("{what} harmonic {} {key}", i + 1);
+        check(
+            || at("order"),
+            h.order as f64,
+            h.order >= 1,
+            "an order ≥ 1 (order 0 is an offset, which no map holds)",
+        )?;
+        check(
+            || at("amplitude_arcsec"),
+            h.amplitude_arcsec,
+            true,
+            "finite",
+        )?;
+        check(|| at("phase_deg"), h.phase_deg, true, "finite")?;
+    }
+    Ok(())
+}
+
+/// `Σ order·|amplitude|` in radians per radian.
+pub(crate) fn slope_bound(harmonics: &[HarmonicSpec]) -> f64 {
+    harmonics
+        .iter()
+        .map(|h| h.order as f64 * h.amplitude_arcsec.abs())
+        .sum::<f64>()
+        / crate::angle::ARCSEC_PER_RAD
+}
+
+fn check_slope(what: impl FnOnce() -> String, bound: f64) -> Result<(), ScenarioError> {
+    if bound < 1.0 {
+        Ok(())
+    } else {
+        Err(ScenarioError::TooSteep {
+            what: what(),
+            bound,
+        })
+    }
+}
+
+impl Scenario {
+    /// Checks everything [`Scenario::samples`] and [`Scenario::truth`] rely on; the first problem
+    /// found is returned, naming its field.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        check(|| "rate_hz".into(), self.rate_hz, self.rate_hz > 0.0, "> 0")?;
+        check(
+            || "speed_rpm".into(),
+            self.speed_rpm,
+            self.speed_rpm > 0.0,
+            "> 0",
+        )?;
+        check(
+            || "time_jitter_s".into(),
+            self.time_jitter_s,
+            self.time_jitter_s >= 0.0,
+            "≥ 0",
+        )?;
+
+        let v = self.speed.variation_percent;
+        check(|| "speed.variation_percent".into(), v, v >= 0.0, "≥ 0")?;
+        check_harmonics("speed", &self.speed.harmonics)?;
+        check_slope(
+            || "speed".into(),
+            slope_bound(&self.speed.harmonics) + v / 100.0,
+        )?;
+
+        let mut scale_names = HashSet::new();
+        for (i, s) in self.scales.iter().enumerate() {
+            if s.name.is_empty() {
+                return Err(ScenarioError::EmptyName {
+                    what: "scale",
+                    index: i + 1,
+                });
+            }
+            if !scale_names.insert(s.name.as_str()) {
+                return Err(ScenarioError::DuplicateName {
+                    what: "scale",
+                    name: s.name.clone(),
+                });
+            }
+            let what = format!("scale `{}`", s.name);
+            check_harmonics(&what, &s.harmonics)?;
+            check_slope(|| what.clone(), slope_bound(&s.harmonics))?;
+        }
+
+        if self.sensors.is_empty() {
+            return Err(ScenarioError::NoSensors);
+        }
+        let mut names = HashSet::new();
+        for (i, s) in self.sensors.iter().enumerate() {
+            if s.name.is_empty() {
+                return Err(ScenarioError::EmptyName {
+                    what: "sensor",
+                    index: i + 1,
+                });
+            }
+            if !names.insert(s.name.as_str()) {
+                return Err(ScenarioError::DuplicateName {
+                    what: "sensor",
+                    name: s.name.clone(),
+                });
+            }
+            let what = format!("sensor `{}`", s.name);
+            let field = |key: &str| format!("{what} {key}");
+            check(
+                || field("quantization_arcsec"),
+                s.quantization_arcsec,
+                s.quantization_arcsec >= 0.0,
+                "≥ 0 (0: no quantization)",
+            )?;
+            check(
+                || field("noise_arcsec"),
+                s.noise_arcsec,
+                s.noise_arcsec >= 0.0,
+                "≥ 0",
+            )?;
+            let conflict = |problem| ScenarioError::Conflict {
+                sensor: s.name.clone(),
+                problem,
+            };
+            match &s.scale {
+                Some(scale) => {
+                    if s.mount.is_some() {
+                        return Err(conflict(
+                            "`mount` is not allowed with `scale`: a head turns with its scale; set `mount` in the [[scale]]",
+                        ));
+                    }
+                    if !s.harmonics.is_empty() {
+                        return Err(conflict(
+                            "`harmonics` are not allowed with `scale`: the head's error is the scale's; move them to the [[scale]]",
+                        ));
+                    }
+                    if !self.scales.iter().any(|sc| &sc.name == scale) {
+                        return Err(ScenarioError::UnknownScale {
+                            sensor: s.name.clone(),
+                            scale: scale.clone(),
+                            available: self.scales.iter().map(|sc| sc.name.clone()).collect(),
+                        });
+                    }
+                    // The scale's slope bound, checked above, covers its heads: their terms
+                    // are the scale's with shifted phases.
+                    let head = s.head_deg.unwrap_or(0.0);
+                    check(|| field("head_deg"), head, true, "finite")?;
+                    let herr = s.head_error_arcsec.unwrap_or(0.0);
+                    check(|| field("head_error_arcsec"), herr, true, "finite")?;
+                }
+                None => {
+                    if s.head_deg.is_some() || s.head_error_arcsec.is_some() {
+                        return Err(conflict(
+                            "`head_deg` and `head_error_arcsec` need `scale`: name the [[scale]] this head reads",
+                        ));
+                    }
+                    check_harmonics(&what, &s.harmonics)?;
+                    check_slope(|| what.clone(), slope_bound(&s.harmonics))?;
+                }
+            }
+        }
+
+        let p = &self.procedure;
+        if !p.sessions.is_empty() && !p.relative_deg.is_empty() {
+            return Err(ScenarioError::Sessions {
+                problem: "give either `relative_deg = [...]` or `[[procedure.sessions]]`, not both",
+            });
+        }
+        let sessions = p.resolved_sessions();
+        if sessions.is_empty() {
+            return Err(ScenarioError::Sessions {
+                problem: "no sessions: add e.g. `relative_deg = [0.0, 7.3, 23.9]` (one relative rotation per session)",
+            });
+        }
+        check(
+            || "procedure.revolutions".into(),
+            p.revolutions,
+            p.revolutions > 0.0,
+            "> 0",
+        )?;
+        check(
+            || "procedure.ramp_s".into(),
+            p.ramp_s,
+            p.ramp_s >= 0.0,
+            "≥ 0",
+        )?;
+        check(
+            || "procedure.pause_s".into(),
+            p.pause_s,
+            p.pause_s >= 0.0,
+            "≥ 0",
+        )?;
+        check(
+            || "procedure.turn_s".into(),
+            p.turn_s,
+            p.turn_s >= 0.0,
+            "≥ 0",
+        )?;
+        for (k, (delta, revs)) in sessions.iter().enumerate() {
+            check(
+                || format!("procedure session {} relative_deg", k + 1),
+                *delta,
+                true,
+                "finite",
+            )?;
+            check(
+                || format!("procedure session {} revolutions", k + 1),
+                *revs,
+                *revs > 0.0,
+                "> 0",
+            )?;
+        }
+        Ok(())
+    }
+}
