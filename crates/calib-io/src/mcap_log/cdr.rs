@@ -1,0 +1,407 @@
+//! A hand-written CDR codec for ROS 2 `sensor_msgs/msg/JointState`.
+//!
+//! Layout (OMG CDR as ROS 2 `rmw` writes it): a 4-byte encapsulation header (`00 01`
+//! little-endian, `00 00` big-endian, then two option bytes), then the fields, each aligned to its
+//! own size counted from the end of that header. Strings are a `u32` length that includes the
+//! trailing NUL, then the bytes and the NUL; sequences are a `u32` count then the elements.
+//!
+//! ```text
+//! JointState = Header header { Time stamp { int32 sec; uint32 nanosec }; string frame_id }
+//!              string[] name; float64[] position; float64[] velocity; float64[] effort
+//! ```
+//!
+//! The decoder borrows from the message and allocates nothing: it checks every length against the
+//! bytes that remain before using it, so a corrupt length can neither panic nor make it allocate.
+//! It is hand-written rather than serde-based because it is the hot loop of reading a log (see
+//! `benches/ingest_mcap.rs`), and because comparing a message's `name` block byte for byte with
+//! the first message's is how the reader checks cheaply that the joints did not change.
+
+use std::fmt;
+
+/// Bytes of the encapsulation header; alignment is counted from its end.
+const ORIGIN: usize = 4;
+
+/// What is wrong with a CDR message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum CdrError {
+    /// The encapsulation header names a representation other than plain CDR.
+    Encapsulation([u8; 2]),
+    /// The message ends before a field.
+    Truncated {
+        /// The field being read.
+        field: &'static str,
+        /// Byte offset of the field in the message.
+        offset: usize,
+        /// Bytes the message has.
+        len: usize,
+    },
+    /// A length or count claims more bytes than the message has left.
+    LengthTooLarge {
+        /// The string or sequence.
+        field: &'static str,
+        /// The length or count read.
+        count: u32,
+        /// Bytes left in the message after it.
+        remaining: usize,
+    },
+    /// A joint name is not UTF-8.
+    NameNotUtf8 {
+        /// Index of the name in `name`.
+        index: usize,
+    },
+}
+
+impl fmt::Display for CdrError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CdrError::Encapsulation(h) => write!(
+                f,
+                "unsupported CDR encapsulation {:02x} {:02x}; calib reads plain CDR \
+                 (00 00 big-endian or 00 01 little-endian), which ROS 2 writes by default",
+                h[0], h[1]
+            ),
+            CdrError::Truncated { field, offset, len } => write!(
+                f,
+                "the JointState message is truncated: `{field}` at byte {offset} lies beyond \
+                 its {len} bytes"
+            ),
+            CdrError::LengthTooLarge {
+                field,
+                count,
+                remaining,
+            } => write!(
+                f,
+                "the JointState message is truncated or corrupt: `{field}` claims {count} \
+                 entries or bytes but only {remaining} bytes remain"
+            ),
+            CdrError::NameNotUtf8 { index } => {
+                write!(
+                    f,
+                    "joint name {index} of the JointState message is not UTF-8"
+                )
+            }
+        }
+    }
+}
+
+/// A bounds-checked reader of CDR primitives.
+struct Cursor<'a> {
+    buf: &'a [u8],
+    pos: usize,
+    big_endian: bool,
+}
+
+impl<'a> Cursor<'a> {
+    fn align(&mut self, n: usize) {
+        let rel = self.pos - ORIGIN;
+        self.pos = ORIGIN + rel.div_ceil(n) * n;
+    }
+
+    fn remaining(&self) -> usize {
+        self.buf.len().saturating_sub(self.pos)
+    }
+
+    fn take(&mut self, n: usize, field: &'static str) -> Result<&'a [u8], CdrError> {
+        let bytes = self
+            .pos
+            .checked_add(n)
+            .and_then(|end| self.buf.get(self.pos..end))
+            .ok_or(CdrError::Truncated {
+                field,
+                offset: self.pos,
+                len: self.buf.len(),
+            })?;
+        self.pos += n;
+        Ok(bytes)
+    }
+
+    fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
+        self.align(4);
+        let b: [u8; 4] = self.take(4, field)?.try_into().unwrap_or_default();
+        Ok(if self.big_endian {
+            u32::from_be_bytes(b)
+        } else {
+            u32::from_le_bytes(b)
+        })
+    }
+
+    /// A sequence count, checked against the bytes left: each element takes at least
+    /// `min_size` bytes.
+    fn count(&mut self, field: &'static str, min_size: usize) -> Result<usize, CdrError> {
+        let count = self.u32(field)?;
+        let remaining = self.remaining();
+        if (count as usize).saturating_mul(min_size) > remaining {
+            return Err(CdrError::LengthTooLarge {
+                field,
+                count,
+                remaining,
+            });
+        }
+        Ok(count as usize)
+    }
+
+    /// A string's bytes without the trailing NUL.
+    fn string(&mut self, field: &'static str) -> Result<&'a [u8], CdrError> {
+        let len = self.count(field, 1)?;
+        let bytes = self.take(len, field)?;
+        // The length counts the NUL; tolerate writers that omit it (or write length 0).
+        Ok(bytes.strip_suffix(&[0]).unwrap_or(bytes))
+    }
+
+    /// A `float64[]`: the raw element bytes, `8 × count` of them.
+    fn f64_seq(&mut self, field: &'static str) -> Result<&'a [u8], CdrError> {
+        let count = self.count(field, 8)?;
+        if count == 0 {
+            // No padding follows the count of an empty sequence.
+            return Ok(&[]);
+        }
+        self.align(8);
+        // Re-check after the alignment padding.
+        let remaining = self.remaining();
+        if count * 8 > remaining {
+            return Err(CdrError::LengthTooLarge {
+                field,
+                count: count as u32,
+                remaining,
+            });
+        }
+        self.take(count * 8, field)
+    }
+}
+
+/// A decoded JointState, borrowing from the message.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct JointState<'a> {
+    /// `header.stamp.sec`.
+    pub sec: i32,
+    /// `header.stamp.nanosec`.
+    pub nanosec: u32,
+    /// Number of joint names.
+    pub name_count: usize,
+    /// The serialized `name` sequence after its count, padding included. Its start is 4-aligned
+    /// whatever `frame_id` is, so two messages with the same names normally have equal blocks.
+    pub name_block: &'a [u8],
+    /// The whole message, and where `name_block` starts in it.
+    data: &'a [u8],
+    name_start: usize,
+    /// The raw `position` elements.
+    positions: &'a [u8],
+    big_endian: bool,
+}
+
+impl<'a> JointState<'a> {
+    /// Decodes a message, checking every field including `velocity` and `effort`.
+    pub fn parse(data: &'a [u8]) -> Result<Self, CdrError> {
+        let header = data.get(..ORIGIN).ok_or(CdrError::Truncated {
+            field: "encapsulation header",
+            offset: 0,
+            len: data.len(),
+        })?;
+        let big_endian = match [header[0], header[1]] {
+            [0, 0] => true,
+            [0, 1] => false,
+            other => return Err(CdrError::Encapsulation(other)),
+        };
+        let mut c = Cursor {
+            buf: data,
+            pos: ORIGIN,
+            big_endian,
+        };
+        let sec = c.u32("header.stamp.sec")? as i32;
+        let nanosec = c.u32("header.stamp.nanosec")?;
+        c.string("header.frame_id")?;
+        // Each name takes at least its 4-byte length.
+        let name_count = c.count("name", 4)?;
+        let name_start = c.pos;
+        for _ in 0..name_count {
+            c.string("name")?;
+        }
+        let name_block = &data[name_start..c.pos];
+        let positions = c.f64_seq("position")?;
+        c.f64_seq("velocity")?;
+        c.f64_seq("effort")?;
+        Ok(JointState {
+            sec,
+            nanosec,
+            name_count,
+            name_block,
+            data,
+            name_start,
+            positions,
+            big_endian,
+        })
+    }
+
+    /// The joint names, in order.
+    pub fn names(&self) -> impl Iterator<Item = Result<&'a str, CdrError>> + 'a {
+        let mut c = Cursor {
+            buf: self.data,
+            pos: self.name_start,
+            big_endian: self.big_endian,
+        };
+        (0..self.name_count).map(move |index| {
+            let bytes = c.string("name")?;
+            std::str::from_utf8(bytes).map_err(|_| CdrError::NameNotUtf8 { index })
+        })
+    }
+
+    /// Number of `position` entries.
+    pub fn position_count(&self) -> usize {
+        self.positions.len() / 8
+    }
+
+    /// The positions, radians.
+    pub fn positions(&self) -> impl Iterator<Item = f64> + 'a {
+        let big_endian = self.big_endian;
+        self.positions.chunks_exact(8).map(move |b| {
+            let b: [u8; 8] = b.try_into().unwrap_or_default();
+            if big_endian {
+                f64::from_be_bytes(b)
+            } else {
+                f64::from_le_bytes(b)
+            }
+        })
+    }
+}
+
+/// Encodes JointStates with fixed names, little-endian, rewriting only the stamp and positions of
+/// one buffer per message: the names, `frame_id` (empty) and the empty `velocity` and `effort`
+/// never change, so they are serialized once.
+#[derive(Debug, Clone)]
+pub(crate) struct JointStateEncoder {
+    buf: Vec<u8>,
+    positions_at: usize,
+    count: usize,
+}
+
+impl JointStateEncoder {
+    /// An encoder for messages carrying these joint names.
+    pub fn new<'n>(names: impl IntoIterator<Item = &'n str>) -> Self {
+        let mut w = Writer {
+            buf: vec![0, 1, 0, 0],
+        };
+        w.u32(0); // stamp.sec
+        w.u32(0); // stamp.nanosec
+        w.string(""); // frame_id
+        let names: Vec<&str> = names.into_iter().collect();
+        w.u32(names.len() as u32);
+        for name in &names {
+            w.string(name);
+        }
+        w.u32(names.len() as u32);
+        if !names.is_empty() {
+            w.align(8);
+        }
+        let positions_at = w.buf.len();
+        w.buf.resize(positions_at + 8 * names.len(), 0);
+        w.u32(0); // velocity
+        w.u32(0); // effort
+        JointStateEncoder {
+            buf: w.buf,
+            positions_at,
+            count: names.len(),
+        }
+    }
+
+    /// The message for this stamp and these positions (as many as names; extra ones are not
+    /// written, missing ones keep their previous value — the caller checks the count).
+    pub fn encode(&mut self, sec: i32, nanosec: u32, positions: &[f64]) -> &[u8] {
+        self.buf[4..8].copy_from_slice(&sec.to_le_bytes());
+        self.buf[8..12].copy_from_slice(&nanosec.to_le_bytes());
+        let slots =
+            self.buf[self.positions_at..self.positions_at + 8 * self.count].chunks_exact_mut(8);
+        for (slot, p) in slots.zip(positions) {
+            slot.copy_from_slice(&p.to_le_bytes());
+        }
+        &self.buf
+    }
+}
+
+/// A little-endian CDR serializer, for the encoder's template and for tests.
+struct Writer {
+    buf: Vec<u8>,
+}
+
+impl Writer {
+    fn align(&mut self, n: usize) {
+        let rel = self.buf.len() - ORIGIN;
+        self.buf.resize(ORIGIN + rel.div_ceil(n) * n, 0);
+    }
+    fn u32(&mut self, v: u32) {
+        self.align(4);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+    fn string(&mut self, s: &str) {
+        self.u32(s.len() as u32 + 1);
+        self.buf.extend_from_slice(s.as_bytes());
+        self.buf.push(0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names<'a>(js: &JointState<'a>) -> Vec<&'a str> {
+        js.names().map(|n| n.unwrap()).collect()
+    }
+
+    #[test]
+    fn encoder_output_decodes_back() {
+        for joints in [vec![], vec!["a"], vec!["a", "bb", "ccc", "dddd"]] {
+            let mut enc = JointStateEncoder::new(joints.iter().copied());
+            let positions: Vec<f64> = (0..joints.len()).map(|i| i as f64 - 0.25).collect();
+            let data = enc.encode(-3, 999_999_999, &positions).to_vec();
+            let js = JointState::parse(&data).unwrap();
+            assert_eq!((js.sec, js.nanosec), (-3, 999_999_999));
+            assert_eq!(names(&js), joints);
+            assert_eq!(js.positions().collect::<Vec<_>>(), positions);
+        }
+    }
+
+    #[test]
+    fn every_truncation_and_corruption_is_an_error_not_a_panic() {
+        let mut enc = JointStateEncoder::new(["a", "b"]);
+        let data = enc.encode(1, 2, &[0.5, 1.5]).to_vec();
+        for n in 0..data.len() {
+            assert!(JointState::parse(&data[..n]).is_err(), "cut at {n}");
+        }
+        // Every single-byte change either decodes or fails cleanly.
+        for at in 0..data.len() {
+            for value in [0x00, 0x7f, 0xff] {
+                let mut bad = data.clone();
+                bad[at] = value;
+                if let Ok(js) = JointState::parse(&bad) {
+                    let _ = js.names().count();
+                    let _ = js.positions().count();
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn big_endian_and_foreign_encapsulations() {
+        // Big-endian by hand: stamp 1 s 2 ns, frame_id "", one name "x", position [1.0].
+        let mut be = vec![0, 0, 0, 0];
+        be.extend(1u32.to_be_bytes());
+        be.extend(2u32.to_be_bytes());
+        be.extend(1u32.to_be_bytes());
+        be.extend([0, 0, 0, 0]); // "" + padding
+        be.extend(1u32.to_be_bytes());
+        be.extend(2u32.to_be_bytes());
+        be.extend([b'x', 0, 0, 0]); // "x" + padding to 8
+        be.extend(1u32.to_be_bytes());
+        be.extend(1f64.to_be_bytes());
+        be.extend(0u32.to_be_bytes());
+        be.extend(0u32.to_be_bytes());
+        let js = JointState::parse(&be).unwrap();
+        assert_eq!((js.sec, js.nanosec), (1, 2));
+        assert_eq!(names(&js), ["x"]);
+        assert_eq!(js.positions().collect::<Vec<_>>(), [1.0]);
+        be[1] = 3;
+        assert_eq!(
+            JointState::parse(&be).unwrap_err(),
+            CdrError::Encapsulation([0, 3])
+        );
+    }
+}

@@ -1,0 +1,64 @@
+//! MCAP logs: ROS 2 `sensor_msgs/msg/JointState` (CDR) and JSON messages.
+//!
+//! [`McapReader`] streams a recorded MCAP file into [`Sample`](calib_core::Sample)s;
+//! [`McapWriter`] writes samples as JointState messages (for `calib simulate` and `calib apply`).
+//!
+//! # What is read
+//! - **JointState** (message encoding `cdr`, schema `sensor_msgs/msg/JointState`): each entry of
+//!   `name` is a channel, its `position` the reading in radians. The time is `header.stamp`, or
+//!   the message's log time where the stamp is zero (publishers that never set it). `velocity` and
+//!   `effort` are checked for well-formedness and otherwise ignored.
+//! - **JSON** (message encoding `json`): each numeric top-level field is a channel, in the unit of
+//!   [`ReadOptions::unit`](crate::ReadOptions::unit) (degrees if `None`); other fields are ignored.
+//!   The time is the message's log time.
+//! - **Other topics** (images, TF, protobuf, ...) are skipped and listed by
+//!   [`McapReader::ignored_topics`]: a recording usually carries much more than the encoders, and
+//!   that is no reason to refuse it. Only a file without any usable topic is an error.
+//!
+//! A topic's channel set is fixed by its first message; a later message with other names is an
+//! error, since a joint that silently changes meaning would corrupt a calibration.
+//!
+//! # Joining topics
+//! Channels carried on several topics are joined on equal time stamps (exact nanoseconds): a
+//! sample is emitted once every topic has a message at that stamp. A message that finds no
+//! partner is dropped and counted in
+//! [`ReadDiagnostics::unjoined_messages`](crate::ReadDiagnostics::unjoined_messages), never
+//! interpolated. Each topic queues at most [`JOIN_QUEUE`] messages waiting for partners, so memory
+//! stays bounded even when one topic falls silent.
+//!
+//! # Damaged files
+//! A file that ends early (a crashed recording) yields every message before the break; the break
+//! is recorded in [`ReadDiagnostics::truncated`](crate::ReadDiagnostics::truncated) so the caller
+//! can warn. Keeping the data is what a user wants from an hour-long run that crashed in its
+//! last second. An empty file, a file that is not MCAP, and corruption inside the data are errors.
+
+mod cdr;
+mod json;
+mod read;
+mod write;
+
+pub use read::{IgnoredTopic, JOIN_QUEUE, McapReader};
+pub use write::{DEFAULT_TOPIC, McapWriter};
+
+/// The ROS 2 type name of joint states.
+pub const JOINT_STATE_SCHEMA: &str = "sensor_msgs/msg/JointState";
+
+/// The `ros2msg` definition of `sensor_msgs/msg/JointState` with its dependencies, as rosbag2
+/// stores it in the schema record.
+pub const JOINT_STATE_MSGDEF: &str = "\
+std_msgs/Header header
+string[] name
+float64[] position
+float64[] velocity
+float64[] effort
+
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+";

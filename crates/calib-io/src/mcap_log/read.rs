@@ -1,0 +1,724 @@
+//! [`McapReader`]: streaming an MCAP file into samples.
+//!
+//! # How the channel list is known at open
+//! Samples carry one value per channel, so the channel list must be fixed before the first sample.
+//! [`McapReader::open`] reads it in two steps:
+//! 1. The **summary** (if the file has an intact one) lists every channel record: the reader keeps
+//!    the topics whose messages it can read and that hold at least one message.
+//! 2. A **peek pass** reads messages from the start until each of those topics has shown its first
+//!    message, which gives the joint names (JointState) or numeric fields (JSON). Topics usually
+//!    all appear in the first chunk, so this costs one chunk. Without a summary (a truncated file,
+//!    or a writer that wrote none) the set of topics is unknown, so the peek pass reads the whole
+//!    file once.
+//!
+//! Topics are ordered by their first message in the file, channels by their order within it.
+//!
+//! # Streaming
+//! The file is memory-mapped and read with [`mcap::io::MessageReader`], which holds one
+//! decompressed chunk at a time. The stream stops at the data end record, so a damaged or
+//! missing summary does not stop reading the data.
+
+use std::collections::VecDeque;
+use std::fs::File;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use calib_core::{AngleUnit, Channel, Sample};
+use mcap::McapError;
+use mcap::sans_io::LinearReaderOptions;
+use memmap2::Mmap;
+
+use super::JOINT_STATE_SCHEMA;
+use super::cdr::JointState;
+use super::json;
+use crate::{Error, ReadDiagnostics, ReadOptions, Truncation};
+
+/// Messages each topic may hold while waiting for the other topics' messages at the same stamp.
+/// Beyond it the oldest is dropped and counted as unjoined. 1024 messages cover a second of lag
+/// at 1 kHz, more than a recorder buffers between topics.
+pub const JOIN_QUEUE: usize = 1024;
+
+/// A topic the reader skipped because its messages are neither JointState (CDR) nor JSON.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IgnoredTopic {
+    /// The topic.
+    pub topic: String,
+    /// Its schema name (empty if it has none).
+    pub schema: String,
+    /// Its message encoding.
+    pub message_encoding: String,
+}
+
+/// Reads an MCAP log as a stream of [`Sample`]s (see the [module docs](super) for what is read).
+///
+/// ```no_run
+/// use calib_io::{ReadOptions, mcap_log::McapReader};
+///
+/// let mut reader = McapReader::open("run.mcap".as_ref(), &ReadOptions::default())?;
+/// let names: Vec<String> = reader.channels().iter().map(|c| c.name.clone()).collect();
+/// for sample in &mut reader {
+///     let sample = sample?;
+///     println!("{} {:?} {:?}", sample.t, names, sample.values);
+/// }
+/// if let Some(cut) = &reader.diagnostics().truncated {
+///     eprintln!("warning: the log ends early at byte {}", cut.byte_offset);
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// The iterator ends after the first error it yields.
+pub struct McapReader {
+    path: PathBuf,
+    map: SharedMap,
+    stream: Stream,
+    registry: Registry,
+    channels: Vec<Channel>,
+    /// Messages taken from the stream so far (all topics).
+    index: u64,
+    diagnostics: ReadDiagnostics,
+    /// Value buffers of joined messages, recycled to keep allocation off the join path.
+    pool: Vec<Vec<f64>>,
+    done: bool,
+}
+
+/// The mapped file, shared by the message stream and the truncation check.
+#[derive(Clone)]
+struct SharedMap(Arc<Mmap>);
+
+impl AsRef<[u8]> for SharedMap {
+    fn as_ref(&self) -> &[u8] {
+        &self.0
+    }
+}
+
+type Stream = mcap::io::MessageReader<Cursor<SharedMap>>;
+
+fn stream(map: &SharedMap) -> Stream {
+    let options = LinearReaderOptions::default()
+        // Stop at the data end record: the summary after it is read separately, and its damage
+        // must not cost the data.
+        .with_skip_end_magic(true)
+        // No record can be longer than the file; a corrupt length must not drive an allocation.
+        .with_record_length_limit(map.0.len());
+    mcap::io::MessageReader::new_with_options(Cursor::new(map.clone()), options)
+}
+
+/// How a topic's messages are decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Encoding {
+    JointState,
+    Json,
+}
+
+impl Encoding {
+    fn of(channel: &mcap::Channel) -> Option<Self> {
+        let schema = channel.schema.as_ref().map_or("", |s| s.name.as_str());
+        match channel.message_encoding.as_str() {
+            // ROS 1 style names appear in bags converted with older tools.
+            "cdr" if schema == JOINT_STATE_SCHEMA || schema == "sensor_msgs/JointState" => {
+                Some(Encoding::JointState)
+            }
+            "json" => Some(Encoding::Json),
+            _ => None,
+        }
+    }
+}
+
+struct Topic {
+    name: String,
+    encoding: Encoding,
+    /// JointState: the `name` block of the first message, compared byte for byte with later ones.
+    name_block: Vec<u8>,
+    /// The channel names: joint names or JSON fields.
+    names: Vec<String>,
+    /// Radians per unit of a JSON value.
+    scale: f64,
+    /// JSON: which channels a message has given, reused between messages.
+    seen: Vec<bool>,
+    queue: VecDeque<(i64, Vec<f64>)>,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Slot {
+    Unknown,
+    Ignored,
+    Topic(usize),
+}
+
+/// Channel IDs resolved to topics.
+struct Registry {
+    /// Indexed by channel ID: a vector lookup per message instead of hashing the topic.
+    slots: Vec<Slot>,
+    topics: Vec<Topic>,
+    ignored: Vec<IgnoredTopic>,
+}
+
+/// What a channel ID resolves to when first seen.
+enum Resolved {
+    Known(Option<usize>),
+    NewTopic(Encoding),
+}
+
+impl Registry {
+    fn resolve(&mut self, channel: &mcap::Channel) -> Result<Resolved, String> {
+        let id = usize::from(channel.id);
+        if let Some(slot) = self.slots.get(id) {
+            match slot {
+                Slot::Topic(k) => return Ok(Resolved::Known(Some(*k))),
+                Slot::Ignored => return Ok(Resolved::Known(None)),
+                Slot::Unknown => {}
+            }
+        }
+        if self.slots.len() <= id {
+            self.slots.resize(id + 1, Slot::Unknown);
+        }
+        let Some(encoding) = Encoding::of(channel) else {
+            self.slots[id] = Slot::Ignored;
+            self.ignore(channel);
+            return Ok(Resolved::Known(None));
+        };
+        match self.topics.iter().position(|t| t.name == channel.topic) {
+            Some(k) if self.topics[k].encoding == encoding => {
+                self.slots[id] = Slot::Topic(k);
+                Ok(Resolved::Known(Some(k)))
+            }
+            Some(_) => Err(format!(
+                "topic `{}` carries both JointState and JSON messages; calib cannot tell which \
+                 to read: re-record or filter the topic to one message type",
+                channel.topic
+            )),
+            None => Ok(Resolved::NewTopic(encoding)),
+        }
+    }
+
+    fn ignore(&mut self, channel: &mcap::Channel) {
+        if !self.ignored.iter().any(|t| t.topic == channel.topic) {
+            self.ignored.push(IgnoredTopic {
+                topic: channel.topic.clone(),
+                schema: channel
+                    .schema
+                    .as_ref()
+                    .map_or_else(String::new, |s| s.name.clone()),
+                message_encoding: channel.message_encoding.clone(),
+            });
+        }
+    }
+}
+
+fn mcap_error(path: &Path, index: Option<u64>, channel: Option<&str>, message: String) -> Error {
+    Error::Mcap {
+        path: path.to_path_buf(),
+        message_index: index,
+        channel: channel.map(str::to_string),
+        message,
+    }
+}
+
+/// A stamp in nanoseconds as seconds, exact to the nanosecond for any time of this era.
+fn seconds(ns: i64) -> f64 {
+    const NS: i64 = 1_000_000_000;
+    ns.div_euclid(NS) as f64 + ns.rem_euclid(NS) as f64 * 1e-9
+}
+
+fn log_time_ns(log_time: u64) -> Result<i64, String> {
+    i64::try_from(log_time).map_err(|_| {
+        format!("log time {log_time} ns is beyond the year 2262; the recorder's clock is wrong")
+    })
+}
+
+/// The offset of the first incomplete top-level record, if the data section is cut short;
+/// `None` if it is complete up to its data end record.
+fn find_break(map: &[u8]) -> Option<u64> {
+    const DATA_END: u8 = 0x0F;
+    let mut offset = mcap::MAGIC.len();
+    loop {
+        let Some(head) = map.get(offset..offset + 9) else {
+            return Some(offset as u64);
+        };
+        let mut len = [0u8; 8];
+        len.copy_from_slice(&head[1..]);
+        let end = u64::from_le_bytes(len)
+            .checked_add(offset as u64 + 9)
+            .filter(|&end| end <= map.len() as u64);
+        let Some(end) = end else {
+            return Some(offset as u64);
+        };
+        if head[0] == DATA_END {
+            return None;
+        }
+        // `end <= map.len()`, so it fits in usize.
+        offset = end as usize;
+    }
+}
+
+impl McapReader {
+    /// Opens an MCAP file and fixes its channel list (see the [module docs](self) for how).
+    ///
+    /// Errors if the file cannot be read, is empty, is not MCAP, holds no JointState or JSON
+    /// topic, names the same channel on two topics, or its first message of a topic is bad.
+    pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
+        let io = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let file = File::open(path).map_err(io)?;
+        if file.metadata().map_err(io)?.len() == 0 {
+            return Err(mcap_error(
+                path,
+                None,
+                None,
+                "the file is empty (0 bytes); was the recording stopped before it wrote anything?"
+                    .into(),
+            ));
+        }
+        // SAFETY: the map is only read. Another process truncating the file while it is mapped
+        // would fault; that is the usual caveat of mapping files, accepted for reading logs.
+        let map = unsafe { Mmap::map(&file) }.map_err(io)?;
+        if !map.starts_with(mcap::MAGIC) {
+            return Err(mcap_error(
+                path,
+                None,
+                None,
+                "not an MCAP file (it does not start with the MCAP magic bytes); calib reads \
+                 MCAP logs from ROS 2 (rosbag2 with the mcap storage) or the mcap libraries"
+                    .into(),
+            ));
+        }
+        let map = SharedMap(Arc::new(map));
+        let mut registry = Registry {
+            slots: Vec::new(),
+            topics: Vec::new(),
+            ignored: Vec::new(),
+        };
+        let expected = match mcap::read::Summary::read(&map.0) {
+            Ok(Some(summary)) => Some(expected_topics(&summary, &mut registry)),
+            // No summary, or a truncated file (on which `Summary::read` fails): scan it all.
+            Ok(None) | Err(_) => None,
+        };
+        let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
+        let mut messages = 0u64;
+        if expected.as_ref().is_none_or(|e| !e.is_empty()) {
+            for (index, message) in stream(&map).enumerate() {
+                // Errors here are reported by the iteration, at the same message.
+                let Ok(message) = message else { break };
+                messages += 1;
+                let index = index as u64;
+                let resolved = registry
+                    .resolve(&message.channel)
+                    .map_err(|m| mcap_error(path, Some(index), Some(&message.channel.topic), m))?;
+                let Resolved::NewTopic(encoding) = resolved else {
+                    continue;
+                };
+                let topic = first_message(&message, encoding, scale)
+                    .map_err(|m| mcap_error(path, Some(index), Some(&message.channel.topic), m))?;
+                registry.topics.push(topic);
+                // Resolve again to record the channel ID's slot.
+                registry
+                    .resolve(&message.channel)
+                    .map_err(|m| mcap_error(path, Some(index), Some(&message.channel.topic), m))?;
+                if expected.as_ref().is_some_and(|e| {
+                    e.iter()
+                        .all(|t| registry.topics.iter().any(|k| &k.name == t))
+                }) {
+                    break;
+                }
+            }
+        }
+        if registry.topics.is_empty() {
+            if messages == 0 && registry.ignored.is_empty() {
+                return Err(Error::Empty {
+                    path: path.to_path_buf(),
+                });
+            }
+            let found: Vec<String> = registry
+                .ignored
+                .iter()
+                .map(|t| format!("{} ({}, {})", t.topic, t.schema, t.message_encoding))
+                .collect();
+            return Err(mcap_error(
+                path,
+                None,
+                None,
+                format!(
+                    "no topic holds {JOINT_STATE_SCHEMA} (cdr) or JSON messages (found: {}); \
+                     record the encoders as JointState or JSON",
+                    if found.is_empty() {
+                        "no topics".to_string()
+                    } else {
+                        found.join(", ")
+                    }
+                ),
+            ));
+        }
+        let mut channels: Vec<Channel> = Vec::new();
+        for (k, topic) in registry.topics.iter().enumerate() {
+            let unit = match topic.encoding {
+                Encoding::JointState => AngleUnit::Rad,
+                Encoding::Json => opts.unit.unwrap_or(AngleUnit::Deg),
+            };
+            for name in &topic.names {
+                if let Some(other) = registry.topics[..=k]
+                    .iter()
+                    .find(|t| t.names.contains(name) && (t.name != topic.name))
+                    .or_else(|| {
+                        // A name repeated within one message.
+                        (topic.names.iter().filter(|n| *n == name).count() > 1).then_some(topic)
+                    })
+                {
+                    return Err(mcap_error(
+                        path,
+                        None,
+                        Some(name),
+                        format!(
+                            "the channel appears twice (on topics `{}` and `{}`); a sample can \
+                             hold one reading per name: rename one of the joints",
+                            other.name, topic.name
+                        ),
+                    ));
+                }
+                channels.push(Channel {
+                    name: name.clone(),
+                    unit,
+                });
+            }
+        }
+        let stream = stream(&map);
+        Ok(McapReader {
+            path: path.to_path_buf(),
+            map,
+            stream,
+            registry,
+            channels,
+            index: 0,
+            diagnostics: ReadDiagnostics::default(),
+            pool: Vec::new(),
+            done: false,
+        })
+    }
+
+    /// The channels, in the order of each sample's values: topics in the order of their first
+    /// message, then the names within a message.
+    pub fn channels(&self) -> &[Channel] {
+        &self.channels
+    }
+
+    /// What the reader noticed so far: unjoined messages, and (once iteration has ended) where a
+    /// truncated file broke off.
+    pub fn diagnostics(&self) -> &ReadDiagnostics {
+        &self.diagnostics
+    }
+
+    /// Topics skipped because their messages are neither JointState nor JSON, in the order met.
+    pub fn ignored_topics(&self) -> &[IgnoredTopic] {
+        &self.registry.ignored
+    }
+
+    /// Decodes one message; a sample if it completes one.
+    fn step(&mut self, message: &mcap::Message, index: u64) -> Result<Option<Sample>, Error> {
+        let fail = |channel: &str, m: String| mcap_error(&self.path, Some(index), Some(channel), m);
+        let k = match self.registry.resolve(&message.channel) {
+            Ok(Resolved::Known(Some(k))) => k,
+            Ok(Resolved::Known(None)) => return Ok(None),
+            Ok(Resolved::NewTopic(_)) => {
+                return Err(fail(
+                    &message.channel.topic,
+                    "this topic is missing from the file's summary, so its channels were not \
+                     known when the file was opened; repair the file with `mcap recover`"
+                        .into(),
+                ));
+            }
+            Err(m) => return Err(fail(&message.channel.topic, m)),
+        };
+        let single = self.registry.topics.len() == 1;
+        let topic = &mut self.registry.topics[k];
+        let mut values = if single {
+            Vec::with_capacity(topic.names.len())
+        } else {
+            let mut v = self.pool.pop().unwrap_or_default();
+            v.clear();
+            v
+        };
+        let stamp = decode(topic, message, &mut values).map_err(|(c, m)| {
+            let c = c.unwrap_or_else(|| topic.name.clone());
+            fail(&c, m)
+        })?;
+        if single {
+            return Ok(Some(Sample {
+                t: seconds(stamp),
+                values,
+                session: None,
+            }));
+        }
+        if topic.queue.len() >= JOIN_QUEUE {
+            if let Some((_, old)) = topic.queue.pop_front() {
+                self.pool.push(old);
+                self.diagnostics.unjoined_messages += 1;
+            }
+        }
+        topic.queue.push_back((stamp, values));
+        Ok(self.join())
+    }
+
+    /// A sample from the queue fronts once every topic has a message at the same stamp; messages
+    /// older than another topic's front can never be joined and are dropped.
+    fn join(&mut self) -> Option<Sample> {
+        let topics = &mut self.registry.topics;
+        loop {
+            let mut newest = i64::MIN;
+            for topic in topics.iter() {
+                newest = newest.max(topic.queue.front()?.0);
+            }
+            let mut complete = true;
+            for topic in topics.iter_mut() {
+                while topic.queue.front().is_some_and(|(s, _)| *s < newest) {
+                    if let Some((_, old)) = topic.queue.pop_front() {
+                        self.pool.push(old);
+                        self.diagnostics.unjoined_messages += 1;
+                    }
+                }
+                complete &= topic.queue.front().is_some_and(|(s, _)| *s == newest);
+            }
+            if complete {
+                let mut values = Vec::with_capacity(self.channels.len());
+                for topic in topics.iter_mut() {
+                    if let Some((_, v)) = topic.queue.pop_front() {
+                        values.extend_from_slice(&v);
+                        self.pool.push(v);
+                    }
+                }
+                return Some(Sample {
+                    t: seconds(newest),
+                    values,
+                    session: None,
+                });
+            }
+        }
+    }
+
+    /// Counts what is still waiting for a partner when the stream ends.
+    fn finish(&mut self) {
+        self.done = true;
+        for topic in &mut self.registry.topics {
+            self.diagnostics.unjoined_messages += topic.queue.len() as u64;
+            topic.queue.clear();
+        }
+    }
+}
+
+impl Iterator for McapReader {
+    type Item = Result<Sample, Error>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        loop {
+            let message = match self.stream.next() {
+                Some(Ok(message)) => message,
+                None => {
+                    self.finish();
+                    return None;
+                }
+                Some(Err(e)) => {
+                    self.finish();
+                    let cut = match e {
+                        McapError::UnexpectedEof => find_break(&self.map.0),
+                        _ => None,
+                    };
+                    return match cut {
+                        Some(byte_offset) => {
+                            self.diagnostics.truncated = Some(Truncation {
+                                byte_offset,
+                                messages_read: self.index,
+                            });
+                            None
+                        }
+                        None => Some(Err(mcap_error(
+                            &self.path,
+                            Some(self.index),
+                            None,
+                            format!(
+                                "the file is damaged here ({e}); the messages before it were \
+                                 read: recover the rest with `mcap recover`"
+                            ),
+                        ))),
+                    };
+                }
+            };
+            let index = self.index;
+            self.index += 1;
+            match self.step(&message, index) {
+                Ok(Some(sample)) => return Some(Ok(sample)),
+                Ok(None) => {}
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
+            }
+        }
+    }
+}
+
+/// The usable topics the summary lists with at least one message; ignored ones go to `registry`.
+fn expected_topics(summary: &mcap::read::Summary, registry: &mut Registry) -> Vec<String> {
+    let mut channels: Vec<_> = summary.channels.values().collect();
+    channels.sort_by_key(|c| c.id);
+    let mut topics = Vec::new();
+    for channel in channels {
+        let has_messages = summary
+            .stats
+            .as_ref()
+            .and_then(|s| s.channel_message_counts.get(&channel.id))
+            .is_none_or(|&n| n > 0);
+        if !has_messages {
+            continue;
+        }
+        if Encoding::of(channel).is_none() {
+            registry.ignore(channel);
+        } else if !topics.contains(&channel.topic) {
+            topics.push(channel.topic.clone());
+        }
+    }
+    topics
+}
+
+/// A topic's channels from its first message.
+fn first_message(message: &mcap::Message, encoding: Encoding, scale: f64) -> Result<Topic, String> {
+    let mut topic = Topic {
+        name: message.channel.topic.clone(),
+        encoding,
+        name_block: Vec::new(),
+        names: Vec::new(),
+        scale,
+        seen: Vec::new(),
+        queue: VecDeque::new(),
+    };
+    match encoding {
+        Encoding::JointState => {
+            let js = JointState::parse(&message.data).map_err(|e| e.to_string())?;
+            for name in js.names() {
+                topic
+                    .names
+                    .push(name.map_err(|e| e.to_string())?.to_string());
+            }
+            topic.name_block = js.name_block.to_vec();
+        }
+        Encoding::Json => {
+            json::for_each_field(&message.data, |key, value| {
+                if value.is_some() {
+                    topic.names.push(key.to_string());
+                }
+                Ok(())
+            })?;
+            topic.seen = vec![false; topic.names.len()];
+        }
+    }
+    if topic.names.is_empty() {
+        return Err(match encoding {
+            Encoding::JointState => "the topic's first JointState message names no joints; \
+                                     publish the encoders' names and positions"
+                .into(),
+            Encoding::Json => "the topic's first JSON message has no numeric field; publish \
+                               one numeric field per encoder"
+                .into(),
+        });
+    }
+    Ok(topic)
+}
+
+/// Decodes a message of `topic` into `out` (radians, in the topic's channel order) and returns its
+/// stamp in nanoseconds. Errors carry the channel concerned (if not the topic) and the message.
+fn decode(
+    topic: &mut Topic,
+    message: &mcap::Message,
+    out: &mut Vec<f64>,
+) -> Result<i64, (Option<String>, String)> {
+    match topic.encoding {
+        Encoding::JointState => {
+            let js = JointState::parse(&message.data).map_err(|e| (None, e.to_string()))?;
+            if js.position_count() != js.name_count {
+                return Err((
+                    None,
+                    format!(
+                        "the JointState message has {} names but {} positions; the publisher \
+                         must give a position for every joint",
+                        js.name_count,
+                        js.position_count()
+                    ),
+                ));
+            }
+            // Fast path: the same names serialize to the same bytes. Padding bytes may differ
+            // between writers, so a mismatch is confirmed name by name.
+            if js.name_block != topic.name_block.as_slice() && !same_names(&js, &topic.names) {
+                let now: Vec<String> = js
+                    .names()
+                    .map(|n| n.unwrap_or("<not UTF-8>").to_string())
+                    .collect();
+                return Err((
+                    None,
+                    format!(
+                        "the joint names changed from [{}] to [{}]; calib needs one joint set \
+                         per topic: split the recording where the set changes",
+                        topic.names.join(", "),
+                        now.join(", ")
+                    ),
+                ));
+            }
+            out.extend(js.positions());
+            if js.sec == 0 && js.nanosec == 0 {
+                log_time_ns(message.log_time).map_err(|m| (None, m))
+            } else {
+                Ok(i64::from(js.sec) * 1_000_000_000 + i64::from(js.nanosec))
+            }
+        }
+        Encoding::Json => {
+            let stamp = log_time_ns(message.log_time).map_err(|m| (None, m))?;
+            out.resize(topic.names.len(), 0.0);
+            topic.seen.iter_mut().for_each(|s| *s = false);
+            let (names, seen, scale) = (&topic.names, &mut topic.seen, topic.scale);
+            // Fields usually come in the first message's order: try the next expected one first.
+            let mut next = 0;
+            json::for_each_field(&message.data, |key, value| {
+                let i = if names.get(next).is_some_and(|n| n == key) {
+                    Some(next)
+                } else {
+                    names.iter().position(|n| n == key)
+                };
+                match (i, value) {
+                    (Some(i), Some(v)) => {
+                        out[i] = v * scale;
+                        seen[i] = true;
+                        next = i + 1;
+                        Ok(())
+                    }
+                    (Some(_), None) => Err(format!(
+                        "field `{key}` is not a number in this message; every message must give \
+                         a number for every channel"
+                    )),
+                    (None, Some(_)) => Err(format!(
+                        "numeric field `{key}` is new (the topic's first message has [{}]); \
+                         calib needs one channel set per topic: split the recording where it \
+                         changes",
+                        names.join(", ")
+                    )),
+                    (None, None) => Ok(()),
+                }
+            })
+            .map_err(|m| (None, m))?;
+            if let Some(i) = seen.iter().position(|s| !s) {
+                return Err((
+                    Some(names[i].clone()),
+                    "the field is missing from this message; every message must give a number \
+                     for every channel"
+                        .into(),
+                ));
+            }
+            Ok(stamp)
+        }
+    }
+}
+
+fn same_names(js: &JointState, names: &[String]) -> bool {
+    js.name_count == names.len() && js.names().zip(names).all(|(a, b)| a.is_ok_and(|a| a == b))
+}

@@ -1,0 +1,614 @@
+//! McapReader against the Python-written fixture and against files built here with `mcap::Writer`
+//! (messages serialized with the `cdr-encoding` crate, an independent CDR implementation).
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use byteorder::{BigEndian, LittleEndian};
+use calib_core::{AngleUnit, Sample};
+use calib_io::mcap_log::{IgnoredTopic, JOIN_QUEUE, JOINT_STATE_MSGDEF, McapReader};
+use calib_io::{Error, ReadOptions};
+use mcap::records::MessageHeader;
+use mcap::{Compression, WriteOptions};
+use serde::Serialize;
+
+const T0: u64 = 1_700_000_000_000_000_000;
+
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/mcap/fixture.mcap")
+}
+
+fn read_all(path: &Path, opts: &ReadOptions) -> (McapReader, Vec<Sample>) {
+    let mut reader = McapReader::open(path, opts).expect("open");
+    let samples: Vec<Sample> = (&mut reader).collect::<Result<_, _>>().expect("read");
+    (reader, samples)
+}
+
+fn names(reader: &McapReader) -> Vec<&str> {
+    reader.channels().iter().map(|c| c.name.as_str()).collect()
+}
+
+/// The time a reader gives for a stamp in ns (exact: second and fraction converted apart).
+fn secs(ns: u64) -> f64 {
+    (ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9
+}
+
+#[test]
+fn python_fixture_joins_joint_states_with_json_reference() {
+    let (reader, samples) = read_all(&fixture(), &ReadOptions::default());
+    assert_eq!(names(&reader), ["a", "b", "ref"]);
+    let units: Vec<AngleUnit> = reader.channels().iter().map(|c| c.unit).collect();
+    assert_eq!(units, [AngleUnit::Rad, AngleUnit::Rad, AngleUnit::Deg]);
+    // See make_fixture.py: 300 JointStates, JSON missing for i = 100..=104, two stray JSONs.
+    assert_eq!(samples.len(), 295);
+    assert_eq!(reader.diagnostics().unjoined_messages, 7);
+    assert_eq!(reader.diagnostics().truncated, None);
+    assert_eq!(
+        reader.ignored_topics(),
+        [IgnoredTopic {
+            topic: "/status".into(),
+            schema: "std_msgs/msg/String".into(),
+            message_encoding: "cdr".into(),
+        }]
+    );
+    let expected = (0..300u64).filter(|i| !(100..=104).contains(i));
+    for (s, i) in samples.iter().zip(expected) {
+        let x = i as f64;
+        assert_eq!(s.t, secs(T0 + i * 10_000_000), "sample {i}");
+        assert_eq!(s.values[0], x / 64.0);
+        assert_eq!(s.values[1], 1.0 - x / 32.0);
+        assert_eq!(s.values[2], (x / 4.0).to_radians());
+        assert_eq!(s.session, None);
+    }
+}
+
+#[test]
+fn unit_option_applies_to_json_only() {
+    let opts = ReadOptions {
+        unit: Some(AngleUnit::Rad),
+    };
+    let (reader, samples) = read_all(&fixture(), &opts);
+    assert_eq!(reader.channels()[0].unit, AngleUnit::Rad);
+    assert_eq!(reader.channels()[2].unit, AngleUnit::Rad);
+    assert_eq!(samples[3].values, [3.0 / 64.0, 1.0 - 3.0 / 32.0, 0.75]);
+}
+
+// ---- building MCAP files -----------------------------------------------------------------------
+
+#[derive(Serialize, Clone)]
+struct Time {
+    sec: i32,
+    nanosec: u32,
+}
+#[derive(Serialize, Clone)]
+struct Header {
+    stamp: Time,
+    frame_id: String,
+}
+#[derive(Serialize, Clone)]
+struct JointState {
+    header: Header,
+    name: Vec<String>,
+    position: Vec<f64>,
+    velocity: Vec<f64>,
+    effort: Vec<f64>,
+}
+
+fn joint_state(ns: u64, names: &[&str], position: &[f64]) -> JointState {
+    JointState {
+        header: Header {
+            stamp: Time {
+                sec: (ns / 1_000_000_000) as i32,
+                nanosec: (ns % 1_000_000_000) as u32,
+            },
+            // Three bytes plus NUL: the names start right after, testing alignment.
+            frame_id: "enc".into(),
+        },
+        name: names.iter().map(|s| s.to_string()).collect(),
+        position: position.to_vec(),
+        velocity: vec![],
+        effort: vec![0.5; names.len()],
+    }
+}
+
+/// CDR with the encapsulation header, serialized by `cdr-encoding`.
+fn cdr(msg: &JointState, big_endian: bool) -> Vec<u8> {
+    let (mut out, body) = if big_endian {
+        (vec![0, 0, 0, 0], cdr_encoding::to_vec::<_, BigEndian>(msg))
+    } else {
+        (
+            vec![0, 1, 0, 0],
+            cdr_encoding::to_vec::<_, LittleEndian>(msg),
+        )
+    };
+    out.extend(body.expect("serialize"));
+    out
+}
+
+struct Builder {
+    writer: mcap::Writer<BufWriter<File>>,
+    sequence: u32,
+}
+
+impl Builder {
+    fn new(path: &Path, compression: Option<Compression>, chunked: bool) -> Self {
+        let options = WriteOptions::new()
+            .profile("ros2")
+            .compression(compression)
+            .use_chunks(chunked)
+            // Small chunks, so truncation tests cut between and inside several of them.
+            .chunk_size(Some(4096));
+        Self::with_options(path, options)
+    }
+    fn with_options(path: &Path, options: WriteOptions) -> Self {
+        let file = BufWriter::new(File::create(path).expect("create"));
+        Builder {
+            writer: options.create(file).expect("writer"),
+            sequence: 0,
+        }
+    }
+    fn joint_state_topic(&mut self, topic: &str) -> u16 {
+        let schema = self
+            .writer
+            .add_schema(
+                "sensor_msgs/msg/JointState",
+                "ros2msg",
+                JOINT_STATE_MSGDEF.as_bytes(),
+            )
+            .expect("schema");
+        self.writer
+            .add_channel(schema, topic, "cdr", &BTreeMap::new())
+            .expect("channel")
+    }
+    fn json_topic(&mut self, topic: &str) -> u16 {
+        self.writer
+            .add_channel(0, topic, "json", &BTreeMap::new())
+            .expect("channel")
+    }
+    fn other_topic(&mut self, topic: &str) -> u16 {
+        let schema = self
+            .writer
+            .add_schema("foo.Bar", "protobuf", b"")
+            .expect("schema");
+        self.writer
+            .add_channel(schema, topic, "protobuf", &BTreeMap::new())
+            .expect("channel")
+    }
+    fn put(&mut self, channel: u16, log_time: u64, data: &[u8]) {
+        let header = MessageHeader {
+            channel_id: channel,
+            sequence: self.sequence,
+            log_time,
+            publish_time: log_time,
+        };
+        self.sequence += 1;
+        self.writer
+            .write_to_known_channel(&header, data)
+            .expect("write");
+    }
+    fn finish(mut self) {
+        self.writer.finish().expect("finish");
+    }
+}
+
+fn temp() -> tempfile::TempDir {
+    tempfile::tempdir().expect("tempdir")
+}
+
+/// A JointState log of joints `a`, `b` with `n` messages at 1 kHz.
+fn joint_state_log(path: &Path, n: u64, compression: Option<Compression>, chunked: bool, be: bool) {
+    let mut b = Builder::new(path, compression, chunked);
+    let ch = b.joint_state_topic("/joint_states");
+    for i in 0..n {
+        let ns = T0 + i * 1_000_000;
+        let msg = joint_state(ns, &["a", "b"], &[i as f64 * 1e-3, -(i as f64)]);
+        b.put(ch, ns, &cdr(&msg, be));
+    }
+    b.finish();
+}
+
+fn check_joint_state_log(path: &Path, n: u64) {
+    let (reader, samples) = read_all(path, &ReadOptions::default());
+    assert_eq!(names(&reader), ["a", "b"]);
+    assert_eq!(samples.len() as u64, n);
+    for (i, s) in samples.iter().enumerate() {
+        let i = i as u64;
+        assert_eq!(s.t, secs(T0 + i * 1_000_000));
+        assert_eq!(s.values, [i as f64 * 1e-3, -(i as f64)]);
+    }
+    assert_eq!(reader.diagnostics().unjoined_messages, 0);
+    assert_eq!(reader.diagnostics().truncated, None);
+}
+
+#[test]
+fn every_compression_and_byte_order_reads_the_same() {
+    let dir = temp();
+    for (k, (compression, chunked, be)) in [
+        (Some(Compression::Zstd), true, false),
+        (Some(Compression::Lz4), true, false),
+        (None, true, false),
+        (None, false, false),
+        (Some(Compression::Zstd), true, true),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let path = dir.path().join(format!("log{k}.mcap"));
+        joint_state_log(&path, 500, compression, chunked, be);
+        check_joint_state_log(&path, 500);
+    }
+}
+
+#[test]
+fn zero_stamp_falls_back_to_log_time() {
+    let dir = temp();
+    let path = dir.path().join("zero.mcap");
+    let mut b = Builder::new(&path, None, true);
+    let ch = b.joint_state_topic("/js");
+    b.put(
+        ch,
+        42_000_000_123,
+        &cdr(&joint_state(0, &["x"], &[1.0]), false),
+    );
+    b.put(
+        ch,
+        43,
+        &cdr(&joint_state(7_500_000_000, &["x"], &[2.0]), false),
+    );
+    b.finish();
+    let (_, samples) = read_all(&path, &ReadOptions::default());
+    assert_eq!(samples.len(), 2);
+    assert_eq!(samples[0].t, 42.000_000_123);
+    assert_eq!(samples[1].t, 7.5);
+}
+
+#[test]
+fn json_topic_alone_uses_log_time_and_unit() {
+    let dir = temp();
+    let path = dir.path().join("json.mcap");
+    let mut b = Builder::new(&path, Some(Compression::Zstd), true);
+    let ch = b.json_topic("/enc");
+    let junk = b.other_topic("/camera");
+    b.put(junk, 1, b"\x08\x01");
+    for i in 0..10u64 {
+        let msg = format!(
+            r#"{{"note": "x", "h1": {}, "nested": {{"h9": 1}}, "h\u0032": {}, "flag": true}}"#,
+            i * 90,
+            i
+        );
+        b.put(ch, 1_000_000_000 * i, msg.as_bytes());
+    }
+    b.finish();
+    let (reader, samples) = read_all(&path, &ReadOptions::default());
+    assert_eq!(names(&reader), ["h1", "h2"]);
+    assert_eq!(reader.channels()[0].unit, AngleUnit::Deg);
+    assert_eq!(reader.ignored_topics()[0].topic, "/camera");
+    assert_eq!(samples.len(), 10);
+    assert_eq!(samples[3].t, 3.0);
+    assert_eq!(samples[3].values, [270f64.to_radians(), 3f64.to_radians()]);
+
+    let opts = ReadOptions {
+        unit: Some(AngleUnit::Counts(4)),
+    };
+    let (_, samples) = read_all(&path, &opts);
+    assert_eq!(samples[1].values[1], std::f64::consts::FRAC_PI_2);
+}
+
+fn mcap_error(err: Error) -> (Option<u64>, Option<String>, String) {
+    match err {
+        Error::Mcap {
+            message_index,
+            channel,
+            message,
+            ..
+        } => (message_index, channel, message),
+        other => panic!("expected an MCAP error, got {other:?}"),
+    }
+}
+
+fn open_error(path: &Path) -> (Option<u64>, Option<String>, String) {
+    match McapReader::open(path, &ReadOptions::default()) {
+        Ok(_) => panic!("{} opened", path.display()),
+        Err(e) => mcap_error(e),
+    }
+}
+
+/// Reads `path` to its first error.
+fn first_error(path: &Path) -> (usize, Error) {
+    let reader = McapReader::open(path, &ReadOptions::default()).expect("open");
+    let mut n = 0;
+    for item in reader {
+        match item {
+            Ok(_) => n += 1,
+            Err(e) => return (n, e),
+        }
+    }
+    panic!("no error in {}", path.display());
+}
+
+/// A log of good JointState messages of joints a, b with `bad` as message 2.
+fn log_with_bad_message(path: &Path, bad: &[u8]) {
+    let mut b = Builder::new(path, Some(Compression::Zstd), true);
+    let ch = b.joint_state_topic("/joint_states");
+    for i in 0..2 {
+        b.put(
+            ch,
+            i,
+            &cdr(&joint_state(T0 + i, &["a", "b"], &[0.0, 1.0]), false),
+        );
+    }
+    b.put(ch, 2, bad);
+    b.put(
+        ch,
+        3,
+        &cdr(&joint_state(T0 + 3, &["a", "b"], &[0.0, 1.0]), false),
+    );
+    b.finish();
+}
+
+#[test]
+fn bad_messages_are_errors_naming_file_message_and_topic() {
+    let dir = temp();
+    let good = cdr(&joint_state(T0, &["a", "b"], &[0.0, 1.0]), false);
+    let mut huge_count = good.clone();
+    // The `name` count sits after the encapsulation (4), stamp (8) and frame_id (4 + 4) fields.
+    huge_count[20..24].copy_from_slice(&u32::MAX.to_le_bytes());
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "mismatch",
+            cdr(&joint_state(T0, &["a", "b"], &[0.0]), false),
+            "2 names but 1 positions",
+        ),
+        ("cut", good[..good.len() - 9].to_vec(), "truncated"),
+        ("huge", huge_count, "claims 4294967295"),
+        (
+            "renamed",
+            cdr(&joint_state(T0, &["a", "c"], &[0.0, 1.0]), false),
+            "changed from [a, b] to [a, c]",
+        ),
+        (
+            "xcdr2",
+            [&[0u8, 7, 0, 0][..], &good[4..]].concat(),
+            "encapsulation",
+        ),
+    ];
+    for (name, bad, expect) in cases {
+        let path = dir.path().join(format!("{name}.mcap"));
+        log_with_bad_message(&path, &bad);
+        let (read, err) = first_error(&path);
+        assert_eq!(read, 2, "{name}");
+        let text = err.to_string();
+        assert!(text.contains(&path.display().to_string()), "{text}");
+        let (index, channel, message) = mcap_error(err);
+        assert_eq!(index, Some(2), "{name}");
+        assert_eq!(channel.as_deref(), Some("/joint_states"), "{name}");
+        assert!(message.contains(expect), "{name}: {message}");
+    }
+}
+
+#[test]
+fn bad_json_messages_are_errors() {
+    let dir = temp();
+    for (name, bad, expect) in [
+        ("missing", r#"{"a": 1}"#, "missing"),
+        ("string", r#"{"a": 1, "b": "x"}"#, "not a number"),
+        ("new", r#"{"a": 1, "b": 2, "c": 3}"#, "`c` is new"),
+        ("syntax", r#"{"a": 1, "b": "#, "not valid JSON"),
+    ] {
+        let path = dir.path().join(format!("{name}.mcap"));
+        let mut b = Builder::new(&path, None, true);
+        let ch = b.json_topic("/enc");
+        b.put(ch, 1, br#"{"a": 1, "b": 2}"#);
+        b.put(ch, 2, bad.as_bytes());
+        b.finish();
+        let (read, err) = first_error(&path);
+        assert_eq!(read, 1);
+        let (index, channel, message) = mcap_error(err);
+        assert_eq!(index, Some(1), "{name}");
+        let channel = channel.expect("channel");
+        assert!(channel == "/enc" || channel == "b", "{name}: {channel}");
+        assert!(message.contains(expect), "{name}: {message}");
+    }
+}
+
+#[test]
+fn truncated_files_keep_every_message_before_the_break() {
+    let dir = temp();
+    let full = dir.path().join("full.mcap");
+    joint_state_log(&full, 2000, Some(Compression::Zstd), true, false);
+    let bytes = std::fs::read(&full).expect("read");
+    let cut = dir.path().join("cut.mcap");
+    let mut previous = 0;
+    // Cuts inside the first chunk, in later chunks, and inside the summary.
+    for keep in [
+        100,
+        bytes.len() / 3,
+        bytes.len() / 2,
+        bytes.len() * 9 / 10,
+        bytes.len() - 30,
+    ] {
+        std::fs::write(&cut, &bytes[..keep]).expect("write");
+        let result = McapReader::open(&cut, &ReadOptions::default());
+        let Ok(mut reader) = result else {
+            // Nothing before the break: no sample at all.
+            assert!(matches!(result, Err(Error::Empty { .. })), "keep {keep}");
+            continue;
+        };
+        let samples: Vec<Sample> = (&mut reader).collect::<Result<_, _>>().expect("no error");
+        assert!(samples.len() >= previous, "keep {keep}");
+        previous = samples.len();
+        for (i, s) in samples.iter().enumerate() {
+            assert_eq!(s.values[1], -(i as f64));
+        }
+        match &reader.diagnostics().truncated {
+            Some(t) => {
+                assert_eq!(t.messages_read, samples.len() as u64);
+                assert!(t.byte_offset < keep as u64, "keep {keep}");
+                assert!(samples.len() < 2000);
+            }
+            // A cut inside the summary loses no message.
+            None => assert_eq!(samples.len(), 2000, "keep {keep}"),
+        }
+    }
+    assert_eq!(previous, 2000);
+}
+
+#[test]
+fn empty_foreign_and_corrupt_files_are_clear_errors() {
+    let dir = temp();
+    let empty = dir.path().join("empty.mcap");
+    std::fs::write(&empty, b"").expect("write");
+    let (_, _, m) = open_error(&empty);
+    assert!(m.contains("empty"), "{m}");
+
+    let csv = dir.path().join("log.mcap");
+    std::fs::write(&csv, b"t,a,b\n0,1,2\n").expect("write");
+    let (_, _, m) = open_error(&csv);
+    assert!(m.contains("not an MCAP file"), "{m}");
+
+    let missing = dir.path().join("missing.mcap");
+    assert!(matches!(
+        McapReader::open(&missing, &ReadOptions::default()),
+        Err(Error::Io { .. })
+    ));
+
+    // Random bytes overwritten in a valid file: each case must end in samples or an error, never
+    // a panic.
+    let full = dir.path().join("full.mcap");
+    joint_state_log(&full, 300, None, true, false);
+    let bytes = std::fs::read(&full).expect("read");
+    let bad = dir.path().join("bad.mcap");
+    for seed in 0..40u64 {
+        let mut b = bytes.clone();
+        let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        for _ in 0..8 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let at = 8 + (x as usize) % (b.len() - 8);
+            b[at] = (x >> 32) as u8;
+        }
+        std::fs::write(&bad, &b).expect("write");
+        if let Ok(reader) = McapReader::open(&bad, &ReadOptions::default()) {
+            for item in reader {
+                if item.is_err() {
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn unjoinable_stamps_are_counted_not_invented() {
+    let dir = temp();
+    let path = dir.path().join("disjoint.mcap");
+    let mut b = Builder::new(&path, Some(Compression::Zstd), true);
+    let a = b.joint_state_topic("/a");
+    let r = b.json_topic("/ref");
+    for i in 0..100u64 {
+        let ns = T0 + i * 1_000_000;
+        b.put(a, ns, &cdr(&joint_state(ns, &["a"], &[1.0]), false));
+        // Half a millisecond off: never equal.
+        b.put(r, ns + 500_000, br#"{"ref": 1}"#);
+    }
+    b.finish();
+    let (reader, samples) = read_all(&path, &ReadOptions::default());
+    assert_eq!(names(&reader), ["a", "ref"]);
+    assert!(samples.is_empty());
+    assert_eq!(reader.diagnostics().unjoined_messages, 200);
+}
+
+#[test]
+fn join_queues_stay_bounded_when_a_topic_lags() {
+    let dir = temp();
+    let path = dir.path().join("lag.mcap");
+    let mut b = Builder::new(&path, Some(Compression::Zstd), true);
+    let a = b.joint_state_topic("/a");
+    let r = b.json_topic("/ref");
+    let n = 3 * JOIN_QUEUE as u64;
+    // All of /a first, then all of /ref: only the last JOIN_QUEUE of /a are still queued.
+    for i in 0..n {
+        let ns = T0 + i;
+        b.put(a, ns, &cdr(&joint_state(ns, &["a"], &[i as f64]), false));
+    }
+    for i in 0..n {
+        b.put(r, T0 + i, format!(r#"{{"ref": {i}}}"#).as_bytes());
+    }
+    b.finish();
+    let (reader, samples) = read_all(&path, &ReadOptions::default());
+    assert_eq!(samples.len(), JOIN_QUEUE);
+    let first = n - JOIN_QUEUE as u64;
+    assert_eq!(
+        samples[0].values,
+        [first as f64, (first as f64).to_radians()]
+    );
+    assert_eq!(
+        reader.diagnostics().unjoined_messages,
+        2 * (n - JOIN_QUEUE as u64)
+    );
+}
+
+#[test]
+fn files_without_usable_topics_or_with_clashing_names_are_errors() {
+    let dir = temp();
+    let path = dir.path().join("none.mcap");
+    let mut b = Builder::new(&path, None, true);
+    let ch = b.other_topic("/camera");
+    b.put(ch, 1, b"x");
+    b.finish();
+    let (_, _, m) = open_error(&path);
+    assert!(m.contains("/camera (foo.Bar, protobuf)"), "{m}");
+
+    let path = dir.path().join("nothing.mcap");
+    Builder::new(&path, None, true).finish();
+    assert!(matches!(
+        McapReader::open(&path, &ReadOptions::default()),
+        Err(Error::Empty { .. })
+    ));
+
+    let path = dir.path().join("clash.mcap");
+    let mut b = Builder::new(&path, None, true);
+    let one = b.joint_state_topic("/one");
+    let two = b.json_topic("/two");
+    b.put(
+        one,
+        1,
+        &cdr(&joint_state(1, &["a", "b"], &[0.0, 0.0]), false),
+    );
+    b.put(two, 1, br#"{"b": 1}"#);
+    b.finish();
+    let (_, channel, m) = open_error(&path);
+    assert_eq!(channel.as_deref(), Some("b"));
+    assert!(m.contains("`/one` and `/two`"), "{m}");
+}
+
+#[test]
+fn files_without_summary_are_scanned_for_their_topics() {
+    let dir = temp();
+    let path = dir.path().join("nosummary.mcap");
+    let options = WriteOptions::new()
+        .compression(Some(Compression::Lz4))
+        .emit_summary_records(false)
+        .emit_summary_offsets(false)
+        .emit_statistics(false)
+        .emit_chunk_indexes(false)
+        .emit_message_indexes(false);
+    let mut b = Builder::with_options(&path, options);
+    let a = b.joint_state_topic("/a");
+    let r = b.json_topic("/late");
+    for i in 0..50u64 {
+        b.put(a, i + 1, &cdr(&joint_state(0, &["a"], &[i as f64]), false));
+    }
+    // A topic whose first message comes late is still found.
+    for i in 0..50u64 {
+        b.put(r, i + 1, br#"{"r": 2}"#);
+    }
+    b.finish();
+    let (reader, samples) = read_all(&path, &ReadOptions::default());
+    assert_eq!(names(&reader), ["a", "r"]);
+    assert_eq!(samples.len(), 50);
+    assert_eq!(samples[49].values[0], 49.0);
+}
