@@ -3,6 +3,7 @@
 mod cli;
 mod commands;
 mod exit;
+mod input;
 
 use clap::Parser;
 use std::io::Write;

@@ -1,13 +1,201 @@
-//! `calib inspect`.
+//! `calib inspect`: what a log holds.
 
-/// Arguments of `calib inspect`.
+use crate::input::{channel, open_log, parse_unit};
+use anyhow::Context;
+use calib_core::AngleUnit;
+use calib_core::inspect::{Inspection, Inspector};
+use calib_core::segment::{SegmentKind, SegmentOptions};
+use std::fmt::Write;
+use std::path::PathBuf;
+
+/// Show what a log holds before calibrating from it.
+///
+/// Lists the channels (unit, range, revolutions), the exact sample count, duration, sample rate
+/// and its jitter, gaps and time stamps that go backwards, the segments of the log for a pair of
+/// channels — stationary, rotating together (CSRR sessions, with the relative angle between the
+/// two), turning — and the speed variation over a revolution in cycles per revolution.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The log to read (.csv or .mcap).
-    pub log: std::path::PathBuf,
+    /// The log (.csv or .mcap).
+    pub log: PathBuf,
+    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
+    #[arg(long, value_parser = parse_unit)]
+    pub unit: Option<AngleUnit>,
+    /// First channel of the pair to segment (default: `a`, else the log's first channel).
+    #[arg(long)]
+    pub a: Option<String>,
+    /// Second channel of the pair (default: `b`, else the log's second channel).
+    #[arg(long)]
+    pub b: Option<String>,
+    /// Print the findings as JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Runs `calib inspect`.
-pub fn run(_args: &Args) -> anyhow::Result<String> {
-    anyhow::bail!("not implemented yet")
+pub fn run(args: &Args) -> anyhow::Result<String> {
+    let mut reader = open_log(&args.log, args.unit)?;
+    let names: Vec<String> = reader.channels().iter().map(|c| c.name.clone()).collect();
+    let pick =
+        |given: &Option<String>, default: &str, fallback: usize| -> anyhow::Result<Option<usize>> {
+            match given {
+                Some(name) => channel(&reader, &args.log, name).map(Some),
+                None if names.iter().any(|n| n == default) => {
+                    channel(&reader, &args.log, default).map(Some)
+                }
+                None => Ok((fallback < names.len()).then_some(fallback)),
+            }
+        };
+    let a = pick(&args.a, "a", 0)?;
+    let b = pick(&args.b, "b", 1)?;
+    let pair = match (a, b) {
+        (Some(a), Some(b)) if a != b => Some((a, b)),
+        _ => None,
+    };
+    let marks = reader.has_session_marks();
+    let mut inspector = Inspector::new(
+        reader.channels(),
+        pair,
+        SegmentOptions {
+            use_marks: marks,
+            ..SegmentOptions::default()
+        },
+    );
+    for sample in reader.by_ref() {
+        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        inspector.push(s.t, &s.values, s.session);
+    }
+    let result = inspector.finish();
+    if result.samples == 0 {
+        anyhow::bail!("{}: the log holds no samples", args.log.display());
+    }
+    let mut warnings = reader.warnings(&args.log);
+    warnings.extend(reader.notes());
+    if args.json {
+        let value =
+            serde_json::json!({ "log": args.log, "inspection": result, "warnings": warnings });
+        return Ok(calib_io::report::render_json(&value)?);
+    }
+    Ok(render(&args.log, &result, &warnings))
+}
+
+/// The human report.
+fn render(path: &std::path::Path, r: &Inspection, warnings: &[String]) -> String {
+    let mut o = String::new();
+    let duration = r.end_s - r.start_s;
+    let _ = writeln!(o, "{}", path.display());
+    let _ = writeln!(
+        o,
+        "  {} samples over {:.3} s ({:.3} … {:.3} s), {:.2} Hz mean, interval jitter {:.3} ms",
+        r.samples,
+        duration,
+        r.start_s,
+        r.end_s,
+        r.rate_hz,
+        r.interval_jitter_s * 1e3
+    );
+    let _ = writeln!(
+        o,
+        "  gaps (> 2× nominal interval): {}   stamps not increasing: {}",
+        r.gaps, r.non_monotonic
+    );
+    for g in &r.gap_list {
+        let _ = writeln!(
+            o,
+            "    gap of {:.4} s before sample {} at {:.4} s",
+            g.step_s, g.index, g.t
+        );
+    }
+    for g in &r.non_monotonic_list {
+        let _ = writeln!(
+            o,
+            "    stamp steps back by {:.6} s at sample {} ({:.6} s)",
+            -g.step_s, g.index, g.t
+        );
+    }
+    let _ = writeln!(o, "\nchannels");
+    let _ = writeln!(
+        o,
+        "  {:<16} {:>9} {:>14} {:>14} {:>11} {:>8}",
+        "name", "unit", "min", "max", "revs", "wrapped"
+    );
+    for c in &r.channels {
+        let _ = writeln!(
+            o,
+            "  {:<16} {:>9} {:>14.6} {:>14.6} {:>11.3} {:>8}",
+            c.name,
+            c.unit,
+            c.min,
+            c.max,
+            c.revolutions,
+            if c.wrapped { "yes" } else { "no" }
+        );
+    }
+    if let Some((a, b)) = &r.pair {
+        let _ = writeln!(o, "\nsegments of {a} and {b}");
+        let _ = writeln!(
+            o,
+            "  {:<11} {:>10} {:>10} {:>9} {:>8} {:>12}  session",
+            "kind", "start s", "end s", "samples", "revs", "a−b deg"
+        );
+        for s in &r.segments {
+            let kind = match s.kind {
+                SegmentKind::Stationary => "stationary",
+                SegmentKind::Rotating => "rotating",
+                SegmentKind::Turning => "turning",
+            };
+            let rel = if s.kind == SegmentKind::Rotating {
+                format!("{:.4}", s.relative_angle.to_degrees())
+            } else {
+                String::new()
+            };
+            let session = match (s.kind, s.session) {
+                (SegmentKind::Rotating, Some(k)) => format!("#{k}"),
+                (SegmentKind::Rotating, None) => "too short (< 1 rev)".to_string(),
+                _ => String::new(),
+            };
+            let _ = writeln!(
+                o,
+                "  {:<11} {:>10.3} {:>10.3} {:>9} {:>8.3} {:>12}  {}",
+                kind, s.start_s, s.end_s, s.samples, s.revolutions, rel, session
+            );
+        }
+        let sessions = r
+            .segments
+            .iter()
+            .filter(|s| s.session.is_some() && s.kind == SegmentKind::Rotating)
+            .count();
+        let _ = writeln!(o, "  {sessions} CSRR session(s) of at least one revolution");
+    }
+    let _ = writeln!(
+        o,
+        "\nspeed variation over a revolution (from each channel's own readings)"
+    );
+    for c in &r.channels {
+        let top: Vec<String> = c
+            .speed_spectrum
+            .iter()
+            .take(5)
+            .map(|h| {
+                format!(
+                    "{}: {:.3} % ({:.2}″)",
+                    h.order, h.speed_percent, h.position_arcsec
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            o,
+            "  {:<16} {}",
+            c.name,
+            if top.is_empty() {
+                "not every angle was passed while moving".to_string()
+            } else {
+                top.join(", ")
+            }
+        );
+    }
+    for w in warnings {
+        let _ = writeln!(o, "\nwarning: {w}");
+    }
+    o
 }

@@ -6,6 +6,8 @@
 //!   channels joined across topics on equal time stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
 //! - [`atomic`]: output files that appear only when complete.
+//! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
+//! - [`report`]: `report.json` and other JSON outputs.
 //!
 //! Every reader streams: memory stays bounded whatever the log's length. Every error names the
 //! file and the line or message it concerns ([`Error`]).
@@ -14,10 +16,13 @@
 pub mod atomic;
 pub mod csv_log;
 pub mod error;
+pub mod log;
 pub mod mcap_log;
+pub mod report;
 pub mod table;
 
 pub use error::Error;
+pub use log::{LogFormat, LogReader, LogWriter};
 
 use calib_core::AngleUnit;
 

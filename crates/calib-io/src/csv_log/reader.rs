@@ -149,6 +149,11 @@ impl CsvReader {
         })
     }
 
+    /// Whether the log has a `session` column marking CSRR sessions.
+    pub fn has_session_column(&self) -> bool {
+        self.session_col.is_some()
+    }
+
     /// The log's channels, in column order (without `t` and `session`).
     pub fn channels(&self) -> &[Channel] {
         &self.channels

@@ -1,0 +1,47 @@
+//! Opening logs and finding channels, with errors that say what to do.
+
+use crate::exit::Usage;
+use anyhow::Context;
+use calib_core::AngleUnit;
+use calib_core::sample::channel_index;
+use calib_io::{LogReader, ReadOptions};
+use std::path::Path;
+
+/// clap value parser for `--unit`.
+pub fn parse_unit(s: &str) -> Result<AngleUnit, String> {
+    s.parse::<AngleUnit>().map_err(|e| e.to_string())
+}
+
+/// Opens a log for reading.
+pub fn open_log(path: &Path, unit: Option<AngleUnit>) -> anyhow::Result<LogReader> {
+    if !path.exists() {
+        return Err(Usage(format!("{}: no such file; check the path", path.display())).into());
+    }
+    LogReader::open(path, &ReadOptions { unit })
+        .with_context(|| format!("cannot read {}", path.display()))
+}
+
+/// The index of channel `name` of the log at `path`.
+pub fn channel(reader: &LogReader, path: &Path, name: &str) -> anyhow::Result<usize> {
+    channel_index(reader.channels(), name).with_context(|| format!("{}", path.display()))
+}
+
+/// A channel name as a file name: characters other than letters, digits, `-`, `_` and `.`
+/// become `_` (JointState names such as `arm/joint1` stay usable).
+pub fn file_stem(channel: &str) -> String {
+    let s: String = channel
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() || s.starts_with('.') {
+        format!("_{s}")
+    } else {
+        s
+    }
+}

@@ -1,0 +1,185 @@
+//! Any log calib reads, behind one interface: [`LogReader`] and [`LogWriter`].
+
+use crate::csv_log::{CsvReader, CsvWriter};
+use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter};
+use crate::{Error, ReadDiagnostics, ReadOptions};
+use calib_core::{AngleUnit, Channel, Sample};
+use std::io::Read;
+use std::path::Path;
+
+/// The formats calib reads and writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogFormat {
+    /// CSV with a header row.
+    Csv,
+    /// MCAP.
+    Mcap,
+}
+
+const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+impl LogFormat {
+    /// The format of a file to write, from its extension.
+    pub fn for_output(path: &Path) -> Result<Self, Error> {
+        match extension(path).as_deref() {
+            Some("csv") => Ok(LogFormat::Csv),
+            Some("mcap") => Ok(LogFormat::Mcap),
+            _ => Err(Error::UnknownFormat {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+
+    /// The format of an existing file: its extension, or for an unknown extension its first bytes
+    /// (MCAP's magic number).
+    pub fn detect(path: &Path) -> Result<Self, Error> {
+        if let Ok(format) = Self::for_output(path) {
+            return Ok(format);
+        }
+        let mut head = [0u8; 8];
+        let mut file = std::fs::File::open(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let n = file.read(&mut head).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        if &head[..n] == MCAP_MAGIC {
+            Ok(LogFormat::Mcap)
+        } else {
+            Err(Error::UnknownFormat {
+                path: path.to_path_buf(),
+            })
+        }
+    }
+}
+
+fn extension(path: &Path) -> Option<String> {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+}
+
+/// A streaming reader of any supported log.
+pub enum LogReader {
+    /// A CSV log.
+    Csv(CsvReader),
+    /// An MCAP log.
+    Mcap(McapReader),
+}
+
+impl LogReader {
+    /// Opens a log, choosing the reader by [`LogFormat::detect`].
+    pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
+        Ok(match LogFormat::detect(path)? {
+            LogFormat::Csv => LogReader::Csv(CsvReader::open(path, opts)?),
+            LogFormat::Mcap => LogReader::Mcap(McapReader::open(path, opts)?),
+        })
+    }
+    /// The log's channels, in the order of each sample's values.
+    pub fn channels(&self) -> &[Channel] {
+        match self {
+            LogReader::Csv(r) => r.channels(),
+            LogReader::Mcap(r) => r.channels(),
+        }
+    }
+    /// Whether the log marks CSRR sessions (a CSV `session` column).
+    pub fn has_session_marks(&self) -> bool {
+        match self {
+            LogReader::Csv(r) => r.has_session_column(),
+            LogReader::Mcap(_) => false,
+        }
+    }
+    /// What the reader noticed so far (complete once the iterator is exhausted).
+    pub fn diagnostics(&self) -> &ReadDiagnostics {
+        match self {
+            LogReader::Csv(r) => r.diagnostics(),
+            LogReader::Mcap(r) => r.diagnostics(),
+        }
+    }
+    /// Notes for the user about parts of the log that were not read (topics of other schemas).
+    pub fn notes(&self) -> Vec<String> {
+        match self {
+            LogReader::Csv(_) => Vec::new(),
+            LogReader::Mcap(r) => r
+                .ignored_topics()
+                .iter()
+                .map(|t| {
+                    format!(
+                        "topic `{}` ({}, {}) is not JointState or JSON and was skipped",
+                        t.topic, t.schema, t.message_encoding
+                    )
+                })
+                .collect(),
+        }
+    }
+    /// Warnings the user must see once the log has been read: truncation and unjoined messages.
+    pub fn warnings(&self, path: &Path) -> Vec<String> {
+        let d = self.diagnostics();
+        let mut w = Vec::new();
+        if let Some(t) = &d.truncated {
+            w.push(format!(
+                "{}: the log ends early at byte {} (a crashed recording?): the {} messages before the break were used",
+                path.display(),
+                t.byte_offset,
+                t.messages_read
+            ));
+        }
+        if d.unjoined_messages > 0 {
+            w.push(format!(
+                "{}: {} message(s) had no partner with an equal time stamp on the other topics and were dropped",
+                path.display(),
+                d.unjoined_messages
+            ));
+        }
+        w
+    }
+}
+
+impl Iterator for LogReader {
+    type Item = Result<Sample, Error>;
+    fn next(&mut self) -> Option<Self::Item> {
+        match self {
+            LogReader::Csv(r) => r.next(),
+            LogReader::Mcap(r) => r.next(),
+        }
+    }
+}
+
+/// A writer of any supported log format; the output appears only on [`LogWriter::finish`].
+pub enum LogWriter {
+    /// CSV, readings in degrees.
+    Csv(CsvWriter),
+    /// MCAP, JointState on one topic, readings in radians.
+    Mcap(McapWriter),
+}
+
+impl LogWriter {
+    /// Creates a log at `path`, the format from its extension (`.csv` or `.mcap`).
+    pub fn create(path: &Path, channels: &[Channel], with_session: bool) -> Result<Self, Error> {
+        Ok(match LogFormat::for_output(path)? {
+            LogFormat::Csv => LogWriter::Csv(CsvWriter::create(
+                path,
+                channels,
+                AngleUnit::Deg,
+                with_session,
+            )?),
+            LogFormat::Mcap => LogWriter::Mcap(McapWriter::create(path, channels, DEFAULT_TOPIC)?),
+        })
+    }
+    /// Writes one sample.
+    pub fn write(&mut self, sample: &Sample) -> Result<(), Error> {
+        match self {
+            LogWriter::Csv(w) => w.write(sample),
+            LogWriter::Mcap(w) => w.write(sample),
+        }
+    }
+    /// Completes the file and moves it into place.
+    pub fn finish(self) -> Result<(), Error> {
+        match self {
+            LogWriter::Csv(w) => w.finish(),
+            LogWriter::Mcap(w) => w.finish(),
+        }
+    }
+}
