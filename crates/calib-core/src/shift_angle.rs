@@ -46,16 +46,17 @@
 //!   standard uncertainty for each unknown from the fit (`σ̂² (AᵀA)⁺` with `σ̂` from the residuals).
 //!
 //! ## When they agree, and why the joint one is better
-//! With noise-free readings both return the truth (less the blind orders). With the paper's
-//! design — the full matrix at one shift and start face 1 only at the others — they agree to
-//! rounding: for a complete `n×n` matrix the Table 2 means and eq. 7 are the least-squares
-//! estimates of that balanced design, and a single-face shift has no redundancy, so its `α` is
-//! eq. 3 with the common `β` in both. They differ when the data hold more than that design:
-//! several full matrices, or several but not all start faces at a shift. The paper's steps then
-//! discard readings (partial matrices do not enter `β`) and weigh the rest ad hoc; the joint fit
-//! uses every reading with its proper weight (minimum variance for equal, independent noise), and
-//! it also gives what the paper's steps do not: residuals (a check of the measurement and of the
-//! model) and per-point uncertainties.
+//! With noise-free readings both return the truth (less the blind orders). When every shift holds
+//! either all `n` start faces or just one — the paper's design, the full matrix at `S = 0` and
+//! start face 1 elsewhere — they agree to rounding (1e-12″ in the tests): the Table 2 means and
+//! eq. 7 are then the least-squares estimates of the balanced full matrix, and a single-face
+//! shift has no redundancy, so its `α` is eq. 3 with the same `β` in both. They differ when a shift
+//! holds several but not all start faces: the paper's `β` ignores those rows, the joint fit uses
+//! them (simulated: faces 1 and 2 at S = 1…14°, `β` RMS error 0.0115″ joint vs 0.0150″ paper, test
+//! `partial_matrices_sharpen_beta_in_the_joint_fit_only`). The joint fit also runs without any full
+//! matrix (any start faces whose spacings share no factor with `n`), and it gives what the
+//! paper's steps do not: residuals (a check of the measurement and of the model, with `σ̂`) and
+//! a standard uncertainty for every `α`, `β` and `U`, valid for equal, independent reading noise.
 //!
 //! # Sin-fit check (section 3.1)
 //! The paper checks the setup error by fitting `α(θ) + U = A·sin(2θ + B) + U_fit` to one row of a
