@@ -5,14 +5,22 @@
 //! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` (CDR) or JSON messages,
 //!   channels joined across topics on equal time stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
+//! - [`readings`]: shift-angle readings (`shift_deg,start_face,step,reading_arcsec`).
+//! - [`budget`]: GUM uncertainty budgets (TOML).
+//! - [`points`]: tolerant reader of error tables on any grid, for comparisons.
+//! - [`output`]: atomic file writes (no half-written table after a failure).
 //!
 //! Every reader streams: memory stays bounded whatever the log's length. Every error names the
 //! file and the line or message it concerns ([`Error`]).
 #![deny(missing_docs)]
 
+pub mod budget;
 pub mod csv_log;
 pub mod error;
 pub mod mcap_log;
+pub mod output;
+pub mod points;
+pub mod readings;
 pub mod table;
 
 pub use error::Error;
