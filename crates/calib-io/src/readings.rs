@@ -163,10 +163,16 @@ pub fn parse_readings(
     for (shift_deg, rows) in table.into_values() {
         let mut out = Vec::with_capacity(rows.len());
         for (face, steps) in rows {
-            let missing: Vec<String> = (1..=n)
+            // Name at most 10 steps: a stray huge `step` must not build a huge message. Every
+            // step is ≤ n here, so n − len counts the absent ones.
+            let mut missing: Vec<String> = (1..=n)
                 .filter(|s| !steps.contains_key(s))
+                .take(10)
                 .map(|s| s.to_string())
                 .collect();
+            if n - steps.len() > 10 {
+                missing.push("…".into());
+            }
             if !missing.is_empty() {
                 return Err(data_err(format!(
                     "shift {shift_deg}°, start face {face}: no reading at step {}; every start face measured at a shift needs one reading per step 1..{n} (a full revolution)",
@@ -244,6 +250,11 @@ mod tests {
             e.contains("24 faces") && e.contains("largest step in the readings is 4"),
             "{e}"
         );
+
+        let e = parse("shift_deg,start_face,step,reading_arcsec\n0,1,1,0\n0,2,1000000000,0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("step 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, …;"), "{e}");
 
         let e = parse("shift_deg,start_face,step,reading\n")
             .unwrap_err()
