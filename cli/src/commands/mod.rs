@@ -1,8 +1,11 @@
 //! One module per subcommand: each loads its inputs, computes with `calib-core`, and renders.
 
+pub mod compare;
 pub mod csrr;
 pub mod inspect;
+pub mod shift_angle;
 pub mod simulate;
+pub mod uncertainty;
 
 use crate::cli::{Cli, Command};
 
@@ -12,5 +15,8 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Inspect(args) => inspect::run(&args),
         Command::Simulate(args) => simulate::run(&args),
         Command::Csrr(args) => csrr::run(&args),
+        Command::ShiftAngle(args) => shift_angle::run(&args),
+        Command::Uncertainty(args) => uncertainty::run(&args),
+        Command::Compare(args) => compare::run(&args),
     }
 }

@@ -9,6 +9,10 @@
 //! - [`ErrorMap`]: a sensor's error over one revolution of its own reading; [`FourierSeries`] and
 //!   [`Harmonic`]s in the convention `amplitude·cos(h·θ + phase)`.
 //! - [`Report`]: what `report.json` holds.
+//! - [`shift_angle`]: cross-calibration of an encoder with a polygon and an autocollimator at
+//!   every angle (Hsieh, Watanabe, Hsu 2022), by the paper's steps or one constrained fit.
+//! - [`uncertainty`]: GUM budgets — combined and expanded uncertainty, Welch–Satterthwaite.
+//! - [`compare`]: two calibrations of one sensor compared point by point with the En number.
 //!
 //! # Conventions
 //! Error `e = reading − true angle`, correction `= −e`; maps are functions of the sensor's own
@@ -17,6 +21,7 @@
 #![warn(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod angle;
+pub mod compare;
 pub mod csrr;
 pub mod error_map;
 pub mod harmonics;
@@ -24,7 +29,9 @@ pub mod inspect;
 pub mod report;
 pub mod sample;
 pub mod segment;
+pub mod shift_angle;
 pub mod simulate;
+pub mod uncertainty;
 
 pub use angle::{Angle, AngleUnit, Unwrapper};
 pub use error_map::ErrorMap;

@@ -130,6 +130,16 @@ impl Seek for AtomicFile {
     }
 }
 
+/// Writes `bytes` to `path` atomically: the file appears only when complete.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
+    let mut file = AtomicFile::create(path)?;
+    file.write_all(bytes).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    file.commit()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -57,4 +57,24 @@ pub enum Error {
         /// The file.
         path: PathBuf,
     },
+    /// A file's content is inconsistent as a whole (e.g. readings missing from a set).
+    #[error("{}: {message}", path.display())]
+    Data {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// An uncertainty budget (TOML) is malformed or inconsistent.
+    #[error("{}: {}{}{message}", path.display(), line.map(|l| format!("line {l}: ")).unwrap_or_default(), component.as_ref().map(|c| format!("component `{c}`: ")).unwrap_or_default())]
+    Budget {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line, where the TOML parser names one.
+        line: Option<u64>,
+        /// The component concerned, by name (or `#N` before its name is known).
+        component: Option<String>,
+        /// What is wrong and what to write instead.
+        message: String,
+    },
 }

@@ -8,16 +8,22 @@
 //! - [`atomic`]: output files that appear only when complete.
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
 //! - [`report`]: `report.json` and other JSON outputs.
+//! - [`readings`]: shift-angle readings (`shift_deg,start_face,step,reading_arcsec`).
+//! - [`budget`]: GUM uncertainty budgets (TOML).
+//! - [`points`]: tolerant reader of error tables on any grid, for comparisons.
 //!
 //! Every reader streams: memory stays bounded whatever the log's length. Every error names the
 //! file and the line or message it concerns ([`Error`]).
 #![deny(missing_docs)]
 
 pub mod atomic;
+pub mod budget;
 pub mod csv_log;
 pub mod error;
 pub mod log;
 pub mod mcap_log;
+pub mod points;
+pub mod readings;
 pub mod report;
 pub mod table;
 

@@ -1,8 +1,7 @@
 //! JSON outputs (`report.json`), written atomically with stable formatting.
 
 use crate::Error;
-use crate::atomic::AtomicFile;
-use std::io::Write;
+use crate::atomic::write_atomic;
 use std::path::Path;
 
 /// The pretty-printed JSON of `value` with a trailing newline: what [`write_json`] writes.
@@ -18,11 +17,5 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), Err
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
-    let mut file = AtomicFile::create(path)?;
-    file.write_all(text.as_bytes())
-        .map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-    file.commit()
+    write_atomic(path, text.as_bytes())
 }

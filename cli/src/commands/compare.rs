@@ -1,0 +1,196 @@
+//! `calib compare`: load two maps → En comparison → render; exit 1 when a point fails.
+
+use anyhow::Context as _;
+use calib_core::compare::{self, Comparison, MapPoint};
+use calib_io::points::PointTable;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Compare two error maps of the same sensor point by point with the En number.
+///
+/// MAP1 and MAP2 are CSV tables with columns angle_deg and error_arcsec, and optionally u_arcsec
+/// (standard uncertainty) and expanded_uncertainty_arcsec; other columns are ignored. calib's
+/// correction tables and the shift-angle method's encoder.csv qualify. The grids may differ and
+/// need not be uniform: MAP2 is interpolated (periodic, linear) at MAP1's angles.
+///
+/// At each of MAP1's angles:  En = |x₁ − x₂| / √(U₁² + U₂²),  U the expanded uncertainties.
+/// (The shift-angle paper's eq. 13 prints a minus under the root; the standard form, used here,
+/// has a plus: uncertainties of independent results add.) U comes from --U1/--U2 if given, else
+/// from the table's expanded_uncertainty_arcsec column, else from k·u_arcsec (--k).
+///
+/// Writes DIR/compare.csv: angle_deg, error1_arcsec, error2_arcsec, difference_arcsec
+/// (error1 − error2), U1_arcsec, U2_arcsec, En. Exit status 0 when every En ≤ 1; 1 with a listing
+/// of the points that fail.
+#[derive(Debug, clap::Args, PartialEq)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    /// The first map (its angles are the comparison's grid).
+    pub map1: PathBuf,
+    /// The second map.
+    pub map2: PathBuf,
+    /// Expanded uncertainty of MAP1 at every point, arcsec (overrides its columns).
+    #[arg(long = "U1", value_name = "ARCSEC")]
+    pub u1: Option<f64>,
+    /// Expanded uncertainty of MAP2 at every point, arcsec (overrides its columns).
+    #[arg(long = "U2", value_name = "ARCSEC")]
+    pub u2: Option<f64>,
+    /// Coverage factor applied to a table's u_arcsec when it has no expanded column.
+    #[arg(long, default_value_t = 2.0)]
+    pub k: f64,
+    /// Subtract the mean difference first (maps are defined up to a constant offset).
+    #[arg(long)]
+    pub remove_mean: bool,
+    /// Output directory.
+    #[arg(
+        short = 'o',
+        long = "output",
+        value_name = "DIR",
+        default_value = "calib-out"
+    )]
+    pub output: PathBuf,
+    /// Print the comparison as JSON instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `calib compare`.
+pub fn run(args: &Args) -> anyhow::Result<String> {
+    for (flag, v) in [("--U1", args.u1), ("--U2", args.u2), ("--k", Some(args.k))] {
+        if let Some(v) = v
+            && !(v.is_finite() && v >= 0.0)
+        {
+            return Err(crate::exit::Usage(format!("{flag} {v}: give a number ≥ 0")).into());
+        }
+    }
+    let t1 = calib_io::points::read_points(&args.map1)?;
+    let t2 = calib_io::points::read_points(&args.map2)?;
+    let m1 = with_expanded(&t1, &args.map1, args.u1, args.k, "--U1")?;
+    let m2 = with_expanded(&t2, &args.map2, args.u2, args.k, "--U2")?;
+    let c = compare::compare(&m1, &m2, args.remove_mean).with_context(|| {
+        format!(
+            "comparing {} with {}",
+            args.map1.display(),
+            args.map2.display()
+        )
+    })?;
+    std::fs::create_dir_all(&args.output).with_context(|| {
+        format!(
+            "cannot create the output directory {}",
+            args.output.display()
+        )
+    })?;
+    let csv_path = args.output.join("compare.csv");
+    calib_io::atomic::write_atomic(&csv_path, render_csv(&c).as_bytes())?;
+    let summary = render_summary(args, &c, &csv_path);
+    if c.failures > 0 {
+        anyhow::bail!("{summary}");
+    }
+    if args.json {
+        Ok(serde_json::to_string_pretty(&c)? + "\n")
+    } else {
+        Ok(summary)
+    }
+}
+
+/// The map's points with their expanded uncertainties.
+fn with_expanded(
+    table: &PointTable,
+    path: &Path,
+    given: Option<f64>,
+    k: f64,
+    flag: &str,
+) -> anyhow::Result<Vec<MapPoint>> {
+    table
+        .points
+        .iter()
+        .map(|p| {
+            let u = given
+                .or(p.expanded_uncertainty_arcsec)
+                .or(p.u_arcsec.map(|u| k * u))
+                .ok_or_else(|| {
+                    crate::exit::Usage(format!(
+                        "{}: no uncertainty at {}° (no expanded_uncertainty_arcsec or u_arcsec value): pass {flag} ARCSEC",
+                        path.display(),
+                        p.angle_deg
+                    ))
+                })?;
+            Ok(MapPoint {
+                angle_deg: p.angle_deg,
+                error_arcsec: p.error_arcsec,
+                expanded_uncertainty_arcsec: u,
+            })
+        })
+        .collect()
+}
+
+/// `compare.csv`.
+pub fn render_csv(c: &Comparison) -> String {
+    let mut s = String::from(
+        "angle_deg,error1_arcsec,error2_arcsec,difference_arcsec,U1_arcsec,U2_arcsec,En\n",
+    );
+    for p in &c.points {
+        let _ = writeln!(
+            s,
+            "{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.4}",
+            p.angle_deg,
+            p.error1_arcsec,
+            p.error2_arcsec,
+            p.difference_arcsec,
+            p.expanded1_arcsec,
+            p.expanded2_arcsec,
+            p.en
+        );
+    }
+    s
+}
+
+fn render_summary(args: &Args, c: &Comparison, csv_path: &Path) -> String {
+    let mut s = String::new();
+    let interpolated = c.points.iter().filter(|p| p.interpolated).count();
+    let _ = writeln!(
+        s,
+        "compare {} − {}: {} points ({} interpolated in the second map)",
+        args.map1.display(),
+        args.map2.display(),
+        c.points.len(),
+        interpolated
+    );
+    let _ = writeln!(
+        s,
+        "difference: max |Δ| {:.4}″, RMS {:.4}″, mean {:+.4}″{}",
+        c.max_abs_difference_arcsec,
+        c.rms_difference_arcsec,
+        c.mean_difference_arcsec,
+        if c.mean_removed { " (removed)" } else { "" }
+    );
+    let _ = writeln!(
+        s,
+        "En = |Δ| / √(U₁² + U₂²): max {:.3}; {} of {} points with En > 1",
+        c.max_en,
+        c.failures,
+        c.points.len()
+    );
+    if c.failures > 0 {
+        let _ = writeln!(s, "points that fail (En > 1):");
+        let _ = writeln!(
+            s,
+            "  {:>10}  {:>10}  {:>10}  {:>10}  {:>8}  {:>8}  {:>6}",
+            "angle °", "error1 ″", "error2 ″", "Δ ″", "U1 ″", "U2 ″", "En"
+        );
+        for p in c.points.iter().filter(|p| p.en > 1.0) {
+            let _ = writeln!(
+                s,
+                "  {:>10.4}  {:>10.4}  {:>10.4}  {:>+10.4}  {:>8.4}  {:>8.4}  {:>6.3}",
+                p.angle_deg,
+                p.error1_arcsec,
+                p.error2_arcsec,
+                p.difference_arcsec,
+                p.expanded1_arcsec,
+                p.expanded2_arcsec,
+                p.en
+            );
+        }
+    }
+    let _ = writeln!(s, "wrote {}", csv_path.display());
+    s
+}
