@@ -1,13 +1,358 @@
-//! `calib csrr`.
+//! `calib csrr`: self-calibration of two coaxial sensors.
 
-/// Arguments of `calib csrr`.
+use crate::exit::Usage;
+use crate::input::{channel, file_stem, open_log, parse_unit};
+use anyhow::Context;
+use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::csrr::{Calibration, Csrr, CsrrOptions, Method};
+use calib_core::segment::SegmentOptions;
+use calib_core::{AngleUnit, ChannelReport, Report, SessionReport};
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::path::PathBuf;
+
+/// The solver, as chosen on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MethodArg {
+    /// Joint least squares of both maps and every relative rotation (needs a handful of sessions;
+    /// exact for large errors; unaffected by speed variation).
+    Joint,
+    /// The seed paper's method as published (one map point per session; needs many sessions
+    /// densely covering 0–360°; sensitive to sampling non-uniformity).
+    Paper,
+}
+
+/// Self-calibrate two coaxial sensors by the CSRR method (coaxial sensors relative rotation).
+///
+/// Record the two sensors turning together for whole revolutions (a session), stop, turn one
+/// rotor against the other, and repeat: 5 sessions of 3 revolutions at well-spread relative
+/// rotations (e.g. 0°, 76°, 87°, 141°, 179°) are plenty for the default joint method. Sessions
+/// are found in the log (rotating segments at a constant relative angle, of at least one
+/// revolution), or taken from a CSV `session` column.
+///
+/// Writes DIR/<a>.csv and DIR/<b>.csv (correction tables: angle_deg, error_arcsec,
+/// correction_arcsec; error = reading − true angle, correction = −error, as a function of the
+/// sensor's own reading, zero mean) and DIR/report.json, and prints a summary.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The log to read (.csv or .mcap).
-    pub log: std::path::PathBuf,
+    /// The log (.csv or .mcap).
+    pub log: PathBuf,
+    /// Output folder.
+    #[arg(short, long = "output", default_value = "calib-out")]
+    pub output: PathBuf,
+    /// Channel of sensor A (the rotor turned between sessions).
+    #[arg(long, default_value = "a")]
+    pub a: String,
+    /// Channel of sensor B.
+    #[arg(long, default_value = "b")]
+    pub b: String,
+    /// Channel of a reference encoder on B's shaft, to check the result against.
+    #[arg(long = "ref")]
+    pub reference: Option<String>,
+    /// The solver.
+    #[arg(long, value_enum, default_value_t = MethodArg::Joint)]
+    pub method: MethodArg,
+    /// Highest harmonic order fitted (default: from the samples per revolution, 40 % of the
+    /// sparsest session's).
+    #[arg(long)]
+    pub max_order: Option<usize>,
+    /// Points of the output tables (default: enough for linear interpolation to 0.01″, ≥ 3600).
+    #[arg(long)]
+    pub points: Option<usize>,
+    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
+    #[arg(long, value_parser = parse_unit)]
+    pub unit: Option<AngleUnit>,
+    /// Largest drift of the relative angle within one session, degrees; must exceed the
+    /// peak-to-peak of the two sensors' errors.
+    #[arg(long, default_value_t = 1.0)]
+    pub session_tol: f64,
+    /// Speed below which a sensor counts as stopped, degrees per second.
+    #[arg(long, default_value_t = 1.0)]
+    pub min_speed: f64,
+    /// Detect sessions from the motion even when the log has a `session` column.
+    #[arg(long)]
+    pub detect_sessions: bool,
+    /// Orders whose observability (0 blind … 1 ideal) is below this are left out of the maps.
+    #[arg(long, default_value_t = 0.01)]
+    pub min_observability: f64,
+    /// Benchmark readings of A and B for `--method paper`, degrees.
+    #[arg(long, num_args = 2, value_names = ["A_DEG", "B_DEG"], default_values_t = [0.0, 0.0])]
+    pub benchmarks: Vec<f64>,
+    /// Print report.json on standard output instead of the summary.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Runs `calib csrr`.
-pub fn run(_args: &Args) -> anyhow::Result<String> {
-    anyhow::bail!("not implemented yet")
+pub fn run(args: &Args) -> anyhow::Result<String> {
+    if args.a == args.b {
+        return Err(Usage(format!(
+            "--a and --b both name `{}`: name the two sensors' channels",
+            args.a
+        ))
+        .into());
+    }
+    if !(args.session_tol > 0.0
+        && args.min_speed > 0.0
+        && (0.0..1.0).contains(&args.min_observability))
+    {
+        return Err(Usage(
+            "--session-tol and --min-speed must be positive and --min-observability in [0, 1)"
+                .into(),
+        )
+        .into());
+    }
+    if args.points.is_some_and(|p| p < 2) {
+        return Err(Usage("--points must be at least 2".into()).into());
+    }
+    let mut reader = open_log(&args.log, args.unit)?;
+    let ia = channel(&reader, &args.log, &args.a)?;
+    let ib = channel(&reader, &args.log, &args.b)?;
+    let ir = args
+        .reference
+        .as_deref()
+        .map(|r| channel(&reader, &args.log, r))
+        .transpose()?;
+    let opts = CsrrOptions {
+        method: match args.method {
+            MethodArg::Joint => Method::Joint,
+            MethodArg::Paper => Method::Paper,
+        },
+        max_order: args.max_order,
+        segments: SegmentOptions {
+            min_speed: args.min_speed.to_radians(),
+            relative_tol: args.session_tol.to_radians(),
+            use_marks: reader.has_session_marks() && !args.detect_sessions,
+            ..SegmentOptions::default()
+        },
+        points: args.points,
+        benchmarks: (
+            args.benchmarks[0].to_radians(),
+            args.benchmarks[1].to_radians(),
+        ),
+        reference: ir.is_some(),
+        min_observability: args.min_observability,
+        ..CsrrOptions::default()
+    };
+    let mut csrr = Csrr::new(opts);
+    for sample in reader.by_ref() {
+        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        match ir {
+            Some(ir) => {
+                csrr.push_with_reference(s.t, s.values[ia], s.values[ib], s.values[ir], s.session)
+            }
+            None => csrr.push(s.t, s.values[ia], s.values[ib], s.session),
+        }
+    }
+    let cal = csrr.finish().with_context(|| {
+        format!(
+            "{}: channels `{}` and `{}`",
+            args.log.display(),
+            args.a,
+            args.b
+        )
+    })?;
+    let mut warnings = reader.warnings(&args.log);
+    warnings.extend(cal.warnings.iter().cloned());
+
+    let report = build_report(args, &cal, warnings);
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("cannot create the output folder {}", args.output.display()))?;
+    for (name, map) in [(&args.a, &cal.a), (&args.b, &cal.b)] {
+        calib_io::table::write_table(&args.output.join(table_name(name)), map, None)?;
+    }
+    calib_io::report::write_json(&args.output.join("report.json"), &report)?;
+    if args.json {
+        return Ok(calib_io::report::render_json(&report)?);
+    }
+    Ok(render_summary(args, &cal, &report))
+}
+
+fn table_name(channel: &str) -> String {
+    format!("{}.csv", file_stem(channel))
+}
+
+fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report {
+    let mut channels = BTreeMap::new();
+    channels.insert(
+        args.a.clone(),
+        ChannelReport::of_map(&table_name(&args.a), &cal.a, 10),
+    );
+    channels.insert(
+        args.b.clone(),
+        ChannelReport::of_map(&table_name(&args.b), &cal.b, 10),
+    );
+    let sessions = cal
+        .sessions
+        .iter()
+        .map(|s| SessionReport {
+            index: s.index,
+            start_s: s.start_s,
+            end_s: s.end_s,
+            revolutions: s.revolutions,
+            relative_rotation_deg: s.relative_rotation.to_degrees(),
+        })
+        .collect();
+    let mut details = BTreeMap::new();
+    details.insert("solver".to_string(), json!(cal.method));
+    details.insert("max_order".to_string(), json!(cal.max_order));
+    details.insert(
+        "excluded_orders".to_string(),
+        json!(
+            cal.excluded
+                .iter()
+                .map(|e| json!({"order": e.order, "observability": e.observability}))
+                .collect::<Vec<_>>()
+        ),
+    );
+    if let Some(adv) = cal.advice {
+        details.insert(
+            "advice".to_string(),
+            json!({
+                "extra_relative_rotation_deg": adv.extra_rotation.to_degrees(),
+                "min_observability_after": adv.min_observability,
+            }),
+        );
+    }
+    if let Some(r) = cal.residual_rms {
+        details.insert("residual_rms_arcsec".to_string(), json!(r * ARCSEC_PER_RAD));
+        details.insert("iterations".to_string(), json!(cal.iterations));
+    }
+    details.insert(
+        "segments".to_string(),
+        json!(cal.segmentation.segments.len()),
+    );
+    if !cal.paper_points.is_empty() {
+        details.insert(
+            "paper_points".to_string(),
+            json!(
+                cal.paper_points
+                    .iter()
+                    .map(|p| json!({
+                        "delta_deg": p.delta.to_degrees(),
+                        "a_angle_deg": p.a_angle.to_degrees(),
+                        "a_error_arcsec": p.a_error * ARCSEC_PER_RAD,
+                        "b_angle_deg": p.b_angle.to_degrees(),
+                        "b_error_arcsec": p.b_error * ARCSEC_PER_RAD,
+                    }))
+                    .collect::<Vec<_>>()
+            ),
+        );
+    }
+    if let (Some(r), Some(name)) = (&cal.reference, &args.reference) {
+        details.insert(
+            "reference".to_string(),
+            json!({
+                "channel": name,
+                "a_max_difference_arcsec": r.a_max_diff_arcsec,
+                "b_max_difference_arcsec": r.b_max_diff_arcsec,
+                "sampling_nonuniformity": r.eps_theta,
+                "effective_range": r.effective_range,
+            }),
+        );
+    }
+    Report {
+        calib_version: env!("CARGO_PKG_VERSION").to_string(),
+        method: "csrr".to_string(),
+        inputs: vec![args.log.display().to_string()],
+        command_line: None,
+        channels,
+        sessions,
+        warnings,
+        details,
+    }
+}
+
+fn render_summary(args: &Args, cal: &Calibration, report: &Report) -> String {
+    let mut o = String::new();
+    let method = match cal.method {
+        Method::Joint => "joint least squares",
+        Method::Paper => "paper (eqs. 4–7)",
+    };
+    let _ = writeln!(
+        o,
+        "CSRR self-calibration of `{}` and `{}` — {method}",
+        args.a, args.b
+    );
+    let _ = writeln!(o, "\nsessions");
+    let _ = writeln!(
+        o,
+        "  {:>3} {:>10} {:>10} {:>7} {:>12}",
+        "#", "start s", "end s", "revs", "Δ deg"
+    );
+    for s in &cal.sessions {
+        let _ = writeln!(
+            o,
+            "  {:>3} {:>10.3} {:>10.3} {:>7.2} {:>12.4}",
+            s.index,
+            s.start_s,
+            s.end_s,
+            s.revolutions,
+            s.relative_rotation.to_degrees()
+        );
+    }
+    let _ = writeln!(o, "\nmaps (error = reading − true angle, zero mean)");
+    for (name, map) in [(&args.a, &cal.a), (&args.b, &cal.b)] {
+        let ch = &report.channels[name];
+        let top: Vec<String> = ch
+            .harmonics
+            .iter()
+            .take(4)
+            .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
+            .collect();
+        let _ = writeln!(
+            o,
+            "  {:<10} p-p {:>10.3}″  rms {:>9.3}″  largest orders {}  → {}",
+            name,
+            map.peak_to_peak() * ARCSEC_PER_RAD,
+            ch.rms_arcsec,
+            top.join(", "),
+            args.output.join(&ch.table).display()
+        );
+    }
+    match cal.residual_rms {
+        Some(r) => {
+            let _ = writeln!(
+                o,
+                "\nfit: orders 1–{} ({} left out), residual RMS {:.4}″ per sample, {} iterations",
+                cal.max_order,
+                cal.excluded.len(),
+                r * ARCSEC_PER_RAD,
+                cal.iterations
+            );
+        }
+        None => {
+            let _ = writeln!(
+                o,
+                "\n{} map points (one per session)",
+                cal.paper_points.len()
+            );
+        }
+    }
+    if let Some(r) = &cal.reference {
+        let _ = writeln!(
+            o,
+            "against the reference: max |difference| {:.3}″ ({}), {:.3}″ ({})",
+            r.a_max_diff_arcsec, args.a, r.b_max_diff_arcsec, args.b
+        );
+        if let Some(worst) = r.effective_range.iter().max_by(|x, y| {
+            x.predicted_a_arcsec
+                .max(x.predicted_b_arcsec)
+                .total_cmp(&y.predicted_a_arcsec.max(y.predicted_b_arcsec))
+        }) {
+            let _ = writeln!(
+                o,
+                "sampling non-uniformity: worst order for the paper method {} (|Y| = {:.4}, predicted residual {:.3}″)",
+                worst.order,
+                worst.y,
+                worst.predicted_a_arcsec.max(worst.predicted_b_arcsec)
+            );
+        }
+    }
+    for w in &report.warnings {
+        let _ = writeln!(o, "\nwarning: {w}");
+    }
+    let _ = writeln!(o, "\nwrote {}", args.output.join("report.json").display());
+    o
 }
