@@ -10,16 +10,34 @@
 //! e_a(x_n) − e_b(y_n) + Δ_k = x_n − y_n        (mod 2π)
 //! ```
 //!
-//! With `e_a, e_b` zero-mean Fourier series up to order `H` and one `Δ_k` per session this is a
-//! *linear* least-squares problem in `4H + K` unknowns: the readings are known, so no
-//! small-error linearization and no time stamps enter (speed variation cannot bias it, unlike the
-//! paper's DC estimate of eqs. 4–5 whose error is analysed in eqs. 9–17).
+//! No time stamps enter, so speed variation cannot bias it (unlike the paper's DC estimate of
+//! eqs. 4–5, whose error is analysed in eqs. 9–17).
 //!
-//! # Solution
+//! # Unknowns: errors as functions of the true angle
+//! A map as a function of the reading holds far more orders than the error as a function of the
+//! true angle: `θ ↦ θ + ε(θ)` spreads a harmonic of order `h` and slope `h·A` into orders `2h`,
+//! `3h`, … (for the seed paper's 84-pole-pair sensor, ±680″, still 0.3″ at order 1008 — beyond
+//! the 1200 orders that 2400 samples per revolution can resolve). So the unknowns are the
+//! Fourier series `ε_a, ε_b` of the true angle, up to order `H`, and `e(r) = ε(θ(r))` where
+//! `θ(r)` solves `θ + ε(θ) = r`. Differentiating, `∂e(r)/∂c = φ_c(θ) / (1 + ε′(θ))` for a
+//! coefficient `c` with basis function `φ_c`. Gauss–Newton: starting from `ε = 0` (where the
+//! first step is the linear least-squares fit of the reading-domain series), each step solves
+//! the linear problem
+//!
+//! ```text
+//! δε_a(θ_a)/(1 + ε_a′(θ_a)) − δε_b(θ_b)/(1 + ε_b′(θ_b)) + δΔ_k = d_n − model_n
+//! ```
+//!
+//! for all samples, with `θ_a = θ(x_n)`, `θ_b = θ(y_n)` from the current series. It converges in
+//! a few steps (the correction is second order in the error's slope). The tables are then
+//! `e(r_i) = r_i − θ(r_i)` on the output grid, exact whatever orders that takes.
+//!
+//! # Solution of each step
 //! Samples are first reduced to fine bins of `x` per session ([`super::bins`]). The normal
-//! equations `AᵀNA·u = AᵀN·d` (`N` = bin counts) are solved by conjugate gradient without forming
+//! equations `AᵀNA·u = AᵀN·r` (`N` = bin counts) are solved by conjugate gradient without forming
 //! `A`: `A·u` synthesizes both series on a uniform grid by inverse FFT and interpolates them at
-//! the bins' `x̄` and `ȳ` ([`super::nufft`]); `Aᵀ` spreads and takes a forward FFT. One iteration
+//! the bins' `θ_a` and `θ_b` ([`super::nufft`]), scaled by `1/(1 + ε′)`; `Aᵀ` scales, spreads and
+//! takes a forward FFT. One iteration
 //! costs `O(M + G log G)` for `M` bins and a grid of `G ≈ 16H` points, so the cost of the solve
 //! does not grow with the log once the bins are filled, and nothing of size `M·H` is ever formed.
 //!
@@ -38,20 +56,24 @@
 use super::nufft::{GridTransform, Stencils};
 use super::observability::observability;
 use super::{CsrrError, SessionData};
+use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
 
 /// Options of the joint solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JointOptions {
-    /// Highest order fitted in each map.
+    /// Highest order fitted in each sensor's error (as a function of the true angle).
     pub max_order: usize,
     /// Orders whose observability ([`super::observability::observability`]) is below this are
     /// left out of the maps (default 0.01: noise on them would be amplified more than 10×).
     pub min_observability: f64,
-    /// Stop when the preconditioned residual norm has fallen by this factor (default 1e-10).
+    /// Stop each step's conjugate gradient when the preconditioned residual norm has fallen by
+    /// this factor (default 1e-10).
     pub tolerance: f64,
-    /// Give up after this many iterations (default 2000).
+    /// Give up a step's conjugate gradient after this many iterations (default 2000).
     pub max_iterations: usize,
+    /// Gauss–Newton steps at most (default 8).
+    pub max_steps: usize,
 }
 
 impl JointOptions {
@@ -62,6 +84,7 @@ impl JointOptions {
             min_observability: 0.01,
             tolerance: 1e-10,
             max_iterations: 2000,
+            max_steps: 8,
         }
     }
 }
@@ -78,9 +101,10 @@ pub struct ExcludedOrder {
 /// The joint solve's result.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JointSolution {
-    /// Sensor A's map (orders `1..=max_order`, zero at excluded orders).
+    /// Sensor A's error as a function of the true angle, `ε_a(θ)` (orders `1..=max_order`, zero
+    /// at excluded orders). Its map as a function of A's reading is [`reading_map`].
     pub a: FourierSeries,
-    /// Sensor B's map.
+    /// Sensor B's error as a function of the true angle.
     pub b: FourierSeries,
     /// Each session's relative rotation `Δ_k`, rad (absolute: the mean of `x − y`).
     pub deltas: Vec<f64>,
@@ -88,28 +112,92 @@ pub struct JointSolution {
     pub excluded: Vec<ExcludedOrder>,
     /// RMS of the per-sample residual of the joint equation, rad.
     pub residual_rms: f64,
-    /// Conjugate-gradient iterations taken.
+    /// Conjugate-gradient iterations taken, over all steps.
     pub iterations: usize,
-    /// Whether the tolerance was reached.
+    /// Gauss–Newton steps taken.
+    pub steps: usize,
+    /// Whether every step reached its tolerance and the steps converged.
     pub converged: bool,
 }
 
-/// The flattened equations and the operator `AᵀNA`.
-struct Problem {
+/// Fast evaluation of a series and its derivative at many points, by grid synthesis and
+/// interpolation ([`super::nufft`]).
+struct SeriesEval {
+    orders: Vec<usize>,
+    fft: GridTransform,
+    value: Vec<f64>,
+    slope: Vec<f64>,
+}
+
+impl SeriesEval {
+    fn new(orders: Vec<usize>, grid: usize) -> Self {
+        SeriesEval {
+            fft: GridTransform::new(grid),
+            value: vec![0.0; grid],
+            slope: vec![0.0; grid],
+            orders,
+        }
+    }
+
+    /// Loads `cos`/`sin` coefficients (one per order in `orders`).
+    fn load(&mut self, cos: &[f64], sin: &[f64]) {
+        self.fft.synthesize(&self.orders, cos, sin, &mut self.value);
+        // d/dθ (a cos hθ + b sin hθ) = h·b cos hθ − h·a sin hθ
+        let dcos: Vec<f64> = self
+            .orders
+            .iter()
+            .zip(sin)
+            .map(|(&h, b)| h as f64 * b)
+            .collect();
+        let dsin: Vec<f64> = self
+            .orders
+            .iter()
+            .zip(cos)
+            .map(|(&h, a)| -(h as f64) * a)
+            .collect();
+        self.fft
+            .synthesize(&self.orders, &dcos, &dsin, &mut self.slope);
+    }
+
+    /// `θ` with `θ + ε(θ) = r` for every `r`, by Newton's method (`|ε′| < 1` for any sensor whose
+    /// reading increases with the angle), and `1/(1 + ε′(θ))` there.
+    fn invert(&self, readings: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let grid = self.value.len();
+        let mut theta = readings.to_vec();
+        let mut e = vec![0.0; theta.len()];
+        let mut de = vec![0.0; theta.len()];
+        for _ in 0..6 {
+            let st = Stencils::new(theta.iter().copied(), grid);
+            st.gather(&self.value, &mut e);
+            st.gather(&self.slope, &mut de);
+            for j in 0..theta.len() {
+                theta[j] -= (theta[j] + e[j] - readings[j]) / (1.0 + de[j]).max(0.05);
+            }
+        }
+        let st = Stencils::new(theta.iter().copied(), grid);
+        st.gather(&self.slope, &mut de);
+        let scale = de.iter().map(|d| 1.0 / (1.0 + d).max(0.05)).collect();
+        (theta, scale)
+    }
+}
+
+/// One Gauss–Newton step's linear operator `A` and its weighted transpose.
+struct Step {
     orders: Vec<usize>,
     sessions: usize,
     session_of: Vec<u32>,
     n: Vec<f64>,
-    d: Vec<f64>,
-    at_x: Stencils,
-    at_y: Stencils,
+    at_a: Stencils,
+    at_b: Stencils,
+    scale_a: Vec<f64>,
+    scale_b: Vec<f64>,
     fft: GridTransform,
     grid_buf: Vec<f64>,
     ea: Vec<f64>,
     eb: Vec<f64>,
 }
 
-impl Problem {
+impl Step {
     fn len(&self) -> usize {
         4 * self.orders.len() + self.sessions
     }
@@ -119,42 +207,45 @@ impl Problem {
         let l = self.orders.len();
         self.fft
             .synthesize(&self.orders, &u[..l], &u[l..2 * l], &mut self.grid_buf);
-        self.at_x.gather(&self.grid_buf, &mut self.ea);
+        self.at_a.gather(&self.grid_buf, &mut self.ea);
         self.fft.synthesize(
             &self.orders,
             &u[2 * l..3 * l],
             &u[3 * l..4 * l],
             &mut self.grid_buf,
         );
-        self.at_y.gather(&self.grid_buf, &mut self.eb);
+        self.at_b.gather(&self.grid_buf, &mut self.eb);
         let deltas = &u[4 * l..];
         for (j, rj) in r.iter_mut().enumerate() {
-            *rj = self.ea[j] - self.eb[j] + deltas[self.session_of[j] as usize];
+            *rj = self.scale_a[j] * self.ea[j] - self.scale_b[j] * self.eb[j]
+                + deltas[self.session_of[j] as usize];
         }
     }
 
     /// `g = Aᵀ·(N∘r)`.
     fn transpose_weighted(&mut self, r: &[f64], g: &mut [f64]) {
         let l = self.orders.len();
-        for (j, w) in self.ea.iter_mut().enumerate() {
-            *w = self.n[j] * r[j];
-        }
         let (ga, rest) = g.split_at_mut(2 * l);
         let (gb, gd) = rest.split_at_mut(2 * l);
+        for j in 0..r.len() {
+            self.ea[j] = self.n[j] * r[j] * self.scale_a[j];
+        }
         self.grid_buf.iter_mut().for_each(|v| *v = 0.0);
-        self.at_x.scatter(&self.ea, &mut self.grid_buf);
+        self.at_a.scatter(&self.ea, &mut self.grid_buf);
         let (gac, gas) = ga.split_at_mut(l);
         self.fft
             .analyze_transpose(&mut self.grid_buf, &self.orders, gac, gas);
+        for j in 0..r.len() {
+            self.eb[j] = -self.n[j] * r[j] * self.scale_b[j];
+        }
         self.grid_buf.iter_mut().for_each(|v| *v = 0.0);
-        self.at_y.scatter(&self.ea, &mut self.grid_buf);
+        self.at_b.scatter(&self.eb, &mut self.grid_buf);
         let (gbc, gbs) = gb.split_at_mut(l);
         self.fft
             .analyze_transpose(&mut self.grid_buf, &self.orders, gbc, gbs);
-        gb.iter_mut().for_each(|v| *v = -*v);
         gd.iter_mut().for_each(|v| *v = 0.0);
-        for (j, w) in self.ea.iter().enumerate() {
-            gd[self.session_of[j] as usize] += w;
+        for j in 0..r.len() {
+            gd[self.session_of[j] as usize] += self.n[j] * r[j];
         }
     }
 }
@@ -207,6 +298,55 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// Preconditioned conjugate gradient on `AᵀNA·u = AᵀN·rhs`, from `u = 0`. Returns the
+/// iterations taken and whether the tolerance was reached.
+fn conjugate_gradient(
+    step: &mut Step,
+    precond: &Preconditioner,
+    rhs: &[f64],
+    u: &mut [f64],
+    opts: &JointOptions,
+) -> (usize, bool) {
+    let nu = step.len();
+    let mut au = vec![0.0; rhs.len()];
+    let mut r = vec![0.0; nu];
+    step.transpose_weighted(rhs, &mut r);
+    u.iter_mut().for_each(|v| *v = 0.0);
+    let mut z = vec![0.0; nu];
+    precond.apply(&r, &mut z);
+    let mut p = z.clone();
+    let mut rz = dot(&r, &z);
+    let rz0 = rz;
+    if rz0 == 0.0 {
+        return (0, true);
+    }
+    let mut ap = vec![0.0; nu];
+    for iteration in 1..=opts.max_iterations {
+        step.apply(&p, &mut au);
+        step.transpose_weighted(&au, &mut ap);
+        let pap = dot(&p, &ap);
+        if pap <= 0.0 || !pap.is_finite() {
+            return (iteration, false);
+        }
+        let alpha = rz / pap;
+        for i in 0..nu {
+            u[i] += alpha * p[i];
+            r[i] -= alpha * ap[i];
+        }
+        precond.apply(&r, &mut z);
+        let rz_new = dot(&r, &z);
+        if rz_new.sqrt() <= opts.tolerance * rz0.sqrt() {
+            return (iteration, true);
+        }
+        let beta = rz_new / rz;
+        rz = rz_new;
+        for i in 0..nu {
+            p[i] = z[i] + beta * p[i];
+        }
+    }
+    (opts.max_iterations, false)
+}
+
 /// Solves the joint CSRR equation for the binned sessions. See the module docs.
 pub fn solve(sessions: &[SessionData], opts: &JointOptions) -> Result<JointSolution, CsrrError> {
     if sessions.len() < 2 {
@@ -219,12 +359,12 @@ pub fn solve(sessions: &[SessionData], opts: &JointOptions) -> Result<JointSolut
         .iter()
         .map(|s| s.bins.iter().map(|b| b.n).sum())
         .collect();
-    let init_deltas: Vec<f64> = sessions
+    let mut deltas: Vec<f64> = sessions
         .iter()
         .zip(&weights)
         .map(|(s, w)| s.bins.iter().map(|b| b.n * b.d).sum::<f64>() / w)
         .collect();
-    let centred: Vec<f64> = init_deltas.iter().map(|d| d - init_deltas[0]).collect();
+    let centred: Vec<f64> = deltas.iter().map(|d| d - deltas[0]).collect();
     let mut orders = Vec::new();
     let mut excluded = Vec::new();
     for h in 1..=opts.max_order {
@@ -245,105 +385,134 @@ pub fn solve(sessions: &[SessionData], opts: &JointOptions) -> Result<JointSolut
     }
 
     let grid = (16 * opts.max_order).max(64).next_power_of_two();
-    let bins = sessions.iter().flat_map(|s| s.bins.iter());
-    let m: usize = sessions.iter().map(|s| s.bins.len()).sum();
+    let bins: Vec<_> = sessions.iter().flat_map(|s| s.bins.iter()).collect();
+    let m = bins.len();
+    let xs: Vec<f64> = bins.iter().map(|b| b.x).collect();
+    let ys: Vec<f64> = bins.iter().map(|b| b.x - b.d).collect();
+    let d: Vec<f64> = bins.iter().map(|b| b.d).collect();
+    let n: Vec<f64> = bins.iter().map(|b| b.n).collect();
     let mut session_of = Vec::with_capacity(m);
     for (k, s) in sessions.iter().enumerate() {
         session_of.extend(std::iter::repeat_n(k as u32, s.bins.len()));
     }
-    let mut problem = Problem {
-        sessions: k_count,
-        session_of,
-        n: bins.clone().map(|b| b.n).collect(),
-        d: bins.clone().map(|b| b.d).collect(),
-        at_x: Stencils::new(bins.clone().map(|b| b.x), grid),
-        at_y: Stencils::new(bins.clone().map(|b| b.x - b.d), grid),
-        fft: GridTransform::new(grid),
-        grid_buf: vec![0.0; grid],
-        ea: vec![0.0; m],
-        eb: vec![0.0; m],
-        orders,
-    };
-    debug_assert_eq!(problem.fft.grid(), grid);
-    let precond = Preconditioner::new(&problem.orders, &centred, &weights);
-    let nu = problem.len();
-    let l = problem.orders.len();
-
-    // Start from zero maps and the sessions' mean relative angles.
-    let mut u = vec![0.0; nu];
-    u[4 * l..].copy_from_slice(&init_deltas);
-    let mut au = vec![0.0; m];
-    let mut resid = vec![0.0; m];
-    problem.apply(&u, &mut au);
-    for j in 0..m {
-        resid[j] = problem.d[j] - au[j];
-    }
-    let mut r = vec![0.0; nu];
-    problem.transpose_weighted(&resid, &mut r);
-    let mut z = vec![0.0; nu];
-    precond.apply(&r, &mut z);
-    let mut p = z.clone();
-    let mut rz = dot(&r, &z);
-    let rz0 = rz;
-    let mut ap = vec![0.0; nu];
+    let precond = Preconditioner::new(&orders, &centred, &weights);
+    let l = orders.len();
+    let (mut ca, mut sa, mut cb, mut sb) = (vec![0.0; l], vec![0.0; l], vec![0.0; l], vec![0.0; l]);
+    let mut eval_a = SeriesEval::new(orders.clone(), grid);
+    let mut eval_b = SeriesEval::new(orders.clone(), grid);
     let mut iterations = 0;
-    let mut converged = rz0 == 0.0;
-    while !converged && iterations < opts.max_iterations {
-        problem.apply(&p, &mut au);
-        problem.transpose_weighted(&au, &mut ap);
-        let pap = dot(&p, &ap);
-        if pap <= 0.0 || !pap.is_finite() {
+    let mut converged = false;
+    let mut steps = 0;
+    let mut residual = vec![0.0; m];
+    let mut du = vec![0.0; 4 * l + k_count];
+    let mut fft = Some(GridTransform::new(grid));
+    while steps < opts.max_steps {
+        eval_a.load(&ca, &sa);
+        eval_b.load(&cb, &sb);
+        let (theta_a, scale_a) = eval_a.invert(&xs);
+        let (theta_b, scale_b) = eval_b.invert(&ys);
+        for j in 0..m {
+            let model =
+                (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
+            residual[j] = d[j] - model;
+        }
+        let mut step = Step {
+            orders: orders.clone(),
+            sessions: k_count,
+            session_of: std::mem::take(&mut session_of),
+            n: n.clone(),
+            at_a: Stencils::new(theta_a.iter().copied(), grid),
+            at_b: Stencils::new(theta_b.iter().copied(), grid),
+            scale_a,
+            scale_b,
+            fft: fft.take().expect("returned after each step"),
+            grid_buf: vec![0.0; grid],
+            ea: vec![0.0; m],
+            eb: vec![0.0; m],
+        };
+        let (its, ok) = conjugate_gradient(&mut step, &precond, &residual, &mut du, opts);
+        session_of = step.session_of;
+        fft = Some(step.fft);
+        iterations += its;
+        steps += 1;
+        let mut largest = 0.0f64;
+        for i in 0..l {
+            ca[i] += du[i];
+            sa[i] += du[l + i];
+            cb[i] += du[2 * l + i];
+            sb[i] += du[3 * l + i];
+            largest = largest
+                .max(du[i].hypot(du[l + i]))
+                .max(du[2 * l + i].hypot(du[3 * l + i]));
+        }
+        for k in 0..k_count {
+            deltas[k] += du[4 * l + k];
+        }
+        if !largest.is_finite() {
+            return Err(CsrrError::NotFinite);
+        }
+        // Stop when the last step moved no coefficient by more than 1e-6″.
+        if largest < 1e-6 / crate::angle::ARCSEC_PER_RAD {
+            converged = ok;
             break;
-        }
-        let alpha = rz / pap;
-        for i in 0..nu {
-            u[i] += alpha * p[i];
-            r[i] -= alpha * ap[i];
-        }
-        precond.apply(&r, &mut z);
-        let rz_new = dot(&r, &z);
-        iterations += 1;
-        if rz_new.sqrt() <= opts.tolerance * rz0.sqrt() {
-            converged = true;
-            break;
-        }
-        let beta = rz_new / rz;
-        rz = rz_new;
-        for i in 0..nu {
-            p[i] = z[i] + beta * p[i];
         }
     }
 
-    problem.apply(&u, &mut au);
-    let total: f64 = problem.n.iter().sum();
+    // Residual of the final model, per sample: between-bin part plus the spread inside bins.
+    eval_a.load(&ca, &sa);
+    eval_b.load(&cb, &sb);
+    let (theta_a, _) = eval_a.invert(&xs);
+    let (theta_b, _) = eval_b.invert(&ys);
+    let total: f64 = n.iter().sum();
     let within: f64 = sessions
         .iter()
         .flat_map(|s| &s.bins)
         .map(|b| b.d_var_sum)
         .sum();
     let between: f64 = (0..m)
-        .map(|j| problem.n[j] * (au[j] - problem.d[j]).powi(2))
+        .map(|j| {
+            let model =
+                (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
+            n[j] * (d[j] - model).powi(2)
+        })
         .sum();
     let residual_rms = ((between + within) / total).sqrt();
-    if !residual_rms.is_finite() || u.iter().any(|v| !v.is_finite()) {
+    if !residual_rms.is_finite() {
         return Err(CsrrError::NotFinite);
     }
 
     let mut a = FourierSeries::zeros(opts.max_order);
     let mut b = FourierSeries::zeros(opts.max_order);
-    for (i, &h) in problem.orders.iter().enumerate() {
-        a.cos[h - 1] = u[i];
-        a.sin[h - 1] = u[l + i];
-        b.cos[h - 1] = u[2 * l + i];
-        b.sin[h - 1] = u[3 * l + i];
+    for (i, &h) in orders.iter().enumerate() {
+        a.cos[h - 1] = ca[i];
+        a.sin[h - 1] = sa[i];
+        b.cos[h - 1] = cb[i];
+        b.sin[h - 1] = sb[i];
     }
     Ok(JointSolution {
         a,
         b,
-        deltas: u[4 * l..].to_vec(),
+        deltas,
         excluded,
         residual_rms,
         iterations,
+        steps,
         converged,
     })
+}
+
+/// The map of an error given as a function of the true angle, `ε(θ)`, as a function of the
+/// reading: `e(r_i) = r_i − θ(r_i)` with `θ + ε(θ) = r_i`, on `points` grid points. Exact
+/// whatever orders the reading-domain map holds.
+pub fn reading_map(series: &FourierSeries, points: usize) -> ErrorMap {
+    let orders: Vec<usize> = (1..=series.max_order()).collect();
+    let grid = (16 * series.max_order()).max(64).next_power_of_two();
+    let mut eval = SeriesEval::new(orders, grid);
+    eval.load(&series.cos, &series.sin);
+    let n = points.max(1);
+    let readings: Vec<f64> = (0..n)
+        .map(|i| std::f64::consts::TAU * i as f64 / n as f64)
+        .collect();
+    let (theta, _) = eval.invert(&readings);
+    ErrorMap::new(readings.iter().zip(&theta).map(|(r, t)| r - t).collect())
 }

@@ -219,10 +219,12 @@ pub struct Calibration {
     pub a: ErrorMap,
     /// Sensor B's error map, as a function of B's reading.
     pub b: ErrorMap,
-    /// A's map as a Fourier series (joint method: the fitted coefficients).
+    /// A's map as a Fourier series of A's reading (orders below half the map's points).
     pub a_series: FourierSeries,
-    /// B's map as a Fourier series.
+    /// B's map as a Fourier series of B's reading.
     pub b_series: FourierSeries,
+    /// The joint method's fitted errors as functions of the true angle, `(ε_a, ε_b)`.
+    pub true_angle_series: Option<(FourierSeries, FourierSeries)>,
     /// The sessions used.
     pub sessions: Vec<SessionSummary>,
     /// How the log was segmented.
@@ -336,7 +338,7 @@ impl Csrr {
             }
         }?;
         if let Some(r) = self.sinks.reference.take() {
-            cal.reference = Some(r.finish(&cal.a_series, &cal.b_series));
+            cal.reference = Some(r.finish(&cal.a, &cal.b));
         }
         Ok(cal)
     }
@@ -422,8 +424,9 @@ fn finish_joint(
     let sol = joint::solve(&sessions, &jopts)?;
     if !sol.converged {
         warnings.push(format!(
-            "the solver stopped after {} iterations before reaching its tolerance; the maps may be inaccurate",
-            sol.iterations
+            "the solver stopped after {} steps and {} iterations before reaching its tolerance; the maps may be inaccurate \
+             (try a lower --max-order)",
+            sol.steps, sol.iterations
         ));
     }
     let weights: Vec<f64> = sessions.iter().map(|s| s.samples as f64).collect();
@@ -456,10 +459,15 @@ fn finish_joint(
     let points = opts
         .points
         .unwrap_or_else(|| table_points(&sol.a).max(table_points(&sol.b)));
+    let a = joint::reading_map(&sol.a, points);
+    let b = joint::reading_map(&sol.b, points);
     Ok(Calibration {
         method: Method::Joint,
-        a: ErrorMap::from_series(&sol.a, points),
-        b: ErrorMap::from_series(&sol.b, points),
+        a_series: a.series(),
+        b_series: b.series(),
+        true_angle_series: Some((sol.a, sol.b)),
+        a,
+        b,
         sessions: summaries(&sessions, &sol.deltas),
         segmentation,
         max_order,
@@ -467,8 +475,6 @@ fn finish_joint(
         advice,
         residual_rms: Some(sol.residual_rms),
         iterations: sol.iterations,
-        a_series: sol.a,
-        b_series: sol.b,
         paper_points: Vec::new(),
         reference: None,
         warnings,
@@ -531,6 +537,7 @@ fn finish_paper(
         method: Method::Paper,
         a_series: a.series(),
         b_series: b.series(),
+        true_angle_series: None,
         a,
         b,
         sessions,

@@ -100,7 +100,6 @@ impl Stencils {
 
 /// Synthesis of a Fourier series on the uniform grid, and its transpose.
 pub(crate) struct GridTransform {
-    grid: usize,
     inverse: Arc<dyn ComplexToReal<f64>>,
     forward: Arc<dyn RealToComplex<f64>>,
     spectrum: Vec<Complex<f64>>,
@@ -115,18 +114,12 @@ impl GridTransform {
         let inverse = planner.plan_fft_inverse(grid);
         let forward = planner.plan_fft_forward(grid);
         GridTransform {
-            grid,
             spectrum: inverse.make_input_vec(),
             scratch_in: inverse.make_scratch_vec(),
             scratch_fwd: forward.make_scratch_vec(),
             inverse,
             forward,
         }
-    }
-
-    /// Grid size.
-    pub(crate) fn grid(&self) -> usize {
-        self.grid
     }
 
     /// `grid[m] = Σ_i cos_i·cos(h_i θ_m) + sin_i·sin(h_i θ_m)`, `θ_m = 2πm/G`, for the orders
