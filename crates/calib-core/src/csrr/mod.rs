@@ -189,6 +189,8 @@ impl Default for CsrrOptions {
 pub struct SessionSummary {
     /// Index among the used sessions, from 0.
     pub index: usize,
+    /// The segmenter's id of the session (counts rejected segments too).
+    pub id: usize,
     /// Start, s.
     pub start_s: f64,
     /// End, s.
@@ -199,6 +201,8 @@ pub struct SessionSummary {
     pub samples: u64,
     /// Relative rotation against the first session, rad.
     pub relative_rotation: f64,
+    /// The session's mean relative angle `Δ_k` as the method estimated it, rad.
+    pub absolute_rotation: f64,
 }
 
 /// Advice for blind or ill-conditioned orders.
@@ -338,7 +342,12 @@ impl Csrr {
             }
         }?;
         if let Some(r) = self.sinks.reference.take() {
-            cal.reference = Some(r.finish(&cal.a, &cal.b));
+            let deltas: Vec<(usize, f64)> = cal
+                .sessions
+                .iter()
+                .map(|s| (s.id, s.absolute_rotation))
+                .collect();
+            cal.reference = Some(r.finish(&cal.a, &cal.b, &deltas));
         }
         Ok(cal)
     }
@@ -384,11 +393,13 @@ fn summaries(sessions: &[SessionData], deltas: &[f64]) -> Vec<SessionSummary> {
         .enumerate()
         .map(|(i, (s, d))| SessionSummary {
             index: i,
+            id: s.id,
             start_s: s.start_s,
             end_s: s.end_s,
             revolutions: s.revolutions,
             samples: s.samples,
             relative_rotation: crate::angle::wrap_pi(d - deltas[0]),
+            absolute_rotation: *d,
         })
         .collect()
 }
@@ -525,11 +536,13 @@ fn finish_paper(
                 .find(|s| s.session == Some(p.session));
             SessionSummary {
                 index: i,
+                id: p.session,
                 start_s: seg.map_or(0.0, |s| s.start_s),
                 end_s: seg.map_or(0.0, |s| s.end_s),
                 revolutions: seg.map_or(0.0, |s| s.revolutions.abs()),
                 samples: seg.map_or(0, |s| s.samples),
                 relative_rotation: crate::angle::wrap_pi(p.delta - deltas[0]),
+                absolute_rotation: p.delta,
             }
         })
         .collect();

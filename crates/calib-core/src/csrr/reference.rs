@@ -56,22 +56,23 @@ impl MapBins {
         self.sum_angle[i] += angle;
         self.n[i] += 1.0;
     }
-    /// Merges a session's bins with its offset (mean over occupied bins) removed, and resets them.
-    fn merge_into(&mut self, global: &mut MapBins) {
-        let occupied = self.n.iter().filter(|&&n| n > 0.0).count();
-        if occupied > 0 {
-            let offset = (0..MAP_BINS)
-                .filter(|&i| self.n[i] > 0.0)
-                .map(|i| self.sum[i] / self.n[i])
-                .sum::<f64>()
-                / occupied as f64;
-            for i in 0..MAP_BINS {
-                global.sum[i] += self.sum[i] - self.n[i] * offset;
-                global.sum_angle[i] += self.sum_angle[i];
-                global.n[i] += self.n[i];
-            }
-        }
+    /// The occupied bins `(index, sum, angle sum, count)`, and resets them.
+    fn take_compact(&mut self) -> Vec<(u32, f64, f64, f64)> {
+        let out = (0..MAP_BINS)
+            .filter(|&i| self.n[i] > 0.0)
+            .map(|i| (i as u32, self.sum[i], self.sum_angle[i], self.n[i]))
+            .collect();
         *self = MapBins::new();
+        out
+    }
+    /// Adds a session's compact bins with `offset` subtracted from every value.
+    fn add_compact(&mut self, bins: &[(u32, f64, f64, f64)], offset: f64) {
+        for &(i, sum, angle, n) in bins {
+            let i = i as usize;
+            self.sum[i] += sum - n * offset;
+            self.sum_angle[i] += angle;
+            self.n[i] += n;
+        }
     }
     fn points(&self) -> Vec<(f64, f64)> {
         (0..MAP_BINS)
@@ -137,6 +138,15 @@ impl EpsBins {
     }
 }
 
+/// One session's bins against the reference.
+#[derive(Debug, Clone)]
+struct SessionBins {
+    id: usize,
+    a: Vec<(u32, f64, f64, f64)>,
+    b: Vec<(u32, f64, f64, f64)>,
+    offsets: (f64, f64),
+}
+
 /// A [`SessionSink`] that expects the reference reading as the first extra channel.
 #[derive(Debug)]
 pub struct ReferenceAccumulator {
@@ -147,8 +157,9 @@ pub struct ReferenceAccumulator {
     off_b: f64,
     a: MapBins,
     b: MapBins,
-    a_all: MapBins,
-    b_all: MapBins,
+    /// Per accepted session: its compact bins of A and B against the reference, and the offsets
+    /// `(x − r, y − r)` of its first sample that were taken off them.
+    done: Vec<SessionBins>,
     rev: Vec<(f64, f64, f64)>,
     rev_index: Option<i64>,
     eps: EpsBins,
@@ -166,8 +177,7 @@ impl Default for ReferenceAccumulator {
             off_b: 0.0,
             a: MapBins::new(),
             b: MapBins::new(),
-            a_all: MapBins::new(),
-            b_all: MapBins::new(),
+            done: Vec::new(),
             rev: Vec::new(),
             rev_index: None,
             eps: EpsBins::new(),
@@ -203,8 +213,12 @@ impl ReferenceAccumulator {
     }
 
     fn close_session(&mut self) {
-        self.a.merge_into(&mut self.a_all);
-        self.b.merge_into(&mut self.b_all);
+        self.done.push(SessionBins {
+            id: self.session.unwrap_or_default(),
+            a: self.a.take_compact(),
+            b: self.b.take_compact(),
+            offsets: (self.off_a, self.off_b),
+        });
         self.eps.merge_into(&mut self.eps_sum, &mut self.eps_count);
         self.eps = EpsBins::new();
         self.rev.clear();
@@ -213,7 +227,19 @@ impl ReferenceAccumulator {
     }
 
     /// The checks, given the calibrated maps.
-    pub fn finish(self, a: &ErrorMap, b: &ErrorMap) -> ReferenceCheck {
+    ///
+    /// `deltas` are the sessions' ids and relative rotations `Δ_k` (rad): A reads
+    /// `x − r = e_a − e_ref + Δ_k`, so they are what separates A's map from the session offsets.
+    /// Sessions without a `Δ_k` are left out.
+    pub fn finish(self, a: &ErrorMap, b: &ErrorMap, deltas: &[(usize, f64)]) -> ReferenceCheck {
+        let (mut a_all, mut b_all) = (MapBins::new(), MapBins::new());
+        let first_b = self.done.first().map_or(0.0, |s| s.offsets.1);
+        for s in &self.done {
+            if let Some(&(_, delta)) = deltas.iter().find(|(id, _)| *id == s.id) {
+                a_all.add_compact(&s.a, wrap_pi(delta - s.offsets.0));
+                b_all.add_compact(&s.b, wrap_pi(first_b - s.offsets.1));
+            }
+        }
         let diff = |bins: &MapBins, map: &ErrorMap| -> f64 {
             let pts = bins.points();
             if pts.is_empty() {
@@ -246,10 +272,10 @@ impl ReferenceAccumulator {
             })
             .collect();
         ReferenceCheck {
-            a_max_diff_arcsec: diff(&self.a_all, a),
-            b_max_diff_arcsec: diff(&self.b_all, b),
-            a_vs_reference: self.a_all.points(),
-            b_vs_reference: self.b_all.points(),
+            a_max_diff_arcsec: diff(&a_all, a),
+            b_max_diff_arcsec: diff(&b_all, b),
+            a_vs_reference: a_all.points(),
+            b_vs_reference: b_all.points(),
             eps_theta,
             effective_range: indicators,
         }
