@@ -14,11 +14,21 @@ pub fn parse_unit(s: &str) -> Result<AngleUnit, String> {
 
 /// Opens a log for reading.
 pub fn open_log(path: &Path, unit: Option<AngleUnit>) -> anyhow::Result<LogReader> {
+    open_log_with(
+        path,
+        ReadOptions {
+            unit,
+            ..ReadOptions::default()
+        },
+    )
+}
+
+/// Opens a log for reading with these options.
+pub fn open_log_with(path: &Path, opts: ReadOptions) -> anyhow::Result<LogReader> {
     if !path.exists() {
         return Err(Usage(format!("{}: no such file; check the path", path.display())).into());
     }
-    LogReader::open(path, &ReadOptions { unit })
-        .with_context(|| format!("cannot read {}", path.display()))
+    LogReader::open(path, &opts).with_context(|| format!("cannot read {}", path.display()))
 }
 
 /// The index of channel `name` of the log at `path`.

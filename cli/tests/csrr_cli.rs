@@ -280,7 +280,6 @@ fn a_channel_that_never_moves() {
 /// rotors locked": true, but it does not say which channel is the problem (`b` never moves),
 /// which is what the user needs to know (a disconnected encoder, a wrong channel name).
 #[test]
-#[ignore = "bug: a channel that never moves is reported as `0 sessions`, not as channel `b` not moving"]
 fn a_channel_that_never_moves_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let log = write(
@@ -350,7 +349,6 @@ fn max_order_too_high_for_the_sample_density() {
 /// `--max-order 0` asks for a map without any harmonic; calib silently fits order 1 instead and
 /// exits 0 with a map that misses every harmonic of the sensors.
 #[test]
-#[ignore = "bug: --max-order 0 is silently treated as 1 (exit 0) instead of a usage error"]
 fn max_order_zero_is_a_usage_error() {
     let dir = tempfile::tempdir().unwrap();
     let log = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");
@@ -572,7 +570,6 @@ fn corrupt_mcap() {
 /// cannot be written (a folder is in the way), and a.csv and b.csv of the failed run stay behind
 /// — beside an old report.json they would not match, if one existed.
 #[test]
-#[ignore = "bug: csrr leaves a.csv and b.csv behind when writing report.json fails"]
 fn failed_report_write_leaves_no_tables() {
     let dir = tempfile::tempdir().unwrap();
     let log = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");

@@ -212,7 +212,6 @@ fn missing_scenario_exits_nonzero_naming_the_file() {
 /// A missing input is bad usage everywhere else (`calib csrr missing.csv` exits 2 with "check the
 /// path"); `calib simulate` exits 1 and only relays the OS error.
 #[test]
-#[ignore = "bug: simulate with a missing scenario file exits 1 (not 2) and does not say what to do"]
 fn missing_scenario_is_a_usage_error_like_a_missing_log() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run.csv");
@@ -278,7 +277,6 @@ fn a_file_in_the_way_of_the_truth_folder_fails_without_writing_the_log() {
 /// keeps the temporary file's private 0600 mode when it renames it into place.
 #[cfg(unix)]
 #[test]
-#[ignore = "bug: simulated .mcap is written with mode 0600 while .csv and tables respect the umask"]
 fn mcap_log_has_the_same_permissions_as_a_csv_log() {
     use std::os::unix::fs::PermissionsExt;
     let dir = tempfile::tempdir().unwrap();

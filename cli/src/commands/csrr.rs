@@ -4,7 +4,7 @@ use crate::exit::Usage;
 use crate::input::{channel, file_stem, open_log, parse_unit};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::csrr::{Calibration, Csrr, CsrrOptions, Method};
+use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
 use calib_core::{AngleUnit, ChannelReport, Report, SessionReport};
 use serde_json::json;
@@ -106,6 +106,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.points.is_some_and(|p| p < 2) {
         return Err(Usage("--points must be at least 2".into()).into());
     }
+    if args.max_order == Some(0) {
+        return Err(Usage("--max-order must be at least 1".into()).into());
+    }
     let mut reader = open_log(&args.log, args.unit)?;
     let ia = channel(&reader, &args.log, &args.a)?;
     let ib = channel(&reader, &args.log, &args.b)?;
@@ -145,26 +148,39 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             None => csrr.push(s.t, s.values[ia], s.values[ib], s.session),
         }
     }
-    let cal = csrr.finish().with_context(|| {
-        format!(
+    let cal = csrr.finish().map_err(|e| {
+        let pair = format!(
             "{}: channels `{}` and `{}`",
             args.log.display(),
             args.a,
             args.b
-        )
+        );
+        let context = match &e {
+            CsrrError::NeverMoves { sensor } => {
+                let name = if *sensor == 'A' { &args.a } else { &args.b };
+                format!("{pair}: channel `{name}`")
+            }
+            _ => pair,
+        };
+        anyhow::Error::new(e).context(context)
     })?;
     let mut warnings = reader.warnings(&args.log);
     warnings.extend(cal.warnings.iter().cloned());
 
     let report = build_report(args, &cal, warnings);
+    let json = calib_io::report::render_json(&report)?;
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create the output folder {}", args.output.display()))?;
+    // All outputs appear together or not at all.
+    let mut outputs = calib_io::atomic::OutputSet::new();
     for (name, map) in [(&args.a, &cal.a), (&args.b, &cal.b)] {
-        calib_io::table::write_table(&args.output.join(table_name(name)), map, None)?;
+        let table = calib_io::table::render_table(map, None)?;
+        outputs.add(&args.output.join(table_name(name)), table.as_bytes())?;
     }
-    calib_io::report::write_json(&args.output.join("report.json"), &report)?;
+    outputs.add(&args.output.join("report.json"), json.as_bytes())?;
+    outputs.commit()?;
     if args.json {
-        return Ok(calib_io::report::render_json(&report)?);
+        return Ok(json);
     }
     Ok(render_summary(args, &cal, &report))
 }

@@ -1,10 +1,11 @@
 //! `calib inspect`: what a log holds.
 
-use crate::input::{channel, open_log, parse_unit};
+use crate::input::{channel, open_log_with, parse_unit};
 use anyhow::Context;
 use calib_core::AngleUnit;
 use calib_core::inspect::{Inspection, Inspector};
 use calib_core::segment::{SegmentKind, SegmentOptions};
+use calib_io::ReadOptions;
 use std::fmt::Write;
 use std::path::PathBuf;
 
@@ -34,7 +35,11 @@ pub struct Args {
 
 /// Runs `calib inspect`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    let mut reader = open_log(&args.log, args.unit)?;
+    let opts = ReadOptions {
+        unit: args.unit,
+        allow_unordered_time: true,
+    };
+    let mut reader = open_log_with(&args.log, opts)?;
     let names: Vec<String> = reader.channels().iter().map(|c| c.name.clone()).collect();
     let pick =
         |given: &Option<String>, default: &str, fallback: usize| -> anyhow::Result<Option<usize>> {
@@ -145,7 +150,10 @@ fn render(path: &std::path::Path, r: &Inspection, warnings: &[String]) -> String
                 SegmentKind::Turning => "turning",
             };
             let rel = if s.kind == SegmentKind::Rotating {
-                format!("{:.4}", s.relative_angle.to_degrees())
+                format!(
+                    "{:.4}",
+                    calib_core::angle::wrap_pi(s.relative_angle).to_degrees()
+                )
             } else {
                 String::new()
             };

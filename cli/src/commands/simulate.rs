@@ -31,6 +31,13 @@ pub struct Args {
 
 /// Runs `calib simulate`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
+    if !args.scenario.exists() {
+        return Err(Usage(format!(
+            "{}: no such scenario file; check the path",
+            args.scenario.display()
+        ))
+        .into());
+    }
     let text = std::fs::read_to_string(&args.scenario)
         .with_context(|| format!("cannot read the scenario {}", args.scenario.display()))?;
     let scenario: Scenario = toml::from_str(&text).map_err(|e| {

@@ -69,10 +69,16 @@ pub struct Segment {
     pub samples: u64,
     /// Revolutions of the first sensor (signed by direction).
     pub revolutions: f64,
-    /// Mean relative angle `x − y`, rad, wrapped to `[0, 2π)`.
+    /// Mean relative angle `x − y`, rad, wrapped to `[0, 2π)` (written to JSON as
+    /// `relative_angle_deg` in `(−180, 180]`).
+    #[serde(rename = "relative_angle_deg", serialize_with = "signed_degrees")]
     pub relative_angle: f64,
     /// For a rotating segment: the session index it became, or `None` when it was too short.
     pub session: Option<usize>,
+}
+
+fn signed_degrees<S: serde::Serializer>(rad: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(crate::angle::wrap_pi(*rad).to_degrees())
 }
 
 /// Receives the samples of each session as the [`Segmenter`] finds them.
@@ -125,6 +131,8 @@ pub struct Segmenter {
     sessions: usize,
     opposite_blocks: u64,
     moving_blocks: u64,
+    /// Blocks in which the first / second sensor moved.
+    moved: (u64, u64),
 }
 
 #[derive(Debug)]
@@ -157,6 +165,7 @@ impl Segmenter {
             sessions: 0,
             opposite_blocks: 0,
             moving_blocks: 0,
+            moved: (0, 0),
         }
     }
 
@@ -206,6 +215,7 @@ impl Segmenter {
             sessions: self.sessions,
             opposite_direction: self.moving_blocks > 0
                 && self.opposite_blocks * 2 > self.moving_blocks,
+            moved: (self.moved.0 > 0, self.moved.1 > 0),
         }
     }
 
@@ -217,6 +227,8 @@ impl Segmenter {
         let d_mean = block.iter().map(|b| b.d).sum::<f64>() / block.len() as f64;
         let min = self.opts.min_speed;
         let (mx, my) = (vx.abs() >= min, vy.abs() >= min);
+        self.moved.0 += u64::from(mx);
+        self.moved.1 += u64::from(my);
         if mx && my {
             self.moving_blocks += 1;
             if vx.signum() != vy.signum() {
@@ -341,6 +353,8 @@ pub struct Segmentation {
     /// Most moving blocks had the two sensors turning in opposite directions: one channel counts
     /// the other way round.
     pub opposite_direction: bool,
+    /// Whether the first and the second sensor ever moved faster than the speed threshold.
+    pub moved: (bool, bool),
 }
 
 impl Segmentation {

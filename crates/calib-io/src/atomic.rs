@@ -44,25 +44,7 @@ impl AtomicFile {
             path: target.to_path_buf(),
             source,
         };
-        let dir = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let name = target
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let prefix = format!(".{name}.");
-        let mut builder = tempfile::Builder::new();
-        builder.prefix(&prefix).suffix(".tmp");
-        // A NamedTempFile is private (0600) by default; tables and logs are ordinary outputs, so
-        // ask for 0666 and let the user's umask decide, as for any other file they create.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            builder.permissions(std::fs::Permissions::from_mode(0o666));
-        }
-        let temp = builder.tempfile_in(dir).map_err(io_err)?;
+        let temp = temp_file_beside(target).map_err(io_err)?;
         Ok(AtomicFile {
             target: target.to_path_buf(),
             // Large enough that writing a million-row log is not dominated by system calls.
@@ -127,6 +109,78 @@ impl Write for AtomicFile {
 impl Seek for AtomicFile {
     fn seek(&mut self, pos: SeekFrom) -> io::Result<u64> {
         self.inner.seek(pos)
+    }
+}
+
+/// A hidden temporary file in `target`'s directory (`.name.XXXX.tmp`), readable as an ordinary
+/// output once renamed: a `NamedTempFile` is private (0600) by default, so ask for 0666 and let
+/// the user's umask decide, as for any other file they create.
+pub(crate) fn temp_file_beside(target: &Path) -> io::Result<NamedTempFile> {
+    let dir = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let prefix = format!(".{name}.");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".tmp");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    builder.tempfile_in(dir)
+}
+
+/// Several outputs that appear together or not at all: each is written in full to a temporary
+/// file first, and only when all are written are they renamed into place. A run that fails
+/// while writing (a full disk, a folder in the way) leaves none of them behind.
+#[derive(Debug, Default)]
+pub struct OutputSet {
+    files: Vec<AtomicFile>,
+}
+
+impl OutputSet {
+    /// An empty set.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Writes `bytes` for `path` to a temporary file.
+    pub fn add(&mut self, path: &Path, bytes: &[u8]) -> Result<(), Error> {
+        let mut file = AtomicFile::create(path)?;
+        file.write_all(bytes).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        self.files.push(file);
+        Ok(())
+    }
+    /// Renames every file into place. A target that is a folder fails the whole set before any
+    /// rename; should a rename still fail, the files already renamed are removed again.
+    pub fn commit(self) -> Result<(), Error> {
+        if let Some(f) = self.files.iter().find(|f| f.target().is_dir()) {
+            return Err(Error::Write {
+                path: f.target().to_path_buf(),
+                message:
+                    "a folder of that name is in the way; remove it or choose another output folder"
+                        .into(),
+            });
+        }
+        let mut done: Vec<PathBuf> = Vec::new();
+        for file in self.files {
+            let target = file.target().to_path_buf();
+            if let Err(e) = file.commit() {
+                for path in &done {
+                    let _ = std::fs::remove_file(path);
+                }
+                return Err(e);
+            }
+            done.push(target);
+        }
+        Ok(())
     }
 }
 

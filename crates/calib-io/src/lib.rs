@@ -38,6 +38,9 @@ pub struct ReadOptions {
     /// The unit of readings in formats that do not fix it (CSV, JSON messages); degrees if `None`.
     /// JointState positions are radians by definition and ignore it.
     pub unit: Option<AngleUnit>,
+    /// Pass CSV rows whose time stamp repeats or goes back instead of failing on them (for
+    /// `calib inspect`, which reports them). Methods need increasing stamps and leave it off.
+    pub allow_unordered_time: bool,
 }
 
 /// What a reader noticed while reading, for `inspect` and for warnings.

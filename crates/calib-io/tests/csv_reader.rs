@@ -13,7 +13,14 @@ fn write_tmp(dir: &tempfile::TempDir, content: &[u8]) -> PathBuf {
 }
 
 fn read_with(path: &Path, unit: Option<AngleUnit>) -> Result<Vec<Sample>, Error> {
-    CsvReader::open(path, &ReadOptions { unit })?.collect()
+    CsvReader::open(
+        path,
+        &ReadOptions {
+            unit,
+            ..ReadOptions::default()
+        },
+    )?
+    .collect()
 }
 
 fn read_str(content: &str) -> Result<Vec<Sample>, Error> {
@@ -98,7 +105,14 @@ fn every_unit_converts_to_radians() {
     for (unit, text, want) in cases {
         let unit: AngleUnit = unit.parse().unwrap();
         let path = write_tmp(&dir, format!("t,x\n0,{text}\n").as_bytes());
-        let reader = CsvReader::open(&path, &ReadOptions { unit: Some(unit) }).unwrap();
+        let reader = CsvReader::open(
+            &path,
+            &ReadOptions {
+                unit: Some(unit),
+                ..ReadOptions::default()
+            },
+        )
+        .unwrap();
         assert_eq!(reader.channels()[0].unit, unit);
         let s: Vec<Sample> = reader.collect::<Result<_, _>>().unwrap();
         assert!(

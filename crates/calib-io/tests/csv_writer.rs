@@ -16,7 +16,14 @@ fn channels(names: &[&str]) -> Vec<Channel> {
 }
 
 fn read(path: &Path, unit: AngleUnit) -> (Vec<String>, Vec<Sample>) {
-    let r = CsvReader::open(path, &ReadOptions { unit: Some(unit) }).unwrap();
+    let r = CsvReader::open(
+        path,
+        &ReadOptions {
+            unit: Some(unit),
+            ..ReadOptions::default()
+        },
+    )
+    .unwrap();
     let names = r.channels().iter().map(|c| c.name.clone()).collect();
     (names, r.collect::<Result<_, _>>().unwrap())
 }

@@ -68,6 +68,7 @@ fn python_fixture_joins_joint_states_with_json_reference() {
 fn unit_option_applies_to_json_only() {
     let opts = ReadOptions {
         unit: Some(AngleUnit::Rad),
+        ..ReadOptions::default()
     };
     let (reader, samples) = read_all(&fixture(), &opts);
     assert_eq!(reader.channels()[0].unit, AngleUnit::Rad);
@@ -291,6 +292,7 @@ fn json_topic_alone_uses_log_time_and_unit() {
 
     let opts = ReadOptions {
         unit: Some(AngleUnit::Counts(4)),
+        ..ReadOptions::default()
     };
     let (_, samples) = read_all(&path, &opts);
     assert_eq!(samples[1].values[1], std::f64::consts::FRAC_PI_2);

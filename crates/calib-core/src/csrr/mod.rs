@@ -107,6 +107,15 @@ pub enum CsrrError {
          (or check that the right channels were chosen)"
     )]
     OppositeDirections,
+    /// One sensor's readings never change faster than the speed threshold.
+    #[error(
+        "sensor {sensor} never moves: its readings stay (nearly) constant over the whole log, so no session can be found; \
+         check that the right channel was chosen and that it records the shaft's angle"
+    )]
+    NeverMoves {
+        /// `A` or `B`.
+        sensor: char,
+    },
     /// The requested order needs denser sampling.
     #[error(
         "order {requested} needs at least {needed} samples per revolution, but the sparsest session has {available:.0}; \
@@ -328,8 +337,15 @@ impl Csrr {
                 s.revolutions.abs()
             ));
         }
-        if segmentation.accepted_sessions().count() == 0 && segmentation.opposite_direction {
-            return Err(CsrrError::OppositeDirections);
+        if segmentation.accepted_sessions().count() == 0 {
+            if segmentation.opposite_direction {
+                return Err(CsrrError::OppositeDirections);
+            }
+            match segmentation.moved {
+                (false, _) => return Err(CsrrError::NeverMoves { sensor: 'A' }),
+                (_, false) => return Err(CsrrError::NeverMoves { sensor: 'B' }),
+                _ => {}
+            }
         }
         let mut cal = match self.opts.method {
             Method::Joint => {

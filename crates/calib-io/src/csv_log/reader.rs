@@ -49,6 +49,8 @@ pub struct CsvReader {
     /// The column of each channel, in the order of `channels`.
     value_cols: Vec<usize>,
     rad_per_unit: f64,
+    /// Pass stamps that repeat or go back through (for `inspect`, which reports them).
+    allow_unordered_time: bool,
     /// The previous row's time stamp and position, for the monotonicity check and its message.
     prev: Option<(f64, csv::Position)>,
     diagnostics: ReadDiagnostics,
@@ -144,6 +146,7 @@ impl CsvReader {
             session_col,
             value_cols,
             rad_per_unit: unit.radians_per_unit(),
+            allow_unordered_time: opts.allow_unordered_time,
             prev: None,
             diagnostics: ReadDiagnostics::default(),
         })
@@ -201,7 +204,7 @@ impl CsvReader {
         }
         if let Some((prev_t, prev_pos)) = &self.prev {
             let prev_t = *prev_t;
-            if t <= prev_t {
+            if t <= prev_t && !self.allow_unordered_time {
                 let what = if t == prev_t {
                     "repeats"
                 } else {

@@ -75,19 +75,7 @@ impl McapWriter {
             path: path.to_path_buf(),
             source,
         };
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let prefix = format!(
-            ".{}.",
-            path.file_name()
-                .map_or("calib".into(), |n| n.to_string_lossy())
-        );
-        let (file, temp) = tempfile::Builder::new()
-            .prefix(&prefix)
-            .suffix(".tmp")
-            .tempfile_in(dir)
+        let (file, temp) = crate::atomic::temp_file_beside(path)
             .map_err(io)?
             .into_parts();
         let options = WriteOptions::new()
