@@ -1,0 +1,169 @@
+//! CSRR accuracy against a known truth, on simulated runs that mirror the seed paper's
+//! experiments (5 sessions × 3 revolutions, 400 Hz, 10 r/min, quantization 0.09″, noise 0.05″:
+//! `testdata/scenarios/csrr{72,84,90}.toml`), and the paper method's behaviour on dense-Δ runs.
+//!
+//! Tolerances: the per-sample noise is ~0.08″ RMS in `x − y` (two sensors' 0.05″ noise and
+//! 0.09″/√12 quantization); fitting ~4000 coefficients from ~47000 samples leaves a map error of
+//! ~0.03″ RMS, whose maximum over 10⁴–10⁵ grid points is ~4–5× that. Each bound below is the
+//! issue's bar; the measured figures are in the comments.
+
+use calib_core::ErrorMap;
+use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::csrr::{Csrr, CsrrOptions, Method};
+use calib_core::sample::channel_index;
+use calib_core::simulate::Scenario;
+
+fn scenario(text: &str) -> Scenario {
+    toml::from_str(text).expect("scenario parses")
+}
+
+fn run(sc: &Scenario, opts: CsrrOptions) -> calib_core::csrr::Calibration {
+    let channels = sc.channels();
+    let ia = channel_of(&channels, "a");
+    let ib = channel_of(&channels, "b");
+    let mut csrr = Csrr::new(opts);
+    for s in sc.samples().expect("valid scenario") {
+        csrr.push(s.t, s.values[ia], s.values[ib], None);
+    }
+    csrr.finish().expect("calibration succeeds")
+}
+
+fn channel_of(channels: &[calib_core::Channel], name: &str) -> usize {
+    channel_index(channels, name).expect("scenario names its sensors a and b")
+}
+
+fn truth(sc: &Scenario, name: &str) -> ErrorMap {
+    sc.truth(36000)
+        .expect("truth")
+        .into_iter()
+        .find(|(n, _)| n == name)
+        .expect("sensor exists")
+        .1
+}
+
+/// Largest |map − truth| after mean removal, arcsec, on the truth's grid.
+fn max_error(map: &ErrorMap, truth: &ErrorMap) -> f64 {
+    truth.minus(map).max_abs_arcsec()
+}
+
+fn check(file: &str, bar_arcsec: f64) {
+    let sc = scenario(
+        &std::fs::read_to_string(format!(
+            "{}/../../testdata/scenarios/{file}",
+            env!("CARGO_MANIFEST_DIR")
+        ))
+        .unwrap(),
+    );
+    let cal = run(&sc, CsrrOptions::default());
+    assert_eq!(cal.sessions.len(), 5);
+    let ea = max_error(&cal.a, &truth(&sc, "a"));
+    let eb = max_error(&cal.b, &truth(&sc, "b"));
+    assert!(
+        ea <= bar_arcsec && eb <= bar_arcsec,
+        "{file}: max error A {ea:.4}″, B {eb:.4}″ (bar {bar_arcsec}″)"
+    );
+}
+
+/// Bar 1: Table II's 72-pole-pair sensors, 1 % speed variation: ≤ 0.2″ (measured 0.083″/0.089″;
+/// the paper reports ±1.5″).
+#[test]
+fn table_ii_72_pole_pairs_within_0_2_arcsec() {
+    check("csrr72.toml", 0.2);
+}
+
+/// Bar 2: 84 pole pairs at ±680″ with Table III's ε_θ: ≤ 1.0″ (measured 0.150″/0.128″; paper ±2″).
+#[test]
+fn table_iv_84_pole_pairs_at_680_arcsec_within_1_arcsec() {
+    check("csrr84.toml", 1.0);
+}
+
+/// Bar 3: 90 pole pairs at ±250″, ε_θ sharing order 90: ≤ 0.3″ (measured 0.109″/0.102″; paper ±10″).
+#[test]
+fn table_v_90_pole_pairs_sharing_order_90_within_0_3_arcsec() {
+    check("csrr90.toml", 0.3);
+}
+
+/// A dense-Δ run for the paper method: 40 sessions 9° apart, low-order sensors, short ramps.
+fn dense_run(eps_order: usize, m: f64) -> String {
+    let deltas: Vec<String> = (0..40).map(|k| format!("{:.1}", k as f64 * 9.0)).collect();
+    format!(
+        r#"
+seed = 7
+rate_hz = 400.0
+speed_rpm = 30.0
+wrap = true
+[speed]
+harmonic = [{{ order = {eps_order}, amplitude_arcsec = {m}, phase_deg = 20.0 }}]
+[[sensor]]
+name = "a"
+mount = "a"
+harmonics = [{{ order = 3, amplitude_arcsec = 100.0, phase_deg = 10.0 }}, {{ order = 5, amplitude_arcsec = 10.0, phase_deg = -60.0 }}]
+quantization_arcsec = 0.09
+noise_arcsec = 0.05
+[[sensor]]
+name = "b"
+mount = "b"
+harmonics = [{{ order = 2, amplitude_arcsec = 20.0, phase_deg = 45.0 }}, {{ order = 7, amplitude_arcsec = 8.0, phase_deg = 0.0 }}]
+quantization_arcsec = 0.09
+noise_arcsec = 0.05
+[procedure]
+relative_deg = [{}]
+revolutions = 2.2
+ramp_s = 0.05
+pause_s = 0.2
+turn_s = 0.3
+"#,
+        deltas.join(", ")
+    )
+}
+
+/// The paper method's own output: one point of A's map per session. Max |point − truth|, mean
+/// removed over the points, arcsec.
+fn paper_point_error(eps_order: usize, m: f64) -> f64 {
+    let sc = scenario(&dense_run(eps_order, m));
+    let cal = run(
+        &sc,
+        CsrrOptions {
+            method: Method::Paper,
+            ..CsrrOptions::default()
+        },
+    );
+    assert!(
+        cal.paper_points.len() >= 38,
+        "{} points",
+        cal.paper_points.len()
+    );
+    let t = truth(&sc, "a");
+    let diffs: Vec<f64> = cal
+        .paper_points
+        .iter()
+        .map(|p| p.a_error - t.eval_linear(p.a_angle))
+        .collect();
+    let mean = diffs.iter().sum::<f64>() / diffs.len() as f64;
+    diffs.iter().fold(0.0f64, |m, d| m.max((d - mean).abs())) * ARCSEC_PER_RAD
+}
+
+/// Bar 4: the paper method as published. With ε_θ at order 11, which the sensors do not share,
+/// it is accurate (measured 0.099″: the noise of one crossing per revolution). With ε_θ at
+/// order 3 — A's largest harmonic, 100″ — the DC estimate of Δ (eqs. 4–5) is a time average, and
+/// A's error sampled at non-uniform positions `θ = φ + m cos(3φ + ψ)` averages to
+/// `−½·h·m·A·sin(φ_a − ψ)` to first order, which moves with `hΔ_k` from session to session: the
+/// map degrades by `½·h·m·A` = 0.436″ for m = 600″ (measured 0.452″).
+///
+/// The paper's indicator predicts `|Y_h|·A_h = π²·h·m·A` = 8.6″ here (eqs. 18–20, with the
+/// `Ω = 2π·h` that reproduces its Table V): 2π² times what this simulation shows. The paper's
+/// own Table III also measured a larger DC error (7.66″ at order 90) than the first-order
+/// mechanism gives (0.20″), so its rig had more than position modulation at play; calib reports
+/// `|Y|` as published and this test checks the mechanism it can simulate.
+#[test]
+fn paper_method_is_accurate_unless_eps_theta_shares_an_order() {
+    let m = 600.0;
+    let clean = paper_point_error(11, m);
+    let shared = paper_point_error(3, m);
+    let first_order = 0.5 * 3.0 * (m / ARCSEC_PER_RAD) * 100.0;
+    assert!(clean < 0.15, "clean run: {clean:.4}″");
+    assert!(
+        shared > 0.7 * first_order && shared < 1.5 * first_order,
+        "shared order: {shared:.4}″, first-order prediction {first_order:.4}″"
+    );
+}
