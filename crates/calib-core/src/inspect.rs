@@ -7,7 +7,7 @@
 //! speed variation over a revolution as a spectrum in cycles per revolution.
 //!
 //! The speed spectrum comes from `Σdθ/Σdt` in 1024 bins of each channel's own reading, over the
-//! samples where the channel moves. It shows the sampling non-uniformity ε_θ of the seed paper
+//! samples where the channel moves within ±19 % of the speed it mostly turns at. It shows the sampling non-uniformity ε_θ of the seed paper
 //! (`000_…`, eq. 9) in the form a user can act on: a speed ripple of `p` % at order `h` is a
 //! position modulation of amplitude `p/100/h` rad. Computed from a sensor's own readings, it also
 //! contains that sensor's error slope `e'(θ)`: read it from a reference encoder where there is one.
@@ -107,8 +107,48 @@ struct ChannelAcc {
     last_raw: f64,
     travel: f64,
     wrapped: bool,
-    angle_sum: Vec<f64>,
-    time_sum: Vec<f64>,
+    /// Speed profiles per speed class (see [`SpeedProfiles`]).
+    profiles: SpeedProfiles,
+}
+
+/// Angle-binned `Σdθ` and `Σdt`, kept separately for speed classes 9 % wide (2^(1/8)), so that
+/// the profile can be taken at the speed the log mostly turns at: ramps and other speeds fall in
+/// other classes and do not masquerade as speed variation over the revolution.
+#[derive(Debug, Clone, Default)]
+struct SpeedProfiles {
+    classes: std::collections::BTreeMap<i32, (Vec<f64>, Vec<f64>)>,
+}
+
+impl SpeedProfiles {
+    fn add(&mut self, bin: usize, dtheta: f64, dt: f64) {
+        let class = ((dtheta / dt).log2() * 8.0).floor() as i32;
+        let (a, t) = self
+            .classes
+            .entry(class)
+            .or_insert_with(|| (vec![0.0; SPEED_BINS], vec![0.0; SPEED_BINS]));
+        a[bin] += dtheta;
+        t[bin] += dt;
+    }
+    /// The classes within ±2 (±19 %) of the one that holds the most time.
+    fn cruise(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        let busiest = self
+            .classes
+            .iter()
+            .max_by(|x, y| {
+                x.1.1
+                    .iter()
+                    .sum::<f64>()
+                    .total_cmp(&y.1.1.iter().sum::<f64>())
+            })?
+            .0;
+        let mut a = vec![0.0; SPEED_BINS];
+        let mut t = vec![0.0; SPEED_BINS];
+        for (_, (ca, ct)) in self.classes.range(busiest - 2..=busiest + 2) {
+            a.iter_mut().zip(ca).for_each(|(x, y)| *x += y);
+            t.iter_mut().zip(ct).for_each(|(x, y)| *x += y);
+        }
+        Some((a, t))
+    }
 }
 
 /// Streaming inspection of a log: [`Inspector::push`] every sample, then [`Inspector::finish`].
@@ -150,8 +190,7 @@ impl Inspector {
             last_raw: 0.0,
             travel: 0.0,
             wrapped: false,
-            angle_sum: vec![0.0; SPEED_BINS],
-            time_sum: vec![0.0; SPEED_BINS],
+            profiles: SpeedProfiles::default(),
         };
         Inspector {
             acc: vec![acc; channels.len()],
@@ -232,8 +271,7 @@ impl Inspector {
                     let bin = ((wrap_2pi(acc.last_raw + 0.5 * step) / TAU * SPEED_BINS as f64)
                         as usize)
                         .min(SPEED_BINS - 1);
-                    acc.angle_sum[bin] += step.abs();
-                    acc.time_sum[bin] += dt;
+                    acc.profiles.add(bin, step.abs(), dt);
                 }
             } else {
                 acc.first = Some(u);
@@ -304,7 +342,11 @@ impl Inspector {
                 revolutions: a.first.map_or(0.0, |f| (a.last_unwrapped - f) / TAU),
                 travel_revolutions: a.travel / TAU,
                 wrapped: a.wrapped,
-                speed_spectrum: speed_spectrum(&a.angle_sum, &a.time_sum),
+                speed_spectrum: a
+                    .profiles
+                    .cruise()
+                    .map(|(angle, time)| speed_spectrum(&angle, &time))
+                    .unwrap_or_default(),
             })
             .collect();
         Inspection {
@@ -330,10 +372,18 @@ impl Inspector {
     }
 }
 
-/// The 8 largest orders of the relative speed profile `v(θ)/v̄ − 1`, where every bin was visited.
+/// The 8 largest orders of the relative speed profile `v(θ)/v̄ − 1`. Neighbouring bins are
+/// merged (1024 → 512 → … → 16) until every bin was visited, so sparse logs still get the
+/// low orders.
 fn speed_spectrum(angle_sum: &[f64], time_sum: &[f64]) -> Vec<SpeedHarmonic> {
-    if time_sum.iter().any(|&t| t <= 0.0) {
-        return Vec::new();
+    let (mut angle_sum, mut time_sum) = (angle_sum.to_vec(), time_sum.to_vec());
+    while time_sum.iter().any(|&t| t <= 0.0) {
+        if angle_sum.len() <= 16 {
+            return Vec::new();
+        }
+        let pairs = |v: &[f64]| v.chunks(2).map(|c| c.iter().sum()).collect::<Vec<f64>>();
+        angle_sum = pairs(&angle_sum);
+        time_sum = pairs(&time_sum);
     }
     let speed: Vec<f64> = angle_sum.iter().zip(time_sum).map(|(a, t)| a / t).collect();
     let mean = speed.iter().sum::<f64>() / speed.len() as f64;

@@ -199,7 +199,10 @@ turn_s = 0.3
 "#
         )
     };
-    let opts = || CsrrOptions { max_order: Some(40), ..CsrrOptions::default() };
+    let opts = || CsrrOptions {
+        max_order: Some(40),
+        ..CsrrOptions::default()
+    };
     let sc = scenario(&text("0.0, 90.0, 180.0, 270.0"));
     let cal = run(&sc, opts());
     let excluded: Vec<usize> = cal.excluded.iter().map(|e| e.order).collect();
@@ -210,7 +213,11 @@ turn_s = 0.3
     let err = max_error(&cal.a, &truth(&sc, "a"));
     assert!((18.0..25.0).contains(&err), "{err}");
     let advice = cal.advice.expect("advice for blind orders");
-    assert!(cal.warnings.iter().any(|w| w.contains("8") && w.contains("left out")));
+    assert!(
+        cal.warnings
+            .iter()
+            .any(|w| w.contains("8") && w.contains("left out"))
+    );
 
     let extra = advice.extra_rotation.to_degrees();
     let sc = scenario(&text(&format!("0.0, 90.0, 180.0, 270.0, {extra:.1}")));
