@@ -493,11 +493,11 @@ fn truncated_mcap_works_with_a_warning() {
     }
 }
 
-/// The truncation warning says "the log ends early at byte 40" for a 63 kB half file: the offset
-/// is the start of the (single, zstd) chunk that is cut, not where the data stops, though
-/// `Truncation::byte_offset` is documented as "byte offset at which reading stopped".
+/// The truncation warning names where reading stopped (`Truncation::byte_offset`). The simulated
+/// log is one zstd chunk (from byte 40) and its message index; the half file cuts the chunk,
+/// which streams up to the cut, so the offset lies near the end of the half file, not at the
+/// chunk's start.
 #[test]
-#[ignore = "bug: truncated MCAP warning names the start of the cut chunk (byte 40), not where reading stopped"]
 fn truncated_mcap_warning_names_where_the_data_stops() {
     let dir = tempfile::tempdir().unwrap();
     let log = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");

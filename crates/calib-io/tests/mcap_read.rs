@@ -457,6 +457,61 @@ fn truncated_files_keep_every_message_before_the_break() {
     assert_eq!(previous, 2000);
 }
 
+/// `Truncation::byte_offset` is where reading stopped: the bytes before it hold every message
+/// read (the file cut there reads the same), and it lies within the file. Inside a compressed
+/// chunk it is past the chunk's start, since the chunk streams up to the cut.
+#[test]
+fn truncation_offset_is_where_reading_stopped() {
+    let dir = temp();
+    for (k, (compression, chunked)) in [
+        (Some(Compression::Zstd), true),
+        (Some(Compression::Lz4), true),
+        (None, true),
+        (None, false),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let full = dir.path().join(format!("full{k}.mcap"));
+        joint_state_log(&full, 2000, compression, chunked, false);
+        let bytes = std::fs::read(&full).expect("read");
+        let cut = dir.path().join("cut.mcap");
+        let again = dir.path().join("again.mcap");
+        for keep in [300, 4000, 9000, bytes.len() / 3, bytes.len() / 2 + 17] {
+            std::fs::write(&cut, &bytes[..keep]).expect("write");
+            let Ok(mut reader) = McapReader::open(&cut, &ReadOptions::default()) else {
+                continue;
+            };
+            let n = (&mut reader)
+                .collect::<Result<Vec<_>, _>>()
+                .expect("samples")
+                .len() as u64;
+            let t = reader.diagnostics().truncated.clone().expect("truncated");
+            assert_eq!(t.messages_read, n, "{k} keep {keep}");
+            assert!(
+                n > 0 && t.byte_offset <= keep as u64,
+                "{k} keep {keep}: {t:?}"
+            );
+            std::fs::write(&again, &bytes[..t.byte_offset as usize]).expect("write");
+            let mut reader = McapReader::open(&again, &ReadOptions::default()).expect("open");
+            let m = (&mut reader)
+                .collect::<Result<Vec<_>, _>>()
+                .expect("samples")
+                .len() as u64;
+            assert_eq!(m, n, "{k} keep {keep}: cut at {t:?}");
+            assert_eq!(
+                reader
+                    .diagnostics()
+                    .truncated
+                    .as_ref()
+                    .map(|t| t.byte_offset),
+                Some(t.byte_offset),
+                "{k} keep {keep}"
+            );
+        }
+    }
+}
+
 #[test]
 fn empty_foreign_and_corrupt_files_are_clear_errors() {
     let dir = temp();

@@ -30,7 +30,12 @@
 //! A file that ends early (a crashed recording) yields every message before the break; the break
 //! is recorded in [`ReadDiagnostics::truncated`](crate::ReadDiagnostics::truncated) so the caller
 //! can warn. Keeping the data is what a user wants from an hour-long run that crashed in its
-//! last second. An empty file, a file that is not MCAP, and corruption inside the data are errors.
+//! last second. Its [`byte_offset`](crate::Truncation::byte_offset) is where reading stopped: the
+//! messages read came from the bytes before it, and nothing from it to the end of the file could
+//! be read. That is the start of the first incomplete record or, if the cut falls inside a chunk,
+//! the point in the chunk up to which its data had been read when its last whole message came
+//! out: chunks, compressed or not, are decoded as they stream, so the messages of a cut chunk
+//! before the cut are kept too (a compressed one up to its last whole compressed block). An empty file, a file that is not MCAP, and corruption inside the data are errors.
 
 mod cdr;
 mod json;

@@ -14,20 +14,28 @@
 //! Topics are ordered by their first message in the file, channels by their order within it.
 //!
 //! # Streaming
-//! The file is memory-mapped and read with [`mcap::io::MessageReader`], which holds one
-//! decompressed chunk at a time. The stream stops at the data end record, so a damaged or
-//! missing summary does not stop reading the data.
+//! The summary is read by seeking to the footer; the data section is then read front to back
+//! through a buffered file reader by [`mcap::io::MessageReader`], which holds at most one chunk
+//! at a time. Memory is therefore bounded by the chunk size, whatever the length of the log (a
+//! memory map would keep every page read resident: as much memory as the log is long). The
+//! stream stops at the data end record, so a damaged or missing summary does not stop reading
+//! the data.
+//!
+//! # Truncation
+//! [`Truncation::byte_offset`] is where reading stopped (see the [`mcap_log`](super) docs): the
+//! larger of the first incomplete top-level record's start and the bytes handed to the stream
+//! when it gave its last message (which lies inside a chunk cut short).
 
 use std::collections::VecDeque;
 use std::fs::File;
-use std::io::Cursor;
+use std::io::{self, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use calib_core::{AngleUnit, Channel, Sample};
 use mcap::McapError;
-use mcap::sans_io::LinearReaderOptions;
-use memmap2::Mmap;
+use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 
 use super::JOINT_STATE_SCHEMA;
 use super::cdr::JointState;
@@ -70,8 +78,14 @@ pub struct IgnoredTopic {
 /// The iterator ends after the first error it yields.
 pub struct McapReader {
     path: PathBuf,
-    map: SharedMap,
-    stream: Stream,
+    /// Boxed: the stream's state is large, and the reader is moved around inside enums.
+    stream: Box<Stream>,
+    /// Bytes of the file handed to the stream so far (shared with its [`Source`]).
+    consumed: Arc<AtomicU64>,
+    /// `consumed` when the stream gave its last message: where the read data ends.
+    consumed_at_last: u64,
+    /// The file's length when opened.
+    len: u64,
     registry: Registry,
     channels: Vec<Channel>,
     /// Messages taken from the stream so far (all topics).
@@ -82,26 +96,68 @@ pub struct McapReader {
     done: bool,
 }
 
-/// The mapped file, shared by the message stream and the truncation check.
-#[derive(Clone)]
-struct SharedMap(Arc<Mmap>);
+/// Read buffer of the stream: large enough that reading costs few system calls, small against
+/// a chunk.
+const READ_BUFFER: usize = 256 * 1024;
 
-impl AsRef<[u8]> for SharedMap {
-    fn as_ref(&self) -> &[u8] {
-        &self.0
+/// The file as the stream reads it, from the start, counting the bytes it hands on.
+struct Source {
+    file: BufReader<File>,
+    consumed: Arc<AtomicU64>,
+}
+
+impl Read for Source {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.file.read(buf)?;
+        self.consumed.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
     }
 }
 
-type Stream = mcap::io::MessageReader<Cursor<SharedMap>>;
+type Stream = mcap::io::MessageReader<Source>;
 
-fn stream(map: &SharedMap) -> Stream {
+/// A message stream over `file` from its start, and its count of bytes read.
+fn stream(mut file: File, len: u64) -> io::Result<(Stream, Arc<AtomicU64>)> {
+    file.seek(SeekFrom::Start(0))?;
+    let consumed = Arc::new(AtomicU64::new(0));
+    let source = Source {
+        file: BufReader::with_capacity(READ_BUFFER, file),
+        consumed: Arc::clone(&consumed),
+    };
     let options = LinearReaderOptions::default()
         // Stop at the data end record: the summary after it is read separately, and its damage
         // must not cost the data.
         .with_skip_end_magic(true)
         // No record can be longer than the file; a corrupt length must not drive an allocation.
-        .with_record_length_limit(map.0.len());
-    mcap::io::MessageReader::new_with_options(Cursor::new(map.clone()), options)
+        .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
+    Ok((
+        mcap::io::MessageReader::new_with_options(source, options),
+        consumed,
+    ))
+}
+
+/// The file's summary, read by seeking to its footer; `None` if it has none or it is damaged
+/// (as in a truncated file).
+fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
+    let options = SummaryReaderOptions::default()
+        .with_file_size(len)
+        .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
+    let mut reader = SummaryReader::new_with_options(options);
+    while let Some(event) = reader.next_event() {
+        match event.ok()? {
+            SummaryReadEvent::ReadRequest(n) => {
+                let read = loop {
+                    match file.read(reader.insert(n)) {
+                        Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                        other => break other.ok()?,
+                    }
+                };
+                reader.notify_read(read);
+            }
+            SummaryReadEvent::SeekRequest(to) => reader.notify_seeked(file.seek(to).ok()?),
+        }
+    }
+    reader.finish()
 }
 
 /// How a topic's messages are decoded.
@@ -228,27 +284,35 @@ fn log_time_ns(log_time: u64) -> Result<i64, String> {
 }
 
 /// The offset of the first incomplete top-level record, if the data section is cut short;
-/// `None` if it is complete up to its data end record.
-fn find_break(map: &[u8]) -> Option<u64> {
+/// `None` if it is complete up to its data end record (or the file cannot be read again).
+/// Reads only the records' 9-byte headers, skipping their bodies.
+fn find_break(path: &Path) -> Option<u64> {
     const DATA_END: u8 = 0x0F;
-    let mut offset = mcap::MAGIC.len();
+    let file = File::open(path).ok()?;
+    let len = file.metadata().ok()?.len();
+    // Buffered: an unchunked file has a record per message, mostly skipped within the buffer.
+    let mut file = BufReader::with_capacity(64 * 1024, file);
+    let mut offset = mcap::MAGIC.len() as u64;
+    let mut head = [0u8; 9];
+    file.seek(SeekFrom::Start(offset)).ok()?;
     loop {
-        let Some(head) = map.get(offset..offset + 9) else {
-            return Some(offset as u64);
-        };
-        let mut len = [0u8; 8];
-        len.copy_from_slice(&head[1..]);
-        let end = u64::from_le_bytes(len)
-            .checked_add(offset as u64 + 9)
-            .filter(|&end| end <= map.len() as u64);
+        if file.read_exact(&mut head).is_err() {
+            return Some(offset);
+        }
+        let mut body = [0u8; 8];
+        body.copy_from_slice(&head[1..]);
+        let end = u64::from_le_bytes(body)
+            .checked_add(offset + 9)
+            .filter(|&end| end <= len);
         let Some(end) = end else {
-            return Some(offset as u64);
+            return Some(offset);
         };
         if head[0] == DATA_END {
             return None;
         }
-        // `end <= map.len()`, so it fits in usize.
-        offset = end as usize;
+        // `end - offset - 9` is the body's length, at most the file's: it fits in i64.
+        file.seek_relative((end - offset - 9) as i64).ok()?;
+        offset = end;
     }
 }
 
@@ -262,8 +326,9 @@ impl McapReader {
             path: path.to_path_buf(),
             source,
         };
-        let file = File::open(path).map_err(io)?;
-        if file.metadata().map_err(io)?.len() == 0 {
+        let mut file = File::open(path).map_err(io)?;
+        let len = file.metadata().map_err(io)?.len();
+        if len == 0 {
             return Err(mcap_error(
                 path,
                 None,
@@ -272,10 +337,15 @@ impl McapReader {
                     .into(),
             ));
         }
-        // SAFETY: the map is only read. Another process truncating the file while it is mapped
-        // would fault; that is the usual caveat of mapping files, accepted for reading logs.
-        let map = unsafe { Mmap::map(&file) }.map_err(io)?;
-        if !map.starts_with(mcap::MAGIC) {
+        let mut magic = [0u8; 8];
+        let got = file.read(&mut magic).map_err(io)?;
+        // A short first read is allowed by `Read`; finish it, stopping at the end of the file.
+        let got = got
+            + (&mut file)
+                .take(8 - got as u64)
+                .read(&mut magic[got..])
+                .map_err(io)?;
+        if !magic[..got].starts_with(mcap::MAGIC) {
             return Err(mcap_error(
                 path,
                 None,
@@ -285,21 +355,19 @@ impl McapReader {
                     .into(),
             ));
         }
-        let map = SharedMap(Arc::new(map));
         let mut registry = Registry {
             slots: Vec::new(),
             topics: Vec::new(),
             ignored: Vec::new(),
         };
-        let expected = match mcap::read::Summary::read(&map.0) {
-            Ok(Some(summary)) => Some(expected_topics(&summary, &mut registry)),
-            // No summary, or a truncated file (on which `Summary::read` fails): scan it all.
-            Ok(None) | Err(_) => None,
-        };
+        // No summary, or a truncated file (whose summary cannot be read): scan it all.
+        let expected =
+            read_summary(&mut file, len).map(|summary| expected_topics(&summary, &mut registry));
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut messages = 0u64;
         if expected.as_ref().is_none_or(|e| !e.is_empty()) {
-            for (index, message) in stream(&map).enumerate() {
+            let (mut peek, _) = stream(file, len).map_err(io)?;
+            for (index, message) in (&mut peek).enumerate() {
                 // Errors here are reported by the iteration, at the same message.
                 let Ok(message) = message else { break };
                 messages += 1;
@@ -324,6 +392,7 @@ impl McapReader {
                     break;
                 }
             }
+            file = peek.into_inner().file.into_inner();
         }
         if registry.topics.is_empty() {
             if messages == 0 && registry.ignored.is_empty() {
@@ -383,11 +452,13 @@ impl McapReader {
                 });
             }
         }
-        let stream = stream(&map);
+        let (stream, consumed) = stream(file, len).map_err(io)?;
         Ok(McapReader {
             path: path.to_path_buf(),
-            map,
-            stream,
+            stream: Box::new(stream),
+            consumed,
+            consumed_at_last: 0,
+            len,
             registry,
             channels,
             index: 0,
@@ -496,6 +567,20 @@ impl McapReader {
         }
     }
 
+    /// Records where reading stopped if the data section is cut short; whether it is.
+    fn note_truncation(&mut self) -> bool {
+        // Reading stopped at the first incomplete record, or inside it (a chunk cut short)
+        // where the last message came out.
+        let Some(byte_offset) = find_break(&self.path).map(|b| b.max(self.consumed_at_last)) else {
+            return false;
+        };
+        self.diagnostics.truncated = Some(Truncation {
+            byte_offset,
+            messages_read: self.index,
+        });
+        true
+    }
+
     /// Counts what is still waiting for a partner when the stream ends.
     fn finish(&mut self) {
         self.done = true;
@@ -515,26 +600,27 @@ impl Iterator for McapReader {
         }
         loop {
             let message = match self.stream.next() {
-                Some(Ok(message)) => message,
+                Some(Ok(message)) => {
+                    self.consumed_at_last = self.consumed.load(Ordering::Relaxed);
+                    message
+                }
                 None => {
                     self.finish();
+                    // The stream stops at the data end record, before the end of the file. It
+                    // also ends cleanly when the file ends between two records (it is told to
+                    // expect no end magic): then the data end record is missing.
+                    if self.consumed.load(Ordering::Relaxed) >= self.len {
+                        self.note_truncation();
+                    }
                     return None;
                 }
                 Some(Err(e)) => {
                     self.finish();
-                    let cut = match e {
-                        McapError::UnexpectedEof => find_break(&self.map.0),
-                        _ => None,
-                    };
-                    return match cut {
-                        Some(byte_offset) => {
-                            self.diagnostics.truncated = Some(Truncation {
-                                byte_offset,
-                                messages_read: self.index,
-                            });
-                            None
-                        }
-                        None => Some(Err(mcap_error(
+                    // Reading stopped at the first incomplete record, or inside it (a cut chunk)
+                    // where the last message came out.
+                    return match e {
+                        McapError::UnexpectedEof if self.note_truncation() => None,
+                        _ => Some(Err(mcap_error(
                             &self.path,
                             Some(self.index),
                             None,
