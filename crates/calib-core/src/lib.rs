@@ -14,9 +14,48 @@
 //! - [`uncertainty`]: GUM budgets — combined and expanded uncertainty, Welch–Satterthwaite.
 //! - [`compare`]: two calibrations of one sensor compared point by point with the En number.
 //!
+//! - [`csrr`]: CSRR self-calibration of two coaxial sensors (joint least squares, or the seed
+//!   paper's method); [`segment`] finds its sessions; [`inspect`] summarizes a log.
+//! - [`shift_angle`], [`uncertainty`], [`compare`]: polygon cross-calibration, GUM budgets, En.
+//! - [`simulate`]: realistic runs with a known truth.
+//!
 //! # Conventions
 //! Error `e = reading − true angle`, correction `= −e`; maps are functions of the sensor's own
 //! reading with zero mean; angles in degrees and errors in arcseconds only at the edges.
+//!
+//! # Example
+//! Calibrate two sensors from samples of your own acquisition code (no files involved): feed
+//! every synchronized sample to [`csrr::Csrr`] and read the maps.
+//!
+//! ```
+//! use calib_core::csrr::{Csrr, CsrrOptions};
+//! use calib_core::{FourierSeries, Harmonic};
+//! use std::f64::consts::TAU;
+//!
+//! // Sensor A errs by 20″ at order 3, sensor B by 15″ at order 2 (functions of the true angle).
+//! let ea = FourierSeries::from_harmonics(&[Harmonic::from_arcsec_deg(3, 20.0, 10.0)], 3);
+//! let eb = FourierSeries::from_harmonics(&[Harmonic::from_arcsec_deg(2, 15.0, -40.0)], 2);
+//! let mut csrr = Csrr::new(CsrrOptions { max_order: Some(8), ..CsrrOptions::default() });
+//! let mut t = 0.0;
+//! // Five sessions of two revolutions at different relative rotations, with pauses between.
+//! for (k, delta_deg) in [0.0f64, 37.0, 101.0, 190.0, 275.0].into_iter().enumerate() {
+//!     let delta = delta_deg.to_radians();
+//!     for n in 0..1000 {
+//!         let theta = TAU * n as f64 / 500.0 + k as f64;
+//!         csrr.push(t, theta + ea.eval(theta), theta - delta + eb.eval(theta - delta), None);
+//!         t += 0.002;
+//!     }
+//!     for _ in 0..100 {
+//!         csrr.push(t, 0.0, 0.0, None);
+//!         t += 0.002;
+//!     }
+//! }
+//! let cal = csrr.finish()?;
+//! let order3 = cal.a_series.harmonics()[2].to_report();
+//! assert!((order3.amplitude_arcsec - 20.0).abs() < 0.05);
+//! println!("A: {:.2}″ peak to peak, {} sessions", cal.a.peak_to_peak() * calib_core::angle::ARCSEC_PER_RAD, cal.sessions.len());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![deny(missing_docs)]
 #![warn(clippy::print_stdout, clippy::print_stderr)]
 

@@ -14,6 +14,21 @@
 //!
 //! Every reader streams: memory stays bounded whatever the log's length. Every error names the
 //! file and the line or message it concerns ([`Error`]).
+//!
+//! # Example
+//! ```no_run
+//! use calib_io::{LogReader, ReadOptions};
+//!
+//! let mut log = LogReader::open("run.mcap".as_ref(), &ReadOptions::default())?;
+//! let names: Vec<String> = log.channels().iter().map(|c| c.name.clone()).collect();
+//! let mut count = 0;
+//! for sample in log.by_ref() {
+//!     let sample = sample?; // errors name the file and the message or line
+//!     count += sample.values.len();
+//! }
+//! println!("{count} readings of {names:?}");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![deny(missing_docs)]
 
 pub mod atomic;

@@ -151,8 +151,8 @@ impl Iterator for LogReader {
 pub enum LogWriter {
     /// CSV, readings in degrees.
     Csv(CsvWriter),
-    /// MCAP, JointState on one topic, readings in radians.
-    Mcap(McapWriter),
+    /// MCAP, JointState on one topic, readings in radians (boxed: the MCAP writer is large).
+    Mcap(Box<McapWriter>),
 }
 
 impl LogWriter {
@@ -165,7 +165,9 @@ impl LogWriter {
                 AngleUnit::Deg,
                 with_session,
             )?),
-            LogFormat::Mcap => LogWriter::Mcap(McapWriter::create(path, channels, DEFAULT_TOPIC)?),
+            LogFormat::Mcap => {
+                LogWriter::Mcap(Box::new(McapWriter::create(path, channels, DEFAULT_TOPIC)?))
+            }
         })
     }
     /// Writes one sample.

@@ -16,36 +16,7 @@
 //! relative rotation that would reveal them.
 //!
 //! # Example
-//! ```
-//! use calib_core::csrr::{Csrr, CsrrOptions};
-//! use calib_core::{FourierSeries, Harmonic};
-//! use std::f64::consts::TAU;
-//!
-//! // Two sensors with one harmonic each, five sessions of two revolutions at 60 r/min, 500 Hz.
-//! let ea = FourierSeries::from_harmonics(&[Harmonic::from_arcsec_deg(3, 20.0, 10.0)], 3);
-//! let eb = FourierSeries::from_harmonics(&[Harmonic::from_arcsec_deg(2, 15.0, -40.0)], 3);
-//! let mut csrr = Csrr::new(CsrrOptions { max_order: Some(8), ..CsrrOptions::default() });
-//! let mut t = 0.0;
-//! for (k, delta_deg) in [0.0f64, 37.0, 101.0, 190.0, 275.0].into_iter().enumerate() {
-//!     let delta = delta_deg.to_radians();
-//!     for n in 0..1000 {
-//!         let theta = TAU * n as f64 / 500.0 + k as f64;
-//!         let x = theta + ea.eval(theta);
-//!         let y = theta - delta + eb.eval(theta - delta);
-//!         csrr.push(t, x, y, None);
-//!         t += 0.002;
-//!     }
-//!     for _ in 0..100 {
-//!         csrr.push(t, 0.0, 0.0, None); // a pause
-//!         t += 0.002;
-//!     }
-//! }
-//! let cal = csrr.finish()?;
-//! assert_eq!(cal.sessions.len(), 5);
-//! let h3 = cal.a_series.harmonics()[2].to_report();
-//! assert!((h3.amplitude_arcsec - 20.0).abs() < 0.05);
-//! # Ok::<(), Box<dyn std::error::Error>>(())
-//! ```
+//! The crate root's example feeds five simulated sessions to [`Csrr`] and reads both maps.
 
 pub mod bins;
 pub mod joint;

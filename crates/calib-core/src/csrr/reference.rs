@@ -255,9 +255,11 @@ impl ReferenceAccumulator {
         let eps_theta = eps_spectrum(&self.eps_sum, &self.eps_count);
         let (sa, sb) = (a.series(), b.series());
         let amplitude = |s: &FourierSeries, h: usize| {
-            (h <= s.max_order())
-                .then(|| s.cos[h - 1].hypot(s.sin[h - 1]))
-                .unwrap_or(0.0)
+            if h <= s.max_order() {
+                s.cos[h - 1].hypot(s.sin[h - 1])
+            } else {
+                0.0
+            }
         };
         let indicators = eps_theta
             .iter()
