@@ -78,3 +78,33 @@ pub enum Error {
         message: String,
     },
 }
+
+/// An [`Error::Csv`] for `path` at a 1-based `line`, naming `column` where one is concerned.
+pub(crate) fn csv_error(
+    path: &std::path::Path,
+    line: u64,
+    column: Option<&str>,
+    message: String,
+) -> Error {
+    Error::Csv {
+        path: path.to_path_buf(),
+        line,
+        channel: column.map(str::to_string),
+        message,
+    }
+}
+
+/// A CSV reader over `input` that trims fields, and its header row (line 1).
+pub(crate) fn csv_with_headers<R: std::io::Read>(
+    input: R,
+    path: &std::path::Path,
+) -> Result<(csv::Reader<R>, csv::StringRecord), Error> {
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(input);
+    let headers = reader
+        .headers()
+        .map_err(|e| csv_error(path, 1, None, e.to_string()))?
+        .clone();
+    Ok((reader, headers))
+}

@@ -40,19 +40,10 @@ pub fn read_points(path: &Path) -> Result<PointTable, Error> {
 
 /// [`read_points`] from any reader; `path` names it in errors.
 pub fn parse_points(input: impl std::io::Read, path: &Path) -> Result<PointTable, Error> {
-    let csv_err = |line: u64, column: Option<&str>, message: String| Error::Csv {
-        path: path.to_path_buf(),
-        line,
-        channel: column.map(str::to_string),
-        message,
+    let csv_err = |line: u64, column: Option<&str>, message: String| {
+        crate::error::csv_error(path, line, column, message)
     };
-    let mut reader = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_reader(input);
-    let headers = reader
-        .headers()
-        .map_err(|e| csv_err(1, None, e.to_string()))?
-        .clone();
+    let (mut reader, headers) = crate::error::csv_with_headers(input, path)?;
     let find = |name: &str| headers.iter().position(|h| h == name);
     let (Some(angle), Some(error)) = (find("angle_deg"), find("error_arcsec")) else {
         return Err(csv_err(

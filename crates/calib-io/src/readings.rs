@@ -31,19 +31,10 @@ pub fn parse_readings(
     path: &Path,
     faces: Option<usize>,
 ) -> Result<Readings, Error> {
-    let csv_err = |line: u64, column: Option<&str>, message: String| Error::Csv {
-        path: path.to_path_buf(),
-        line,
-        channel: column.map(str::to_string),
-        message,
+    let csv_err = |line: u64, column: Option<&str>, message: String| {
+        crate::error::csv_error(path, line, column, message)
     };
-    let mut reader = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_reader(input);
-    let headers = reader
-        .headers()
-        .map_err(|e| csv_err(1, None, e.to_string()))?
-        .clone();
+    let (mut reader, headers) = crate::error::csv_with_headers(input, path)?;
     let mut index = [usize::MAX; 4];
     for (pos, name) in headers.iter().enumerate() {
         match COLUMNS.iter().position(|c| *c == name) {
