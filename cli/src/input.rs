@@ -55,3 +55,21 @@ pub fn file_stem(channel: &str) -> String {
         s
     }
 }
+
+/// The command line that is running, arguments quoted where the shell would need it, for
+/// reports: what produced a table should be reproducible from the report alone.
+pub fn command_line() -> String {
+    std::env::args()
+        .map(|a| {
+            if !a.is_empty()
+                && a.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_./:=@,+".contains(c))
+            {
+                a
+            } else {
+                format!("'{}'", a.replace('\'', "'\\''"))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}

@@ -272,7 +272,7 @@ fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "csrr".to_string(),
         inputs: vec![args.log.display().to_string()],
-        command_line: None,
+        command_line: Some(crate::input::command_line()),
         channels,
         sessions,
         warnings,
