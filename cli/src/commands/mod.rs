@@ -3,6 +3,7 @@
 pub mod compare;
 pub mod csrr;
 pub mod inspect;
+pub mod reference;
 pub mod shift_angle;
 pub mod simulate;
 pub mod uncertainty;
@@ -18,5 +19,6 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::ShiftAngle(args) => shift_angle::run(&args),
         Command::Uncertainty(args) => uncertainty::run(&args),
         Command::Compare(args) => compare::run(&args),
+        Command::Reference(args) => reference::run(&args),
     }
 }
