@@ -5,8 +5,9 @@
 //! Both encoders are sampled at the same instants while the shaft turns. At each sample the
 //! difference `d = (DUT − DUT₀) − (ref − ref₀)` of the two continuous (unwrapped) readings is the
 //! DUT's error minus the reference's error, plus a constant. Whenever the DUT's reading crosses a
-//! grid point `θ_i = i·360°/N` between two consecutive moving samples, `d` is interpolated
-//! linearly at that crossing: one value `x_ij` per grid point `i` per pass `j` (a pass is one
+//! grid point `θ_i = i·360°/N` between two consecutive moving samples, `d` is interpolated at
+//! that crossing by the cubic through these two samples and their outer neighbours (linearly at
+//! the ends of a run): one value `x_ij` per grid point `i` per pass `j` (a pass is one
 //! crossing, so a revolution is one pass at every point), kept per direction (↑ increasing, ↓
 //! decreasing DUT readings). Speed variations do not matter: both readings are taken at the same
 //! instant. Crossings within the first [`ReferenceOptions::approach`] (1°) of travel after each
@@ -46,8 +47,9 @@
 //! # What it cannot see
 //! The reference's own error: the map is `e_DUT − e_ref` (why the reference must be much better
 //! than the DUT). Error components with periods shorter than about four sample spacings are
-//! attenuated by the linear interpolation between samples (its error is at most `h²·Δθ²/8` of an
-//! order-`h` amplitude for sample spacing `Δθ`). No absolute offset (maps are zero-mean).
+//! attenuated by the interpolation between samples: the cubic's error is at most
+//! `(9/384)·(h·Δθ)⁴` of an order-`h` amplitude for sample spacing `Δθ` (the straight line's, at
+//! the ends of runs, `(h·Δθ)²/8`). No absolute offset (maps are zero-mean).
 
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper};
 use crate::error_map::ErrorMap;
@@ -252,6 +254,31 @@ pub struct ReferenceCal {
     d_max: f64,
     /// Direction of the current run (`true`: increasing) and the DUT's travel since it began.
     run: Option<(bool, f64)>,
+    /// The last moving step, whose crossings wait for the next sample (the cubic's outer node).
+    pending: Option<Step>,
+}
+
+/// A step between two consecutive moving samples: DUT readings `u` (unwrapped) and differences
+/// `d` at both ends, the run's travel before it, and the sample before it if the run goes on.
+#[derive(Debug, Clone, Copy)]
+struct Step {
+    u0: f64,
+    d0: f64,
+    u1: f64,
+    d1: f64,
+    travelled: f64,
+    before: Option<(f64, f64)>,
+}
+
+/// The cubic through four points with distinct `x`, evaluated at `at` (Lagrange form).
+fn lagrange(x: [f64; 4], y: [f64; 4], at: f64) -> f64 {
+    (0..4)
+        .map(|k| {
+            (0..4)
+                .filter(|&j| j != k)
+                .fold(y[k], |acc, j| acc * (at - x[j]) / (x[k] - x[j]))
+        })
+        .sum()
 }
 
 impl ReferenceCal {
@@ -271,6 +298,7 @@ impl ReferenceCal {
             d_min: f64::INFINITY,
             d_max: f64::NEG_INFINITY,
             run: None,
+            pending: None,
         }
     }
 
@@ -278,6 +306,7 @@ impl ReferenceCal {
     /// non-finite value are skipped (and break the interpolation between neighbours).
     pub fn push(&mut self, t: f64, dut: f64, reference: f64) {
         if !(t.is_finite() && dut.is_finite() && reference.is_finite()) {
+            self.flush();
             self.last = None;
             return;
         }
@@ -292,6 +321,7 @@ impl ReferenceCal {
         let (dt, du) = (t - t_prev, u - u_prev);
         // Out-of-order time stamps and jumps of half a revolution cannot be interpolated across.
         if dt <= 0.0 || du.abs() >= PI || du.abs() < self.opts.min_speed * dt {
+            self.flush();
             return;
         }
         self.travel += du.abs();
@@ -304,21 +334,52 @@ impl ReferenceCal {
             _ => 0.0,
         };
         self.run = Some((increasing, travelled + du.abs()));
+        let mut step = Step {
+            u0: u_prev,
+            d0: d_prev,
+            u1: u,
+            d1: d,
+            travelled,
+            before: None,
+        };
+        // Every push either leaves its step pending or flushes, so a pending step ends at this
+        // step's start: contiguous, and usable as the other's outer node if it goes the same way.
+        if let Some(p) = self.pending.take() {
+            let same_way = (p.u1 > p.u0) == increasing;
+            if same_way {
+                step.before = Some((p.u0, p.d0));
+            }
+            self.cross(&p, same_way.then_some((u, d)));
+        }
+        self.pending = Some(step);
+    }
+
+    /// Crossings of a pending step, interpolated linearly (no outer node to use).
+    fn flush(&mut self) {
+        if let Some(p) = self.pending.take() {
+            self.cross(&p, None);
+        }
+    }
+
+    /// Adds the grid crossings of a step to the statistics: the cubic through the samples either
+    /// side where the run goes on both ways (`before` and `after`), else the straight line.
+    fn cross(&mut self, s: &Step, after: Option<(f64, f64)>) {
         let n = self.up.len();
         if n == 0 {
             return;
         }
-        let step = TAU / n as f64;
-        let (lo, hi) = if du > 0.0 { (u_prev, u) } else { (u, u_prev) };
+        let grid = TAU / n as f64;
+        let du = s.u1 - s.u0;
+        let (lo, hi) = if du > 0.0 { (s.u0, s.u1) } else { (s.u1, s.u0) };
         // Readings so large that grid indices lose precision cannot be placed on the grid.
-        if lo.abs().max(hi.abs()) / step > 1e15 {
+        if lo.abs().max(hi.abs()) / grid > 1e15 {
             return;
         }
         // Grid points in (lo, hi] going up, [lo, hi) going down: each crossing counted once.
         let (first, last) = if du > 0.0 {
-            ((lo / step).floor() as i64 + 1, (hi / step).floor() as i64)
+            ((lo / grid).floor() as i64 + 1, (hi / grid).floor() as i64)
         } else {
-            ((lo / step).ceil() as i64, (hi / step).ceil() as i64 - 1)
+            ((lo / grid).ceil() as i64, (hi / grid).ceil() as i64 - 1)
         };
         let bins = if du > 0.0 {
             &mut self.up
@@ -326,19 +387,23 @@ impl ReferenceCal {
             &mut self.down
         };
         for k in first..=last {
-            let theta = k as f64 * step;
-            if travelled + (theta - u_prev).abs() < self.opts.approach {
+            let theta = k as f64 * grid;
+            if s.travelled + (theta - s.u0).abs() < self.opts.approach {
                 continue;
             }
-            let f = (theta - u_prev) / du;
-            let x = d_prev + f * (d - d_prev);
-            let i = (k.rem_euclid(n as i64)) as usize;
-            bins[i].add(x);
+            let x = match (s.before, after) {
+                (Some((ub, db)), Some((ua, da))) => {
+                    lagrange([ub, s.u0, s.u1, ua], [db, s.d0, s.d1, da], theta)
+                }
+                _ => s.d0 + (theta - s.u0) / du * (s.d1 - s.d0),
+            };
+            bins[(k.rem_euclid(n as i64)) as usize].add(x);
         }
     }
 
     /// The calibration from the samples pushed.
-    pub fn finish(self) -> Result<ReferenceCalibration, ReferenceError> {
+    pub fn finish(mut self) -> Result<ReferenceCalibration, ReferenceError> {
+        self.flush();
         let n = self.opts.points;
         if n < 2 {
             return Err(ReferenceError::Options(format!(

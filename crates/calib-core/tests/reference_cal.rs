@@ -164,10 +164,12 @@ fn reference_uncertainty_is_combined_in_quadrature() {
         cal.push(k as f64 * 0.001, (th + e.eval(th)).rem_euclid(TAU), th);
     }
     let cal = cal.finish().unwrap();
-    // Noise-free: the passes agree exactly, u is the reference's alone.
+    // Noise-free: the passes agree, u is the reference's alone — except that the last step of
+    // the run is interpolated linearly (no sample after it), which differs from the cubic by up
+    // to (16·0.0063)²/8·6″ ≈ 0.008″ in one pass: √(0.5² + 0.008²) − 0.5 < 1e-4″.
     for u in &cal.u {
         assert!(
-            (u * ARCSEC_PER_RAD - 0.5).abs() < 1e-6,
+            (u * ARCSEC_PER_RAD - 0.5).abs() < 1e-4,
             "{}",
             u * ARCSEC_PER_RAD
         );
