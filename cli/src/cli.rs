@@ -33,4 +33,5 @@ pub enum Command {
     Compare(commands::compare::Args),
     // Help from its `Args` doc too.
     Reference(commands::reference::Args),
+    Export(commands::export::Args),
 }

@@ -2,6 +2,7 @@
 
 pub mod compare;
 pub mod csrr;
+pub mod export;
 pub mod inspect;
 pub mod reference;
 pub mod shift_angle;
@@ -20,5 +21,6 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Uncertainty(args) => uncertainty::run(&args),
         Command::Compare(args) => compare::run(&args),
         Command::Reference(args) => reference::run(&args),
+        Command::Export(args) => export::run(&args),
     }
 }
