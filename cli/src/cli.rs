@@ -31,4 +31,7 @@ pub enum Command {
     ShiftAngle(commands::shift_angle::Args),
     Uncertainty(commands::uncertainty::Args),
     Compare(commands::compare::Args),
+    // Help from its `Args` doc too.
+    Reference(commands::reference::Args),
+    Export(commands::export::Args),
 }

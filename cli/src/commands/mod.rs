@@ -2,7 +2,9 @@
 
 pub mod compare;
 pub mod csrr;
+pub mod export;
 pub mod inspect;
+pub mod reference;
 pub mod shift_angle;
 pub mod simulate;
 pub mod uncertainty;
@@ -18,5 +20,7 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::ShiftAngle(args) => shift_angle::run(&args),
         Command::Uncertainty(args) => uncertainty::run(&args),
         Command::Compare(args) => compare::run(&args),
+        Command::Reference(args) => reference::run(&args),
+        Command::Export(args) => export::run(&args),
     }
 }

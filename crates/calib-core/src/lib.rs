@@ -12,6 +12,7 @@
 //! - [`shift_angle`]: cross-calibration of an encoder with a polygon and an autocollimator at
 //!   every angle (Hsieh, Watanabe, Hsu 2022), by the paper's steps or one constrained fit.
 //! - [`uncertainty`]: GUM budgets — combined and expanded uncertainty, Welch–Satterthwaite.
+//! - [`reference_cal`]: cross-calibration against a better reference encoder, with ISO 230-2 figures.
 //! - [`compare`]: two calibrations of one sensor compared point by point with the En number.
 //!
 //! - [`csrr`]: CSRR self-calibration of two coaxial sensors (joint least squares, or the seed
@@ -65,6 +66,7 @@ pub mod csrr;
 pub mod error_map;
 pub mod harmonics;
 pub mod inspect;
+pub mod reference_cal;
 pub mod report;
 pub mod sample;
 pub mod segment;

@@ -1,0 +1,647 @@
+//! Cross-calibration of an encoder (the DUT, device under test) against a better reference
+//! encoder on the same shaft, with the ISO 230-2 figures of the result.
+//!
+//! # Method
+//! Both encoders are sampled at the same instants while the shaft turns. At each sample the
+//! difference `d = (DUT − DUT₀) − (ref − ref₀)` of the two continuous (unwrapped) readings is the
+//! DUT's error minus the reference's error, plus a constant. Whenever the DUT's reading crosses a
+//! grid point `θ_i = i·360°/N` between two consecutive moving samples, `d` is interpolated at
+//! that crossing by the cubic through these two samples and their outer neighbours (linearly at
+//! the ends of a run): one value `x_ij` per grid point `i` per pass `j` (a pass is one
+//! crossing, so a revolution is one pass at every point), kept per direction (↑ increasing, ↓
+//! decreasing DUT readings). Speed variations do not matter: both readings are taken at the same
+//! instant. Crossings within the first [`ReferenceOptions::approach`] (1°) of travel after each
+//! reversal of direction are not used: there the backlash of the coupling is being taken up.
+//!
+//! # Terms (ISO 230-2:2014, for a rotary axis, target positions = the grid points)
+//! With `n` passes at point `i` in one direction:
+//! - mean unidirectional deviation `x̄_i↑ = (1/n) Σ_j x_ij↑` (likewise ↓);
+//! - standard deviation `s_i↑ = sqrt(Σ_j (x_ij↑ − x̄_i↑)² / (n − 1))` (needs `n ≥ 2`);
+//! - mean bidirectional deviation `x̄_i = (x̄_i↑ + x̄_i↓)/2` where both directions have data,
+//!   else the one that has — **this is the error map** written to the table, mean removed over the
+//!   circle (the same constant is removed from the directional means);
+//! - reversal value `B_i = x̄_i↑ − x̄_i↓`; of the axis `B = max_i |B_i|`; mean `B̄ = mean_i B_i`;
+//! - unidirectional repeatability `R_i↑ = 4 s_i↑` (±2s), `R↑ = max_i R_i↑`; bidirectional
+//!   `R_i = max(2 s_i↑ + 2 s_i↓ + |B_i|, R_i↑, R_i↓)`, `R = max_i R_i`;
+//! - systematic deviation `E↑ = max_i x̄_i↑ − min_i x̄_i↑`; bidirectional
+//!   `E = max(x̄_i↑, x̄_i↓) − min(x̄_i↑, x̄_i↓)` over all `i`;
+//! - mean bidirectional positional deviation `M = max_i x̄_i − min_i x̄_i`;
+//! - accuracy `A↑ = max_i(x̄_i↑ + 2 s_i↑) − min_i(x̄_i↑ − 2 s_i↑)`; bidirectional
+//!   `A = max(x̄_i↑ + 2 s_i↑, x̄_i↓ + 2 s_i↓) − min(x̄_i↑ − 2 s_i↑, x̄_i↓ − 2 s_i↓)`.
+//!
+//! Terms that need `s` use only the points with `n ≥ 2` passes in that direction; ISO 230-2 asks
+//! for 5 passes per direction (a warning says when there are fewer).
+//!
+//! # Sign
+//! The values `x` here are calib's errors `e = DUT reading − reference reading` (interface
+//! convention). ISO 230-2's positional deviation is `actual − target = reference − DUT = −e`; the
+//! ranges `E`, `M`, `R`, `A` and `B` are the same in both conventions, but the signed mean
+//! reversal `B̄` flips: [`Iso230_2::mean_reversal`] is reported in **calib's sign**
+//! (`ē↑ − ē↓`).
+//!
+//! # Uncertainty
+//! `u_i = sqrt(u_mean,i² + u_ref²)`: the standard error of the point's mean (for the bidirectional
+//! mean `sqrt(s↑²/n↑ + s↓²/n↓)/2`; a direction with `n < 2` uses the pooled `s` of its direction)
+//! combined with the reference's stated standard uncertainty.
+//!
+//! # What it cannot see
+//! The reference's own error: the map is `e_DUT − e_ref` (why the reference must be much better
+//! than the DUT). Error components with periods shorter than about four sample spacings are
+//! attenuated by the interpolation between samples: the cubic's error is at most
+//! `(9/384)·(h·Δθ)⁴` of an order-`h` amplitude for sample spacing `Δθ` (the straight line's, at
+//! the ends of runs, `(h·Δθ)²/8`). No absolute offset (maps are zero-mean).
+
+use crate::angle::{ARCSEC_PER_RAD, Unwrapper};
+use crate::error_map::ErrorMap;
+use std::f64::consts::{PI, TAU};
+
+/// Settings of a reference calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReferenceOptions {
+    /// Grid points of the map, ≥ 2 (default 3600).
+    pub points: usize,
+    /// Speed of the DUT below which it counts as stopped, rad/s (default 1°/s).
+    pub min_speed: f64,
+    /// The reference's stated standard uncertainty, radians (default 0).
+    pub reference_u: f64,
+    /// Largest change of the difference between the two readings while moving, radians (default
+    /// 5°): beyond it the reference is not following the DUT's shaft.
+    pub follow_tol: f64,
+    /// Travel of the DUT after each reversal of direction (and at the first motion) whose
+    /// crossings are not used, radians (default 1°): the approach of ISO 230-2, which lets
+    /// backlash and wind-up settle before positions are measured.
+    pub approach: f64,
+}
+
+impl Default for ReferenceOptions {
+    fn default() -> Self {
+        ReferenceOptions {
+            points: 3600,
+            min_speed: 1f64.to_radians(),
+            reference_u: 0.0,
+            follow_tol: 5f64.to_radians(),
+            approach: 1f64.to_radians(),
+        }
+    }
+}
+
+/// Why a reference calibration cannot be made from the data.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ReferenceError {
+    /// The DUT moved less than one revolution.
+    #[error(
+        "the DUT turned {revolutions:.3} revolution(s) while moving; a reference calibration needs at least one whole \
+         revolution (record the shaft turning at least once, better 5 times in each direction)"
+    )]
+    TooLittleMotion {
+        /// Revolutions of DUT travel while moving.
+        revolutions: f64,
+    },
+    /// Some grid points were never crossed.
+    #[error(
+        "{missing} of {points} grid points were never crossed while moving; record whole revolutions so every angle is covered"
+    )]
+    NotCovered {
+        /// Grid points without data.
+        missing: usize,
+        /// Grid points.
+        points: usize,
+    },
+    /// The reference stays still while the DUT turns.
+    #[error(
+        "the reference does not move while the DUT turns ({reference_deg:.3}° of reference travel against {dut_deg:.1}° of the DUT): \
+         check that the right channel was chosen and that the reference is on the DUT's shaft"
+    )]
+    ReferenceStill {
+        /// Reference travel while the DUT moved, degrees.
+        reference_deg: f64,
+        /// DUT travel while moving, degrees.
+        dut_deg: f64,
+    },
+    /// The two encoders' motions differ by more than the tolerance.
+    #[error(
+        "the reference does not follow the DUT: the difference of their readings changed by {change_deg:.3}° over \
+         {revolutions:.2} revolution(s) (at most {tol_deg}° allowed); check that both are on the same shaft, count the same \
+         way round (negate one otherwise) and are in the same unit"
+    )]
+    NotFollowing {
+        /// Range of the reading difference while moving, degrees.
+        change_deg: f64,
+        /// Revolutions of DUT travel.
+        revolutions: f64,
+        /// The tolerance, degrees.
+        tol_deg: f64,
+    },
+    /// The options cannot work.
+    #[error("invalid options: {0}")]
+    Options(String),
+}
+
+/// Running statistics of one grid point in one direction (Welford).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Welford {
+    n: u32,
+    mean: f64,
+    m2: f64,
+}
+
+impl Welford {
+    fn add(&mut self, x: f64) {
+        self.n += 1;
+        let d = x - self.mean;
+        self.mean += d / f64::from(self.n);
+        self.m2 += d * (x - self.mean);
+    }
+}
+
+/// The statistics of one grid point in one direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointStats {
+    /// Passes (crossings of the point in this direction).
+    pub n: u32,
+    /// Mean deviation `x̄_i`, radians, with the map's constant removed (meaningless if `n = 0`).
+    pub mean: f64,
+    /// Standard deviation `s_i` of the passes, radians (`None` if `n < 2`).
+    pub s: Option<f64>,
+}
+
+/// The ISO 230-2 figures of a calibration, radians (`None` where the data cannot give them).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Iso230_2 {
+    /// Unidirectional systematic deviation `E↑` (increasing readings).
+    pub systematic_up: Option<f64>,
+    /// Unidirectional systematic deviation `E↓` (decreasing readings).
+    pub systematic_down: Option<f64>,
+    /// Bidirectional systematic deviation `E`.
+    pub systematic: Option<f64>,
+    /// Mean bidirectional positional deviation `M` (range of the map before mean removal).
+    pub mean_bidirectional: Option<f64>,
+    /// Reversal value `B = max |B_i|` (needs both directions).
+    pub reversal: Option<f64>,
+    /// Mean reversal value `B̄ = mean B_i`, calib's sign (`ē↑ − ē↓`).
+    pub mean_reversal: Option<f64>,
+    /// Unidirectional repeatability `R↑ = max 4 s_i↑`.
+    pub repeatability_up: Option<f64>,
+    /// Unidirectional repeatability `R↓ = max 4 s_i↓`.
+    pub repeatability_down: Option<f64>,
+    /// Bidirectional repeatability `R`.
+    pub repeatability: Option<f64>,
+    /// Unidirectional accuracy `A↑`.
+    pub accuracy_up: Option<f64>,
+    /// Unidirectional accuracy `A↓`.
+    pub accuracy_down: Option<f64>,
+    /// Bidirectional accuracy `A`.
+    pub accuracy: Option<f64>,
+}
+
+impl Iso230_2 {
+    /// The figures as `(name, arcsec)` pairs, `None` for those not available.
+    pub fn arcsec(&self) -> Vec<(&'static str, Option<f64>)> {
+        let a = |v: Option<f64>| v.map(|x| x * ARCSEC_PER_RAD);
+        vec![
+            ("systematic_up", a(self.systematic_up)),
+            ("systematic_down", a(self.systematic_down)),
+            ("systematic", a(self.systematic)),
+            ("mean_bidirectional", a(self.mean_bidirectional)),
+            ("reversal", a(self.reversal)),
+            ("mean_reversal", a(self.mean_reversal)),
+            ("repeatability_up", a(self.repeatability_up)),
+            ("repeatability_down", a(self.repeatability_down)),
+            ("repeatability", a(self.repeatability)),
+            ("accuracy_up", a(self.accuracy_up)),
+            ("accuracy_down", a(self.accuracy_down)),
+            ("accuracy", a(self.accuracy)),
+        ]
+    }
+}
+
+/// The result of a reference calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReferenceCalibration {
+    /// The DUT's error map (bidirectional mean), relative to the reference, zero mean.
+    pub map: ErrorMap,
+    /// Standard uncertainty of each map point, radians.
+    pub u: Vec<f64>,
+    /// Statistics per grid point for increasing readings.
+    pub up: Vec<PointStats>,
+    /// Statistics per grid point for decreasing readings.
+    pub down: Vec<PointStats>,
+    /// The ISO 230-2 figures.
+    pub iso: Iso230_2,
+    /// DUT travel while moving, revolutions (both directions).
+    pub revolutions: f64,
+    /// Fewest passes at a grid point in each direction (`up`, `down`); 0 for a direction without
+    /// data.
+    pub min_passes: (u32, u32),
+    /// What the user should know about the result.
+    pub warnings: Vec<String>,
+}
+
+/// A reference calibration fed one synchronized sample at a time.
+#[derive(Debug, Clone)]
+pub struct ReferenceCal {
+    opts: ReferenceOptions,
+    dut: Unwrapper,
+    reference: Unwrapper,
+    /// `(t, unwrapped DUT, difference)` of the previous sample.
+    last: Option<(f64, f64, f64)>,
+    first: Option<(f64, f64)>,
+    up: Vec<Welford>,
+    down: Vec<Welford>,
+    travel: f64,
+    reference_travel: f64,
+    d_min: f64,
+    d_max: f64,
+    /// Direction of the current run (`true`: increasing) and the DUT's travel since it began.
+    run: Option<(bool, f64)>,
+    /// The last moving step, whose crossings wait for the next sample (the cubic's outer node).
+    pending: Option<Step>,
+}
+
+/// A step between two consecutive moving samples: DUT readings `u` (unwrapped) and differences
+/// `d` at both ends, the run's travel before it, and the sample before it if the run goes on.
+#[derive(Debug, Clone, Copy)]
+struct Step {
+    u0: f64,
+    d0: f64,
+    u1: f64,
+    d1: f64,
+    travelled: f64,
+    before: Option<(f64, f64)>,
+}
+
+/// The cubic through four points with distinct `x`, evaluated at `at` (Lagrange form).
+fn lagrange(x: [f64; 4], y: [f64; 4], at: f64) -> f64 {
+    (0..4)
+        .map(|k| {
+            (0..4)
+                .filter(|&j| j != k)
+                .fold(y[k], |acc, j| acc * (at - x[j]) / (x[k] - x[j]))
+        })
+        .sum()
+}
+
+impl ReferenceCal {
+    /// A calibration with these options.
+    pub fn new(opts: ReferenceOptions) -> Self {
+        let n = opts.points;
+        ReferenceCal {
+            opts,
+            dut: Unwrapper::new(),
+            reference: Unwrapper::new(),
+            last: None,
+            first: None,
+            up: vec![Welford::default(); n],
+            down: vec![Welford::default(); n],
+            travel: 0.0,
+            reference_travel: 0.0,
+            d_min: f64::INFINITY,
+            d_max: f64::NEG_INFINITY,
+            run: None,
+            pending: None,
+        }
+    }
+
+    /// Adds a sample: time (s), the DUT's and the reference's readings (radians). Samples with a
+    /// non-finite value are skipped (and break the interpolation between neighbours).
+    pub fn push(&mut self, t: f64, dut: f64, reference: f64) {
+        if !(t.is_finite() && dut.is_finite() && reference.is_finite()) {
+            self.flush();
+            self.last = None;
+            return;
+        }
+        let u = self.dut.unwrap(dut);
+        let r = self.reference.unwrap(reference);
+        let (u0, r0) = *self.first.get_or_insert((u, r));
+        let d = (u - u0) - (r - r0);
+        let previous = self.last.replace((t, u, d));
+        let Some((t_prev, u_prev, d_prev)) = previous else {
+            return;
+        };
+        let (dt, du) = (t - t_prev, u - u_prev);
+        // Out-of-order time stamps and jumps of half a revolution cannot be interpolated across.
+        if dt <= 0.0 || du.abs() >= PI || du.abs() < self.opts.min_speed * dt {
+            self.flush();
+            return;
+        }
+        self.travel += du.abs();
+        self.reference_travel += (d_prev - d + du).abs();
+        self.d_min = self.d_min.min(d).min(d_prev);
+        self.d_max = self.d_max.max(d).max(d_prev);
+        let increasing = du > 0.0;
+        let travelled = match self.run {
+            Some((dir, travel)) if dir == increasing => travel,
+            _ => 0.0,
+        };
+        self.run = Some((increasing, travelled + du.abs()));
+        let mut step = Step {
+            u0: u_prev,
+            d0: d_prev,
+            u1: u,
+            d1: d,
+            travelled,
+            before: None,
+        };
+        // Every push either leaves its step pending or flushes, so a pending step ends at this
+        // step's start: contiguous, and usable as the other's outer node if it goes the same way.
+        if let Some(p) = self.pending.take() {
+            let same_way = (p.u1 > p.u0) == increasing;
+            if same_way {
+                step.before = Some((p.u0, p.d0));
+            }
+            self.cross(&p, same_way.then_some((u, d)));
+        }
+        self.pending = Some(step);
+    }
+
+    /// Crossings of a pending step, interpolated linearly (no outer node to use).
+    fn flush(&mut self) {
+        if let Some(p) = self.pending.take() {
+            self.cross(&p, None);
+        }
+    }
+
+    /// Adds the grid crossings of a step to the statistics: the cubic through the samples either
+    /// side where the run goes on both ways (`before` and `after`), else the straight line.
+    fn cross(&mut self, s: &Step, after: Option<(f64, f64)>) {
+        let n = self.up.len();
+        if n == 0 {
+            return;
+        }
+        let grid = TAU / n as f64;
+        let du = s.u1 - s.u0;
+        let (lo, hi) = if du > 0.0 { (s.u0, s.u1) } else { (s.u1, s.u0) };
+        // Readings so large that grid indices lose precision cannot be placed on the grid.
+        if lo.abs().max(hi.abs()) / grid > 1e15 {
+            return;
+        }
+        // Grid points in (lo, hi] going up, [lo, hi) going down: each crossing counted once.
+        let (first, last) = if du > 0.0 {
+            ((lo / grid).floor() as i64 + 1, (hi / grid).floor() as i64)
+        } else {
+            ((lo / grid).ceil() as i64, (hi / grid).ceil() as i64 - 1)
+        };
+        let bins = if du > 0.0 {
+            &mut self.up
+        } else {
+            &mut self.down
+        };
+        for k in first..=last {
+            let theta = k as f64 * grid;
+            if s.travelled + (theta - s.u0).abs() < self.opts.approach {
+                continue;
+            }
+            let x = match (s.before, after) {
+                (Some((ub, db)), Some((ua, da))) => {
+                    lagrange([ub, s.u0, s.u1, ua], [db, s.d0, s.d1, da], theta)
+                }
+                _ => s.d0 + (theta - s.u0) / du * (s.d1 - s.d0),
+            };
+            bins[(k.rem_euclid(n as i64)) as usize].add(x);
+        }
+    }
+
+    /// The calibration from the samples pushed.
+    pub fn finish(mut self) -> Result<ReferenceCalibration, ReferenceError> {
+        self.flush();
+        let n = self.opts.points;
+        if n < 2 {
+            return Err(ReferenceError::Options(format!(
+                "the map needs at least 2 points, {n} asked for"
+            )));
+        }
+        let revolutions = self.travel / TAU;
+        if revolutions < 1.0 {
+            return Err(ReferenceError::TooLittleMotion { revolutions });
+        }
+        if self.reference_travel < 0.1 * self.travel {
+            return Err(ReferenceError::ReferenceStill {
+                reference_deg: self.reference_travel.to_degrees(),
+                dut_deg: self.travel.to_degrees(),
+            });
+        }
+        let change = self.d_max - self.d_min;
+        if change > self.opts.follow_tol {
+            return Err(ReferenceError::NotFollowing {
+                change_deg: change.to_degrees(),
+                revolutions,
+                tol_deg: self.opts.follow_tol.to_degrees(),
+            });
+        }
+        let missing = (0..n)
+            .filter(|&i| self.up[i].n == 0 && self.down[i].n == 0)
+            .count();
+        if missing > 0 {
+            return Err(ReferenceError::NotCovered { missing, points: n });
+        }
+        let raw: Vec<f64> = (0..n)
+            .map(|i| match (self.up[i].n, self.down[i].n) {
+                (0, _) => self.down[i].mean,
+                (_, 0) => self.up[i].mean,
+                _ => 0.5 * (self.up[i].mean + self.down[i].mean),
+            })
+            .collect();
+        let offset = raw.iter().sum::<f64>() / n as f64;
+        let stats = |w: &[Welford]| -> Vec<PointStats> {
+            w.iter()
+                .map(|w| PointStats {
+                    n: w.n,
+                    mean: w.mean - offset,
+                    s: (w.n >= 2).then(|| (w.m2.max(0.0) / f64::from(w.n - 1)).sqrt()),
+                })
+                .collect()
+        };
+        let (up, down) = (stats(&self.up), stats(&self.down));
+        let iso = iso_230_2(&up, &down);
+        let (pool_up, pool_down) = (pooled(&self.up), pooled(&self.down));
+        let sem2 = |p: &PointStats, pool: Option<f64>| -> Option<f64> {
+            let s = p.s.or(pool)?;
+            Some(s * s / f64::from(p.n))
+        };
+        let mut no_repeatability = false;
+        let u: Vec<f64> = (0..n)
+            .map(|i| {
+                let (a, b) = (&up[i], &down[i]);
+                let var = match (a.n, b.n) {
+                    (0, _) => sem2(b, pool_down),
+                    (_, 0) => sem2(a, pool_up),
+                    _ => sem2(a, pool_up)
+                        .zip(sem2(b, pool_down))
+                        .map(|(x, y)| (x + y) / 4.0),
+                };
+                let var = var.unwrap_or_else(|| {
+                    no_repeatability = true;
+                    0.0
+                });
+                (var + self.opts.reference_u.powi(2)).sqrt()
+            })
+            .collect();
+        let min_passes = |p: &[PointStats]| p.iter().map(|p| p.n).min().unwrap_or(0);
+        let min_passes = (min_passes(&up), min_passes(&down));
+        let mut warnings = Vec::new();
+        if no_repeatability {
+            warnings.push(
+                "some points were crossed only once in every direction: their u_arcsec holds only the reference's \
+                 uncertainty; record several revolutions to estimate the repeatability"
+                    .to_string(),
+            );
+        }
+        let (has_up, has_down) = (up.iter().any(|p| p.n > 0), down.iter().any(|p| p.n > 0));
+        if has_up && has_down && (min_passes.0 == 0 || min_passes.1 == 0) {
+            warnings.push(
+                "some points were crossed in one direction only, others in both: the map mixes unidirectional and \
+                 bidirectional means; record whole revolutions in each direction"
+                    .to_string(),
+            );
+        }
+        for (name, has, m) in [
+            ("increasing", has_up, min_passes.0),
+            ("decreasing", has_down, min_passes.1),
+        ] {
+            if has && m < 5 {
+                warnings.push(format!(
+                    "only {m} pass(es) at some points with {name} readings; ISO 230-2 asks for 5 per direction"
+                ));
+            }
+        }
+        Ok(ReferenceCalibration {
+            map: ErrorMap::new(raw),
+            u,
+            up,
+            down,
+            iso,
+            revolutions,
+            min_passes,
+            warnings,
+        })
+    }
+}
+
+/// The pooled standard deviation of a direction's points with `n ≥ 2`.
+fn pooled(w: &[Welford]) -> Option<f64> {
+    let (m2, dof) = w
+        .iter()
+        .filter(|w| w.n >= 2)
+        .fold((0.0, 0.0), |(m2, dof), w| {
+            (m2 + w.m2.max(0.0), dof + f64::from(w.n - 1))
+        });
+    (dof > 0.0).then(|| (m2 / dof).sqrt())
+}
+
+/// Largest minus smallest of the values, `None` if there are none.
+fn range(values: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (a, b)| {
+        (lo.min(a), hi.max(b))
+    });
+    (hi >= lo).then_some(hi - lo)
+}
+
+fn max(values: impl Iterator<Item = f64>) -> Option<f64> {
+    values.fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))))
+}
+
+/// The ISO 230-2 figures from the per-point statistics (see the module doc).
+fn iso_230_2(up: &[PointStats], down: &[PointStats]) -> Iso230_2 {
+    let with_data =
+        |p: &[PointStats]| -> Vec<PointStats> { p.iter().copied().filter(|p| p.n > 0).collect() };
+    let (u, d) = (with_data(up), with_data(down));
+    let means = |p: &[PointStats]| p.iter().map(|p| (p.mean, p.mean)).collect::<Vec<_>>();
+    let bands = |p: &[PointStats]| {
+        p.iter()
+            .filter_map(|p| p.s.map(|s| (p.mean - 2.0 * s, p.mean + 2.0 * s)))
+            .collect::<Vec<_>>()
+    };
+    let both: Vec<(&PointStats, &PointStats)> = up
+        .iter()
+        .zip(down)
+        .filter(|(a, b)| a.n > 0 && b.n > 0)
+        .collect();
+    let reversals: Vec<f64> = both.iter().map(|(a, b)| a.mean - b.mean).collect();
+    let bidirectional: Vec<f64> = up
+        .iter()
+        .zip(down)
+        .filter_map(|(a, b)| match (a.n, b.n) {
+            (0, 0) => None,
+            (0, _) => Some(b.mean),
+            (_, 0) => Some(a.mean),
+            _ => Some(0.5 * (a.mean + b.mean)),
+        })
+        .collect();
+    let r_bi = max(both.iter().filter_map(|(a, b)| {
+        let (sa, sb) = (a.s?, b.s?);
+        Some(
+            (2.0 * sa + 2.0 * sb + (a.mean - b.mean).abs())
+                .max(4.0 * sa)
+                .max(4.0 * sb),
+        )
+    }));
+    let r_up = max(u.iter().filter_map(|p| p.s.map(|s| 4.0 * s)));
+    let r_down = max(d.iter().filter_map(|p| p.s.map(|s| 4.0 * s)));
+    Iso230_2 {
+        systematic_up: range(means(&u).into_iter()),
+        systematic_down: range(means(&d).into_iter()),
+        systematic: range(means(&u).into_iter().chain(means(&d))),
+        mean_bidirectional: range(bidirectional.iter().map(|&v| (v, v))),
+        reversal: max(reversals.iter().map(|b| b.abs())),
+        mean_reversal: (!reversals.is_empty())
+            .then(|| reversals.iter().sum::<f64>() / reversals.len() as f64),
+        repeatability_up: r_up,
+        repeatability_down: r_down,
+        // With one direction only, the bidirectional figure is the unidirectional one.
+        repeatability: r_bi
+            .or(if d.is_empty() { r_up } else { None })
+            .or(if u.is_empty() { r_down } else { None }),
+        accuracy_up: range(bands(&u).into_iter()),
+        accuracy_down: range(bands(&d).into_iter()),
+        accuracy: range(bands(&u).into_iter().chain(bands(&d))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn welford_matches_the_two_pass_formula() {
+        let xs = [1.0, 2.0, 4.0, 7.0];
+        let mut w = Welford::default();
+        xs.iter().for_each(|&x| w.add(x));
+        let mean = 3.5;
+        let var = xs.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / 3.0;
+        assert!((w.mean - mean).abs() < 1e-15);
+        assert!((w.m2 / 3.0 - var).abs() < 1e-12);
+    }
+
+    #[test]
+    fn iso_figures_of_two_points() {
+        let p = |mean: f64, s: f64| PointStats {
+            n: 5,
+            mean,
+            s: Some(s),
+        };
+        let up = [p(1.0, 0.1), p(3.0, 0.2)];
+        let down = [p(0.0, 0.1), p(2.0, 0.1)];
+        let iso = iso_230_2(&up, &down);
+        assert_eq!(iso.systematic_up, Some(2.0));
+        assert_eq!(iso.systematic, Some(3.0));
+        assert_eq!(iso.reversal, Some(1.0));
+        assert_eq!(iso.mean_reversal, Some(1.0));
+        assert!((iso.repeatability_up.unwrap() - 0.8).abs() < 1e-12);
+        // Point 1: 2·0.2 + 2·0.1 + 1 = 1.6.
+        assert!((iso.repeatability.unwrap() - 1.6).abs() < 1e-12);
+        // max(3 + 0.4) − min(0 − 0.2) = 3.6.
+        assert!((iso.accuracy.unwrap() - 3.6).abs() < 1e-12);
+        assert!((iso.mean_bidirectional.unwrap() - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn too_few_points_is_an_error_not_a_panic() {
+        let mut cal = ReferenceCal::new(ReferenceOptions {
+            points: 0,
+            ..ReferenceOptions::default()
+        });
+        cal.push(0.0, 0.0, 0.0);
+        cal.push(0.1, 0.1, 0.1);
+        assert!(matches!(cal.finish(), Err(ReferenceError::Options(_))));
+    }
+}
