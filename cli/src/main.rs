@@ -1,5 +1,9 @@
 //! `calib`: calibrate angular encoders and angle sensors from recorded runs.
 
+// Doc comments on the argument structs are clap's `--help` text, written for a terminal (TOML
+// tables such as `[[component]]`, placeholders such as `<a>.csv`), not rustdoc markup.
+#![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
+
 mod cli;
 mod commands;
 mod exit;

@@ -35,7 +35,7 @@ pub enum Format {
 /// small for the table is an error naming the smallest that fits.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The correction table (angle_deg,error_arcsec,correction_arcsec[,u_arcsec]).
+    /// The correction table (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
     pub table: PathBuf,
     /// The output form.
     #[arg(long, value_enum)]

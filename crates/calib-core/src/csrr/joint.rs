@@ -36,7 +36,7 @@
 //! Samples are first reduced to fine bins of `x` per session ([`super::bins`]). The normal
 //! equations `AᵀNA·u = AᵀN·r` (`N` = bin counts) are solved by conjugate gradient without forming
 //! `A`: `A·u` synthesizes both series on a uniform grid by inverse FFT and interpolates them at
-//! the bins' `θ_a` and `θ_b` ([`super::nufft`]), scaled by `1/(1 + ε′)`; `Aᵀ` scales, spreads and
+//! the bins' `θ_a` and `θ_b` (the `nufft` module), scaled by `1/(1 + ε′)`; `Aᵀ` scales, spreads and
 //! takes a forward FFT. One iteration
 //! costs `O(M + G log G)` for `M` bins and a grid of `G ≈ 16H` points, so the cost of the solve
 //! does not grow with the log once the bins are filled, and nothing of size `M·H` is ever formed.
@@ -121,7 +121,7 @@ pub struct JointSolution {
 }
 
 /// Fast evaluation of a series and its derivative at many points, by grid synthesis and
-/// interpolation ([`super::nufft`]).
+/// interpolation (the `nufft` module).
 struct SeriesEval {
     orders: Vec<usize>,
     fft: GridTransform,

@@ -317,7 +317,7 @@ fn find_break(path: &Path) -> Option<u64> {
 }
 
 impl McapReader {
-    /// Opens an MCAP file and fixes its channel list (see the [module docs](self) for how).
+    /// Opens an MCAP file and fixes its channel list (see the module docs of `calib_io::mcap_log` for how).
     ///
     /// Errors if the file cannot be read, is empty, is not MCAP, holds no JointState or JSON
     /// topic, names the same channel on two topics, or its first message of a topic is bad.
