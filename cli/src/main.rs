@@ -8,6 +8,7 @@ mod cli;
 mod commands;
 mod exit;
 mod input;
+mod output;
 
 use clap::Parser;
 use std::io::Write;

@@ -1,7 +1,8 @@
 //! `calib reference`: cross-calibration of an encoder against a better reference encoder.
 
 use crate::exit::Usage;
-use crate::input::{channel, file_stem, open_log, parse_unit};
+use crate::input::{channel, open_log, parse_unit};
+use crate::output::{table_name, write_tables_and_report};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{ReferenceCal, ReferenceCalibration, ReferenceOptions};
@@ -115,22 +116,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
     let report = build_report(args, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
-    let table = calib_io::table::render_table(&cal.map, Some(&cal.u))?;
-    std::fs::create_dir_all(&args.output)
-        .with_context(|| format!("cannot create the output folder {}", args.output.display()))?;
-    // All outputs appear together or not at all.
-    let mut outputs = calib_io::atomic::OutputSet::new();
-    outputs.add(&args.output.join(table_name(&args.dut)), table.as_bytes())?;
-    outputs.add(&args.output.join("report.json"), json.as_bytes())?;
-    outputs.commit()?;
+    write_tables_and_report(&args.output, &[(&args.dut, &cal.map, Some(&cal.u))], &json)?;
     if args.json {
         return Ok(json);
     }
     Ok(render_summary(args, &cal, &report))
-}
-
-fn table_name(channel: &str) -> String {
-    format!("{}.csv", file_stem(channel))
 }
 
 fn build_report(args: &Args, cal: &ReferenceCalibration, warnings: Vec<String>) -> Report {

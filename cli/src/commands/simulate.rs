@@ -1,7 +1,7 @@
 //! `calib simulate`: a recorded run with a known truth.
 
 use crate::exit::Usage;
-use crate::input::file_stem;
+use crate::output::table_name;
 use anyhow::Context;
 use calib_core::simulate::Scenario;
 use calib_io::LogWriter;
@@ -68,7 +68,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut written = Vec::new();
     for (name, map) in &truths {
-        let path = dir.join(format!("{}.csv", file_stem(name)));
+        let path = dir.join(table_name(name));
         calib_io::table::write_table(&path, map, None)?;
         written.push(path);
     }
