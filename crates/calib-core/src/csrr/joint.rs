@@ -182,22 +182,22 @@ impl SeriesEval {
 }
 
 /// One Gauss–Newton step's linear operator `A` and its weighted transpose.
-struct Step {
-    orders: Vec<usize>,
+struct Step<'a> {
+    orders: &'a [usize],
     sessions: usize,
-    session_of: Vec<u32>,
-    n: Vec<f64>,
+    session_of: &'a [u32],
+    n: &'a [f64],
     at_a: Stencils,
     at_b: Stencils,
     scale_a: Vec<f64>,
     scale_b: Vec<f64>,
-    fft: GridTransform,
+    fft: &'a mut GridTransform,
     grid_buf: Vec<f64>,
     ea: Vec<f64>,
     eb: Vec<f64>,
 }
 
-impl Step {
+impl Step<'_> {
     fn len(&self) -> usize {
         4 * self.orders.len() + self.sessions
     }
@@ -206,10 +206,10 @@ impl Step {
     fn apply(&mut self, u: &[f64], r: &mut [f64]) {
         let l = self.orders.len();
         self.fft
-            .synthesize(&self.orders, &u[..l], &u[l..2 * l], &mut self.grid_buf);
+            .synthesize(self.orders, &u[..l], &u[l..2 * l], &mut self.grid_buf);
         self.at_a.gather(&self.grid_buf, &mut self.ea);
         self.fft.synthesize(
-            &self.orders,
+            self.orders,
             &u[2 * l..3 * l],
             &u[3 * l..4 * l],
             &mut self.grid_buf,
@@ -234,7 +234,7 @@ impl Step {
         self.at_a.scatter(&self.ea, &mut self.grid_buf);
         let (gac, gas) = ga.split_at_mut(l);
         self.fft
-            .analyze_transpose(&mut self.grid_buf, &self.orders, gac, gas);
+            .analyze_transpose(&mut self.grid_buf, self.orders, gac, gas);
         for j in 0..r.len() {
             self.eb[j] = -self.n[j] * r[j] * self.scale_b[j];
         }
@@ -242,7 +242,7 @@ impl Step {
         self.at_b.scatter(&self.eb, &mut self.grid_buf);
         let (gbc, gbs) = gb.split_at_mut(l);
         self.fft
-            .analyze_transpose(&mut self.grid_buf, &self.orders, gbc, gbs);
+            .analyze_transpose(&mut self.grid_buf, self.orders, gbc, gbs);
         gd.iter_mut().for_each(|v| *v = 0.0);
         for j in 0..r.len() {
             gd[self.session_of[j] as usize] += self.n[j] * r[j];
@@ -301,7 +301,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// Preconditioned conjugate gradient on `AᵀNA·u = AᵀN·rhs`, from `u = 0`. Returns the
 /// iterations taken and whether the tolerance was reached.
 fn conjugate_gradient(
-    step: &mut Step,
+    step: &mut Step<'_>,
     precond: &Preconditioner,
     rhs: &[f64],
     u: &mut [f64],
@@ -391,7 +391,7 @@ pub fn solve(sessions: &[SessionData], opts: &JointOptions) -> Result<JointSolut
     let ys: Vec<f64> = bins.iter().map(|b| b.x - b.d).collect();
     let d: Vec<f64> = bins.iter().map(|b| b.d).collect();
     let n: Vec<f64> = bins.iter().map(|b| b.n).collect();
-    let mut session_of = Vec::with_capacity(m);
+    let mut session_of: Vec<u32> = Vec::with_capacity(m);
     for (k, s) in sessions.iter().enumerate() {
         session_of.extend(std::iter::repeat_n(k as u32, s.bins.len()));
     }
@@ -405,7 +405,7 @@ pub fn solve(sessions: &[SessionData], opts: &JointOptions) -> Result<JointSolut
     let mut steps = 0;
     let mut residual = vec![0.0; m];
     let mut du = vec![0.0; 4 * l + k_count];
-    let mut fft = Some(GridTransform::new(grid));
+    let mut fft = GridTransform::new(grid);
     while steps < opts.max_steps {
         eval_a.load(&ca, &sa);
         eval_b.load(&cb, &sb);
@@ -417,22 +417,20 @@ pub fn solve(sessions: &[SessionData], opts: &JointOptions) -> Result<JointSolut
             residual[j] = d[j] - model;
         }
         let mut step = Step {
-            orders: orders.clone(),
+            orders: &orders,
             sessions: k_count,
-            session_of: std::mem::take(&mut session_of),
-            n: n.clone(),
+            session_of: &session_of,
+            n: &n,
             at_a: Stencils::new(theta_a.iter().copied(), grid),
             at_b: Stencils::new(theta_b.iter().copied(), grid),
             scale_a,
             scale_b,
-            fft: fft.take().expect("returned after each step"),
+            fft: &mut fft,
             grid_buf: vec![0.0; grid],
             ea: vec![0.0; m],
             eb: vec![0.0; m],
         };
         let (its, ok) = conjugate_gradient(&mut step, &precond, &residual, &mut du, opts);
-        session_of = step.session_of;
-        fft = Some(step.fft);
         iterations += its;
         steps += 1;
         let mut largest = 0.0f64;
