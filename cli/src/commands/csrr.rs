@@ -351,10 +351,11 @@ fn render_summary(args: &Args, cal: &Calibration, report: &Report) -> String {
         }) {
             let _ = writeln!(
                 o,
-                "sampling non-uniformity: worst order for the paper method {} (|Y| = {:.4}, predicted residual {:.3}″)",
+                "sampling non-uniformity: worst order for the paper method {} (|Y| = {:.4}, predicted residual |Y|·A {:.3}″ as published, {:.3}″ to first order)",
                 worst.order,
                 worst.y,
-                worst.predicted_a_arcsec.max(worst.predicted_b_arcsec)
+                worst.predicted_a_arcsec.max(worst.predicted_b_arcsec),
+                worst.first_order_a_arcsec.max(worst.first_order_b_arcsec)
             );
         }
     }

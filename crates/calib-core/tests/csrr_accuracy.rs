@@ -12,6 +12,7 @@ use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::csrr::{Csrr, CsrrOptions, Method};
 use calib_core::sample::channel_index;
 use calib_core::simulate::Scenario;
+use std::f64::consts::PI;
 
 fn scenario(text: &str) -> Scenario {
     toml::from_str(text).expect("scenario parses")
@@ -147,25 +148,35 @@ fn paper_point_error(eps_order: usize, m: f64) -> f64 {
 /// it is accurate (measured 0.099″: the noise of one crossing per revolution). With ε_θ at
 /// order 3 — A's largest harmonic, 100″ — the DC estimate of Δ (eqs. 4–5) is a time average, and
 /// A's error sampled at non-uniform positions `θ = φ + m cos(3φ + ψ)` averages to
-/// `−½·h·m·A·sin(φ_a − ψ)` to first order, which moves with `hΔ_k` from session to session: the
-/// map degrades by `½·h·m·A` = 0.436″ for m = 600″ (measured 0.452″).
+/// `−½·h·m·A·sin(φ_a − ψ)` to first order (eq. 14 read in angle units), which moves with `hΔ_k`
+/// from session to session: the map degrades by `½·h·m·A` = 0.436″ for m = 600″ (measured
+/// 0.452″), and in proportion to `|Y_h|·A_h` — twice the modulation, twice the residual
+/// (measured 0.920″ for m = 1200″).
 ///
-/// The paper's indicator predicts `|Y_h|·A_h = π²·h·m·A` = 8.6″ here (eqs. 18–20, with the
-/// `Ω = 2π·h` that reproduces its Table V): 2π² times what this simulation shows. The paper's
-/// own Table III also measured a larger DC error (7.66″ at order 90) than the first-order
-/// mechanism gives (0.20″), so its rig had more than position modulation at play; calib reports
-/// `|Y|` as published and this test checks the mechanism it can simulate.
+/// The paper's indicator as tabulated predicts `|Y_h|·A_h = π²·h·m·A` = 8.6″ here (eqs. 18–20,
+/// with the `Ω = 2π·h` that reproduces its Table V): 2π² times the first-order shift, because
+/// Table V takes `Ω` per revolution where eq. 11's Bessel argument needs it per radian, and eq.
+/// 20 compares a Fourier-domain `F_JΩ` (a constant `c` appears as `2π·c`) with an angle. calib
+/// reports `|Y|` and `|Y|·A` as published beside `|Y|·A/(2π²)` (`csrr::reference`); this test
+/// checks the mechanism, with the constant derived from eq. 14.
 #[test]
 fn paper_method_is_accurate_unless_eps_theta_shares_an_order() {
     let m = 600.0;
     let clean = paper_point_error(11, m);
     let shared = paper_point_error(3, m);
-    let first_order = 0.5 * 3.0 * (m / ARCSEC_PER_RAD) * 100.0;
+    let doubled = paper_point_error(3, 2.0 * m);
+    let y_times_a = |m: f64| PI * PI * 3.0 * (m / ARCSEC_PER_RAD) * 100.0;
+    let first_order = |m: f64| y_times_a(m) / (2.0 * PI * PI);
     assert!(clean < 0.15, "clean run: {clean:.4}″");
-    assert!(
-        shared > 0.7 * first_order && shared < 1.5 * first_order,
-        "shared order: {shared:.4}″, first-order prediction {first_order:.4}″"
-    );
+    for (err, m) in [(shared, m), (doubled, 2.0 * m)] {
+        assert!(
+            err > 0.7 * first_order(m) && err < 1.5 * first_order(m),
+            "m = {m}″: {err:.4}″, |Y|·A/(2π²) = {:.4}″",
+            first_order(m)
+        );
+    }
+    let ratio = doubled / shared;
+    assert!((1.7..2.3).contains(&ratio), "residual ratio {ratio:.3} for m doubled");
 }
 
 /// Sessions at 0°, 90°, 180°, 270° cannot see orders that are multiples of 4: they are left out

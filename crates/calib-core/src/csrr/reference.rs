@@ -19,6 +19,14 @@
 //!   `|Y_h|·A_h` for each sensor's harmonic `A_h`. The paper method is reliable where
 //!   `|Y_h| < 1 %` or `A_h` is small (Fig. 2); the joint method does not use time stamps and is
 //!   not affected.
+//! - the first-order residual of the same mechanism, `½·h·m_h·A_h = |Y_h|·A_h / (2π²)`. Eq. 14
+//!   gives the DC shift of `A cos(hθ + φ)` sampled at `θ(n) = nθ₀ + m sin(hnθ₀)` as
+//!   `π·Ω·m·A·cos φ` in the units of its Fourier transform, where a constant `c` is `2π·c·δ(ω)`:
+//!   an angle of `½·Ω·m·A·cos φ`, with `Ω` the order per radian (the Bessel argument of eq. 11
+//!   is `h·m`). Table V's `|Y|` takes `Ω = 2π·h` and compares the transform-domain `F_JΩ`
+//!   with an angle (eq. 20), which together make `|Y|·A` 2π² times the first-order shift. The
+//!   simulator reproduces the first-order figure (`tests/csrr_accuracy.rs`); both are reported,
+//!   `|Y|` as published.
 
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper, wrap_2pi, wrap_pi};
 use crate::error_map::ErrorMap;
@@ -265,11 +273,18 @@ impl ReferenceAccumulator {
             .iter()
             .map(|e| {
                 let y = PI * PI * e.order as f64 * e.amplitude_arcsec / ARCSEC_PER_RAD;
+                let (pa, pb) = (
+                    y * amplitude(&sa, e.order) * ARCSEC_PER_RAD,
+                    y * amplitude(&sb, e.order) * ARCSEC_PER_RAD,
+                );
+                let first_order = 1.0 / (2.0 * PI * PI);
                 EffectiveRange {
                     order: e.order,
                     y,
-                    predicted_a_arcsec: y * amplitude(&sa, e.order) * ARCSEC_PER_RAD,
-                    predicted_b_arcsec: y * amplitude(&sb, e.order) * ARCSEC_PER_RAD,
+                    predicted_a_arcsec: pa,
+                    predicted_b_arcsec: pb,
+                    first_order_a_arcsec: pa * first_order,
+                    first_order_b_arcsec: pb * first_order,
                 }
             })
             .collect();
@@ -346,10 +361,16 @@ pub struct EffectiveRange {
     pub order: usize,
     /// `|Y_h| = π²·h·m_h` (dimensionless).
     pub y: f64,
-    /// `|Y_h|·A_h` for sensor A: the paper method's predicted residual at this order, arcsec.
+    /// `|Y_h|·A_h` for sensor A: the paper method's predicted residual at this order as
+    /// published (eqs. 18–20, Table V), arcsec.
     pub predicted_a_arcsec: f64,
     /// The same for sensor B, arcsec.
     pub predicted_b_arcsec: f64,
+    /// `½·h·m_h·A_h = |Y_h|·A_h / (2π²)` for sensor A: the first-order residual of position
+    /// modulation (eq. 14 in angle units), arcsec.
+    pub first_order_a_arcsec: f64,
+    /// The same for sensor B, arcsec.
+    pub first_order_b_arcsec: f64,
 }
 
 /// What the reference encoder says about a calibration.
