@@ -22,7 +22,11 @@ fn max_diff(got: &[(f64, f64)], truth: &[(f64, f64)]) -> f64 {
 #[test]
 fn air_bearing_coast_matches_the_truth_and_the_reference() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(&testdata("scenarios/spindown.toml"), dir.path(), "coast.mcap");
+    let log = simulate(
+        &testdata("scenarios/spindown.toml"),
+        dir.path(),
+        "coast.mcap",
+    );
     let out = dir.path().join("out");
     let o = calib(&[
         "tdr",
@@ -67,15 +71,7 @@ fn air_bearing_coast_matches_the_truth_and_the_reference() {
 
     // --json prints the same report.
     let out2 = dir.path().join("out2");
-    let o = calib(&[
-        "tdr",
-        s(&log),
-        "--channel",
-        "enc",
-        "-o",
-        s(&out2),
-        "--json",
-    ]);
+    let o = calib(&["tdr", s(&log), "--channel", "enc", "-o", s(&out2), "--json"]);
     expect_exit(&o, 0);
     let printed: Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(printed, read_json(&out2.join("report.json")));
@@ -140,7 +136,12 @@ fn a_log_without_spin_down_is_refused_naming_file_and_channel() {
     let err = expect_exit(&o, 1);
     assert_mentions(
         &err,
-        &["driven.csv", "channel `enc`", "speed stays", "release the drive"],
+        &[
+            "driven.csv",
+            "channel `enc`",
+            "speed stays",
+            "release the drive",
+        ],
     );
     assert_no_output(&out);
 
@@ -164,7 +165,10 @@ fn usage_errors_exit_2() {
         (vec!["--channel", "nope"], "nope"),
         (vec!["--channel", "enc", "--max-order", "0"], "--max-order"),
         (vec!["--channel", "enc", "--points", "1"], "--points"),
-        (vec!["--channel", "enc", "--motion-degree", "0"], "--motion-degree"),
+        (
+            vec!["--channel", "enc", "--motion-degree", "0"],
+            "--motion-degree",
+        ),
     ] {
         let mut all = vec!["tdr", s(&log), "-o", s(&out)];
         all.extend(args);

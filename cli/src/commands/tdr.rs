@@ -5,7 +5,7 @@ use crate::input::{channel, command_line, open_log, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::tdr::{DRAG_AMBIGUITY, Tdr, TdrCalibration, TdrOptions};
+use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
 use calib_core::{AngleUnit, ChannelReport, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -91,7 +91,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .motion_degree
         .is_some_and(|p| !(1..=MAX_DEGREE).contains(&p))
     {
-        return Err(Usage(format!("--motion-degree must be between 1 and {MAX_DEGREE}")).into());
+        return Err(Usage(format!(
+            "--motion-degree must be between 1 and {MAX_DEGREE}"
+        ))
+        .into());
     }
     if !(args.min_revolutions.is_finite() && args.min_revolutions >= 1.0) {
         return Err(Usage("--min-revolutions must be at least 1".into()).into());
@@ -183,7 +186,7 @@ fn build_report(args: &Args, cal: &TdrCalibration, warnings: Vec<String>) -> Rep
     details.insert(
         "drag".to_string(),
         json!({
-            "ambiguity": DRAG_AMBIGUITY,
+            "ambiguity": cal.ambiguity,
             "mean_inverse_square_speed_s2": cal.drag_gain,
             "map_shift_arcsec_per_rad_s2_over_order_squared": cal.drag_gain * ARCSEC_PER_RAD,
             "speed_dependent_orders": dependence,

@@ -1,7 +1,8 @@
 //! Self-calibration of one encoder from a free spin-down (coast-down), in the manner of the
-//! time-measurement dynamic reversal (TDR) method of Lu & Trumper (CIRP Annals 56(1), 2007;
-//! US patent 7,840,372), the method the CSRR paper (Gou et al., reference [24], Tables II and IV)
-//! compares against.
+//! time-measurement dynamic reversal (TDR) method of Lu & Trumper, "Self-calibration of on-axis
+//! rotary encoders" (CIRP Annals 56(1), 2007 — the CSRR paper's reference list dates it 2009;
+//! US patent 7,840,372), the method the CSRR paper (Gou et al., reference [24], Tables II and
+//! IV) compares against.
 //!
 //! # Principle
 //! The shaft is spun up, released, and coasts: nothing but its own friction acts on it, so its
@@ -213,7 +214,7 @@ pub struct TdrCalibration {
     pub samples_used: usize,
     /// Revolutions of the coast used.
     pub revolutions: f64,
-    /// Speed at the start and end of the coast used, rad/s (magnitudes; see `direction`).
+    /// Speed at the start of the coast used, rad/s (a magnitude; see `direction`).
     pub speed_start: f64,
     /// Speed at the end of the coast used, rad/s.
     pub speed_end: f64,
@@ -229,6 +230,8 @@ pub struct TdrCalibration {
     pub reference: Option<ReferenceCheck>,
     /// What the user should know.
     pub warnings: Vec<String>,
+    /// What the method cannot separate ([`DRAG_AMBIGUITY`]), for reports.
+    pub ambiguity: &'static str,
 }
 
 /// A spin-down calibration being fed samples.
@@ -423,6 +426,7 @@ impl Tdr {
             speed_dependence,
             reference,
             warnings,
+            ambiguity: DRAG_AMBIGUITY,
         })
     }
 }
@@ -615,7 +619,11 @@ impl Basis {
                 }
             }
         }
-        let g = DMatrix::from_fn(n, n, |a, b| if a <= b { g[a * n + b] } else { g[b * n + a] });
+        let g = DMatrix::from_fn(
+            n,
+            n,
+            |a, b| if a <= b { g[a * n + b] } else { g[b * n + a] },
+        );
         Normal {
             g,
             rhs: DVector::from_vec(rhs),
@@ -692,7 +700,9 @@ impl Normal {
             None => DVector::from_fn(cols.len(), |a, _| self.rhs[cols[a]]),
         };
         let x = chol.solve(&b);
-        x.iter().all(|v| v.is_finite()).then(|| x.iter().copied().collect())
+        x.iter()
+            .all(|v| v.is_finite())
+            .then(|| x.iter().copied().collect())
     }
 }
 
@@ -727,7 +737,8 @@ fn speed_dependence(
     (0..basis.max_order)
         .filter_map(|k| {
             let (a, b) = (beta[g + 2 * k], beta[g + 2 * k + 1]);
-            let var = 0.5 * (inverse[(g + 2 * k, g + 2 * k)] + inverse[(g + 2 * k + 1, g + 2 * k + 1)]);
+            let var =
+                0.5 * (inverse[(g + 2 * k, g + 2 * k)] + inverse[(g + 2 * k + 1, g + 2 * k + 1)]);
             let u = sigma * var.sqrt();
             let harmonic = Harmonic::from_coefficients(k + 1, a, b);
             (harmonic.amplitude > 4.0 * u && harmonic.amplitude * ARCSEC_PER_RAD > 0.01)

@@ -139,9 +139,9 @@ use crate::angle::{ARCSEC_PER_RAD, AngleUnit, DEG_PER_RAD, wrap_2pi};
 use crate::error_map::ErrorMap;
 use crate::sample::{Channel, Sample};
 use motion::{SessionPlan, State, Timeline, Timing};
-use spindown::Coast;
 use rng::Rng;
 use sensor::{ErrorModel, FastSeries, Powers, Term};
+use spindown::Coast;
 use std::f64::consts::TAU;
 
 fn terms(harmonics: &[HarmonicSpec]) -> Vec<Term> {

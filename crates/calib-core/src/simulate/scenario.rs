@@ -326,7 +326,9 @@ pub enum ScenarioError {
         problem: &'static str,
     },
     /// `[spin_down]` together with a table it replaces.
-    #[error("[spin_down] replaces [{table}]: remove [{table}] (a coasting shaft has no procedure and no driven speed modulation; model bearing effects with `drag_harmonics`)")]
+    #[error(
+        "[spin_down] replaces [{table}]: remove [{table}] (a coasting shaft has no procedure and no driven speed modulation; model bearing effects with `drag_harmonics`)"
+    )]
     SpinDownConflict {
         /// `procedure` or `speed`.
         table: &'static str,

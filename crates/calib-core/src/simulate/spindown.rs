@@ -139,10 +139,7 @@ impl Coast {
         }
         let frac = self.at.omega / (self.at.omega - next.omega);
         let rest = self.rk4(self.at, frac * (t_next - self.at.t));
-        self.stop = Some(Point {
-            omega: 0.0,
-            ..rest
-        });
+        self.stop = Some(Point { omega: 0.0, ..rest });
     }
 
     /// The shaft's true angle at time `t` (radians, accumulated; clamped to `[0, duration]`).
