@@ -1,7 +1,7 @@
 //! Self-calibration of one encoder from a free spin-down (coast-down), in the manner of the
 //! time-measurement dynamic reversal (TDR) method of Lu & Trumper, "Self-calibration of on-axis
 //! rotary encoders" (CIRP Annals 56(1), 2007 — the CSRR paper's reference list dates it 2009;
-//! US patent 7,840,372), the method the CSRR paper (Gou et al., reference [24], Tables II and
+//! US patent 7,840,372), the method the CSRR paper (Gou et al., reference \[24\], Tables II and
 //! IV) compares against.
 //!
 //! # Principle
