@@ -407,7 +407,13 @@ impl Tdr {
             ));
         }
 
-        let reference = (!self.reference.is_empty()).then(|| {
+        let mixed = !self.reference.is_empty() && self.reference.len() != self.r.len();
+        if mixed {
+            warnings.push(
+                "a reference reading came with only some samples (push and push_with_reference mixed): the reference check is skipped".to_string(),
+            );
+        }
+        let reference = (!self.reference.is_empty() && !mixed).then(|| {
             let d: Vec<f64> = (i0..i1).map(|i| self.r[i] - self.reference[i]).collect();
             reference_check(r, &d, h, &map)
         });

@@ -186,12 +186,20 @@ fn driven_plateau_and_stop_are_left_out() {
         }
     };
     let mut tdr = Tdr::new(TdrOptions::default());
+    // The same shaft turning the other way (θ → −θ): the map, a function of the reading, is the
+    // same.
+    let mut backwards = Tdr::new(TdrOptions::default());
     for n in 0..(25.0 * rate) as usize {
         let t = n as f64 / rate;
         let th = theta(t);
         tdr.push(t, (th + synthetic_error(th)).rem_euclid(TAU));
+        backwards.push(t, (-th + synthetic_error(-th)).rem_euclid(TAU));
     }
     let cal = tdr.finish().unwrap();
+    let back = backwards.finish().unwrap();
+    assert_eq!((cal.direction, back.direction), (1.0, -1.0));
+    let twin = back.map.minus(&cal.map).max_abs_arcsec();
+    assert!(twin < 0.005, "{twin}″");
     // The plateau ends within a window (25 s / 256) of 2 s; the coast is cut where the speed
     // falls below 10 % of the peak (t ≈ 20 s), before the stop.
     assert!(
@@ -252,5 +260,28 @@ fn logs_without_a_spin_down_are_refused_with_what_to_record() {
     assert!(
         matches!(e, TdrError::TooFewRevolutions { needed: 10.0, .. }),
         "{e}"
+    );
+}
+
+#[test]
+fn mixing_samples_with_and_without_reference_skips_the_check_without_panicking() {
+    // 30 rad/s slowing at 1 rad/s² for 10 s at 200 Hz: 250 rad, 40 revolutions.
+    let mut tdr = Tdr::new(TdrOptions::default());
+    for n in 0..2000 {
+        let t = n as f64 / 200.0;
+        let th = 30.0 * t - 0.5 * t * t;
+        let r = (th + synthetic_error(th)).rem_euclid(TAU);
+        if n < 1000 {
+            tdr.push_with_reference(t, r, th.rem_euclid(TAU));
+        } else {
+            tdr.push(t, r);
+        }
+    }
+    let cal = tdr.finish().unwrap();
+    assert!(cal.reference.is_none());
+    assert!(
+        cal.warnings
+            .iter()
+            .any(|w| w.contains("reference check is skipped"))
     );
 }
