@@ -318,7 +318,15 @@ impl Tdr {
         }
 
         let max_degree = match self.opts.motion_degree {
-            Some(p) => p,
+            Some(p) => {
+                if p as f64 > coast.revolutions / 2.0 {
+                    warnings.push(format!(
+                        "motion degree {p} is above half the {:.1} revolutions: the polynomial can follow the low orders of the error, which then leak into the motion; lower it or log a longer coast",
+                        coast.revolutions
+                    ));
+                }
+                p
+            }
             None => ((coast.revolutions / 2.0).floor() as usize).clamp(2, 30),
         };
         let basis = Basis {

@@ -279,9 +279,31 @@ fn mixing_samples_with_and_without_reference_skips_the_check_without_panicking()
     }
     let cal = tdr.finish().unwrap();
     assert!(cal.reference.is_none());
+    assert!(!cal.warnings.iter().any(|w| w.contains("motion degree")));
     assert!(
         cal.warnings
             .iter()
             .any(|w| w.contains("reference check is skipped"))
+    );
+}
+
+#[test]
+fn a_motion_degree_that_can_follow_the_error_is_warned_about() {
+    // 40 revolutions as above; degree 25 > 40/2.
+    let mut tdr = Tdr::new(TdrOptions {
+        motion_degree: Some(25),
+        ..TdrOptions::default()
+    });
+    for n in 0..2000 {
+        let t = n as f64 / 200.0;
+        let th = 30.0 * t - 0.5 * t * t;
+        tdr.push(t, (th + synthetic_error(th)).rem_euclid(TAU));
+    }
+    let cal = tdr.finish().unwrap();
+    assert_eq!(cal.motion.degree, 25);
+    assert!(
+        cal.warnings.iter().any(|w| w.contains("motion degree 25")),
+        "{:?}",
+        cal.warnings
     );
 }
