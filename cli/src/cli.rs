@@ -34,4 +34,6 @@ pub enum Command {
     // Help from its `Args` doc too.
     Reference(commands::reference::Args),
     Export(commands::export::Args),
+    // Help from its `Args` doc too.
+    Tdr(commands::tdr::Args),
 }

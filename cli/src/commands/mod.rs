@@ -7,6 +7,7 @@ pub mod inspect;
 pub mod reference;
 pub mod shift_angle;
 pub mod simulate;
+pub mod tdr;
 pub mod uncertainty;
 
 use crate::cli::{Cli, Command};
@@ -22,5 +23,6 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Compare(args) => compare::run(&args),
         Command::Reference(args) => reference::run(&args),
         Command::Export(args) => export::run(&args),
+        Command::Tdr(args) => tdr::run(&args),
     }
 }

@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 /// The scenario (TOML; see testdata/scenarios/ for complete, commented examples) describes the
 /// sensors and their harmonic errors, quantization and noise, a reference encoder, heads on a
 /// shared scale, the shaft's speed non-uniformity and the CSRR procedure (sessions at relative
-/// rotations Δ_k with ramps, pauses and relative turns). The log is written as MCAP (ROS 2
+/// rotations Δ_k with ramps, pauses and relative turns) — or, with `[spin_down]` instead of
+/// `[procedure]`, a free coast-down with friction and angle-dependent drag (for `calib tdr`; see
+/// testdata/scenarios/spindown.toml). The log is written as MCAP (ROS 2
 /// JointState, radians) or CSV (degrees) by the output's extension, and the true error map of
 /// every sensor, as a function of its own reading, beside it in `<stem>.truth/<sensor>.csv`.
 #[derive(Debug, clap::Args, PartialEq)]

@@ -19,6 +19,7 @@
 //!   paper's method); [`segment`] finds its sessions; [`inspect`] summarizes a log.
 //! - [`shift_angle`], [`uncertainty`], [`compare`]: polygon cross-calibration, GUM budgets, En.
 //! - [`simulate`]: realistic runs with a known truth.
+//! - [`tdr`]: self-calibration of one encoder from a free spin-down (Lu & Trumper's TDR).
 //!
 //! # Conventions
 //! Error `e = reading − true angle`, correction `= −e`; maps are functions of the sensor's own
@@ -72,6 +73,7 @@ pub mod sample;
 pub mod segment;
 pub mod shift_angle;
 pub mod simulate;
+pub mod tdr;
 pub mod uncertainty;
 
 pub use angle::{Angle, AngleUnit, Unwrapper};

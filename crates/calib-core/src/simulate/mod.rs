@@ -21,6 +21,17 @@
 //!   `= Q(θ_m + e(θ_m) + n)`, `n` Gaussian noise, `Q` rounding to the resolution, then wrapped
 //!   to `[0, 2π)` if [`Scenario::wrap`]. Readings reach the core in radians
 //!   ([`crate::AngleUnit::Rad`]).
+//! - **Spin-down** (`[spin_down]`, replacing `[procedure]`, for `calib tdr`): the shaft
+//!   coasts freely from `speed_rpm`, `dω/dt = −(c₀ + c₁ω + c₂ω²) − Σ a_h cos(hθ + φ_h)`, the
+//!   last sum an angle-dependent drag (rolling bearings, cogging), integrated by RK4 on a fine
+//!   grid ([`SpinDown`]). For example:
+//!   ```toml
+//!   [spin_down]
+//!   speed_rpm = 600.0         # speed at t = 0, the drive just released
+//!   duration_s = 20.0         # recorded coast (at rest once the speed reaches 0)
+//!   friction = { coulomb = 0.0, viscous = 0.02, quadratic = 1e-4 }  # rad/s², 1/s, 1/rad
+//!   drag_harmonics = [{ order = 2, amplitude = 0.05, phase_deg = 30.0 }]  # rad/s²
+//!   ```
 //! - **Heads on a shared scale**: a head at nominal `α` with angle error `δ` reads
 //!   `s + e_s(s) − α` at scale position `s = θ + α + δ` ([`Sensor`]).
 //!
@@ -109,25 +120,28 @@
 //! ```
 //!
 //! # Not simulated
-//! Relative-rotation (eccentricity) errors of eq. (8), free coast-down runs, drifts, and speed
-//! variation that is not locked to the shaft's position.
+//! Relative-rotation (eccentricity) errors of eq. (8), drifts, and speed variation that is not
+//! locked to the shaft's position.
 
 mod motion;
 mod rng;
 mod scenario;
 mod sensor;
+mod spindown;
 
 pub use scenario::{
-    HarmonicSpec, Mount, Procedure, Scale, Scenario, ScenarioError, Sensor, SessionSpec, Speed,
+    DragHarmonic, Friction, HarmonicSpec, Mount, Procedure, Scale, Scenario, ScenarioError, Sensor,
+    SessionSpec, Speed, SpinDown,
 };
 pub use sensor::SensorTruth;
 
 use crate::angle::{ARCSEC_PER_RAD, AngleUnit, DEG_PER_RAD, wrap_2pi};
 use crate::error_map::ErrorMap;
 use crate::sample::{Channel, Sample};
-use motion::{SessionPlan, Timeline, Timing};
+use motion::{SessionPlan, State, Timeline, Timing};
 use rng::Rng;
 use sensor::{ErrorModel, FastSeries, Powers, Term};
+use spindown::Coast;
 use std::f64::consts::TAU;
 
 fn terms(harmonics: &[HarmonicSpec]) -> Vec<Term> {
@@ -186,6 +200,65 @@ impl Scenario {
     /// procedure ends (at rest). Nothing is buffered; the iterator knows its exact length.
     pub fn samples(&self) -> Result<Samples, ScenarioError> {
         self.validate()?;
+        let (motion, windows) = match &self.spin_down {
+            Some(sd) => (Motion::Coast(self.coast(sd)), Vec::new()),
+            None => {
+                let timeline = self.timeline();
+                // Sessions are marked by sample index: sample n belongs to a window [t0, t1)
+                // when t0 ≤ n/rate < t1. A boundary within 1e-6 of a sample period of a sample
+                // instant counts as at it, so that rounding in t0 and t1 neither drops nor adds
+                // the boundary samples of a whole number of sample periods.
+                let index = |t: f64| (t * self.rate_hz - 1e-6).ceil().max(0.0) as u64;
+                let windows = timeline
+                    .session_windows()
+                    .into_iter()
+                    .map(|(t0, t1)| (index(t0), index(t1)))
+                    .collect();
+                (Motion::Procedure(timeline), windows)
+            }
+        };
+        // Samples at n/rate for every n with n/rate ≤ duration (float-to-int saturates).
+        let count = (motion.duration() * self.rate_hz).floor() as u64 + 1;
+        let channels: Vec<ChannelSim> = self
+            .sensors
+            .iter()
+            .zip(1u64..)
+            .map(|(s, stream)| {
+                let model = self.truth_of(s).model;
+                ChannelSim {
+                    mount: self.mount_of(s),
+                    offset: model.offset,
+                    series: FastSeries::new(&model.terms),
+                    quantum: s.quantization_arcsec / ARCSEC_PER_RAD,
+                    noise: s.noise_arcsec / ARCSEC_PER_RAD,
+                    rng: Rng::new(self.seed, stream),
+                }
+            })
+            .collect();
+        let need = |mount| channel_powers_needed(&channels, mount);
+        let (need_a, need_b) = (need(Mount::A), need(Mount::B));
+        Ok(Samples {
+            motion,
+            need_a,
+            need_b,
+            powers_a: Powers::default(),
+            powers_b: Powers::default(),
+            rotation: None,
+            windows,
+            window: 0,
+            channels,
+            next: 0,
+            count,
+            rate_hz: self.rate_hz,
+            jitter_s: self.time_jitter_s,
+            jitter_rng: Rng::new(self.seed, JITTER_STREAM),
+            wrap: self.wrap,
+            mark_sessions: self.mark_sessions,
+        })
+    }
+
+    /// The CSRR procedure's timeline.
+    fn timeline(&self) -> Timeline {
         let sessions: Vec<SessionPlan> = self
             .procedure
             .resolved_sessions()
@@ -210,55 +283,28 @@ impl Scenario {
             pause_s: p.pause_s,
             turn_s: p.turn_s,
         };
-        let timeline = Timeline::new(&sessions, timing, modulation);
-        // Sessions are marked by sample index: sample n belongs to a window [t0, t1) when
-        // t0 ≤ n/rate < t1. A boundary within 1e-6 of a sample period of a sample instant counts
-        // as at it, so that rounding in t0 and t1 neither drops nor adds the boundary samples of
-        // a whole number of sample periods.
-        let index = |t: f64| (t * self.rate_hz - 1e-6).ceil().max(0.0) as u64;
-        let windows = timeline
-            .session_windows()
-            .into_iter()
-            .map(|(t0, t1)| (index(t0), index(t1)))
-            .collect();
-        // Samples at n/rate for every n with n/rate ≤ duration (float-to-int saturates).
-        let count = (timeline.duration() * self.rate_hz).floor() as u64 + 1;
-        let channels: Vec<ChannelSim> = self
-            .sensors
+        Timeline::new(&sessions, timing, modulation)
+    }
+
+    /// The coast-down's integrator.
+    fn coast(&self, sd: &SpinDown) -> Coast {
+        let drag: Vec<Term> = sd
+            .drag_harmonics
             .iter()
-            .zip(1u64..)
-            .map(|(s, stream)| {
-                let model = self.truth_of(s).model;
-                ChannelSim {
-                    mount: self.mount_of(s),
-                    offset: model.offset,
-                    series: FastSeries::new(&model.terms),
-                    quantum: s.quantization_arcsec / ARCSEC_PER_RAD,
-                    noise: s.noise_arcsec / ARCSEC_PER_RAD,
-                    rng: Rng::new(self.seed, stream),
-                }
+            .map(|d| Term {
+                order: f64::from(d.order),
+                amplitude: d.amplitude,
+                phase: d.phase_deg / DEG_PER_RAD,
             })
             .collect();
-        let need = |mount| channel_powers_needed(&channels, mount);
-        let (need_a, need_b) = (need(Mount::A), need(Mount::B));
-        Ok(Samples {
-            timeline,
-            need_a,
-            need_b,
-            powers_a: Powers::default(),
-            powers_b: Powers::default(),
-            rotation: None,
-            windows,
-            window: 0,
-            channels,
-            next: 0,
-            count,
-            rate_hz: self.rate_hz,
-            jitter_s: self.time_jitter_s,
-            jitter_rng: Rng::new(self.seed, JITTER_STREAM),
-            wrap: self.wrap,
-            mark_sessions: self.mark_sessions,
-        })
+        let f = &sd.friction;
+        Coast::new(
+            sd.speed_rpm * TAU / 60.0,
+            sd.duration_s,
+            [f.coulomb, f.viscous, f.quadratic],
+            &drag,
+            self.rate_hz,
+        )
     }
 
     fn mount_of(&self, s: &Sensor) -> Mount {
@@ -357,10 +403,36 @@ struct ChannelSim {
     rng: Rng,
 }
 
+/// What moves the rotors: the CSRR procedure or a free coast-down.
+#[derive(Debug, Clone)]
+enum Motion {
+    Procedure(Timeline),
+    Coast(Coast),
+}
+
+impl Motion {
+    fn duration(&self) -> f64 {
+        match self {
+            Motion::Procedure(tl) => tl.duration(),
+            Motion::Coast(c) => c.duration(),
+        }
+    }
+
+    fn state(&mut self, t: f64) -> State {
+        match self {
+            Motion::Procedure(tl) => tl.state(t),
+            Motion::Coast(c) => State {
+                theta_b: c.theta(t),
+                delta: 0.0,
+            },
+        }
+    }
+}
+
 /// The stream of a simulated run's samples ([`Scenario::samples`]).
 #[derive(Debug, Clone)]
 pub struct Samples {
-    timeline: Timeline,
+    motion: Motion,
     /// Sample index ranges `[first, end)` of each session's constant-speed revolutions.
     windows: Vec<(u64, u64)>,
     /// The window of the current or next session.
@@ -405,7 +477,7 @@ impl Samples {
 
     /// Total duration of the run, seconds.
     pub fn duration_s(&self) -> f64 {
-        self.timeline.duration()
+        self.motion.duration()
     }
 
     fn step(&mut self, mut truth: Option<&mut Vec<f64>>) -> Option<(Sample, f64, Option<u32>)> {
@@ -429,7 +501,7 @@ impl Samples {
         } else {
             t
         };
-        let state = self.timeline.state(instant);
+        let state = self.motion.state(instant);
         if self.need_a > 0 || self.need_b > 0 {
             let (sb, cb) = state.theta_b.sin_cos();
             self.powers_b.set((sb, cb), self.need_b);

@@ -38,6 +38,9 @@ pub struct Scenario {
     pub sensors: Vec<Sensor>,
     /// The CSRR procedure: sessions, ramps, pauses and relative turns.
     pub procedure: Procedure,
+    /// A free coast-down instead of the CSRR procedure (`[spin_down]`, for `calib tdr`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spin_down: Option<SpinDown>,
 }
 
 impl Default for Scenario {
@@ -53,6 +56,7 @@ impl Default for Scenario {
             scales: Vec::new(),
             sensors: Vec::new(),
             procedure: Procedure::default(),
+            spin_down: None,
         }
     }
 }
@@ -192,6 +196,57 @@ impl Default for Procedure {
     }
 }
 
+/// A free coast-down (spin-down) of the shaft: at `t = 0` it turns at `speed_rpm`, the drive
+/// just released, and decelerates by its friction alone,
+///
+/// `dω/dt = −(c₀ + c₁·ω + c₂·ω²) − Σ a_h·cos(h·θ + φ_h)`  (ω > 0),
+///
+/// `c₀, c₁, c₂` the [`Friction`] terms and `a_h` the angle-dependent [`drag_harmonics`]
+/// (rolling-element bearings, motor cogging). Once ω reaches 0 the shaft stays at rest (static
+/// friction holds it). Rotor A, if used, turns with the shaft (`Δ = 0`). The `[procedure]` and
+/// `[speed]` tables must be absent.
+///
+/// [`drag_harmonics`]: SpinDown::drag_harmonics
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpinDown {
+    /// Speed at `t = 0`, revolutions per minute (> 0).
+    pub speed_rpm: f64,
+    /// Length of the recorded coast, seconds (> 0).
+    pub duration_s: f64,
+    /// The smooth, speed-dependent friction.
+    #[serde(default)]
+    pub friction: Friction,
+    /// Angle-dependent drag: terms `a_h·cos(h·θ + φ_h)` of angular deceleration (default none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub drag_harmonics: Vec<DragHarmonic>,
+}
+
+/// The smooth part of the deceleration `c₀ + c₁·ω + c₂·ω²` (all ≥ 0; default 0).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Friction {
+    /// `c₀`, Coulomb (dry) friction, rad/s².
+    pub coulomb: f64,
+    /// `c₁`, viscous friction (air or oil shear), 1/s.
+    pub viscous: f64,
+    /// `c₂`, aerodynamic drag, 1/rad.
+    pub quadratic: f64,
+}
+
+/// One term `amplitude·cos(order·θ + phase_deg)` of angle-dependent angular deceleration.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DragHarmonic {
+    /// Cycles per revolution, ≥ 1.
+    pub order: u32,
+    /// Amplitude, rad/s² (a torque divided by the rotor's moment of inertia).
+    pub amplitude: f64,
+    /// Phase, degrees (default 0).
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
 /// One session of `[[procedure.sessions]]`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -269,6 +324,14 @@ pub enum ScenarioError {
         sensor: String,
         /// What is wrong and what to do.
         problem: &'static str,
+    },
+    /// `[spin_down]` together with a table it replaces.
+    #[error(
+        "[spin_down] replaces [{table}]: remove [{table}] (a coasting shaft has no procedure and no driven speed modulation; model bearing effects with `drag_harmonics`)"
+    )]
+    SpinDownConflict {
+        /// `procedure` or `speed`.
+        table: &'static str,
     },
     /// Both session forms, or neither.
     #[error("[procedure]: {problem}")]
@@ -464,6 +527,9 @@ impl Scenario {
             }
         }
 
+        if let Some(sd) = &self.spin_down {
+            return validate_spin_down(self, sd);
+        }
         let p = &self.procedure;
         if !p.sessions.is_empty() && !p.relative_deg.is_empty() {
             return Err(ScenarioError::Sessions {
@@ -516,4 +582,45 @@ impl Scenario {
         }
         Ok(())
     }
+}
+
+fn validate_spin_down(scenario: &Scenario, sd: &SpinDown) -> Result<(), ScenarioError> {
+    if scenario.procedure != Procedure::default() {
+        return Err(ScenarioError::SpinDownConflict { table: "procedure" });
+    }
+    if scenario.speed != Speed::default() {
+        return Err(ScenarioError::SpinDownConflict { table: "speed" });
+    }
+    check(
+        || "spin_down.speed_rpm".into(),
+        sd.speed_rpm,
+        sd.speed_rpm > 0.0,
+        "> 0",
+    )?;
+    check(
+        || "spin_down.duration_s".into(),
+        sd.duration_s,
+        sd.duration_s > 0.0,
+        "> 0",
+    )?;
+    let f = &sd.friction;
+    for (key, v) in [
+        ("coulomb", f.coulomb),
+        ("viscous", f.viscous),
+        ("quadratic", f.quadratic),
+    ] {
+        check(
+            || format!("spin_down.friction.{key}"),
+            v,
+            v >= 0.0,
+            "≥ 0 (friction decelerates)",
+        )?;
+    }
+    for (i, d) in sd.drag_harmonics.iter().enumerate() {
+        let at = |key: &str| format!("spin_down drag harmonic {} {key}", i + 1);
+        check(|| at("order"), f64::from(d.order), d.order >= 1, "≥ 1")?;
+        check(|| at("amplitude"), d.amplitude, true, "finite")?;
+        check(|| at("phase_deg"), d.phase_deg, true, "finite")?;
+    }
+    Ok(())
 }

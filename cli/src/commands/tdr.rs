@@ -1,0 +1,270 @@
+//! `calib tdr`: self-calibration of one encoder from a free spin-down (coast-down) log.
+
+use crate::exit::Usage;
+use crate::input::{channel, command_line, open_log, parse_unit};
+use crate::output::{table_name, write_tables_and_report};
+use anyhow::Context;
+use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
+use calib_core::{AngleUnit, ChannelReport, Report};
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::path::PathBuf;
+
+/// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
+const MAX_POINTS: usize = 3_600_000;
+/// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
+const MAX_ORDER: usize = 1000;
+/// Largest `--motion-degree` accepted (Chebyshev series of higher degree can follow the error).
+const MAX_DEGREE: usize = 60;
+
+/// Self-calibrate one encoder from a spin-down: the shaft coasting freely (TDR, Lu & Trumper).
+///
+/// Spin the shaft up, release the drive (or cut the motor current) and log the encoder while the
+/// shaft coasts down: 10 revolutions at the least, a few hundred is better, with the speed
+/// falling noticeably (≥ 2 %). A free shaft's angle is a smooth function of time, so the part of
+/// the reading that is periodic in angle is the encoder's error: the motion (a Chebyshev series
+/// in time) and the map (a Fourier series of the reading) are fitted together by least squares.
+/// A driven plateau before the release and the slow end of the coast are left out.
+///
+/// It cannot tell encoder error from an angle-dependent drag (rolling bearings, motor cogging,
+/// unbalance): a drag deceleration a_h at order h appears in the map as a_h/h²·⟨ω⁻²⟩. Use an air
+/// bearing with the motor uncoupled, and read the warnings: the fit checks whether the map
+/// changes with speed the way drag would make it. With --ref, the map is also checked against a
+/// reference encoder on the same shaft.
+///
+/// Writes DIR/<channel>.csv (angle_deg, error_arcsec, correction_arcsec; error = reading − true
+/// angle, correction = −error, a function of the encoder's own reading, zero mean) and
+/// DIR/report.json, and prints a summary.
+#[derive(Debug, clap::Args, PartialEq)]
+pub struct Args {
+    /// The log (.csv or .mcap).
+    pub log: PathBuf,
+    /// Channel of the encoder to calibrate.
+    #[arg(long)]
+    pub channel: String,
+    /// Channel of a reference encoder on the same shaft, to check the map against.
+    #[arg(long = "ref")]
+    pub reference: Option<String>,
+    /// Output folder.
+    #[arg(short, long = "output", default_value = "calib-out")]
+    pub output: PathBuf,
+    /// Highest harmonic order of the map. Keep it below half the samples per revolution at the
+    /// highest speed.
+    #[arg(long, default_value_t = 32)]
+    pub max_order: usize,
+    /// Degree of the motion's polynomial (Chebyshev series in time); default: chosen by the
+    /// Bayesian information criterion, at most 30 and at most half the revolutions.
+    #[arg(long)]
+    pub motion_degree: Option<usize>,
+    /// Fewest revolutions of coast accepted.
+    #[arg(long, default_value_t = 10.0)]
+    pub min_revolutions: f64,
+    /// Points of the output table.
+    #[arg(long, default_value_t = 3600)]
+    pub points: usize,
+    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
+    #[arg(long, value_parser = parse_unit)]
+    pub unit: Option<AngleUnit>,
+    /// Print report.json on standard output instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `calib tdr`.
+pub fn run(args: &Args) -> anyhow::Result<String> {
+    if args.reference.as_ref() == Some(&args.channel) {
+        return Err(Usage(format!(
+            "--channel and --ref both name `{}`: name the encoder to calibrate and a different reference",
+            args.channel
+        ))
+        .into());
+    }
+    if !(2..=MAX_POINTS).contains(&args.points) {
+        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
+    }
+    if !(1..=MAX_ORDER).contains(&args.max_order) {
+        return Err(Usage(format!("--max-order must be between 1 and {MAX_ORDER}")).into());
+    }
+    if args
+        .motion_degree
+        .is_some_and(|p| !(1..=MAX_DEGREE).contains(&p))
+    {
+        return Err(Usage(format!(
+            "--motion-degree must be between 1 and {MAX_DEGREE}"
+        ))
+        .into());
+    }
+    if !(args.min_revolutions.is_finite() && args.min_revolutions >= 1.0) {
+        return Err(Usage("--min-revolutions must be at least 1".into()).into());
+    }
+    let mut reader = open_log(&args.log, args.unit)?;
+    let ic = channel(&reader, &args.log, &args.channel)?;
+    let ir = args
+        .reference
+        .as_ref()
+        .map(|r| channel(&reader, &args.log, r))
+        .transpose()?;
+    let mut tdr = Tdr::new(TdrOptions {
+        max_order: args.max_order,
+        motion_degree: args.motion_degree,
+        points: args.points,
+        min_revolutions: args.min_revolutions,
+        ..TdrOptions::default()
+    });
+    for sample in reader.by_ref() {
+        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        match ir {
+            Some(ir) => tdr.push_with_reference(s.t, s.values[ic], s.values[ir]),
+            None => tdr.push(s.t, s.values[ic]),
+        }
+    }
+    let cal = tdr
+        .finish()
+        .with_context(|| format!("{}: channel `{}`", args.log.display(), args.channel))?;
+    let mut warnings = reader.warnings(&args.log);
+    warnings.extend(cal.warnings.iter().cloned());
+
+    let report = build_report(args, &cal, warnings);
+    let json = calib_io::report::render_json(&report)?;
+    write_tables_and_report(&args.output, &[(&args.channel, &cal.map, None)], &json)?;
+    if args.json {
+        return Ok(json);
+    }
+    Ok(render_summary(args, &cal, &report))
+}
+
+fn rpm(rad_s: f64) -> f64 {
+    rad_s * 60.0 / std::f64::consts::TAU
+}
+
+fn build_report(args: &Args, cal: &TdrCalibration, warnings: Vec<String>) -> Report {
+    let mut channels = BTreeMap::new();
+    channels.insert(
+        args.channel.clone(),
+        ChannelReport::of_map(&table_name(&args.channel), &cal.map, 10),
+    );
+    let m = &cal.motion;
+    let (_, _, decel_start) = m.eval(m.t_start);
+    let (_, _, decel_end) = m.eval(m.t_end);
+    let mut details = BTreeMap::new();
+    details.insert(
+        "motion".to_string(),
+        json!({
+            "model": "Chebyshev series of time",
+            "degree": m.degree,
+            "start_s": m.t_start,
+            "end_s": m.t_end,
+            "speed_start_rpm": rpm(cal.speed_start),
+            "speed_end_rpm": rpm(cal.speed_end),
+            "acceleration_start_rad_s2": decel_start * cal.direction,
+            "acceleration_end_rad_s2": decel_end * cal.direction,
+            "direction": if cal.direction > 0.0 { "increasing" } else { "decreasing" },
+        }),
+    );
+    details.insert("revolutions".to_string(), json!(cal.revolutions));
+    details.insert("samples_used".to_string(), json!(cal.samples_used));
+    details.insert("max_order".to_string(), json!(args.max_order));
+    details.insert(
+        "residual_rms_arcsec".to_string(),
+        json!(cal.residual_rms * ARCSEC_PER_RAD),
+    );
+    let dependence: Vec<_> = cal
+        .speed_dependence
+        .iter()
+        .map(|s| {
+            let h = s.harmonic.to_report();
+            json!({
+                "order": h.order,
+                "amplitude_arcsec": h.amplitude_arcsec,
+                "phase_deg": h.phase_deg,
+                "u_arcsec": s.u * ARCSEC_PER_RAD,
+            })
+        })
+        .collect();
+    details.insert(
+        "drag".to_string(),
+        json!({
+            "ambiguity": cal.ambiguity,
+            "mean_inverse_square_speed_s2": cal.drag_gain,
+            "map_shift_arcsec_per_rad_s2_over_order_squared": cal.drag_gain * ARCSEC_PER_RAD,
+            "speed_dependent_orders": dependence,
+        }),
+    );
+    if let (Some(name), Some(r)) = (&args.reference, &cal.reference) {
+        details.insert(
+            "reference".to_string(),
+            json!({
+                "channel": name,
+                "max_difference_arcsec": r.max_abs_diff_arcsec,
+                "rms_difference_arcsec": r.rms_diff_arcsec,
+            }),
+        );
+    }
+    Report {
+        calib_version: env!("CARGO_PKG_VERSION").to_string(),
+        method: "tdr".to_string(),
+        inputs: vec![args.log.display().to_string()],
+        command_line: Some(command_line()),
+        channels,
+        sessions: Vec::new(),
+        warnings,
+        details,
+    }
+}
+
+fn render_summary(args: &Args, cal: &TdrCalibration, report: &Report) -> String {
+    let mut o = String::new();
+    let m = &cal.motion;
+    let _ = writeln!(
+        o,
+        "Spin-down (TDR) self-calibration of `{}` — coast {:.3}–{:.3} s, {:.1} revolutions, {:.1} → {:.1} r/min",
+        args.channel,
+        m.t_start,
+        m.t_end,
+        cal.revolutions,
+        rpm(cal.speed_start),
+        rpm(cal.speed_end)
+    );
+    let _ = writeln!(
+        o,
+        "motion: Chebyshev series of degree {} in time; residual rms {:.4}″ over {} samples",
+        m.degree,
+        cal.residual_rms * ARCSEC_PER_RAD,
+        cal.samples_used
+    );
+    let ch = &report.channels[&args.channel];
+    let top: Vec<String> = ch
+        .harmonics
+        .iter()
+        .take(4)
+        .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
+        .collect();
+    let _ = writeln!(
+        o,
+        "\nmap (error = reading − true angle, zero mean): p-p {:.3}″  rms {:.3}″  largest orders {}  → {}",
+        cal.map.peak_to_peak() * ARCSEC_PER_RAD,
+        ch.rms_arcsec,
+        top.join(", "),
+        args.output.join(&ch.table).display()
+    );
+    if let (Some(name), Some(r)) = (&args.reference, &cal.reference) {
+        let _ = writeln!(
+            o,
+            "check against `{name}`: max |map − reference map| {:.3}″, rms {:.3}″",
+            r.max_abs_diff_arcsec, r.rms_diff_arcsec
+        );
+    }
+    let _ = writeln!(
+        o,
+        "\ndrag: an angle-dependent deceleration of 1 rad/s² at order h would add {:.3}″/h² to the map's order h (⟨ω⁻²⟩ = {:.3e} s²); TDR cannot tell it from encoder error",
+        cal.drag_gain * ARCSEC_PER_RAD,
+        cal.drag_gain
+    );
+    for w in &report.warnings {
+        let _ = writeln!(o, "\nwarning: {w}");
+    }
+    let _ = writeln!(o, "\nwrote {}", args.output.join("report.json").display());
+    o
+}

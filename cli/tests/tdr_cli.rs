@@ -1,0 +1,179 @@
+//! End-to-end tests of `calib tdr`: the simulated air-bearing and rolling-bearing coasts against
+//! their truth, and logs with no spin-down (exit code, message, nothing written).
+
+mod common;
+
+use common::*;
+use serde_json::Value;
+use std::path::Path;
+
+fn read_json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Largest |table − truth table| on the table's grid, the truth interpolated linearly on its
+/// own (finer) grid, both zero mean.
+fn max_diff(got: &[(f64, f64)], truth: &[(f64, f64)]) -> f64 {
+    got.iter()
+        .map(|(a, g)| (g - interpolate(truth, *a)).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn air_bearing_coast_matches_the_truth_and_the_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate(
+        &testdata("scenarios/spindown.toml"),
+        dir.path(),
+        "coast.mcap",
+    );
+    let out = dir.path().join("out");
+    let o = calib(&[
+        "tdr",
+        s(&log),
+        "--channel",
+        "enc",
+        "--ref",
+        "ref",
+        "-o",
+        s(&out),
+    ]);
+    expect_exit(&o, 0);
+    let text = stdout(&o);
+    assert_mentions(
+        &text,
+        &["`enc`", "revolutions", "check against `ref`", "report.json"],
+    );
+    assert!(!text.contains("warning"), "{text}");
+    let got = read_table(&out.join("enc.csv"));
+    let truth = read_table(&dir.path().join("coast.truth/enc.csv"));
+    let e = max_diff(&got, &truth);
+    println!("air bearing: max |map − truth| = {e:.4}″");
+    // As in calib-core's tests/tdr.rs: σ ≈ 0.057″ per sample over 60 000 samples and 64
+    // unknowns gives a map rms ≈ 0.002″, its worst point ~4× that; the table's 6-decimal
+    // rounding adds nothing. Measured 0.0044″.
+    assert!(e < 0.02, "max |map − truth| = {e}″");
+
+    let report = read_json(&out.join("report.json"));
+    assert_eq!(report["method"], "tdr");
+    assert_eq!(report["channels"]["enc"]["table"], "enc.csv");
+    let h = &report["channels"]["enc"]["harmonics"][0];
+    assert_eq!(h["order"], 2);
+    assert!((h["amplitude_arcsec"].as_f64().unwrap() - 25.0).abs() < 0.01);
+    let d = &report["details"];
+    assert!(d["drag"]["ambiguity"].as_str().unwrap().contains("bearing"));
+    assert_eq!(d["drag"]["speed_dependent_orders"], serde_json::json!([]));
+    let rpm0 = d["motion"]["speed_start_rpm"].as_f64().unwrap();
+    assert!((595.0..600.0).contains(&rpm0), "{rpm0}");
+    // The reference's own error is 0.05″ (order 3).
+    let check = d["reference"]["max_difference_arcsec"].as_f64().unwrap();
+    assert!(check < 0.07, "{check}");
+
+    // --json prints the same report.
+    let out2 = dir.path().join("out2");
+    let o = calib(&["tdr", s(&log), "--channel", "enc", "-o", s(&out2), "--json"]);
+    expect_exit(&o, 0);
+    let printed: Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(printed, read_json(&out2.join("report.json")));
+    assert!(printed["details"]["reference"].is_null());
+}
+
+#[test]
+fn rolling_bearing_drag_shows_in_the_map_and_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate(
+        &testdata("scenarios/spindown-bearing.toml"),
+        dir.path(),
+        "coast.csv",
+    );
+    let out = dir.path().join("out");
+    let o = calib(&["tdr", s(&log), "--channel", "enc", "-o", s(&out)]);
+    expect_exit(&o, 0);
+    assert_mentions(&stdout(&o), &["warning", "angle-dependent drag", "order 2"]);
+    let got = read_table(&out.join("enc.csv"));
+    let truth = read_table(&dir.path().join("coast.truth/enc.csv"));
+    let e = max_diff(&got, &truth);
+    println!("rolling bearing: max |map − truth| = {e:.4}″");
+    // The drag of orders 2 and 4 shifts the map by (a_h/h²)·⟨ω⁻²⟩ = 3.94″ and 1.97″ (derived and
+    // checked harmonic by harmonic in calib-core's tests/tdr.rs); their sum peaks at 5.28″.
+    assert!((5.0..5.6).contains(&e), "max |map − truth| = {e}″");
+    let report = read_json(&out.join("report.json"));
+    let orders: Vec<u64> = report["details"]["drag"]["speed_dependent_orders"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["order"].as_u64().unwrap())
+        .collect();
+    assert_eq!(orders, [2, 4]);
+    assert!(
+        report["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("drag"))
+    );
+}
+
+#[test]
+fn a_log_without_spin_down_is_refused_naming_file_and_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    // The CSRR quick run: constant-speed sessions with short ramps, no coast.
+    let log = simulate(&testdata("scenarios/quick.toml"), dir.path(), "quick.csv");
+    let out = dir.path().join("out");
+    let o = calib(&["tdr", s(&log), "--channel", "a", "-o", s(&out)]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(&err, &["quick.csv", "channel `a`", "spin-down"]);
+    assert_no_output(&out);
+
+    // Driven at a constant 1 r/s for 20 s.
+    let mut text = String::from("t,enc\n");
+    for n in 0..2000 {
+        let t = n as f64 / 100.0;
+        text.push_str(&format!("{t:.2},{:.6}\n", (360.0 * t).rem_euclid(360.0)));
+    }
+    let log = write(dir.path(), "driven.csv", &text);
+    let o = calib(&["tdr", s(&log), "--channel", "enc", "-o", s(&out)]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            "driven.csv",
+            "channel `enc`",
+            "speed stays",
+            "release the drive",
+        ],
+    );
+    assert_no_output(&out);
+
+    // At rest.
+    let text: String = std::iter::once("t,enc\n".to_string())
+        .chain((0..500).map(|n| format!("{:.2},12.5\n", n as f64 / 100.0)))
+        .collect();
+    let log = write(dir.path(), "still.csv", &text);
+    let o = calib(&["tdr", s(&log), "--channel", "enc", "-o", s(&out)]);
+    assert_mentions(&expect_exit(&o, 1), &["still.csv", "stands still"]);
+    assert_no_output(&out);
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = write(dir.path(), "x.csv", "t,enc\n0,0\n0.1,1\n");
+    let out = dir.path().join("out");
+    for (args, says) in [
+        (vec!["--channel", "enc", "--ref", "enc"], "both name"),
+        (vec!["--channel", "nope"], "nope"),
+        (vec!["--channel", "enc", "--max-order", "0"], "--max-order"),
+        (vec!["--channel", "enc", "--points", "1"], "--points"),
+        (
+            vec!["--channel", "enc", "--motion-degree", "0"],
+            "--motion-degree",
+        ),
+    ] {
+        let mut all = vec!["tdr", s(&log), "-o", s(&out)];
+        all.extend(args);
+        let err = expect_exit(&calib(&all), 2);
+        assert!(err.contains(says), "{all:?}: {err}");
+    }
+    assert_no_output(&out);
+}
