@@ -37,9 +37,9 @@
 //! out: chunks, compressed or not, are decoded as they stream, so the messages of a cut chunk
 //! before the cut are kept too (a compressed one up to its last whole compressed block). An empty file, a file that is not MCAP, and corruption inside the data are errors.
 
-mod cdr;
-mod json;
-mod read;
+pub(crate) mod cdr;
+pub(crate) mod json;
+pub(crate) mod read;
 mod write;
 
 pub use read::{IgnoredTopic, JOIN_QUEUE, McapReader};
