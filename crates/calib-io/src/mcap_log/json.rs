@@ -242,7 +242,7 @@ mod tests {
         // Escaped keys are compared unescaped.
         let data = br#"{"\u0061": 3}"#;
         let spans = field_spans(data, "a").unwrap();
-        assert_eq!(spans, [11..12]);
+        assert_eq!(spans, vec![Range { start: 11, end: 12 }]);
         assert!(
             field_spans(b"[1]", "a")
                 .unwrap_err()
