@@ -34,4 +34,5 @@ pub enum Command {
     // Help from its `Args` doc too.
     Reference(commands::reference::Args),
     Export(commands::export::Args),
+    Apply(commands::apply::Args),
 }
