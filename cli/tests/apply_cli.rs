@@ -263,3 +263,39 @@ fn a_bad_reading_names_the_line_and_leaves_no_output() {
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert_eq!(left.len(), 2, "{left:?}");
 }
+
+/// The Python-made fixture: the JSON field `ref` corrected (degrees), the JointState topic and
+/// the foreign `/status` topic copied; the summary says so.
+#[test]
+fn mcap_fixture_json_channel_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = write(
+        dir.path(),
+        "t.csv",
+        &table_text(&[(0.0, 1.0), (180.0, -1.0)]),
+    );
+    let out = dir.path().join("fixed.mcap");
+    let fixture = testdata("mcap/fixture.mcap");
+    let o = calib(&[
+        "apply",
+        s(&table),
+        s(&fixture),
+        "-o",
+        s(&out),
+        "--channel",
+        "ref",
+    ]);
+    expect_exit(&o, 0);
+    assert_mentions(
+        &stdout(&o),
+        &[
+            "297 readings of `ref`",
+            "from -1 to 74.75 deg",
+            "kept in [-180, 180) deg (detected; see --wrap)",
+            "310 other messages copied unchanged",
+            "topic `/status`",
+        ],
+    );
+    let reader = LogReader::open(&out, &ReadOptions::default()).unwrap();
+    assert_eq!(reader.count(), 295);
+}
