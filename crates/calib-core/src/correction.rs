@@ -118,16 +118,6 @@ impl Correction {
         let e = self.map.eval_linear(self.unit.to_rad(x));
         self.wrapping.wrap(x - self.unit.from_rad(e), self.rev)
     }
-
-    /// The wrapping applied.
-    pub fn wrapping(&self) -> Wrapping {
-        self.wrapping
-    }
-
-    /// The map applied.
-    pub fn map(&self) -> &ErrorMap {
-        &self.map
-    }
 }
 
 #[cfg(test)]
