@@ -147,15 +147,19 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let unit = done.unit;
     let rev = unit.from_rad(std::f64::consts::TAU);
     let range = match done.wrapping {
-        Wrapping::Positive => format!("kept in [0, {rev}) {unit}"),
-        Wrapping::Signed => format!("kept in [{}, {}) {unit}", -rev / 2.0, rev / 2.0),
+        Wrapping::Positive => format!("kept in [0, {}) {unit}", short(rev)),
+        Wrapping::Signed => format!(
+            "kept in [{}, {}) {unit}",
+            short(-rev / 2.0),
+            short(rev / 2.0)
+        ),
         Wrapping::Unwrapped => "left unwrapped".to_string(),
     };
     let _ = writeln!(
         o,
         "  readings from {} to {} {unit}: {range}{}",
-        done.range.0,
-        done.range.1,
+        short(done.range.0),
+        short(done.range.1),
         if args.wrap == Wrap::Auto {
             " (detected; see --wrap)"
         } else {
@@ -185,6 +189,13 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         let _ = writeln!(o, "note: {w}; copied unchanged");
     }
     Ok(o)
+}
+
+/// `x` with at most 6 decimals, trailing zeros dropped (`360`, `6.283185`, `-0.5`).
+fn short(x: f64) -> String {
+    let s = format!("{x:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
 }
 
 /// Whether `output` names the file `input` is (through links or `..` too). An output that does

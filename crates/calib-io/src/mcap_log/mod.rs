@@ -1,7 +1,8 @@
 //! MCAP logs: ROS 2 `sensor_msgs/msg/JointState` (CDR) and JSON messages.
 //!
 //! [`McapReader`] streams a recorded MCAP file into [`Sample`](calib_core::Sample)s;
-//! [`McapWriter`] writes samples as JointState messages (for `calib simulate` and `calib apply`).
+//! [`McapWriter`] writes samples as JointState messages (for `calib simulate`); [`crate::apply`]
+//! rewrites an existing file record by record.
 //!
 //! # What is read
 //! - **JointState** (message encoding `cdr`, schema `sensor_msgs/msg/JointState`): each entry of
