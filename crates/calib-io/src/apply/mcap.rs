@@ -272,7 +272,11 @@ fn write_options(path: &Path, header: &Header) -> Result<WriteOptions, Error> {
         .len();
     let options = WriteOptions::new()
         .profile(header.profile.clone())
-        .library(header.library.clone());
+        .library(header.library.clone())
+        // Single-threaded zstd: on a 2-core machine the worker threads cost more in locking per
+        // message than they save (10e6 messages: 14.1 s CPU and 40 s wall against 15.0 s and
+        // 46 s with the default one thread per core).
+        .compression_threads(0);
     Ok(match read_summary(&mut file, len) {
         Some(summary) => match summary.chunk_indexes.first() {
             Some(chunk) => options.compression(match chunk.compression.as_str() {
