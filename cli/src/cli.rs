@@ -36,4 +36,5 @@ pub enum Command {
     Export(commands::export::Args),
     // Help from its `Args` doc too.
     Tdr(commands::tdr::Args),
+    Apply(commands::apply::Args),
 }

@@ -1,5 +1,6 @@
 //! One module per subcommand: each loads its inputs, computes with `calib-core`, and renders.
 
+pub mod apply;
 pub mod compare;
 pub mod csrr;
 pub mod export;
@@ -24,5 +25,6 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Reference(args) => reference::run(&args),
         Command::Export(args) => export::run(&args),
         Command::Tdr(args) => tdr::run(&args),
+        Command::Apply(args) => apply::run(&args),
     }
 }

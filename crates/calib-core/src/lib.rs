@@ -14,6 +14,7 @@
 //! - [`uncertainty`]: GUM budgets — combined and expanded uncertainty, Welch–Satterthwaite.
 //! - [`reference_cal`]: cross-calibration against a better reference encoder, with ISO 230-2 figures.
 //! - [`compare`]: two calibrations of one sensor compared point by point with the En number.
+//! - [`correction`]: readings corrected with a map, as `calib apply` does.
 //!
 //! - [`csrr`]: CSRR self-calibration of two coaxial sensors (joint least squares, or the seed
 //!   paper's method); [`segment`] finds its sessions; [`inspect`] summarizes a log.
@@ -63,6 +64,7 @@
 
 pub mod angle;
 pub mod compare;
+pub mod correction;
 pub mod csrr;
 pub mod error_map;
 pub mod harmonics;

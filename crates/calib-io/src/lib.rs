@@ -6,6 +6,7 @@
 //!   channels joined across topics on equal time stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
 //! - [`atomic`]: output files that appear only when complete.
+//! - [`apply`]: a log rewritten with one channel corrected by an error map.
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
 //! - [`report`]: `report.json` and other JSON outputs.
 //! - [`readings`]: shift-angle readings (`shift_deg,start_face,step,reading_arcsec`).
@@ -31,6 +32,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod apply;
 pub mod atomic;
 pub mod budget;
 pub mod csv_log;

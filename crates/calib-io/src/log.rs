@@ -19,6 +19,14 @@ pub enum LogFormat {
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
 impl LogFormat {
+    /// The format's usual file extension: `csv` or `mcap`.
+    pub fn name(self) -> &'static str {
+        match self {
+            LogFormat::Csv => "csv",
+            LogFormat::Mcap => "mcap",
+        }
+    }
+
     /// The format of a file to write, from its extension.
     pub fn for_output(path: &Path) -> Result<Self, Error> {
         match extension(path).as_deref() {

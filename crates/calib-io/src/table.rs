@@ -178,7 +178,8 @@ pub fn write_table(path: &Path, map: &ErrorMap, u: Option<&[f64]>) -> Result<(),
 /// columns, optionally `u_arcsec`, in any order, nothing else), numbers in every field, finite
 /// values, non-negative uncertainties, `correction_arcsec = −error_arcsec` within the rounding of
 /// the two fields as written, at least 2 rows, and angles on the uniform grid `i·360/N` starting
-/// at 0 (within [`GRID_TOLERANCE_DEG`]).
+/// at 0 (within [`GRID_TOLERANCE_DEG`]). A grid that is off says how: not starting at 0°, 360°
+/// repeating 0°, uneven steps, or an even step that does not make up one revolution.
 pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
     let file = std::fs::File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
@@ -317,25 +318,96 @@ pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
             ),
         ));
     }
-    for (i, (&angle, pos)) in angles.iter().zip(&positions).enumerate() {
-        let want = grid_deg(i, n);
-        if (angle - want).abs() > GRID_TOLERANCE_DEG {
-            return Err(err(
-                line_at(path, pos),
-                Some("angle_deg"),
-                format!(
-                    "angle {angle}° is off the uniform grid: row {} of {n} must be at {want}° \
-                     (angle_deg = i·360/N from 0, one row per grid point over one revolution, in \
-                     order)",
-                    i + 1
-                ),
-            ));
-        }
+    if let Some(i) = (0..n).find(|&i| (angles[i] - grid_deg(i, n)).abs() > GRID_TOLERANCE_DEG) {
+        let (row, message) = off_grid(&angles, i);
+        return Err(err(
+            line_at(path, &positions[row]),
+            Some("angle_deg"),
+            message,
+        ));
     }
     Ok(CorrectionTable {
         map: ErrorMap::new(errors),
         u,
     })
+}
+
+/// Why `angles` are not the grid `i·360/N`, given that row `first` is the first off it: the
+/// 0-based row to blame and the message. The common mistakes get their own words — a grid not
+/// starting at 0, 360° repeating 0°, uneven steps, an even step that does not make up one
+/// revolution — and anything else the row's expected angle.
+fn off_grid(angles: &[f64], first: usize) -> (usize, String) {
+    let n = angles.len();
+    let rule = "a correction table has one row per grid point angle_deg = i·360/N, i = 0..N−1, \
+                in order: uniform, from 0° up to but not including 360°";
+    if angles[0].abs() > GRID_TOLERANCE_DEG {
+        return (
+            0,
+            format!(
+                "the first row is at {}° but the grid starts at 0°; {rule}",
+                angles[0]
+            ),
+        );
+    }
+    if (angles[n - 1] - 360.0).abs() <= GRID_TOLERANCE_DEG {
+        return (
+            n - 1,
+            format!(
+                "the last row is at 360°, which is 0° again: remove it (the table covers one \
+                 revolution without repeating its start); {rule}"
+            ),
+        );
+    }
+    let step = angles[1] - angles[0];
+    // Steps that differ by under 1 % are a grid written with too few decimals, not an uneven one:
+    // that case gets the last message, which says how far off the row is.
+    let uneven = (2..n).find(|&i| (angles[i] - angles[i - 1] - step).abs() > step.abs() / 100.0);
+    if step <= 0.0 {
+        return (
+            1,
+            format!(
+                "row 2 is at {}°, not after row 1's {}°: angles must increase; {rule}",
+                angles[1], angles[0]
+            ),
+        );
+    }
+    if let Some(i) = uneven {
+        return (
+            i,
+            format!(
+                "the grid is not uniform: row {} is at {}°, {}° after the previous row, but rows 1 \
+                 and 2 are {step}° apart; resample the table onto a uniform grid ({rule})",
+                i + 1,
+                angles[i],
+                angles[i] - angles[i - 1]
+            ),
+        );
+    }
+    let span = step * n as f64;
+    // Off by half a step or more: rows are missing or extra, not merely rounded.
+    if (span - 360.0).abs() >= step / 2.0 {
+        return (
+            n - 1,
+            format!(
+                "the table does not cover a full revolution: its {n} rows are {step}° apart, so \
+                 they span {span}° (0° to {}°) instead of 360°; a table with a {step}° step \
+                 needs {} rows ({rule})",
+                angles[n - 1],
+                360.0 / step
+            ),
+        );
+    }
+    let want = grid_deg(first, n);
+    (
+        first,
+        format!(
+            "angle {}° is off the uniform grid by {:e}°: row {} of {n} must be at {want}° within \
+             {GRID_TOLERANCE_DEG}° (write angles with 6 decimals); {rule}",
+            angles[first],
+            angles[first] - want,
+            first + 1
+        ),
+    )
 }
 
 /// Grid angle `i·360/N`, degrees.

@@ -209,36 +209,53 @@ fn bad_tables_name_file_line_and_column() {
 
 #[test]
 fn the_grid_must_be_uniform_from_zero_over_one_revolution() {
-    // Not starting at 0.
+    // Not starting at 0: the first row (line 2) is blamed.
     let m = error_of(&format!("{H}1,1,-1\n181,-1,1\n"), 2, Some("angle_deg"));
-    assert!(m.contains("row 1 of 2 must be at 0°"), "{m}");
-    // Non-uniform.
+    assert!(
+        m.contains("the first row is at 1° but the grid starts at 0°"),
+        "{m}"
+    );
+    // Non-uniform: the row whose step differs (line 4).
     let m = error_of(
-        &format!("{H}0,1,-1\n100,0,0\n240,-1,1\n"),
-        3,
+        &format!("{H}0,1,-1\n90,0,0\n200,-1,1\n270,0,0\n"),
+        4,
         Some("angle_deg"),
     );
     assert!(
-        m.contains("angle 100° is off the uniform grid: row 2 of 3 must be at 120°"),
+        m.contains("not uniform: row 3 is at 200°, 110° after the previous row, but rows 1 and 2 are 90° apart"),
         "{m}"
     );
-    // Out of order.
+    // Out of order is not uniform either.
     let m = error_of(
         &format!("{H}0,1,-1\n240,0,0\n120,-1,1\n"),
-        3,
+        4,
         Some("angle_deg"),
     );
-    assert!(m.contains("must be at 120°"), "{m}");
-    // 360° repeated as a last row: the grid of 3 rows would be 0,120,240.
+    assert!(m.contains("not uniform: row 3"), "{m}");
+    // 360° repeated as a last row.
     let m = error_of(
         &format!("{H}0,1,-1\n180,-1,1\n360,1,-1\n"),
+        4,
+        Some("angle_deg"),
+    );
+    assert!(
+        m.contains("the last row is at 360°, which is 0° again: remove it"),
+        "{m}"
+    );
+    // Uniform but half a revolution only: blamed on the last row.
+    let m = error_of(&format!("{H}0,1,-1\n90,-1,1\n"), 3, Some("angle_deg"));
+    assert!(
+        m.contains("does not cover a full revolution: its 2 rows are 90° apart, so they span 180°"),
+        "{m}"
+    );
+    assert!(m.contains("needs 4 rows"), "{m}");
+    // A full revolution written with too few decimals: the row and its expected angle.
+    let m = error_of(
+        &format!("{H}0,1,-1\n120.001,0,0\n240.002,-1,1\n"),
         3,
         Some("angle_deg"),
     );
-    assert!(m.contains("must be at 120°"), "{m}");
-    // Half a revolution only.
-    let m = error_of(&format!("{H}0,1,-1\n90,-1,1\n"), 3, Some("angle_deg"));
-    assert!(m.contains("must be at 180°"), "{m}");
+    assert!(m.contains("row 2 of 3 must be at 120°"), "{m}");
     // Within the tolerance is fine, beyond it is not.
     let dir = tempfile::tempdir().unwrap();
     let ok = write_tmp(&dir, &format!("{H}0,1,-1\n180.0000009,-1,1\n"));

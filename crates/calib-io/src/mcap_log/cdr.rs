@@ -184,8 +184,9 @@ pub(crate) struct JointState<'a> {
     /// The whole message, and where `name_block` starts in it.
     data: &'a [u8],
     name_start: usize,
-    /// The raw `position` elements.
+    /// The raw `position` elements, and where they start in the message.
     positions: &'a [u8],
+    positions_at: usize,
     big_endian: bool,
 }
 
@@ -218,6 +219,7 @@ impl<'a> JointState<'a> {
         }
         let name_block = &data[name_start..c.pos];
         let positions = c.f64_seq("position")?;
+        let positions_at = c.pos - positions.len();
         c.f64_seq("velocity")?;
         c.f64_seq("effort")?;
         Ok(JointState {
@@ -228,8 +230,30 @@ impl<'a> JointState<'a> {
             data,
             name_start,
             positions,
+            positions_at,
             big_endian,
         })
+    }
+
+    /// The index of the joint named `name`, if the message has it.
+    pub fn joint(&self, name: &str) -> Option<usize> {
+        self.names().position(|n| n.is_ok_and(|n| n == name))
+    }
+
+    /// Overwrites `position[index]` of `data` — the message this was parsed from, or a copy of
+    /// it — with `value` in the message's byte order; every other byte stays as it was. `false`
+    /// (and `data` untouched) if the message has no such position.
+    pub fn set_position(&self, data: &mut [u8], index: usize, value: f64) -> bool {
+        if index >= self.position_count() || data.len() != self.data.len() {
+            return false;
+        }
+        let at = self.positions_at + 8 * index;
+        data[at..at + 8].copy_from_slice(&if self.big_endian {
+            value.to_be_bytes()
+        } else {
+            value.to_le_bytes()
+        });
+        true
     }
 
     /// The joint names, in order.
@@ -377,6 +401,26 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn set_position_rewrites_eight_bytes_and_nothing_else() {
+        let mut enc = JointStateEncoder::new(["a", "bb", "c"]);
+        let data = enc.encode(7, 8, &[0.5, 1.5, 2.5]).to_vec();
+        let js = JointState::parse(&data).unwrap();
+        assert_eq!(js.joint("bb"), Some(1));
+        assert_eq!(js.joint("b"), None);
+        let mut out = data.clone();
+        assert!(js.set_position(&mut out, 1, -4.25));
+        assert!(!js.set_position(&mut out, 3, 0.0));
+        let changed: Vec<usize> = (0..data.len()).filter(|&i| data[i] != out[i]).collect();
+        assert!(!changed.is_empty() && changed.len() <= 8, "{changed:?}");
+        let back = JointState::parse(&out).unwrap();
+        assert_eq!(back.positions().collect::<Vec<_>>(), [0.5, -4.25, 2.5]);
+        assert_eq!(
+            (back.sec, back.nanosec, back.name_block),
+            (7, 8, js.name_block)
+        );
     }
 
     #[test]

@@ -6,8 +6,10 @@
 
 use std::borrow::Cow;
 use std::fmt;
+use std::ops::Range;
 
 use serde::de::{self, DeserializeSeed, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
+use serde_json::value::RawValue;
 
 /// Calls `field(key, value)` for every top-level field of the JSON object in `data`, with
 /// `Some(number)` for numeric values and `None` for others. A message that is not a JSON object,
@@ -28,6 +30,61 @@ where
                 format!("the message is not valid JSON ({e})")
             }
         })
+}
+
+/// The byte ranges in `data` of the values of the top-level fields named `key` (normally one;
+/// JSON allows a key twice, and a reader keeps the last), for rewriting them in place. Errors as
+/// [`for_each_field`].
+pub(crate) fn field_spans(data: &[u8], key: &str) -> Result<Vec<Range<usize>>, String> {
+    let mut de = serde_json::Deserializer::from_slice(data);
+    let mut spans = Vec::new();
+    Spans {
+        key,
+        base: data.as_ptr() as usize,
+        out: &mut spans,
+    }
+    .deserialize(&mut de)
+    .and_then(|()| de.end())
+    .map_err(|e| {
+        if e.is_data() {
+            strip_position(&e)
+        } else {
+            format!("the message is not valid JSON ({e})")
+        }
+    })?;
+    Ok(spans)
+}
+
+struct Spans<'k, 'o> {
+    key: &'k str,
+    /// Address of the message's first byte: a borrowed raw value's offset is its address minus
+    /// this.
+    base: usize,
+    out: &'o mut Vec<Range<usize>>,
+}
+
+impl<'de> DeserializeSeed<'de> for Spans<'_, '_> {
+    type Value = ();
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> Visitor<'de> for Spans<'_, '_> {
+    type Value = ();
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a JSON object with one numeric field per channel")
+    }
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        while let Some(key) = map.next_key_seed(Key)? {
+            let raw: &'de RawValue = map.next_value()?;
+            if key == self.key {
+                let start = raw.get().as_ptr() as usize - self.base;
+                self.out.push(start..start + raw.get().len());
+            }
+        }
+        Ok(())
+    }
 }
 
 /// serde_json appends " at line L column C" to custom errors; for our messages it is noise.
@@ -173,6 +230,24 @@ mod tests {
             assert_eq!((k.as_str(), *v), (wk, wv));
         }
         assert_eq!(fields(r#"{"a\u0062": 1}"#).unwrap()[0].0, "ab");
+    }
+
+    #[test]
+    fn spans_cover_exactly_the_value() {
+        let data = br#"{ "b" : 1.5 , "a":-2e3,"o":{"a":7}, "a" : 12 }"#;
+        let spans = field_spans(data, "a").unwrap();
+        let texts: Vec<&[u8]> = spans.iter().map(|r| &data[r.clone()]).collect();
+        assert_eq!(texts, [&b"-2e3"[..], &b"12"[..]]);
+        assert_eq!(field_spans(data, "z").unwrap(), []);
+        // Escaped keys are compared unescaped.
+        let data = br#"{"\u0061": 3}"#;
+        let spans = field_spans(data, "a").unwrap();
+        assert_eq!(spans, vec![Range { start: 11, end: 12 }]);
+        assert!(
+            field_spans(b"[1]", "a")
+                .unwrap_err()
+                .contains("JSON object")
+        );
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! MCAP logs: ROS 2 `sensor_msgs/msg/JointState` (CDR) and JSON messages.
 //!
 //! [`McapReader`] streams a recorded MCAP file into [`Sample`](calib_core::Sample)s;
-//! [`McapWriter`] writes samples as JointState messages (for `calib simulate` and `calib apply`).
+//! [`McapWriter`] writes samples as JointState messages (for `calib simulate`); [`crate::apply`]
+//! rewrites an existing file record by record.
 //!
 //! # What is read
 //! - **JointState** (message encoding `cdr`, schema `sensor_msgs/msg/JointState`): each entry of
@@ -37,9 +38,9 @@
 //! out: chunks, compressed or not, are decoded as they stream, so the messages of a cut chunk
 //! before the cut are kept too (a compressed one up to its last whole compressed block). An empty file, a file that is not MCAP, and corruption inside the data are errors.
 
-mod cdr;
-mod json;
-mod read;
+pub(crate) mod cdr;
+pub(crate) mod json;
+pub(crate) mod read;
 mod write;
 
 pub use read::{IgnoredTopic, JOIN_QUEUE, McapReader};

@@ -138,7 +138,7 @@ fn stream(mut file: File, len: u64) -> io::Result<(Stream, Arc<AtomicU64>)> {
 
 /// The file's summary, read by seeking to its footer; `None` if it has none or it is damaged
 /// (as in a truncated file).
-fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
+pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
     let options = SummaryReaderOptions::default()
         .with_file_size(len)
         .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
@@ -162,7 +162,7 @@ fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
 
 /// How a topic's messages are decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Encoding {
+pub(crate) enum Encoding {
     JointState,
     Json,
 }
@@ -170,7 +170,12 @@ enum Encoding {
 impl Encoding {
     fn of(channel: &mcap::Channel) -> Option<Self> {
         let schema = channel.schema.as_ref().map_or("", |s| s.name.as_str());
-        match channel.message_encoding.as_str() {
+        Self::from_names(&channel.message_encoding, schema)
+    }
+
+    /// The encoding of a channel with this message encoding and schema name, if calib reads it.
+    pub(crate) fn from_names(message_encoding: &str, schema: &str) -> Option<Self> {
+        match message_encoding {
             // ROS 1 style names appear in bags converted with older tools.
             "cdr" if schema == JOINT_STATE_SCHEMA || schema == "sensor_msgs/JointState" => {
                 Some(Encoding::JointState)

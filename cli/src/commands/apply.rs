@@ -1,0 +1,218 @@
+//! `calib apply`: a log rewritten with one channel corrected by a correction table.
+
+use crate::exit::Usage;
+use crate::input::{channel, open_log, parse_unit};
+use anyhow::Context;
+use calib_core::AngleUnit;
+use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::correction::Wrapping;
+use calib_io::LogFormat;
+use calib_io::apply::{ApplyOptions, apply};
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+/// How the channel's readings are wrapped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Wrap {
+    /// Detect from the readings' range: [0, 1 rev) if they all lie there, else [−½, ½) rev if
+    /// they all lie there, else unwrapped.
+    Auto,
+    /// Readings in [0, 1 rev), e.g. [0, 360) degrees.
+    Positive,
+    /// Readings in [−½, ½) rev, e.g. [−180, 180) degrees.
+    Signed,
+    /// Accumulated readings: never wrapped.
+    None,
+}
+
+/// Write a log with one channel corrected by a correction table.
+///
+/// Every reading r of the channel becomes r + correction(r) = r − error(r), the table
+/// interpolated linearly and periodically at r, as a controller loading `calib export`'s table
+/// does. The output has the input's format and content: a CSV keeps its header, columns, time
+/// stamps, sessions and other channels byte for byte, the channel written in the same unit; an
+/// MCAP keeps every schema, channel, topic, message time and sequence number, metadata record
+/// and attachment, and only the messages carrying the channel change (the joint's position in a
+/// JointState message, the field's number in a JSON one). Wrapped readings stay wrapped the same
+/// way (359.9999° corrected by +0.5″ becomes 0.0001°, not 360.0001°); accumulated ones stay
+/// accumulated. The log is read twice (once to find the readings' range, skipped with --wrap)
+/// and streamed: memory stays small whatever its size. OUT appears only when complete.
+///
+/// Example: `calib apply calib-out/a.csv run.mcap -o run-corrected.mcap`
+#[derive(Debug, clap::Args, PartialEq)]
+pub struct Args {
+    /// The correction table (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`), e.g. from
+    /// `calib csrr`.
+    pub table: PathBuf,
+    /// The log to correct (.csv or .mcap).
+    pub log: PathBuf,
+    /// The corrected log to write, in the same format as LOG (and not LOG itself).
+    #[arg(short, long = "output")]
+    pub output: PathBuf,
+    /// The channel to correct (default: the table's file name without extension, so
+    /// `calib-out/a.csv` corrects channel `a`).
+    #[arg(long)]
+    pub channel: Option<String>,
+    /// Unit of CSV readings and JSON fields: deg (default), rad, arcsec, rev, counts:N.
+    /// JointState positions are radians.
+    #[arg(long, value_parser = parse_unit)]
+    pub unit: Option<AngleUnit>,
+    /// How the channel's readings are wrapped (revolutions of their unit).
+    #[arg(long, value_enum, default_value_t = Wrap::Auto)]
+    pub wrap: Wrap,
+}
+
+/// Runs `calib apply`.
+pub fn run(args: &Args) -> anyhow::Result<String> {
+    if !args.table.exists() {
+        return Err(Usage(format!(
+            "{}: no such table; check the path",
+            args.table.display()
+        ))
+        .into());
+    }
+    let name = match &args.channel {
+        Some(name) => name.clone(),
+        None => args
+            .table
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .ok_or_else(|| Usage("name the channel to correct with --channel".into()))?,
+    };
+    if !args.log.exists() {
+        return Err(Usage(format!(
+            "{}: no such file; check the path",
+            args.log.display()
+        ))
+        .into());
+    }
+    if same_file(&args.log, &args.output) {
+        return Err(Usage(format!(
+            "-o {} is the input log itself; write the corrected log to another file",
+            args.output.display()
+        ))
+        .into());
+    }
+    let format = LogFormat::detect(&args.log)?;
+    if LogFormat::for_output(&args.output).ok() != Some(format) {
+        return Err(Usage(format!(
+            "{} is a .{} log; name the output with the same extension (e.g. -o corrected.{})",
+            args.log.display(),
+            format.name(),
+            format.name()
+        ))
+        .into());
+    }
+    let table = calib_io::table::read_table(&args.table)
+        .with_context(|| format!("cannot read the table {}", args.table.display()))?;
+    let reader = open_log(&args.log, args.unit)?;
+    channel(&reader, &args.log, &name).with_context(|| {
+        if args.channel.is_none() {
+            format!(
+                "the channel is named after the table {}; name it with --channel",
+                args.table.display()
+            )
+        } else {
+            "choose the channel with --channel".to_string()
+        }
+    })?;
+    let warnings = reader.notes();
+    drop(reader);
+
+    let opts = ApplyOptions {
+        channel: name.clone(),
+        unit: args.unit,
+        wrapping: match args.wrap {
+            Wrap::Auto => None,
+            Wrap::Positive => Some(Wrapping::Positive),
+            Wrap::Signed => Some(Wrapping::Signed),
+            Wrap::None => Some(Wrapping::Unwrapped),
+        },
+    };
+    let done = apply(&args.log, &args.output, &table.map, &opts)
+        .with_context(|| format!("cannot correct {}", args.log.display()))?;
+
+    let mut o = String::new();
+    let map = &table.map;
+    let _ = writeln!(
+        o,
+        "corrected {} readings of `{name}` in {} with {} ({} points, error peak-to-peak {:.3}″, \
+         interpolated linearly)",
+        done.readings,
+        args.log.display(),
+        args.table.display(),
+        map.len(),
+        map.peak_to_peak() * ARCSEC_PER_RAD
+    );
+    let unit = done.unit;
+    let rev = unit.from_rad(std::f64::consts::TAU);
+    let range = match done.wrapping {
+        Wrapping::Positive => format!("kept in [0, {}) {unit}", short(rev)),
+        Wrapping::Signed => format!(
+            "kept in [{}, {}) {unit}",
+            short(-rev / 2.0),
+            short(rev / 2.0)
+        ),
+        Wrapping::Unwrapped => "left unwrapped".to_string(),
+    };
+    let _ = writeln!(
+        o,
+        "  readings from {} to {} {unit}: {range}{}",
+        short(done.range.0),
+        short(done.range.1),
+        if args.wrap == Wrap::Auto {
+            " (detected; see --wrap)"
+        } else {
+            ""
+        }
+    );
+    if format == LogFormat::Mcap {
+        let _ = writeln!(
+            o,
+            "  {} other messages copied unchanged, with every schema, channel, metadata record \
+             and attachment",
+            done.copied
+        );
+    }
+    let _ = writeln!(o, "wrote {}", args.output.display());
+    if let Some(t) = &done.truncated {
+        let _ = writeln!(
+            o,
+            "\nwarning: {}: the log ends early at byte {} (a crashed recording?): the output \
+             holds the {} messages before the break",
+            args.log.display(),
+            t.byte_offset,
+            t.messages_read
+        );
+    }
+    for w in warnings {
+        let _ = writeln!(o, "note: {w}; copied unchanged");
+    }
+    Ok(o)
+}
+
+/// `x` with at most 6 decimals, trailing zeros dropped (`360`, `6.283185`, `-0.5`).
+fn short(x: f64) -> String {
+    let s = format!("{x:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
+/// Whether `output` names the file `input` is (through links or `..` too). An output that does
+/// not exist yet is compared by its folder and name.
+fn same_file(input: &Path, output: &Path) -> bool {
+    let Ok(input) = input.canonicalize() else {
+        return false;
+    };
+    if let Ok(output) = output.canonicalize() {
+        return input == output;
+    }
+    let parent = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match (parent.canonicalize(), output.file_name()) {
+        (Ok(dir), Some(name)) => dir.join(name) == input,
+        _ => false,
+    }
+}

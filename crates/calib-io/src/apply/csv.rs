@@ -1,0 +1,258 @@
+//! CSV logs: one field of each row rewritten, every other byte copied.
+//!
+//! The file is split into records by hand (RFC 4180: a record ends at a line end outside
+//! quotes) so that each record's raw bytes, and the raw span of each field, are known: the
+//! `csv` crate hands out unquoted fields, from which the original bytes cannot be rebuilt. The
+//! field syntax accepted is the [`CsvReader`](crate::csv_log::CsvReader)'s: surrounding spaces,
+//! a UTF-8 byte order mark, blank lines, quoted fields.
+
+use super::Range;
+use crate::Error;
+use crate::atomic::AtomicFile;
+use crate::csv_log::parse_f64;
+use crate::error::csv_error;
+use calib_core::AngleUnit;
+use calib_core::correction::Correction;
+use std::borrow::Cow;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Write};
+use std::ops::Range as Span;
+use std::path::{Path, PathBuf};
+
+const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// Records of a CSV file with their raw bytes and field spans.
+struct Records {
+    path: PathBuf,
+    input: BufReader<File>,
+    /// The current record's bytes, line end included.
+    record: Vec<u8>,
+    /// The raw span of each field in `record` (quotes and spaces included, line end excluded).
+    fields: Vec<Span<usize>>,
+    /// 1-based line on which the current record starts.
+    line: u64,
+    /// Lines the current record spans.
+    lines: u64,
+}
+
+impl Records {
+    fn open(path: &Path) -> Result<Self, Error> {
+        let file = File::open(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Ok(Records {
+            path: path.to_path_buf(),
+            input: BufReader::with_capacity(1 << 16, file),
+            record: Vec::new(),
+            fields: Vec::new(),
+            line: 0,
+            lines: 1,
+        })
+    }
+
+    /// Reads the next record; `false` at the end of the file. A blank line is a record with no
+    /// fields.
+    fn next(&mut self) -> Result<bool, Error> {
+        self.line += self.lines;
+        self.record.clear();
+        self.lines = 0;
+        loop {
+            let n = self
+                .input
+                .read_until(b'\n', &mut self.record)
+                .map_err(|source| Error::Io {
+                    path: self.path.clone(),
+                    source,
+                })?;
+            if n == 0 {
+                break;
+            }
+            self.lines += 1;
+            // A line end inside quotes belongs to the field: read on.
+            let quotes = self.record.iter().filter(|&&b| b == b'"').count();
+            if quotes % 2 == 0 {
+                break;
+            }
+        }
+        if self.record.is_empty() {
+            return Ok(false);
+        }
+        self.split();
+        Ok(true)
+    }
+
+    /// Fills `fields` with the raw spans of the record's fields.
+    fn split(&mut self) {
+        self.fields.clear();
+        let mut end = self.record.len();
+        while end > 0 && matches!(self.record[end - 1], b'\n' | b'\r') {
+            end -= 1;
+        }
+        if end == 0 {
+            return;
+        }
+        let mut start = 0;
+        let mut quoted = false;
+        for (i, &b) in self.record[..end].iter().enumerate() {
+            match b {
+                b'"' => quoted = !quoted,
+                b',' if !quoted => {
+                    self.fields.push(start..i);
+                    start = i + 1;
+                }
+                _ => {}
+            }
+        }
+        self.fields.push(start..end);
+    }
+
+    /// Field `i`'s value: spaces trimmed, quotes removed.
+    fn field(&self, i: usize) -> Cow<'_, [u8]> {
+        let raw = self.record[self.fields[i].clone()].trim_ascii();
+        match raw.strip_prefix(b"\"").and_then(|r| r.strip_suffix(b"\"")) {
+            Some(inner) if inner.windows(2).any(|w| w == b"\"\"") => {
+                let mut out = Vec::with_capacity(inner.len());
+                let mut bytes = inner.iter();
+                while let Some(&b) = bytes.next() {
+                    out.push(b);
+                    if b == b'"' {
+                        bytes.next();
+                    }
+                }
+                Cow::Owned(out)
+            }
+            Some(inner) => Cow::Borrowed(inner),
+            None => Cow::Borrowed(raw),
+        }
+    }
+
+    fn error(&self, column: Option<&str>, message: String) -> Error {
+        csv_error(&self.path, self.line, column, message)
+    }
+}
+
+/// A pass over the log: `each(records, Some((column, value)))` for every data row with the
+/// channel's column and value (in the file's unit), `each(records, None)` for the header and
+/// blank lines.
+fn walk(
+    path: &Path,
+    channel: &str,
+    mut each: impl FnMut(&Records, Option<(usize, f64)>) -> Result<(), Error>,
+) -> Result<(), Error> {
+    let mut records = Records::open(path)?;
+    // The header is the first record that is not a blank line.
+    loop {
+        if !records.next()? {
+            return Err(records.error(
+                None,
+                "the file is empty; a CSV log needs a header row such as `t,a,b`".into(),
+            ));
+        }
+        if !records.fields.is_empty() {
+            break;
+        }
+        each(&records, None)?;
+    }
+    let names: Vec<String> = (0..records.fields.len())
+        .map(|i| {
+            let f = records.field(i);
+            let f = if i == 0 {
+                f.strip_prefix(UTF8_BOM).unwrap_or(&f).to_vec()
+            } else {
+                f.into_owned()
+            };
+            String::from_utf8_lossy(f.trim_ascii()).into_owned()
+        })
+        .collect();
+    each(&records, None)?;
+    let column = names
+        .iter()
+        .position(|n| n == channel && n != "t" && n != "session")
+        .ok_or_else(|| {
+            let channels: Vec<&str> = names
+                .iter()
+                .map(String::as_str)
+                .filter(|n| *n != "t" && *n != "session")
+                .collect();
+            records.error(
+                Some(channel),
+                format!(
+                    "no channel `{channel}` in the header (it has: {}); pick one of those names",
+                    channels.join(", ")
+                ),
+            )
+        })?;
+    while records.next()? {
+        if records.fields.is_empty() {
+            each(&records, None)?;
+            continue;
+        }
+        if records.fields.len() != names.len() {
+            return Err(records.error(
+                None,
+                format!(
+                    "the row has {} fields but the header has {} columns ({}); give every row \
+                     exactly one field per header column",
+                    records.fields.len(),
+                    names.len(),
+                    names.join(", ")
+                ),
+            ));
+        }
+        let raw = records.field(column);
+        let value = parse_f64(&raw).filter(|v| v.is_finite()).ok_or_else(|| {
+            records.error(
+                Some(channel),
+                format!(
+                    "reading `{}` is not a finite number; repair or remove the row",
+                    String::from_utf8_lossy(raw.trim_ascii())
+                ),
+            )
+        })?;
+        each(&records, Some((column, value)))?;
+    }
+    Ok(())
+}
+
+/// The range of the channel's readings.
+pub(super) fn scan(path: &Path, channel: &str, unit: AngleUnit) -> Result<Range, Error> {
+    let mut range = Range::new(unit);
+    walk(path, channel, |_, reading| {
+        if let Some((_, x)) = reading {
+            range.add(x, unit);
+        }
+        Ok(())
+    })?;
+    Ok(range)
+}
+
+/// Writes `output` with the channel's readings corrected; returns how many.
+pub(super) fn rewrite(
+    input: &Path,
+    output: &Path,
+    channel: &str,
+    fix: &Correction,
+) -> Result<u64, Error> {
+    let mut out = AtomicFile::create(output)?;
+    let io = |source| Error::Io {
+        path: output.to_path_buf(),
+        source,
+    };
+    let mut count = 0u64;
+    let mut number = ryu::Buffer::new();
+    walk(input, channel, |records, reading| {
+        let Some((column, x)) = reading else {
+            return out.write_all(&records.record).map_err(io);
+        };
+        let span = records.fields[column].clone();
+        out.write_all(&records.record[..span.start]).map_err(io)?;
+        out.write_all(number.format_finite(fix.apply(x)).as_bytes())
+            .map_err(io)?;
+        out.write_all(&records.record[span.end..]).map_err(io)?;
+        count += 1;
+        Ok(())
+    })?;
+    out.commit()?;
+    Ok(count)
+}

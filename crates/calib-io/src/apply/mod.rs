@@ -1,0 +1,168 @@
+//! Rewriting a log with one channel corrected: the I/O of `calib apply`.
+//!
+//! [`apply`] copies a log to a new file of the same format, replacing every reading of one
+//! channel `r` with `r − e(r)` ([`calib_core::correction`]) and leaving everything else as it was:
+//!
+//! - **CSV**: the same header, columns and rows; only the channel's field of each row is
+//!   rewritten (in the log's unit, shortest round-trip decimal form). Every other byte of the file
+//!   — time stamps, sessions, other channels, quoting, line ends, blank lines — is copied as read.
+//! - **MCAP**: every record is copied through the `mcap` crate's writer — header (profile,
+//!   library), schemas and channels with their IDs, every message with its log time, publish
+//!   time and sequence number, metadata, attachments and private records — and only the messages
+//!   carrying the channel are changed: in a ROS 2 JointState message the 8 bytes of that joint's
+//!   `position`, in a JSON message the text of that field's number. Chunks are re-formed (with the
+//!   input's compression, where its summary names it) and the summary and indexes rewritten.
+//!
+//! Both stream: memory stays bounded by a row or an MCAP chunk, whatever the log's length.
+//!
+//! # Wrapping
+//! Unless told ([`ApplyOptions::wrapping`]), the channel's wrapping is detected by a first pass
+//! over the log that finds the range of its readings ([`Wrapping::detect`]): a second read, but
+//! the only way to know before the first corrected reading is written whether a reading of
+//! 359.9999° may become 0.0001° or must become 360.0001°.
+//!
+//! # Atomicity
+//! The output is written to a temporary file beside it and renamed into place only when
+//! complete: an error leaves no partial output behind, and an existing file at the output path
+//! stays as it was.
+
+mod csv;
+mod mcap;
+
+use crate::log::LogFormat;
+use crate::{Error, Truncation};
+use calib_core::correction::{Correction, Wrapping};
+use calib_core::{AngleUnit, ErrorMap};
+use std::path::Path;
+
+/// What to correct and how.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ApplyOptions {
+    /// The channel: a CSV column, a JointState joint name or a JSON field.
+    pub channel: String,
+    /// The unit of CSV readings and JSON fields (degrees if `None`); JointState positions are
+    /// radians by definition.
+    pub unit: Option<AngleUnit>,
+    /// How the channel's readings are wrapped; detected from their range if `None`.
+    pub wrapping: Option<Wrapping>,
+}
+
+/// What [`apply`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Applied {
+    /// The log's format (the output has the same).
+    pub format: LogFormat,
+    /// Readings corrected.
+    pub readings: u64,
+    /// The unit of the readings corrected.
+    pub unit: AngleUnit,
+    /// The wrapping kept.
+    pub wrapping: Wrapping,
+    /// The smallest and largest reading before correction, in `unit`.
+    pub range: (f64, f64),
+    /// MCAP messages copied unchanged (other topics', and those without the channel); 0 for
+    /// CSV, where every row holds the channel.
+    pub copied: u64,
+    /// Where an MCAP log ended early (a crashed recording): the output holds everything before
+    /// the break, as a complete file.
+    pub truncated: Option<Truncation>,
+}
+
+/// The readings of a channel seen by a pass over a log.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Range {
+    count: u64,
+    min: f64,
+    max: f64,
+    unit: AngleUnit,
+}
+
+impl Range {
+    fn new(unit: AngleUnit) -> Self {
+        Range {
+            count: 0,
+            min: f64::INFINITY,
+            max: f64::NEG_INFINITY,
+            unit,
+        }
+    }
+    fn add(&mut self, x: f64, unit: AngleUnit) {
+        self.count += 1;
+        self.min = self.min.min(x);
+        self.max = self.max.max(x);
+        self.unit = unit;
+    }
+}
+
+/// Writes `output`: the log at `input` with channel `opts.channel` corrected by `map` (see the
+/// [module docs](self)).
+///
+/// `output` must have the input's format (`.csv` or `.mcap`) and must not be `input` itself,
+/// which the caller checks (the rename would replace the log being read). Errors name the file,
+/// the line or message, and the channel: a channel the log does not have (listing those it has),
+/// a reading that is not a finite number, a JointState message with fewer positions than names,
+/// a damaged file.
+pub fn apply(
+    input: &Path,
+    output: &Path,
+    map: &ErrorMap,
+    opts: &ApplyOptions,
+) -> Result<Applied, Error> {
+    let format = LogFormat::detect(input)?;
+    let out_format = LogFormat::for_output(output)?;
+    if out_format != format {
+        return Err(Error::Write {
+            path: output.to_path_buf(),
+            message: format!(
+                "the input {} is {}; write the corrected log in the same format (a .{} file)",
+                input.display(),
+                format.name(),
+                format.name()
+            ),
+        });
+    }
+    let unit = opts.unit.unwrap_or(AngleUnit::Deg);
+    let range = match format {
+        LogFormat::Csv => csv::scan(input, &opts.channel, unit)?,
+        LogFormat::Mcap => mcap::scan(input, &opts.channel, unit)?,
+    };
+    if range.count == 0 {
+        return Err(Error::Data {
+            path: input.to_path_buf(),
+            message: format!(
+                "the log holds no readings of channel `{}`; nothing to correct",
+                opts.channel
+            ),
+        });
+    }
+    let wrapping = opts
+        .wrapping
+        .unwrap_or_else(|| Wrapping::detect(range.min, range.max, range.unit));
+    let fix = |unit| Correction::new(map.clone(), unit, wrapping);
+    let (readings, copied, truncated) = match format {
+        LogFormat::Csv => (
+            csv::rewrite(input, output, &opts.channel, &fix(unit))?,
+            0,
+            None,
+        ),
+        LogFormat::Mcap => {
+            let done = mcap::rewrite(
+                input,
+                output,
+                &opts.channel,
+                &fix(AngleUnit::Rad),
+                &fix(unit),
+            )?;
+            (done.readings, done.copied, done.truncated)
+        }
+    };
+    Ok(Applied {
+        format,
+        readings,
+        unit: range.unit,
+        wrapping,
+        range: (range.min, range.max),
+        copied,
+        truncated,
+    })
+}
