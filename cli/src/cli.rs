@@ -27,6 +27,8 @@ pub enum Command {
     Simulate(commands::simulate::Args),
     /// Self-calibrate two coaxial sensors by the CSRR method.
     Csrr(commands::csrr::Args),
+    // Help from its `Args` doc.
+    Multihead(commands::multihead::Args),
     // The next three take their help from their `Args` docs (a doc comment here would replace it).
     ShiftAngle(commands::shift_angle::Args),
     Uncertainty(commands::uncertainty::Args),

@@ -5,6 +5,7 @@ pub mod compare;
 pub mod csrr;
 pub mod export;
 pub mod inspect;
+pub mod multihead;
 pub mod reference;
 pub mod shift_angle;
 pub mod simulate;
@@ -19,6 +20,7 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Inspect(args) => inspect::run(&args),
         Command::Simulate(args) => simulate::run(&args),
         Command::Csrr(args) => csrr::run(&args),
+        Command::Multihead(args) => multihead::run(&args),
         Command::ShiftAngle(args) => shift_angle::run(&args),
         Command::Uncertainty(args) => uncertainty::run(&args),
         Command::Compare(args) => compare::run(&args),

@@ -18,6 +18,8 @@
 //!
 //! - [`csrr`]: CSRR self-calibration of two coaxial sensors (joint least squares, or the seed
 //!   paper's method); [`segment`] finds its sessions; [`inspect`] summarizes a log.
+//! - [`multihead`]: self-calibration of one scale read by several heads (joint least squares,
+//!   or the equal-division average of the SelfA paper), head angle errors included.
 //! - [`shift_angle`], [`uncertainty`], [`compare`]: polygon cross-calibration, GUM budgets, En.
 //! - [`simulate`]: realistic runs with a known truth.
 //! - [`tdr`]: self-calibration of one encoder from a free spin-down (Lu & Trumper's TDR).
@@ -69,6 +71,7 @@ pub mod csrr;
 pub mod error_map;
 pub mod harmonics;
 pub mod inspect;
+pub mod multihead;
 pub mod reference_cal;
 pub mod report;
 pub mod sample;

@@ -20,7 +20,7 @@
 
 pub mod bins;
 pub mod joint;
-mod nufft;
+pub(crate) mod nufft;
 pub mod observability;
 pub mod paper;
 pub mod reference;

@@ -1,0 +1,520 @@
+//! `calib multihead`: self-calibration of one scale read by several heads.
+
+use crate::exit::Usage;
+use crate::input::{channel, open_log, parse_unit};
+use crate::output::{table_name, write_tables_and_report};
+use anyhow::Context;
+use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::multihead::{
+    Head, Method, Multihead, MultiheadCalibration, MultiheadOptions, Readings,
+};
+use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report};
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::path::PathBuf;
+
+/// Largest `--points` accepted (a 0.0001° grid).
+const MAX_POINTS: usize = 3_600_000;
+
+/// The method, as chosen on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MethodArg {
+    /// Joint least squares of every head at once (any spacing; blind only to the orders no head
+    /// pair sees; estimates the heads' angle errors).
+    Joint,
+    /// The published equal-division average (SelfA paper eq. 9) per set of equally spaced heads
+    /// (each set blind to the multiples of its head count), sets combined order by order.
+    Eda,
+}
+
+/// Self-calibrate one scale read by several heads (multi-head self-calibration, e.g. SelfA).
+///
+/// Record the heads' synchronized readings while the scale turns at least one whole revolution
+/// (more revolutions average more noise). Name every head with its nominal angle around the
+/// scale, the first being the head whose map is written: `--heads h1@0,h2@90,h3@180,h4@270` (a
+/// fraction such as `h2@360/7` is accepted). Heads may read raw scale angles or angles relative
+/// to their nominal place; each head's convention is recognized. The heads' small angle errors
+/// are estimated (relative to the first head).
+///
+/// The default joint method fits every head at once and is blind only to the orders h for which
+/// every head sits at a multiple of 360°/h (with heads in sets of 3, 4 and 7: multiples of 84);
+/// `--method eda` applies the published average per set of equally spaced heads (`--sets`, or
+/// inferred from the angles), blind to the multiples of each set's head count.
+///
+/// Writes DIR/<first head>.csv (the scale's error as the first head reads it, as a function of
+/// its reading: angle_deg, error_arcsec, correction_arcsec; correction = −error, zero mean) and
+/// DIR/report.json (head angle errors, blind orders, residual), and prints a summary.
+#[derive(Debug, clap::Args, PartialEq)]
+pub struct Args {
+    /// The log (.csv or .mcap).
+    pub log: PathBuf,
+    /// The heads as NAME@DEG (nominal angle in degrees), comma-separated or repeated; the first
+    /// is the head whose map is written.
+    #[arg(long, required = true, value_delimiter = ',', value_name = "NAME@DEG")]
+    pub heads: Vec<String>,
+    /// Output folder.
+    #[arg(short, long = "output", default_value = "calib-out")]
+    pub output: PathBuf,
+    /// The method.
+    #[arg(long, value_enum, default_value_t = MethodArg::Joint)]
+    pub method: MethodArg,
+    /// One EDA set: comma-separated names of heads equally spaced with the first head (e.g.
+    /// `--sets h1,h5,h9 --sets h1,h3,h7,h11`); repeat for several sets. Default: every maximal
+    /// set of equally spaced heads found in --heads. Only with --method eda.
+    #[arg(long = "sets", value_name = "NAME,NAME,...")]
+    pub sets: Vec<String>,
+    /// Highest harmonic order fitted (default: 40 % of the samples per revolution, at most a
+    /// quarter of the bins the readings fill, and 2000).
+    #[arg(long)]
+    pub max_order: Option<usize>,
+    /// Points of the output table (default: enough for linear interpolation to 0.01″, ≥ 3600).
+    #[arg(long)]
+    pub points: Option<usize>,
+    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
+    #[arg(long, value_parser = parse_unit)]
+    pub unit: Option<AngleUnit>,
+    /// Orders whose observability (0 blind … 1 as seen by equally spaced heads) is below this
+    /// are left out of the map (joint method).
+    #[arg(long, default_value_t = 0.01)]
+    pub min_observability: f64,
+    /// Print report.json on standard output instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One `NAME@DEG` of `--heads`.
+fn parse_head(spec: &str) -> Result<Head, Usage> {
+    let bad = || {
+        Usage(format!(
+            "--heads: `{spec}` is not NAME@DEG (a channel name and its nominal angle in degrees, e.g. h2@90 or h2@360/7)"
+        ))
+    };
+    let (name, angle) = spec.rsplit_once('@').ok_or_else(bad)?;
+    let (name, angle) = (name.trim(), angle.trim());
+    if name.is_empty() {
+        return Err(bad());
+    }
+    let number = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
+    let deg = match angle.split_once('/') {
+        Some((num, den)) => number(num)
+            .zip(number(den).filter(|d| *d != 0.0))
+            .map(|(n, d)| n / d),
+        None => number(angle),
+    }
+    .ok_or_else(bad)?;
+    Ok(Head {
+        name: name.to_string(),
+        nominal: deg.to_radians(),
+    })
+}
+
+/// The heads of `--heads`, checked for duplicates.
+fn parse_heads(specs: &[String]) -> Result<Vec<Head>, Usage> {
+    let heads = specs
+        .iter()
+        .map(|s| parse_head(s))
+        .collect::<Result<Vec<_>, _>>()?;
+    for (i, h) in heads.iter().enumerate() {
+        if heads[..i].iter().any(|o| o.name == h.name) {
+            return Err(Usage(format!(
+                "--heads names `{}` twice; name each head once",
+                h.name
+            )));
+        }
+    }
+    if heads.len() < 2 {
+        return Err(Usage(format!(
+            "--heads names {} head(s); a multi-head calibration needs at least 2",
+            heads.len()
+        )));
+    }
+    Ok(heads)
+}
+
+/// The sets of `--sets` as indices into the heads.
+fn parse_sets(specs: &[String], heads: &[Head]) -> Result<Vec<Vec<usize>>, Usage> {
+    specs
+        .iter()
+        .map(|spec| {
+            spec.split(',')
+                .map(|name| {
+                    let name = name.trim();
+                    heads.iter().position(|h| h.name == name).ok_or_else(|| {
+                        Usage(format!(
+                            "--sets {spec}: `{name}` is not one of the heads in --heads ({})",
+                            heads
+                                .iter()
+                                .map(|h| h.name.as_str())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ))
+                    })
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Runs `calib multihead`.
+pub fn run(args: &Args) -> anyhow::Result<String> {
+    let heads = parse_heads(&args.heads)?;
+    if !args.sets.is_empty() && args.method != MethodArg::Eda {
+        return Err(Usage(
+            "--sets is for --method eda; the joint method uses every head at once".into(),
+        )
+        .into());
+    }
+    let sets = parse_sets(&args.sets, &heads)?;
+    if args.max_order == Some(0) {
+        return Err(Usage("--max-order must be at least 1".into()).into());
+    }
+    if args.points.is_some_and(|p| !(2..=MAX_POINTS).contains(&p)) {
+        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
+    }
+    if !(0.0..1.0).contains(&args.min_observability) {
+        return Err(Usage("--min-observability must be in [0, 1)".into()).into());
+    }
+    let opts = MultiheadOptions {
+        method: match args.method {
+            MethodArg::Joint => Method::Joint,
+            MethodArg::Eda => Method::Eda,
+        },
+        max_order: args.max_order,
+        min_observability: args.min_observability,
+        points: args.points,
+        sets: (!sets.is_empty()).then_some(sets),
+        ..MultiheadOptions::default()
+    };
+    // Head and set problems concern the command line, whatever the log holds.
+    let mut mh = Multihead::new(heads.clone(), opts).map_err(|e| Usage(e.to_string()))?;
+
+    let mut reader = open_log(&args.log, args.unit)?;
+    let columns = heads
+        .iter()
+        .map(|h| channel(&reader, &args.log, &h.name))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut readings = vec![0.0; columns.len()];
+    for sample in reader.by_ref() {
+        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        for (r, &c) in readings.iter_mut().zip(&columns) {
+            *r = s.values[c];
+        }
+        mh.push(&readings);
+    }
+    let cal = mh.finish().with_context(|| {
+        format!(
+            "{}: heads {}",
+            args.log.display(),
+            heads
+                .iter()
+                .map(|h| h.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })?;
+    let mut warnings = reader.warnings(&args.log);
+    warnings.extend(cal.warnings.iter().cloned());
+
+    let first = &heads[0].name;
+    let report = build_report(args, &heads, &cal, warnings);
+    let json = calib_io::report::render_json(&report)?;
+    write_tables_and_report(&args.output, &[(first, &cal.map, None)], &json)?;
+    if args.json {
+        return Ok(json);
+    }
+    Ok(render_summary(args, &heads, &cal, &report))
+}
+
+fn readings_name(r: Option<Readings>) -> &'static str {
+    match r {
+        None => "reference",
+        Some(Readings::RelativeToNominal) => "relative to nominal",
+        Some(Readings::Raw) => "raw scale angle",
+    }
+}
+
+/// A set's heads by name.
+fn set_names(set: &[usize], heads: &[Head]) -> Vec<String> {
+    set.iter().map(|&j| heads[j].name.clone()).collect()
+}
+
+fn build_report(
+    args: &Args,
+    heads: &[Head],
+    cal: &MultiheadCalibration,
+    warnings: Vec<String>,
+) -> Report {
+    let first = &heads[0].name;
+    let mut channels = BTreeMap::new();
+    channels.insert(
+        first.clone(),
+        ChannelReport::of_map(&table_name(first), &cal.map, 10),
+    );
+    let arcsec = |v: Option<f64>| v.map(|v| v * ARCSEC_PER_RAD);
+    let mut details = BTreeMap::new();
+    details.insert("solver".to_string(), json!(cal.method));
+    details.insert(
+        "heads".to_string(),
+        json!(
+            heads
+                .iter()
+                .zip(&cal.heads)
+                .map(|(given, est)| json!({
+                    "name": est.name,
+                    "nominal_deg": given.nominal.to_degrees(),
+                    "nominal_from_first_deg": est.nominal.to_degrees(),
+                    "angle_error_arcsec": est.angle_error * ARCSEC_PER_RAD,
+                    "readings": est.readings,
+                    "residual_rms_arcsec": arcsec(est.residual_rms),
+                    "noise_rms_arcsec": arcsec(est.noise_rms),
+                }))
+                .collect::<Vec<_>>()
+        ),
+    );
+    details.insert("max_order".to_string(), json!(cal.max_order));
+    details.insert("bins_per_revolution".to_string(), json!(cal.bins));
+    details.insert(
+        "blind_orders".to_string(),
+        json!(cal.blind.iter().map(|e| e.order).collect::<Vec<_>>()),
+    );
+    details.insert(
+        "ill_conditioned_orders".to_string(),
+        json!(cal.ill_conditioned),
+    );
+    details.insert(
+        "residual_rms_arcsec".to_string(),
+        json!(arcsec(cal.residual_rms)),
+    );
+    details.insert("iterations".to_string(), json!(cal.iterations));
+    details.insert("samples".to_string(), json!(cal.samples));
+    details.insert("skipped_samples".to_string(), json!(cal.skipped));
+    details.insert("revolutions".to_string(), json!(cal.revolutions));
+    if !cal.sets.is_empty() {
+        let points = cal.map.len();
+        details.insert(
+            "sets".to_string(),
+            json!(
+                cal.sets
+                    .iter()
+                    .map(|s| {
+                        let map = ErrorMap::from_series(&s.series, points);
+                        json!({
+                            "heads": set_names(&s.heads, heads),
+                            "blind_to_multiples_of": s.heads.len(),
+                            "peak_to_peak_arcsec": map.peak_to_peak() * ARCSEC_PER_RAD,
+                        })
+                    })
+                    .collect::<Vec<_>>()
+            ),
+        );
+    }
+    Report {
+        calib_version: env!("CARGO_PKG_VERSION").to_string(),
+        method: "multihead".to_string(),
+        inputs: vec![args.log.display().to_string()],
+        command_line: Some(crate::input::command_line()),
+        channels,
+        sessions: Vec::new(),
+        warnings,
+        details,
+    }
+}
+
+/// Orders as `84, 168, …` (the first 12, then how many more), or `none`.
+fn list_orders(orders: impl ExactSizeIterator<Item = usize>) -> String {
+    let total = orders.len();
+    if total == 0 {
+        return "none".into();
+    }
+    let shown: Vec<String> = orders.take(12).map(|h| h.to_string()).collect();
+    match total - shown.len() {
+        0 => shown.join(", "),
+        more => format!("{} and {more} more", shown.join(", ")),
+    }
+}
+
+fn render_summary(
+    args: &Args,
+    heads: &[Head],
+    cal: &MultiheadCalibration,
+    report: &Report,
+) -> String {
+    let mut o = String::new();
+    let first = &heads[0].name;
+    let method = match cal.method {
+        Method::Joint => "joint least squares",
+        Method::Eda => "equal-division average (eq. 9)",
+    };
+    let _ = writeln!(
+        o,
+        "Multi-head self-calibration of one scale read by {} heads — {method}",
+        heads.len()
+    );
+    let _ = writeln!(
+        o,
+        "  {} samples, {:.2} revolutions of `{first}`, {} bins per revolution",
+        cal.samples, cal.revolutions, cal.bins
+    );
+    let _ = writeln!(
+        o,
+        "\nheads (angles from `{first}`; angle error = actual − nominal, estimated)"
+    );
+    let _ = writeln!(
+        o,
+        "  {:<12} {:>12} {:>16} {:>13}  readings",
+        "head", "nominal °", "angle error ″", "residual ″"
+    );
+    for h in &cal.heads {
+        let (error, residual) = match h.residual_rms {
+            Some(r) => (
+                format!("{:.4}", h.angle_error * ARCSEC_PER_RAD),
+                format!("{:.4}", r * ARCSEC_PER_RAD),
+            ),
+            None => ("0 (origin)".to_string(), "—".to_string()),
+        };
+        let _ = writeln!(
+            o,
+            "  {:<12} {:>12.6} {:>16} {:>13}  {}",
+            h.name,
+            h.nominal.to_degrees(),
+            error,
+            residual,
+            readings_name(h.readings)
+        );
+    }
+    if !cal.sets.is_empty() {
+        let _ = writeln!(o, "\nEDA sets (each blind to multiples of its head count)");
+        for (i, s) in cal.sets.iter().enumerate() {
+            let n = s.heads.len();
+            let _ = writeln!(
+                o,
+                "  {}: {:<40} N = {n} ({:.4}° apart)",
+                i + 1,
+                set_names(&s.heads, heads).join(", "),
+                360.0 / n as f64
+            );
+        }
+    }
+    let ch = &report.channels[first];
+    let top: Vec<String> = ch
+        .harmonics
+        .iter()
+        .take(4)
+        .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
+        .collect();
+    let _ = writeln!(
+        o,
+        "\nmap of the scale as `{first}` reads it (error = reading − true angle, zero mean)"
+    );
+    let _ = writeln!(
+        o,
+        "  p-p {:.4}″  rms {:.4}″  largest orders {}  → {}",
+        cal.map.peak_to_peak() * ARCSEC_PER_RAD,
+        ch.rms_arcsec,
+        top.join(", "),
+        args.output.join(&ch.table).display()
+    );
+    let residual = cal.residual_rms.map_or(String::new(), |r| {
+        format!(", residual RMS {:.4}″ per sample", r * ARCSEC_PER_RAD)
+    });
+    let _ = writeln!(
+        o,
+        "\nfit: orders 1–{}{residual}, {} iterations",
+        cal.max_order, cal.iterations
+    );
+    let who = match cal.method {
+        Method::Joint => "no head pair sees them",
+        Method::Eda => "no set sees them",
+    };
+    let _ = writeln!(
+        o,
+        "blind orders ({who}; the map lacks them): {}",
+        list_orders(cal.blind.iter().map(|e| e.order))
+    );
+    if cal.method == Method::Joint {
+        let _ = writeln!(
+            o,
+            "ill-conditioned orders left out (observability < {}): {}",
+            args.min_observability,
+            list_orders(cal.ill_conditioned.iter().map(|e| e.order))
+        );
+    }
+    for w in &report.warnings {
+        let _ = writeln!(o, "\nwarning: {w}");
+    }
+    let _ = writeln!(o, "\nwrote {}", args.output.join("report.json").display());
+    o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn head_specs_parse_or_say_what_is_wrong() {
+        let h = parse_head("h2@90").unwrap();
+        assert_eq!(h.name, "h2");
+        assert!((h.nominal - 90f64.to_radians()).abs() < 1e-15);
+        let h = parse_head("arm/joint@3@360/7").unwrap();
+        assert_eq!(h.name, "arm/joint@3");
+        assert!((h.nominal.to_degrees() - 360.0 / 7.0).abs() < 1e-12);
+        assert!((parse_head(" h3 @ -45.5 ").unwrap().nominal.to_degrees() + 45.5).abs() < 1e-12);
+        for bad in ["h2", "@90", "h2@", "h2@abc", "h2@1/0", "h2@inf", "h2@1/2/3"] {
+            let err = parse_head(bad).unwrap_err().to_string();
+            assert!(err.contains("NAME@DEG"), "{bad}: {err}");
+        }
+        let twice = parse_heads(&["a@0".into(), "b@90".into(), "a@180".into()]).unwrap_err();
+        assert!(twice.to_string().contains("`a` twice"), "{twice}");
+        assert!(parse_heads(&["a@0".into()]).is_err());
+    }
+
+    #[test]
+    fn sets_name_heads_of_heads() {
+        let heads = parse_heads(&["a@0".into(), "b@120".into(), "c@240".into()]).unwrap();
+        assert_eq!(
+            parse_sets(&["a,b,c".into()], &heads).unwrap(),
+            [vec![0, 1, 2]]
+        );
+        let err = parse_sets(&["a,x".into()], &heads).unwrap_err().to_string();
+        assert!(
+            err.contains("`x` is not one of the heads") && err.contains("a, b, c"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn heads_split_on_commas_and_each_sets_is_one_set() {
+        use clap::Parser;
+        let cli = crate::cli::Cli::try_parse_from([
+            "calib",
+            "multihead",
+            "run.mcap",
+            "--heads",
+            "a@0,b@90",
+            "--heads",
+            "c@180",
+            "--method",
+            "eda",
+            "--sets",
+            "a,c",
+            "--sets",
+            "a,b,c",
+        ])
+        .unwrap();
+        let crate::cli::Command::Multihead(args) = cli.command else {
+            panic!("not multihead");
+        };
+        assert_eq!(args.heads, ["a@0", "b@90", "c@180"]);
+        assert_eq!(args.sets, ["a,c", "a,b,c"]);
+        assert_eq!(args.method, MethodArg::Eda);
+        assert!(crate::cli::Cli::try_parse_from(["calib", "multihead", "run.mcap"]).is_err());
+    }
+
+    #[test]
+    fn orders_are_listed_briefly() {
+        assert_eq!(list_orders([84usize, 168].into_iter()), "84, 168");
+        assert_eq!(list_orders(std::iter::empty()), "none");
+        assert!(list_orders(1..21).ends_with("and 8 more"));
+    }
+}
