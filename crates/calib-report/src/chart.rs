@@ -7,6 +7,7 @@
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::ops::Range;
 
 /// Why a figure could not be drawn.
@@ -439,6 +440,29 @@ where
     Y: AsRangedCoord<Value = f64>,
     Y::CoordDescType: ValueFormatter<f64>,
 {
+    let entries: Vec<(&str, &Mark, Colour)> = chart
+        .series
+        .iter()
+        .filter(|s| !s.name.is_empty())
+        .map(|s| (s.name.as_str(), &s.mark, s.colour))
+        .chain(
+            chart
+                .levels
+                .iter()
+                .filter(|l| (y_range.start..=y_range.end).contains(&l.y))
+                .map(|l| (l.name.as_str(), &Mark::Dashed, l.colour)),
+        )
+        .collect();
+    let (legend_area, plot_area) = if entries.is_empty() {
+        (None, area.clone())
+    } else {
+        let (top, rest) = area.split_vertically(LEGEND_HEIGHT);
+        (Some(top), rest)
+    };
+    if let Some(top) = legend_area {
+        draw_legend(&top, &entries)?;
+    }
+    let area = &plot_area;
     let mut ctx = ChartBuilder::on(area)
         .margin(12)
         .margin_right(24)
@@ -468,15 +492,12 @@ where
         ctx.draw_series(std::iter::once(Text::new(
             span.label.clone(),
             (from, yhi),
-            ("sans-serif", 13).into_font().color(&Colour::Blue.rgb()),
+            ("sans-serif", 15).into_font().color(&RGBColor(0, 70, 120)),
         )))?;
     }
-    let mut legend = false;
     for s in &chart.series {
         let c = s.colour.rgb();
-        let name = s.name.clone();
-        legend |= !name.is_empty();
-        let drawn = match &s.mark {
+        match &s.mark {
             Mark::Line => ctx.draw_series(LineSeries::new(s.points.clone(), c.stroke_width(2)))?,
             Mark::Dashed => ctx.draw_series(DashedLineSeries::new(
                 s.points.clone(),
@@ -509,45 +530,51 @@ where
                 ctx.draw_series(std::iter::once(Polygon::new(outline, c.mix(0.25).filled())))?
             }
         };
-        if !name.is_empty() {
-            let mark = s.mark.clone();
-            drawn.label(name).legend(move |(lx, ly)| match mark {
-                Mark::Band { .. } | Mark::Bars { .. } => Rectangle::new(
-                    [(lx, ly - 5), (lx + 18, ly + 5)],
-                    c.mix(if matches!(mark, Mark::Band { .. }) { 0.25 } else { 1.0 })
-                        .filled(),
-                )
-                .into_dyn(),
-                Mark::Dots => Circle::new((lx + 9, ly), 3, c.filled()).into_dyn(),
-                Mark::Crosses => Cross::new((lx + 9, ly), 5, c.stroke_width(2)).into_dyn(),
-                Mark::Line | Mark::Dashed => {
-                    PathElement::new(vec![(lx, ly), (lx + 18, ly)], c.stroke_width(2)).into_dyn()
-                }
-            });
-        }
     }
     for level in &chart.levels {
         if !(ylo..=yhi).contains(&level.y) {
             continue;
         }
-        let c = level.colour.rgb();
-        legend = true;
         ctx.draw_series(DashedLineSeries::new(
             [(x.start, level.y), (x.end, level.y)],
-            6,
-            4,
-            c.stroke_width(1),
-        ))?
-        .label(level.name.clone())
-        .legend(move |(lx, ly)| PathElement::new(vec![(lx, ly), (lx + 18, ly)], c.stroke_width(1)));
+            8,
+            5,
+            level.colour.rgb().stroke_width(2),
+        ))?;
     }
-    if legend {
-        ctx.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(190, 190, 190))
-            .label_font(("sans-serif", 13))
-            .draw()?;
+    Ok(())
+}
+
+/// Height of the legend row above a panel, pixels.
+const LEGEND_HEIGHT: u32 = 26;
+
+/// The legend as one row of entries above the plot, where it never hides data.
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[(&str, &Mark, Colour)],
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let font = ("sans-serif", 14).into_font();
+    let style = TextStyle::from(font.clone()).pos(Pos::new(HPos::Left, VPos::Center));
+    let y = LEGEND_HEIGHT as i32 / 2 + 2;
+    let mut x = 90;
+    for (name, mark, colour) in entries {
+        let c = colour.rgb();
+        match mark {
+            Mark::Line => area.draw(&PathElement::new([(x, y), (x + 22, y)], c.stroke_width(2)))?,
+            Mark::Dashed => {
+                area.draw(&PathElement::new([(x, y), (x + 8, y)], c.stroke_width(2)))?;
+                area.draw(&PathElement::new([(x + 13, y), (x + 22, y)], c.stroke_width(2)))?;
+            }
+            Mark::Bars { .. } => area.draw(&Rectangle::new([(x + 4, y - 6), (x + 18, y + 6)], c.filled()))?,
+            Mark::Band { .. } => {
+                area.draw(&Rectangle::new([(x, y - 6), (x + 22, y + 6)], c.mix(0.25).filled()))?
+            }
+            Mark::Dots => area.draw(&Circle::new((x + 11, y), 4, c.filled()))?,
+            Mark::Crosses => area.draw(&Cross::new((x + 11, y), 5, c.stroke_width(2)))?,
+        }
+        area.draw(&Text::new(name.to_string(), (x + 28, y), style.clone()))?;
+        let (w, _) = area.estimate_text_size(name, &style)?;
+        x += 28 + w as i32 + 24;
     }
     Ok(())
 }

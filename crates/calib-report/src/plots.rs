@@ -180,7 +180,10 @@ pub fn zoom(id: &str, channel: &str, layers: &MapLayers, order: usize) -> Option
     let period = 360.0 / order as f64;
     Some(Figure::new(
         id,
-        &format!("{channel}: one period of order {order} (0–{period:.4}°)"),
+        &format!(
+            "{channel}: one period of order {order} (0–{}°)",
+            format!("{period:.4}").trim_end_matches('0').trim_end_matches('.')
+        ),
         &format!(
             "The error map of {channel} over one period of its dominant harmonic, order {order}, \
              in detail."
