@@ -106,7 +106,7 @@ fn directions(dut: &str, cal: &ReferenceCalibration, map: &[(f64, f64)]) -> Figu
         "Mean deviation of the passes in each direction minus the bidirectional map: what is left \
          after correction when turning one way only (the reversal B is their difference).",
         Chart::new(
-            Axis::linear(&format!("{dut}'s reading (°)")).with_range(0.0, 360.0),
+            Axis::linear(&format!("reading of {dut} (°)")).with_range(0.0, 360.0),
             Axis::linear("deviation − map (″)"),
         )
         .with(Series::new("increasing", Mark::Line, Colour::Blue, side(&cal.up)))

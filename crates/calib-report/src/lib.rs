@@ -23,7 +23,7 @@
 //!     .figure(plots::error_map("a-map", "a", &plots::MapLayers::of(&map)))
 //!     .table(Table::new("Summary", &["quantity", "value"]).row(["peak to peak (″)", "40.0"])));
 //! let html = doc.to_html()?;
-//! assert!(html.contains("<svg") && html.contains("reading (°)"));
+//! assert!(html.contains("<svg") && html.contains("reading of a (°)"));
 //! # Ok::<(), calib_report::PlotError>(())
 //! ```
 //!

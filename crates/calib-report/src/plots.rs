@@ -96,7 +96,7 @@ impl MapLayers {
     fn chart(&self, channel: &str, span: Option<(f64, f64)>) -> Chart {
         let inside = |p: &&(f64, f64)| span.is_none_or(|(lo, hi)| p.0 >= lo && p.0 <= hi);
         let pick = |v: &[(f64, f64)]| decimate(&v.iter().filter(inside).copied().collect::<Vec<_>>());
-        let mut x = Axis::linear(&format!("{channel}'s reading (°)"));
+        let mut x = Axis::linear(&format!("reading of {channel} (°)"));
         x = match span {
             Some((lo, hi)) => x.with_range(lo, hi),
             None => x.with_range(0.0, 360.0),
@@ -154,7 +154,7 @@ pub fn error_map(id: &str, channel: &str, layers: &MapLayers) -> Figure {
     if let (Some(res), Some((name, _))) = (layers.residual(), &layers.comparison) {
         panels.push(
             Chart::new(
-                Axis::linear(&format!("{channel}'s reading (°)")).with_range(0.0, 360.0),
+                Axis::linear(&format!("reading of {channel} (°)")).with_range(0.0, 360.0),
                 Axis::linear("residual (″)"),
             )
             .with(Series::new(
