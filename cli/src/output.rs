@@ -48,7 +48,9 @@ pub fn write_outputs(
         None => None,
     };
     let mut outputs = calib_io::atomic::OutputSet::new();
-    for (folder, what) in std::iter::once((dir, "output")).chain(plots.as_ref().map(|p| (p.0, "plots"))) {
+    for (folder, what) in
+        std::iter::once((dir, "output")).chain(plots.as_ref().map(|p| (p.0, "plots")))
+    {
         std::fs::create_dir_all(folder)
             .with_context(|| format!("cannot create the {what} folder {}", folder.display()))?;
     }

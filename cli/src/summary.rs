@@ -36,7 +36,11 @@ impl TextTable {
         let widths: Vec<usize> = (0..n).map(width).collect();
         let number_like = |cell: &str| {
             let first = cell.split_whitespace().next().unwrap_or("");
-            first == "—" || first.trim_end_matches(['″', '°', '%']).parse::<f64>().is_ok()
+            first == "—"
+                || first
+                    .trim_end_matches(['″', '°', '%'])
+                    .parse::<f64>()
+                    .is_ok()
         };
         let right: Vec<bool> = (0..n)
             .map(|c| {
@@ -78,7 +82,12 @@ pub fn key_values(rows: &[(&str, String)]) -> String {
 
 /// The closing lines of every method's summary: warnings, then what was written and what to
 /// open next.
-pub fn ending(warnings: &[String], dir: &std::path::Path, files: &[String], look_at: &str) -> String {
+pub fn ending(
+    warnings: &[String],
+    dir: &std::path::Path,
+    files: &[String],
+    look_at: &str,
+) -> String {
     let mut o = String::new();
     for w in warnings {
         let _ = writeln!(o, "\nwarning: {w}");
@@ -105,7 +114,11 @@ mod tests {
     fn columns_align_by_characters() {
         let mut t = TextTable::new(&["channel", "p-p", "table"]);
         t.row(vec!["a".into(), "51.127″".into(), "out/a.csv".into()]);
-        t.row(vec!["long_name".into(), "3.1″".into(), "out/long_name.csv".into()]);
+        t.row(vec![
+            "long_name".into(),
+            "3.1″".into(),
+            "out/long_name.csv".into(),
+        ]);
         let text = t.render();
         let lines: Vec<&str> = text.lines().collect();
         let col = |l: &str| l.chars().position(|c| c == '″');

@@ -56,8 +56,10 @@ pub fn reading(path: &Path) -> ProgressBar {
     );
     let bar = ProgressBar::with_draw_target(None, target());
     bar.set_style(
-        ProgressStyle::with_template("{spinner} reading {msg}: {human_pos} samples, {per_sec}, {elapsed}")
-            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        ProgressStyle::with_template(
+            "{spinner} reading {msg}: {human_pos} samples, {per_sec}, {elapsed}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_spinner()),
     );
     bar.set_message(name);
     bar

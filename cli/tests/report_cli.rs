@@ -39,15 +39,15 @@ fn ids(html: &str) -> Vec<&str> {
 fn check_page(html: &str, figures: &[&str]) {
     assert!(html.starts_with("<!DOCTYPE html>") && html.trim_end().ends_with("</html>"));
     for forbidden in ["<script", "<link", "src=\"", "url("] {
-        assert!(!html.contains(forbidden), "the page loads something: {forbidden}");
+        assert!(
+            !html.contains(forbidden),
+            "the page loads something: {forbidden}"
+        );
     }
     let all = ids(html);
     let unique: HashSet<&&str> = all.iter().collect();
     assert_eq!(unique.len(), all.len(), "repeated ids: {all:?}");
-    let found: Vec<&str> = all
-        .iter()
-        .filter_map(|i| i.strip_prefix("fig-"))
-        .collect();
+    let found: Vec<&str> = all.iter().filter_map(|i| i.strip_prefix("fig-")).collect();
     assert_eq!(found, figures, "figures");
     let plots = svgs(html);
     assert_eq!(plots.len(), figures.len());
@@ -57,7 +57,9 @@ fn check_page(html: &str, figures: &[&str]) {
         }
         assert!(svg.matches("<text").count() >= 8, "{id}: too few labels");
         assert!(
-            ["(°)", "(s)", "(cycles", ">\nface\n<"].iter().any(|x| svg.contains(x)),
+            ["(°)", "(s)", "(cycles", ">\nface\n<"]
+                .iter()
+                .any(|x| svg.contains(x)),
             "{id}: no x axis label with a unit"
         );
     }
@@ -83,7 +85,13 @@ fn csrr_report_shows_maps_against_the_truth_spectrum_and_timeline() {
     let summary = stdout(&o);
     assert_mentions(
         &summary,
-        &["p-p before", "→ after", "orders fitted", "report.html", "next: open"],
+        &[
+            "p-p before",
+            "→ after",
+            "orders fitted",
+            "report.html",
+            "next: open",
+        ],
     );
 
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
@@ -91,7 +99,13 @@ fn csrr_report_shows_maps_against_the_truth_spectrum_and_timeline() {
     check_page(&html, &figures);
     assert_mentions(
         &html,
-        &["command line", "--truth", "calib version", "Sessions", "151.1000"],
+        &[
+            "command line",
+            "--truth",
+            "calib version",
+            "Sessions",
+            "151.1000",
+        ],
     );
 
     let timeline = figure(&html, "timeline");
@@ -99,14 +113,22 @@ fn csrr_report_shows_maps_against_the_truth_spectrum_and_timeline() {
     let map = figure(&html, "map-a");
     assert_mentions(
         map,
-        &["reading of a (°)", "error (″)", "residual (″)", "truth − calibrated map"],
+        &[
+            "reading of a (°)",
+            "error (″)",
+            "residual (″)",
+            "truth − calibrated map",
+        ],
     );
     // The map, the dashed truth and the residual.
     assert!(map.matches("<polyline").count() >= 3);
     let zoom = figure(&html, "zoom-a");
     assert_mentions(zoom, &["one period of order 8", "(0–45°)"]);
     let spectrum = figure(&html, "spectrum");
-    assert_mentions(spectrum, &["amplitude (″)", "harmonic order (cycles per revolution)"]);
+    assert_mentions(
+        spectrum,
+        &["amplitude (″)", "harmonic order (cycles per revolution)"],
+    );
     // Two channels, one bar per fitted order each (84), minus the orders below the floor.
     let bars = spectrum.matches("<rect").count();
     assert!((100..=200).contains(&bars), "{bars} bars");
@@ -144,7 +166,13 @@ fn shift_angle_report_shows_polygon_encoder_band_and_residuals() {
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     check_page(
         &html,
-        &["map-encoder", "zoom-encoder", "spectrum", "polygon", "residuals"],
+        &[
+            "map-encoder",
+            "zoom-encoder",
+            "spectrum",
+            "polygon",
+            "residuals",
+        ],
     );
     assert_mentions(
         figure(&html, "map-encoder"),
@@ -154,7 +182,11 @@ fn shift_angle_report_shows_polygon_encoder_band_and_residuals() {
     assert_mentions(polygon, &["pitch deviation β (″)", "face"]);
     assert_eq!(polygon.matches("<rect").count() - 1, 24, "one bar per face");
     let residuals = figure(&html, "residuals");
-    assert_eq!(residuals.matches("<circle").count() - 1, 912, "one dot per reading");
+    assert_eq!(
+        residuals.matches("<circle").count() - 1,
+        912,
+        "one dot per reading"
+    );
     // Blind orders 24, 48, 72, 96 are marked on the spectrum.
     assert_mentions(figure(&html, "spectrum"), &["blind order (left out)"]);
     assert_mentions(&html, &["ν_eff", "expanded uncertainty U (95 %)"]);
@@ -172,25 +204,54 @@ fn reports_with_a_reference_encoder() {
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     check_page(
         &html,
-        &["timeline", "map-a", "zoom-a", "map-b", "zoom-b", "spectrum", "effective-range"],
+        &[
+            "timeline",
+            "map-a",
+            "zoom-a",
+            "map-b",
+            "zoom-b",
+            "spectrum",
+            "effective-range",
+        ],
     );
     assert_mentions(
         figure(&html, "map-b"),
         &["reference measurement − calibrated map", "residual (″)"],
     );
     let y = figure(&html, "effective-range");
-    assert_mentions(y, &["|Y_Ω| (1)", "order Ω (cycles per revolution)", "1 %", "100 %"]);
+    assert_mentions(
+        y,
+        &[
+            "|Y_Ω| (1)",
+            "order Ω (cycles per revolution)",
+            "1 %",
+            "100 %",
+        ],
+    );
     // One dot per order of ε_θ in the report (10), plus the legend's.
     assert_eq!(y.matches("<circle").count(), 11);
 
     let out = dir.path().join("reference");
-    let o = calib(&["reference", s(&log), "--dut", "b", "--ref", "ref", "-o", s(&out)]);
+    let o = calib(&[
+        "reference",
+        s(&log),
+        "--dut",
+        "b",
+        "--ref",
+        "ref",
+        "-o",
+        s(&out),
+    ]);
     expect_exit(&o, 0);
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     check_page(&html, &["map-b", "zoom-b", "spectrum"]);
     assert_mentions(
         &html,
-        &["E bidirectional systematic positioning deviation", "R↑ unidirectional repeatability", "expanded uncertainty (k = 2)"],
+        &[
+            "E bidirectional systematic positioning deviation",
+            "R↑ unidirectional repeatability",
+            "expanded uncertainty (k = 2)",
+        ],
     );
 }
 
@@ -238,5 +299,9 @@ fn renders_in_chromium() {
         .expect("chromium is not installed");
     assert!(status.success());
     let png = std::fs::read(Path::new(&shot)).unwrap();
-    assert!(png.starts_with(b"\x89PNG") && png.len() > 50_000, "{} bytes", png.len());
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 50_000,
+        "{} bytes",
+        png.len()
+    );
 }

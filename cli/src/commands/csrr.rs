@@ -1,8 +1,8 @@
 //! `calib csrr`: self-calibration of two coaxial sensors.
 
+use crate::document::csrr::{self as document, Comparisons};
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
-use crate::document::csrr::{self as document, Comparisons};
 use crate::output::{table_name, write_tables_and_report};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
@@ -13,8 +13,8 @@ use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report, SessionReport};
 use calib_report::trace::Trace;
 use serde_json::json;
 use std::collections::BTreeMap;
-use std::fmt::Write;
 use std::f64::consts::TAU;
+use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 /// The solver, as chosen on the command line.
@@ -148,7 +148,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         min_observability: args.min_observability,
         ..CsrrOptions::default()
     };
-    let truth = args.truth.as_deref().map(|dir| read_truth(dir, args)).transpose()?;
+    let truth = args
+        .truth
+        .as_deref()
+        .map(|dir| read_truth(dir, args))
+        .transpose()?;
     let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
     let bar = crate::ui::reading(&args.log);
@@ -357,7 +361,9 @@ fn render_summary(args: &Args, cal: &Calibration, report: &Report, cmp: &Compari
         .sessions
         .iter()
         .map(|s| s.revolutions)
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), r| (lo.min(r), hi.max(r)));
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+            (lo.min(r), hi.max(r))
+        });
     let mut facts = vec![(
         "sessions",
         format!(

@@ -1,11 +1,11 @@
 //! `calib shift-angle`: load readings (and a budget) → calibrate → render tables, report, summary.
 
+use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context as _;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::shift_angle::{self, Method, ShiftAngleResult};
 use calib_core::uncertainty::{self, BudgetResult};
 use calib_core::{ChannelReport, ErrorMap, Report};
-use crate::summary::{TextTable, ending, key_values};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -356,7 +356,10 @@ fn render_summary(
         ),
         (
             "blind",
-            format!("harmonic orders {n}, {}, … of the encoder error are invisible to this method", 2 * n),
+            format!(
+                "harmonic orders {n}, {}, … of the encoder error are invisible to this method",
+                2 * n
+            ),
         ),
     ];
     let sf = &result.sin_fit;
@@ -417,10 +420,16 @@ fn render_summary(
             top.join(", "),
         ]);
     }
-    let betas: Vec<f64> = result.polygon.iter().map(|f| f.pitch_deviation_arcsec).collect();
+    let betas: Vec<f64> = result
+        .polygon
+        .iter()
+        .map(|f| f.pitch_deviation_arcsec)
+        .collect();
     let (bmin, bmax) = betas
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| (lo.min(*b), hi.max(*b)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| {
+            (lo.min(*b), hi.max(*b))
+        });
     let beta_rms = (betas.iter().map(|b| b * b).sum::<f64>() / betas.len().max(1) as f64).sqrt();
     let bu: Vec<f64> = result.polygon.iter().filter_map(|f| f.u_arcsec).collect();
     t.row(vec![
@@ -435,7 +444,11 @@ fn render_summary(
     s += &ending(
         &report.warnings,
         &args.output,
-        &["encoder.csv".into(), "polygon.csv".into(), "report.json".into()],
+        &[
+            "encoder.csv".into(),
+            "polygon.csv".into(),
+            "report.json".into(),
+        ],
         "encoder map with its uncertainty band, pitch deviations, fit residuals",
     );
     s

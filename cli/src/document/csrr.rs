@@ -1,10 +1,10 @@
 //! The report of `calib csrr`.
 
 use super::{harmonics_table, num, provenance};
+use calib_core::ErrorMap;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::csrr::{Calibration, Method, observability::observability};
-use calib_core::ErrorMap;
 use calib_report::plots::{self, MapLayers, OrderMarks, TimelinePanel};
 use calib_report::trace::Trace;
 use calib_report::{Document, Section, Span, Table};
@@ -38,7 +38,11 @@ fn comparison(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option<(String, 
         return Some(("truth".into(), plots::map_points(if a { ta } else { tb })));
     }
     let r = cal.reference.as_ref()?;
-    let pts = if a { &r.a_vs_reference } else { &r.b_vs_reference };
+    let pts = if a {
+        &r.a_vs_reference
+    } else {
+        &r.b_vs_reference
+    };
     Some((
         "reference measurement".into(),
         pts.iter()
@@ -52,10 +56,12 @@ pub fn after_correction(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option
     let (name, pts) = comparison(cal, cmp, a)?;
     let map = if a { &cal.a } else { &cal.b };
     let res = MapLayers::of(map).compared_with(&name, pts).residual()?;
-    let (lo, hi) = res.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-        (lo.min(p.1), hi.max(p.1))
-    });
-    (lo <= hi).then(|| (name, hi - lo))
+    let (lo, hi) = res
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.1), hi.max(p.1))
+        });
+    (lo <= hi).then_some((name, hi - lo))
 }
 
 /// The document. `trace` holds three channels: A's and B's rotation (revolutions, unwrapped)
@@ -101,7 +107,13 @@ pub fn document(
         let table = r.effective_range.iter().zip(&r.eps_theta).fold(
             Table::new(
                 "Sampling non-uniformity ε_θ and the paper method's predicted residual, per order",
-                &["order Ω", "m_Ω (″)", "|Y_Ω| (1)", &format!("|Y|·A {na} (″)"), &format!("|Y|·A {nb} (″)")],
+                &[
+                    "order Ω",
+                    "m_Ω (″)",
+                    "|Y_Ω| (1)",
+                    &format!("|Y|·A {na} (″)"),
+                    &format!("|Y|·A {nb} (″)"),
+                ],
             ),
             |t, (e, m)| {
                 t.row([
@@ -142,7 +154,10 @@ fn summary(names: (&str, &str), cal: &Calibration, report: &Report, cmp: &Compar
         ]);
     if let Some(r) = cal.residual_rms {
         t = t
-            .row(["fit residual RMS per sample (″)".to_string(), num(r * ARCSEC_PER_RAD, 4)])
+            .row([
+                "fit residual RMS per sample (″)".to_string(),
+                num(r * ARCSEC_PER_RAD, 4),
+            ])
             .row(["solver iterations".to_string(), cal.iterations.to_string()]);
     }
     if let Some(adv) = cal.advice {
@@ -157,12 +172,20 @@ fn summary(names: (&str, &str), cal: &Calibration, report: &Report, cmp: &Compar
     }
     let mut channels = Table::new(
         "Maps (error = reading − true angle, zero mean)",
-        &["channel", "table", "peak to peak (″)", "RMS (″)", "after correction, peak to peak (″)"],
+        &[
+            "channel",
+            "table",
+            "peak to peak (″)",
+            "RMS (″)",
+            "after correction, peak to peak (″)",
+        ],
     );
     for (name, a) in [(names.0, true), (names.1, false)] {
         if let Some(ch) = report.channels.get(name) {
             let after = after_correction(cal, cmp, a)
-                .map_or("— (no truth or reference)".to_string(), |(n, v)| format!("{} ({n})", num(v, 3)));
+                .map_or("— (no truth or reference)".to_string(), |(n, v)| {
+                    format!("{} ({n})", num(v, 3))
+                });
             channels = channels.row([
                 name.to_string(),
                 ch.table.clone(),
@@ -209,7 +232,14 @@ fn sessions(names: (&str, &str), cal: &Calibration, trace: &Trace) -> Section {
     let table = cal.sessions.iter().fold(
         Table::new(
             "Sessions",
-            &["#", "start (s)", "end (s)", "revolutions", "samples", "relative rotation Δ (°)"],
+            &[
+                "#",
+                "start (s)",
+                "end (s)",
+                "revolutions",
+                "samples",
+                "relative rotation Δ (°)",
+            ],
         ),
         |t, s| {
             t.row([

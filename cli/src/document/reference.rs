@@ -30,7 +30,12 @@ fn iso_label(key: &str) -> &'static str {
 }
 
 /// The document.
-pub fn document(dut: &str, reference: &str, cal: &ReferenceCalibration, report: &Report) -> Document {
+pub fn document(
+    dut: &str,
+    reference: &str,
+    cal: &ReferenceCalibration,
+    report: &Report,
+) -> Document {
     let mut doc = Document::new(
         &format!("Calibration of `{dut}` against the reference `{reference}`"),
         provenance(report),
@@ -43,13 +48,21 @@ pub fn document(dut: &str, reference: &str, cal: &ReferenceCalibration, report: 
             "passes per point (fewest), increasing / decreasing".to_string(),
             format!("{} / {}", cal.min_passes.0, cal.min_passes.1),
         ])
-        .row(["largest standard uncertainty u (″)".to_string(), num(u_max, 4)]);
+        .row([
+            "largest standard uncertainty u (″)".to_string(),
+            num(u_max, 4),
+        ]);
     let iso = cal.iso.arcsec().into_iter().fold(
         Table::new(
             "ISO 230-2 figures (— where the data cannot give them)",
             &["figure", "value (″)"],
         ),
-        |t, (k, v)| t.row([iso_label(k).to_string(), v.map_or("—".into(), |v| num(v, 4))]),
+        |t, (k, v)| {
+            t.row([
+                iso_label(k).to_string(),
+                v.map_or("—".into(), |v| num(v, 4)),
+            ])
+        },
     );
     doc.push(Section::new("Summary").table(facts).table(iso));
 
@@ -109,7 +122,17 @@ fn directions(dut: &str, cal: &ReferenceCalibration, map: &[(f64, f64)]) -> Figu
             Axis::linear(&format!("reading of {dut} (°)")).with_range(0.0, 360.0),
             Axis::linear("deviation − map (″)"),
         )
-        .with(Series::new("increasing", Mark::Line, Colour::Blue, side(&cal.up)))
-        .with(Series::new("decreasing", Mark::Line, Colour::Orange, side(&cal.down))),
+        .with(Series::new(
+            "increasing",
+            Mark::Line,
+            Colour::Blue,
+            side(&cal.up),
+        ))
+        .with(Series::new(
+            "decreasing",
+            Mark::Line,
+            Colour::Orange,
+            side(&cal.down),
+        )),
     )
 }

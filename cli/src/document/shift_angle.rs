@@ -31,7 +31,10 @@ pub fn document(
     let mut layers = MapLayers::of_points(points.clone());
     let band = match budget {
         Some(b) => Some((
-            format!("expanded uncertainty U (k = {:.3}, budget)", b.coverage_factor),
+            format!(
+                "expanded uncertainty U (k = {:.3}, budget)",
+                b.coverage_factor
+            ),
             vec![b.expanded_uncertainty; points.len()],
         )),
         None => result
@@ -122,8 +125,10 @@ pub fn document(
         let all = by_face.into_iter().flat_map(|(_, v)| v).collect();
         by_face = vec![("every reading".to_string(), all)];
     }
-    let series: Vec<(&str, Vec<(f64, f64)>)> =
-        by_face.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+    let series: Vec<(&str, Vec<(f64, f64)>)> = by_face
+        .iter()
+        .map(|(n, v)| (n.as_str(), v.clone()))
+        .collect();
     let sin = result.sin_fit.shifts.iter().fold(
         Table::new(
             &format!(
@@ -132,7 +137,14 @@ pub fn document(
                 num(result.sin_fit.phase_rad, 4),
                 result.sin_fit.reference_shift_deg
             ),
-            &["shift S (°)", "start face", "U_fit (″)", "U (″)", "U_fit − U (″)", "residual RMS (″)"],
+            &[
+                "shift S (°)",
+                "start face",
+                "U_fit (″)",
+                "U (″)",
+                "U_fit − U (″)",
+                "residual RMS (″)",
+            ],
         ),
         |t, s| {
             t.row([
@@ -182,14 +194,18 @@ fn summary(
     if let Some(enc) = report.channels.get("encoder") {
         t = t
             .row(["encoder points".to_string(), enc.points.to_string()])
-            .row(["encoder error, peak to peak (″)".to_string(), num(enc.peak_to_peak_arcsec, 4)])
+            .row([
+                "encoder error, peak to peak (″)".to_string(),
+                num(enc.peak_to_peak_arcsec, 4),
+            ])
             .row(["encoder error, RMS (″)".to_string(), num(enc.rms_arcsec, 4)]);
     }
     t = t
         .row(["residual RMS (″)".to_string(), num(r.rms_arcsec, 4)])
         .row([
             "experimental standard deviation of a reading σ̂ (″)".to_string(),
-            r.sigma_arcsec.map_or("— (no redundancy)".into(), |s| num(s, 4)),
+            r.sigma_arcsec
+                .map_or("— (no redundancy)".into(), |s| num(s, 4)),
         ])
         .row(["residual degrees of freedom".to_string(), r.dof.to_string()])
         .row([
@@ -208,7 +224,10 @@ fn summary(
         ]);
     if let Some(b) = budget {
         t = t
-            .row(["combined standard uncertainty u_c (″)".to_string(), num(b.combined_standard_uncertainty, 4)])
+            .row([
+                "combined standard uncertainty u_c (″)".to_string(),
+                num(b.combined_standard_uncertainty, 4),
+            ])
             .row([
                 "effective degrees of freedom ν_eff".to_string(),
                 b.effective_dof.map_or("∞".into(), |d| d.to_string()),

@@ -482,7 +482,7 @@ where
     let (ylo, yhi) = (y_range.start, y_range.end);
     for span in &chart.spans {
         let (from, to) = (span.from.max(x.start), span.to.min(x.end));
-        if !(from < to) {
+        if from >= to {
             continue;
         }
         ctx.draw_series(std::iter::once(Rectangle::new(
@@ -506,27 +506,36 @@ where
                 c.stroke_width(2),
             ))?,
             Mark::Bars { width } => {
-                let base = if ylo > 0.0 { ylo } else { 0.0f64.clamp(ylo, yhi) };
+                let base = if ylo > 0.0 {
+                    ylo
+                } else {
+                    0.0f64.clamp(ylo, yhi)
+                };
                 ctx.draw_series(s.points.iter().map(|&(px, py)| {
                     Rectangle::new(
-                        [(px - width / 2.0, base), (px + width / 2.0, py.clamp(ylo, yhi))],
+                        [
+                            (px - width / 2.0, base),
+                            (px + width / 2.0, py.clamp(ylo, yhi)),
+                        ],
                         c.filled(),
                     )
                 }))?
             }
-            Mark::Dots => ctx.draw_series(
-                s.points
-                    .iter()
-                    .map(|&p| Circle::new(p, 3, c.filled())),
-            )?,
+            Mark::Dots => {
+                ctx.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))?
+            }
             Mark::Crosses => ctx.draw_series(
                 s.points
                     .iter()
                     .map(|&p| Cross::new(p, 5, c.stroke_width(2))),
             )?,
             Mark::Band { upper } => {
-                let outline: Vec<(f64, f64)> =
-                    s.points.iter().copied().chain(upper.iter().rev().copied()).collect();
+                let outline: Vec<(f64, f64)> = s
+                    .points
+                    .iter()
+                    .copied()
+                    .chain(upper.iter().rev().copied())
+                    .collect();
                 ctx.draw_series(std::iter::once(Polygon::new(outline, c.mix(0.25).filled())))?
             }
         };
@@ -563,12 +572,19 @@ fn draw_legend<DB: DrawingBackend>(
             Mark::Line => area.draw(&PathElement::new([(x, y), (x + 22, y)], c.stroke_width(2)))?,
             Mark::Dashed => {
                 area.draw(&PathElement::new([(x, y), (x + 8, y)], c.stroke_width(2)))?;
-                area.draw(&PathElement::new([(x + 13, y), (x + 22, y)], c.stroke_width(2)))?;
+                area.draw(&PathElement::new(
+                    [(x + 13, y), (x + 22, y)],
+                    c.stroke_width(2),
+                ))?;
             }
-            Mark::Bars { .. } => area.draw(&Rectangle::new([(x + 4, y - 6), (x + 18, y + 6)], c.filled()))?,
-            Mark::Band { .. } => {
-                area.draw(&Rectangle::new([(x, y - 6), (x + 22, y + 6)], c.mix(0.25).filled()))?
-            }
+            Mark::Bars { .. } => area.draw(&Rectangle::new(
+                [(x + 4, y - 6), (x + 18, y + 6)],
+                c.filled(),
+            ))?,
+            Mark::Band { .. } => area.draw(&Rectangle::new(
+                [(x, y - 6), (x + 22, y + 6)],
+                c.mix(0.25).filled(),
+            ))?,
             Mark::Dots => area.draw(&Circle::new((x + 11, y), 4, c.filled()))?,
             Mark::Crosses => area.draw(&Cross::new((x + 11, y), 5, c.stroke_width(2)))?,
         }
@@ -589,7 +605,12 @@ mod tests {
             "x",
             Mark::Line,
             Colour::Blue,
-            [(0.0, 1.0), (f64::NAN, 2.0), (1.0, f64::INFINITY), (2.0, 3.0)],
+            [
+                (0.0, 1.0),
+                (f64::NAN, 2.0),
+                (1.0, f64::INFINITY),
+                (2.0, 3.0),
+            ],
         );
         assert_eq!(s.points, vec![(0.0, 1.0), (2.0, 3.0)]);
     }

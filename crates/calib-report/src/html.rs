@@ -81,7 +81,11 @@ fn numeric(cell: &str) -> bool {
 }
 
 fn table(o: &mut String, t: &Table) {
-    let _ = writeln!(o, "<table>\n<caption>{}</caption>\n<tr>", escape(&t.caption));
+    let _ = writeln!(
+        o,
+        "<table>\n<caption>{}</caption>\n<tr>",
+        escape(&t.caption)
+    );
     for c in &t.columns {
         let _ = write!(o, "<th>{}</th>", escape(c));
     }

@@ -95,7 +95,8 @@ impl MapLayers {
     }
     fn chart(&self, channel: &str, span: Option<(f64, f64)>) -> Chart {
         let inside = |p: &&(f64, f64)| span.is_none_or(|(lo, hi)| p.0 >= lo && p.0 <= hi);
-        let pick = |v: &[(f64, f64)]| decimate(&v.iter().filter(inside).copied().collect::<Vec<_>>());
+        let pick =
+            |v: &[(f64, f64)]| decimate(&v.iter().filter(inside).copied().collect::<Vec<_>>());
         let mut x = Axis::linear(&format!("reading of {channel} (°)"));
         x = match span {
             Some((lo, hi)) => x.with_range(lo, hi),
@@ -111,7 +112,12 @@ impl MapLayers {
                     upper.push((x, m + h));
                 }
             }
-            chart = chart.with(Series::band(name, Colour::Grey, decimate(&lower), decimate(&upper)));
+            chart = chart.with(Series::band(
+                name,
+                Colour::Grey,
+                decimate(&lower),
+                decimate(&upper),
+            ));
         }
         if let Some((name, cmp)) = &self.comparison {
             chart = chart.with(Series::new(name, Mark::Dashed, Colour::Green, pick(cmp)));
@@ -182,7 +188,9 @@ pub fn zoom(id: &str, channel: &str, layers: &MapLayers, order: usize) -> Option
         id,
         &format!(
             "{channel}: one period of order {order} (0–{}°)",
-            format!("{period:.4}").trim_end_matches('0').trim_end_matches('.')
+            format!("{period:.4}")
+                .trim_end_matches('0')
+                .trim_end_matches('.')
         ),
         &format!(
             "The error map of {channel} over one period of its dominant harmonic, order {order}, \
@@ -244,7 +252,8 @@ pub fn spectrum(id: &str, channels: &[(&str, Vec<(usize, f64)>)], marks: &OrderM
         .unwrap_or(1);
     let width = 0.8 / channels.len().max(1) as f64;
     let mut chart = Chart::new(
-        Axis::linear("harmonic order (cycles per revolution)").with_range(0.0, max_order as f64 + 1.0),
+        Axis::linear("harmonic order (cycles per revolution)")
+            .with_range(0.0, max_order as f64 + 1.0),
         Axis::log("amplitude (″)").with_range(floor * 0.5, top * 2.0),
     );
     let colours = [Colour::Blue, Colour::Orange, Colour::Purple, Colour::Green];
@@ -259,7 +268,12 @@ pub fn spectrum(id: &str, channels: &[(&str, Vec<(usize, f64)>)], marks: &OrderM
                 .map(|&(h, a)| (h as f64 + shift, a)),
         ));
     }
-    let at_floor = |orders: &[usize]| orders.iter().map(|&h| (h as f64, floor)).collect::<Vec<_>>();
+    let at_floor = |orders: &[usize]| {
+        orders
+            .iter()
+            .map(|&h| (h as f64, floor))
+            .collect::<Vec<_>>()
+    };
     if !marks.blind.is_empty() {
         chart = chart.with(Series::new(
             "blind order (left out)",
@@ -335,7 +349,8 @@ pub fn y_chart(id: &str, y: &[(usize, f64)]) -> Figure {
     let hi = ys.fold(2.0f64, f64::max) * 2.0;
     let max_order = y.iter().map(|p| p.0).max().unwrap_or(1);
     let mut chart = Chart::new(
-        Axis::linear("order Ω (cycles per revolution)").with_range(0.0, max_order as f64 * 1.05 + 1.0),
+        Axis::linear("order Ω (cycles per revolution)")
+            .with_range(0.0, max_order as f64 * 1.05 + 1.0),
         Axis::log("|Y_Ω| (1)").with_range(lo, hi),
     )
     .with(Series::new(
@@ -405,7 +420,12 @@ pub fn scatter(
     let colours = [Colour::Blue, Colour::Orange, Colour::Purple, Colour::Green];
     let mut chart = Chart::new(Axis::linear(axes.0), Axis::linear(axes.1));
     for (k, (name, pts)) in series.iter().enumerate() {
-        chart = chart.with(Series::new(name, Mark::Dots, colours[k % colours.len()], pts.clone()));
+        chart = chart.with(Series::new(
+            name,
+            Mark::Dots,
+            colours[k % colours.len()],
+            pts.clone(),
+        ));
     }
     Figure::new(id, title, caption, chart)
 }
@@ -449,7 +469,11 @@ mod tests {
         let layers = MapLayers::of(&m).compared_with("truth", shifted);
         let res = layers.residual().unwrap();
         assert_eq!(res.len(), 361);
-        assert!(res.iter().all(|r| (r.1 - 1.0).abs() < 1e-9), "{:?}", &res[..3]);
+        assert!(
+            res.iter().all(|r| (r.1 - 1.0).abs() < 1e-9),
+            "{:?}",
+            &res[..3]
+        );
     }
 
     #[test]

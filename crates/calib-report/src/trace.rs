@@ -56,7 +56,10 @@ impl Trace {
         let half = self.buckets / 2;
         for k in 0..self.buckets {
             let merged = if k < half {
-                match (self.cells[2 * k].take(), self.cells.get_mut(2 * k + 1).and_then(Option::take)) {
+                match (
+                    self.cells[2 * k].take(),
+                    self.cells.get_mut(2 * k + 1).and_then(Option::take),
+                ) {
                     (Some(a), Some(b)) => Some(
                         a.iter()
                             .zip(&b)
@@ -120,7 +123,10 @@ mod tests {
         assert!(s.len() <= 128, "{} points", s.len());
         assert!(s.iter().any(|p| p.1 == 50.0), "the spike was lost");
         let (first, last) = (s[0].0, s[s.len() - 1].0);
-        assert!(first < 10.0 && last > 990.0, "{first}…{last} does not span the log");
+        assert!(
+            first < 10.0 && last > 990.0,
+            "{first}…{last} does not span the log"
+        );
         assert!(s.windows(2).all(|w| w[0].0 <= w[1].0));
     }
 
