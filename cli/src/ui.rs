@@ -47,7 +47,7 @@ fn target() -> ProgressDrawTarget {
     }
 }
 
-/// A spinner counting the samples of the log at `path` while it is read, with their rate: advance
+/// A spinner counting the samples of the log at `path` while it is read: advance
 /// it by [`TICK`] every [`TICK`] samples, and finish it with [`ProgressBar::finish_and_clear`].
 pub fn reading(path: &Path) -> ProgressBar {
     let name = path.file_name().map_or_else(
@@ -56,10 +56,8 @@ pub fn reading(path: &Path) -> ProgressBar {
     );
     let bar = ProgressBar::with_draw_target(None, target());
     bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} reading {msg}: {human_pos} samples, {per_sec}, {elapsed}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        ProgressStyle::with_template("{spinner} reading {msg}: {human_pos} samples ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
     );
     bar.set_message(name);
     bar

@@ -163,7 +163,8 @@ pub fn document(
                 "residuals",
                 "Residuals of the fit, per reading",
                 "Autocollimator reading minus the fitted model, at the encoder angle of the reading: \
-                 noise should look the same everywhere; a lone outlier is a misread.",
+                 noise should look the same everywhere; a lone outlier is a misread. A shift read \
+                 from one start face only has no redundancy: its readings fit exactly (residual 0).",
                 ("encoder angle (°)", "residual (″)"),
                 &series,
             ))
