@@ -25,7 +25,8 @@ const MAX_POINTS: usize = 3_600_000;
 /// reference's own error is part of the map: use a reference much better than the DUT.
 ///
 /// Writes DIR/<dut>.csv (angle_deg, error_arcsec, correction_arcsec, u_arcsec; correction =
-/// −error, applied as reading + correction(reading)) and DIR/report.json, and prints a summary.
+/// −error, applied as reading + correction(reading)), DIR/report.json and DIR/report.html (the
+/// map with its uncertainty band, the ISO 230-2 figures), and prints a summary.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
     /// The log (.csv or .mcap).
