@@ -13,6 +13,9 @@ use clap::{Parser, Subcommand};
 #[derive(Debug, Parser, PartialEq)]
 #[command(name = "calib", version, about, long_about)]
 pub struct Cli {
+    /// Options of every command.
+    #[command(flatten)]
+    pub global: crate::ui::Global,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,

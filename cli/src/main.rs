@@ -6,9 +6,12 @@
 
 mod cli;
 mod commands;
+mod document;
 mod exit;
 mod input;
 mod output;
+mod summary;
+mod ui;
 
 use clap::Parser;
 use std::io::Write;

@@ -1,8 +1,10 @@
-//! Writing a method's outputs: correction tables and `report.json`, together or not at all.
+//! Writing a method's outputs: correction tables, `report.json` and `report.html` (and the
+//! `--plots` files), together or not at all.
 
 use crate::input::file_stem;
 use anyhow::Context;
 use calib_core::ErrorMap;
+use calib_report::Document;
 use std::path::Path;
 
 /// The table file name of a channel: `<channel>.csv`, made safe as a file name.
@@ -10,25 +12,57 @@ pub fn table_name(channel: &str) -> String {
     format!("{}.csv", file_stem(channel))
 }
 
-/// Writes one table per `(channel, map, standard uncertainty)` and `report.json` into `dir`
-/// (created if missing). Every file goes to a temporary name first and all are renamed into
-/// place only when all were written, so a failed run leaves none of them behind.
+/// Writes one table per `(channel, map, standard uncertainty)`, `report.json` and the document
+/// as `report.html` into `dir`; see [`write_outputs`].
 pub fn write_tables_and_report(
     dir: &Path,
     tables: &[(&str, &ErrorMap, Option<&[f64]>)],
     report_json: &str,
+    document: &Document,
 ) -> anyhow::Result<()> {
-    let rendered = tables
+    let mut files = tables
         .iter()
-        .map(|(name, map, u)| Ok((table_name(name), calib_io::table::render_table(map, *u)?)))
+        .map(|(name, map, u)| {
+            Ok((
+                table_name(name),
+                calib_io::table::render_table(map, *u)?.into_bytes(),
+            ))
+        })
         .collect::<anyhow::Result<Vec<_>>>()?;
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
+    files.push(("report.json".to_string(), report_json.as_bytes().to_vec()));
+    write_outputs(dir, &files, document)
+}
+
+/// Writes `files` (name, contents) and the document as `report.html` into `dir`, and with
+/// `--plots DIR` every plot as SVG and PNG there (folders created if missing). Every file goes to
+/// a temporary name first and all are renamed into place only when all were written, so a failed
+/// run leaves none of them behind.
+pub fn write_outputs(
+    dir: &Path,
+    files: &[(String, Vec<u8>)],
+    document: &Document,
+) -> anyhow::Result<()> {
+    let html = document.to_html()?;
+    let plots = match crate::ui::plots_dir() {
+        Some(p) => Some((p, document.plot_files()?)),
+        None => None,
+    };
     let mut outputs = calib_io::atomic::OutputSet::new();
-    for (file, text) in &rendered {
-        outputs.add(&dir.join(file), text.as_bytes())?;
+    for (folder, what) in
+        std::iter::once((dir, "output")).chain(plots.as_ref().map(|p| (p.0, "plots")))
+    {
+        std::fs::create_dir_all(folder)
+            .with_context(|| format!("cannot create the {what} folder {}", folder.display()))?;
     }
-    outputs.add(&dir.join("report.json"), report_json.as_bytes())?;
+    for (file, bytes) in files {
+        outputs.add(&dir.join(file), bytes)?;
+    }
+    outputs.add(&dir.join("report.html"), html.as_bytes())?;
+    if let Some((folder, plot_files)) = &plots {
+        for (file, bytes) in plot_files {
+            outputs.add(&folder.join(file), bytes)?;
+        }
+    }
     outputs.commit()?;
     Ok(())
 }

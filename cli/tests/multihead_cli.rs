@@ -56,6 +56,12 @@ fn selfa_joint_meets_the_bar_and_names_the_blind_orders() {
     let out = dir.path().join("out");
     let o = calib(&["multihead", s(&log), "--heads", HEADS, "-o", s(&out)]);
     expect_exit(&o, 0);
+    // report.html: the map, its zoom and the spectrum with order 84 (lcm of 3, 4, 7) marked blind.
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    for id in ["fig-map-h1", "fig-zoom-h1", "fig-spectrum", "blind order (left out)", "h12"] {
+        assert!(html.contains(id), "report.html lacks {id}");
+    }
+    assert!(!html.contains("NaN"));
     // Bar 0.05″; measured 0.0075″.
     let err = max_diff(&out.join("h1.csv"), &dir.path().join("selfa.truth/h1.csv"));
     assert!(err < 0.05, "{err}″");

@@ -90,6 +90,11 @@ fn rolling_bearing_drag_shows_in_the_map_and_is_warned_about() {
     let o = calib(&["tdr", s(&log), "--channel", "enc", "-o", s(&out)]);
     expect_exit(&o, 0);
     assert_mentions(&stdout(&o), &["warning", "angle-dependent drag", "order 2"]);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_mentions(
+        &html,
+        &["fig-map-enc", "fig-spectrum", "changes with speed like a drag"],
+    );
     let got = read_table(&out.join("enc.csv"));
     let truth = read_table(&dir.path().join("coast.truth/enc.csv"));
     let e = max_diff(&got, &truth);

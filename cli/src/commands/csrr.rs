@@ -1,17 +1,21 @@
 //! `calib csrr`: self-calibration of two coaxial sensors.
 
+use crate::document::csrr::{self as document, Comparisons};
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
+use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
-use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
-use calib_core::{AngleUnit, ChannelReport, Report, SessionReport};
+use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report, SessionReport};
+use calib_report::trace::Trace;
 use serde_json::json;
 use std::collections::BTreeMap;
+use std::f64::consts::TAU;
 use std::fmt::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The solver, as chosen on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -34,7 +38,8 @@ pub enum MethodArg {
 ///
 /// Writes DIR/<a>.csv and DIR/<b>.csv (correction tables: angle_deg, error_arcsec,
 /// correction_arcsec; error = reading − true angle, correction = −error, as a function of the
-/// sensor's own reading, zero mean) and DIR/report.json, and prints a summary.
+/// sensor's own reading, zero mean), DIR/report.json and DIR/report.html (error maps, spectrum,
+/// session timeline), and prints a summary.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
     /// The log (.csv or .mcap).
@@ -51,6 +56,10 @@ pub struct Args {
     /// Channel of a reference encoder on B's shaft, to check the result against.
     #[arg(long = "ref")]
     pub reference: Option<String>,
+    /// A folder of true error tables `<a>.csv`, `<b>.csv` (as `calib simulate` writes beside a
+    /// simulated log) to compare the maps with in report.html.
+    #[arg(long, value_name = "DIR")]
+    pub truth: Option<PathBuf>,
     /// The solver.
     #[arg(long, value_enum, default_value_t = MethodArg::Joint)]
     pub method: MethodArg,
@@ -139,9 +148,20 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         min_observability: args.min_observability,
         ..CsrrOptions::default()
     };
+    let truth = args
+        .truth
+        .as_deref()
+        .map(|dir| read_truth(dir, args))
+        .transpose()?;
     let mut csrr = Csrr::new(opts);
-    for sample in reader.by_ref() {
+    let mut trace = TraceRecorder::new(&args.a, &args.b);
+    let bar = crate::ui::reading(&args.log);
+    for (n, sample) in reader.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        if n as u64 % crate::ui::TICK == 0 {
+            bar.inc(crate::ui::TICK);
+        }
+        trace.push(s.t, s.values[ia], s.values[ib]);
         match ir {
             Some(ir) => {
                 csrr.push_with_reference(s.t, s.values[ia], s.values[ib], s.values[ir], s.session)
@@ -149,7 +169,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             None => csrr.push(s.t, s.values[ia], s.values[ib], s.session),
         }
     }
-    let cal = csrr.finish().map_err(|e| {
+    bar.finish_and_clear();
+    let solving = crate::ui::working("solving");
+    let cal = csrr.finish();
+    solving.finish_and_clear();
+    let cal = cal.map_err(|e| {
         let pair = format!(
             "{}: channels `{}` and `{}`",
             args.log.display(),
@@ -170,15 +194,60 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
     let report = build_report(args, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
+    let comparisons = Comparisons {
+        truth: truth.as_ref().map(|(a, b)| (a, b)),
+    };
+    let doc = document::document(
+        (&args.a, &args.b),
+        &cal,
+        &report,
+        &trace.trace,
+        &comparisons,
+    );
     write_tables_and_report(
         &args.output,
         &[(&args.a, &cal.a, None), (&args.b, &cal.b, None)],
         &json,
+        &doc,
     )?;
     if args.json {
         return Ok(json);
     }
-    Ok(render_summary(args, &cal, &report))
+    Ok(render_summary(args, &cal, &report, &comparisons))
+}
+
+/// The true maps of A and B from `--truth DIR`.
+fn read_truth(dir: &Path, args: &Args) -> anyhow::Result<(ErrorMap, ErrorMap)> {
+    let read = |name: &str| {
+        let path = dir.join(table_name(name));
+        calib_io::table::read_table(&path)
+            .map(|t| t.map)
+            .with_context(|| format!("--truth: cannot read the truth of `{name}`"))
+    };
+    Ok((read(&args.a)?, read(&args.b)?))
+}
+
+/// Collects the decimated timeline of the log: both rotations unwrapped (revolutions) and
+/// their relative angle (degrees), in a fixed number of buckets whatever the log's length.
+struct TraceRecorder {
+    trace: Trace,
+    ua: Unwrapper,
+    ub: Unwrapper,
+}
+
+impl TraceRecorder {
+    fn new(a: &str, b: &str) -> Self {
+        TraceRecorder {
+            trace: Trace::new(&[a, b, &format!("{a} − {b}")], 1000),
+            ua: Unwrapper::new(),
+            ub: Unwrapper::new(),
+        }
+    }
+    fn push(&mut self, t: f64, a: f64, b: f64) {
+        let (a, b) = (self.ua.unwrap(a), self.ub.unwrap(b));
+        self.trace
+            .push(t, &[a / TAU, b / TAU, (a - b).to_degrees()]);
+    }
 }
 
 fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report {
@@ -272,7 +341,7 @@ fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report
     }
 }
 
-fn render_summary(args: &Args, cal: &Calibration, report: &Report) -> String {
+fn render_summary(args: &Args, cal: &Calibration, report: &Report, cmp: &Comparisons) -> String {
     let mut o = String::new();
     let method = match cal.method {
         Method::Joint => "joint least squares",
@@ -280,88 +349,121 @@ fn render_summary(args: &Args, cal: &Calibration, report: &Report) -> String {
     };
     let _ = writeln!(
         o,
-        "CSRR self-calibration of `{}` and `{}` — {method}",
+        "CSRR self-calibration of `{}` and `{}` — {method}\n",
         args.a, args.b
     );
-    let _ = writeln!(o, "\nsessions");
-    let _ = writeln!(
-        o,
-        "  {:>3} {:>10} {:>10} {:>7} {:>12}",
-        "#", "start s", "end s", "revs", "Δ deg"
-    );
-    for s in &cal.sessions {
-        let _ = writeln!(
-            o,
-            "  {:>3} {:>10.3} {:>10.3} {:>7.2} {:>12.4}",
-            s.index,
-            s.start_s,
-            s.end_s,
-            s.revolutions,
-            s.relative_rotation.to_degrees()
-        );
-    }
-    let _ = writeln!(o, "\nmaps (error = reading − true angle, zero mean)");
-    for (name, map) in [(&args.a, &cal.a), (&args.b, &cal.b)] {
-        let ch = &report.channels[name];
-        let top: Vec<String> = ch
-            .harmonics
-            .iter()
-            .take(4)
-            .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
-            .collect();
-        let _ = writeln!(
-            o,
-            "  {:<10} p-p {:>10.3}″  rms {:>9.3}″  largest orders {}  → {}",
-            name,
-            map.peak_to_peak() * ARCSEC_PER_RAD,
-            ch.rms_arcsec,
-            top.join(", "),
-            args.output.join(&ch.table).display()
-        );
-    }
+    let deltas: Vec<String> = cal
+        .sessions
+        .iter()
+        .map(|s| format!("{:.1}°", s.relative_rotation.to_degrees()))
+        .collect();
+    let revs = cal
+        .sessions
+        .iter()
+        .map(|s| s.revolutions)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+            (lo.min(r), hi.max(r))
+        });
+    let mut facts = vec![(
+        "sessions",
+        format!(
+            "{} of {:.2}–{:.2} revolutions at Δ = {}",
+            cal.sessions.len(),
+            revs.0,
+            revs.1,
+            if deltas.len() > 8 {
+                format!("{}, …", deltas[..8].join(", "))
+            } else {
+                deltas.join(", ")
+            }
+        ),
+    )];
     match cal.residual_rms {
         Some(r) => {
-            let _ = writeln!(
-                o,
-                "\nfit: orders 1–{} ({} left out), residual RMS {:.4}″ per sample, {} iterations",
-                cal.max_order,
-                cal.excluded.len(),
-                r * ARCSEC_PER_RAD,
-                cal.iterations
-            );
+            facts.push((
+                "orders fitted",
+                format!("1–{} ({} left out)", cal.max_order, cal.excluded.len()),
+            ));
+            facts.push((
+                "fit residual",
+                format!(
+                    "{:.4}″ RMS per sample, {} iterations",
+                    r * ARCSEC_PER_RAD,
+                    cal.iterations
+                ),
+            ));
         }
-        None => {
-            let _ = writeln!(
-                o,
-                "\n{} map points (one per session)",
-                cal.paper_points.len()
-            );
-        }
+        None => facts.push((
+            "map points",
+            format!(
+                "{} map points (one per session), orders below {}",
+                cal.paper_points.len(),
+                cal.max_order
+            ),
+        )),
     }
     if let Some(r) = &cal.reference {
-        let _ = writeln!(
-            o,
-            "against the reference: max |difference| {:.3}″ ({}), {:.3}″ ({})",
-            r.a_max_diff_arcsec, args.a, r.b_max_diff_arcsec, args.b
-        );
+        facts.push((
+            "vs reference",
+            format!(
+                "max |difference| {:.3}″ ({}), {:.3}″ ({})",
+                r.a_max_diff_arcsec, args.a, r.b_max_diff_arcsec, args.b
+            ),
+        ));
         if let Some(worst) = r.effective_range.iter().max_by(|x, y| {
             x.predicted_a_arcsec
                 .max(x.predicted_b_arcsec)
                 .total_cmp(&y.predicted_a_arcsec.max(y.predicted_b_arcsec))
         }) {
-            let _ = writeln!(
-                o,
-                "sampling non-uniformity: worst order for the paper method {} (|Y| = {:.4}, predicted residual |Y|·A {:.3}″ as published, {:.3}″ to first order)",
-                worst.order,
-                worst.y,
-                worst.predicted_a_arcsec.max(worst.predicted_b_arcsec),
-                worst.first_order_a_arcsec.max(worst.first_order_b_arcsec)
-            );
+            facts.push((
+                "sampling",
+                format!(
+                    "non-uniformity: worst order for the paper method {} (|Y| = {:.4}, predicted residual |Y|·A {:.3}″ as published, {:.3}″ to first order)",
+                    worst.order,
+                    worst.y,
+                    worst.predicted_a_arcsec.max(worst.predicted_b_arcsec),
+                    worst.first_order_a_arcsec.max(worst.first_order_b_arcsec)
+                ),
+            ));
         }
     }
-    for w in &report.warnings {
-        let _ = writeln!(o, "\nwarning: {w}");
+    o += &key_values(&facts);
+    let mut t = TextTable::new(&["channel", "p-p before", "→ after", "rms", "largest orders"]);
+    for (name, a) in [(&args.a, true), (&args.b, false)] {
+        let ch = &report.channels[name];
+        let top: Vec<String> = ch
+            .harmonics
+            .iter()
+            .take(3)
+            .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
+            .collect();
+        let after = document::after_correction(cal, cmp, a)
+            .map_or("—".to_string(), |(_, v)| format!("{v:.3}″"));
+        t.row(vec![
+            name.clone(),
+            format!("{:.3}″", ch.peak_to_peak_arcsec),
+            after,
+            format!("{:.3}″", ch.rms_arcsec),
+            top.join(", "),
+        ]);
     }
-    let _ = writeln!(o, "\nwrote {}", args.output.join("report.json").display());
+    let _ = writeln!(o, "\n{}", t.render().trim_end());
+    if cmp.truth.is_none() && cal.reference.is_none() {
+        let _ = writeln!(
+            o,
+            "  (→ after: the error left after correction, known with --truth DIR or --ref NAME)"
+        );
+    }
+    let files = vec![
+        table_name(&args.a),
+        table_name(&args.b),
+        "report.json".to_string(),
+    ];
+    o += &ending(
+        &report.warnings,
+        &args.output,
+        &files,
+        "error maps, spectrum with blind orders, session timeline",
+    );
     o
 }

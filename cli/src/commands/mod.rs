@@ -16,6 +16,7 @@ use crate::cli::{Cli, Command};
 
 /// Runs a command; returns what to print on standard output.
 pub fn run(cli: Cli) -> anyhow::Result<String> {
+    crate::ui::set(cli.global);
     match cli.command {
         Command::Inspect(args) => inspect::run(&args),
         Command::Simulate(args) => simulate::run(&args),

@@ -219,7 +219,12 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let first = &heads[0].name;
     let report = build_report(args, &heads, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
-    write_tables_and_report(&args.output, &[(first, &cal.map, None)], &json)?;
+    write_tables_and_report(
+        &args.output,
+        &[(first, &cal.map, None)],
+        &json,
+        &crate::document::multihead::document(first, &cal, &report),
+    )?;
     if args.json {
         return Ok(json);
     }

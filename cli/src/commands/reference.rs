@@ -3,6 +3,7 @@
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
+use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{ReferenceCal, ReferenceCalibration, ReferenceOptions};
@@ -24,7 +25,8 @@ const MAX_POINTS: usize = 3_600_000;
 /// reference's own error is part of the map: use a reference much better than the DUT.
 ///
 /// Writes DIR/<dut>.csv (angle_deg, error_arcsec, correction_arcsec, u_arcsec; correction =
-/// −error, applied as reading + correction(reading)) and DIR/report.json, and prints a summary.
+/// −error, applied as reading + correction(reading)), DIR/report.json and DIR/report.html (the
+/// map with its uncertainty band, the ISO 230-2 figures), and prints a summary.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
     /// The log (.csv or .mcap).
@@ -92,6 +94,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let mut reader = open_log(&args.log, args.unit)?;
     let id = channel(&reader, &args.log, &args.dut)?;
     let ir = channel(&reader, &args.log, &args.reference)?;
+    let bar = crate::ui::reading(&args.log);
     let mut cal = ReferenceCal::new(ReferenceOptions {
         points: args.points,
         min_speed: args.min_speed.to_radians(),
@@ -99,10 +102,14 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         follow_tol: args.follow_tol.to_radians(),
         approach: args.approach.to_radians(),
     });
-    for sample in reader.by_ref() {
+    for (n, sample) in reader.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        if n as u64 % crate::ui::TICK == 0 {
+            bar.inc(crate::ui::TICK);
+        }
         cal.push(s.t, s.values[id], s.values[ir]);
     }
+    bar.finish_and_clear();
     let cal = cal.finish().with_context(|| {
         format!(
             "{}: DUT `{}`, reference `{}`",
@@ -116,7 +123,13 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
     let report = build_report(args, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
-    write_tables_and_report(&args.output, &[(&args.dut, &cal.map, Some(&cal.u))], &json)?;
+    let doc = crate::document::reference::document(&args.dut, &args.reference, &cal, &report);
+    write_tables_and_report(
+        &args.output,
+        &[(&args.dut, &cal.map, Some(&cal.u))],
+        &json,
+        &doc,
+    )?;
     if args.json {
         return Ok(json);
     }
@@ -150,7 +163,7 @@ fn build_report(args: &Args, cal: &ReferenceCalibration, warnings: Vec<String>) 
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "reference".to_string(),
         inputs: vec![args.log.display().to_string()],
-        command_line: None,
+        command_line: Some(crate::input::command_line()),
         channels,
         sessions: Vec::new(),
         warnings,
@@ -162,34 +175,62 @@ fn render_summary(args: &Args, cal: &ReferenceCalibration, report: &Report) -> S
     let mut o = String::new();
     let _ = writeln!(
         o,
-        "Reference calibration of `{}` against `{}` — {:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
-        args.dut, args.reference, cal.revolutions, cal.min_passes.0, cal.min_passes.1
+        "Reference calibration of `{}` against `{}`\n",
+        args.dut, args.reference
     );
+    let iso: std::collections::BTreeMap<_, _> = cal.iso.arcsec().into_iter().collect();
+    let fmt = |k: &str| {
+        iso.get(k)
+            .copied()
+            .flatten()
+            .map_or("—".to_string(), |v| format!("{v:.3}″"))
+    };
+    let u_max = cal.u.iter().fold(0.0f64, |m, u| m.max(*u)) * ARCSEC_PER_RAD;
+    o += &key_values(&[
+        (
+            "run",
+            format!(
+                "{:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
+                cal.revolutions, cal.min_passes.0, cal.min_passes.1
+            ),
+        ),
+        (
+            "ISO 230-2",
+            format!(
+                "systematic E {}, reversal B {}, repeatability R {}, accuracy A {}",
+                fmt("systematic"),
+                fmt("reversal"),
+                fmt("repeatability"),
+                fmt("accuracy")
+            ),
+        ),
+    ]);
     let ch = &report.channels[&args.dut];
     let top: Vec<String> = ch
         .harmonics
         .iter()
-        .take(4)
+        .take(3)
         .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
         .collect();
-    let u_max = cal.u.iter().fold(0.0f64, |m, u| m.max(*u)) * ARCSEC_PER_RAD;
+    let mut t = TextTable::new(&["channel", "p-p before", "rms", "max u", "largest orders"]);
+    t.row(vec![
+        args.dut.clone(),
+        format!("{:.3}″", ch.peak_to_peak_arcsec),
+        format!("{:.3}″", ch.rms_arcsec),
+        format!("{u_max:.3}″"),
+        top.join(", "),
+    ]);
+    let _ = writeln!(o, "\n{}", t.render().trim_end());
     let _ = writeln!(
         o,
-        "\nmap (error = DUT − reference, zero mean): p-p {:.3}″  rms {:.3}″  largest orders {}  max u {:.3}″  → {}",
-        cal.map.peak_to_peak() * ARCSEC_PER_RAD,
-        ch.rms_arcsec,
-        top.join(", "),
-        u_max,
-        args.output.join(&ch.table).display()
+        "  (error = {} − {}, zero mean; every ISO 230-2 figure is in report.json and report.html)",
+        args.dut, args.reference
     );
-    let _ = writeln!(o, "\nISO 230-2 (arcsec; — where the data cannot give it)");
-    for (name, v) in cal.iso.arcsec() {
-        let v = v.map_or("—".to_string(), |v| format!("{v:.3}"));
-        let _ = writeln!(o, "  {name:<20} {v:>10}");
-    }
-    for w in &report.warnings {
-        let _ = writeln!(o, "\nwarning: {w}");
-    }
-    let _ = writeln!(o, "\nwrote {}", args.output.join("report.json").display());
+    o += &ending(
+        &report.warnings,
+        &args.output,
+        &[ch.table.clone(), "report.json".to_string()],
+        "error map with its uncertainty band, each direction, spectrum",
+    );
     o
 }

@@ -1,5 +1,6 @@
 //! `calib shift-angle`: load readings (and a budget) → calibrate → render tables, report, summary.
 
+use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context as _;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::shift_angle::{self, Method, ShiftAngleResult};
@@ -35,6 +36,9 @@ use std::path::PathBuf;
 ///                and `details`: β, the setup error U of every start face and shift, the
 ///                residuals of the fit (a check of the measurement), the sin-fit check of
 ///                section 3.1, the budget.
+///
+///   report.html  the encoder map with its uncertainty band, the polygon's pitch deviations,
+///                the fit residuals per reading, and the numbers as tables.
 ///
 /// The method cannot see harmonics of orders n, 2n, … of the encoder error (the closure of each
 /// shift, eq. 2, removes them), like the traditional polygon calibration.
@@ -96,21 +100,18 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let report = build_report(args, &readings, &result, budget.as_ref())?;
     let report_json = serde_json::to_string_pretty(&report)? + "\n";
 
-    std::fs::create_dir_all(&args.output).with_context(|| {
-        format!(
-            "cannot create the output directory {}",
-            args.output.display()
-        )
-    })?;
     let encoder_csv = render_encoder(&result, budget.as_ref());
     let polygon_csv = render_polygon(&result);
-    for (name, text) in [
-        ("encoder.csv", &encoder_csv),
-        ("polygon.csv", &polygon_csv),
-        ("report.json", &report_json),
-    ] {
-        calib_io::atomic::write_atomic(&args.output.join(name), text.as_bytes())?;
-    }
+    let doc = crate::document::shift_angle::document(&readings, &result, budget.as_ref(), &report);
+    crate::output::write_outputs(
+        &args.output,
+        &[
+            ("encoder.csv".into(), encoder_csv.into_bytes()),
+            ("polygon.csv".into(), polygon_csv.into_bytes()),
+            ("report.json".into(), report_json.clone().into_bytes()),
+        ],
+        &doc,
+    )?;
     if args.json {
         Ok(report_json)
     } else {
@@ -304,7 +305,7 @@ fn build_report(
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "shift-angle".into(),
         inputs,
-        command_line: Some(std::env::args().collect::<Vec<_>>().join(" ")),
+        command_line: Some(crate::input::command_line()),
         channels: [("encoder".to_string(), channel)].into_iter().collect(),
         sessions: Vec::new(),
         warnings,
@@ -326,105 +327,129 @@ fn render_summary(
         Method::Joint => "joint least-squares fit",
         Method::Paper => "the paper's two steps",
     };
-    let _ = writeln!(
-        s,
-        "shift-angle ({estimator}): {n} faces, {} shift(s) {}°…{}°, {} readings",
-        shifts.len(),
-        deg(shifts[0].shift_deg),
-        deg(shifts[shifts.len() - 1].shift_deg),
-        readings.len()
-    );
-    if let Some(enc) = report.channels.get("encoder") {
-        let _ = write!(
-            s,
-            "encoder: {} points, peak-to-peak {:.4}″, RMS {:.4}″",
-            enc.points, enc.peak_to_peak_arcsec, enc.rms_arcsec
-        );
-        let top: Vec<String> = enc
-            .harmonics
-            .iter()
-            .take(3)
-            .map(|h| format!("order {} {:.4}″", h.order, h.amplitude_arcsec))
-            .collect();
-        if !top.is_empty() {
-            let _ = write!(s, "; largest harmonics: {}", top.join(", "));
-        }
-        s.push('\n');
-    }
-    let (bmin, bmax) =
-        result
-            .polygon
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
-                (
-                    lo.min(f.pitch_deviation_arcsec),
-                    hi.max(f.pitch_deviation_arcsec),
-                )
-            });
-    let _ = writeln!(
-        s,
-        "polygon: pitch deviations {bmin:+.4}″ … {bmax:+.4}″ (Σβ = 0)"
-    );
+    let _ = writeln!(s, "shift-angle calibration ({estimator})\n");
     let r = &result.residuals;
-    let _ = write!(s, "residuals: RMS {:.4}″", r.rms_arcsec);
-    if let Some(sigma) = r.sigma_arcsec {
-        let _ = write!(s, ", σ̂ {sigma:.4}″ ({} dof)", r.dof);
-    }
-    let _ = writeln!(
-        s,
-        ", largest {:.4}″ at shift {}°, start face {}, step {}",
-        r.max_abs_arcsec,
-        deg(r.max_at_shift_deg),
-        r.max_at_start_face,
-        r.max_at_step
-    );
-    let us: Vec<f64> = result.points.iter().filter_map(|p| p.u_arcsec).collect();
-    if !us.is_empty() {
-        let lo = us.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = us.iter().copied().fold(0.0, f64::max);
-        let _ = writeln!(s, "fit standard uncertainty of α: {lo:.4}″ … {hi:.4}″");
-    }
+    let mut facts = vec![
+        (
+            "readings",
+            format!(
+                "{} of a {n}-face polygon, {} shift(s) {}°…{}°",
+                readings.len(),
+                shifts.len(),
+                deg(shifts[0].shift_deg),
+                deg(shifts[shifts.len() - 1].shift_deg),
+            ),
+        ),
+        (
+            "fit residual",
+            format!(
+                "RMS {:.4}″{}, largest {:.4}″ at shift {}°, start face {}, step {}",
+                r.rms_arcsec,
+                r.sigma_arcsec
+                    .map(|sigma| format!(", σ̂ {sigma:.4}″ ({} dof)", r.dof))
+                    .unwrap_or_default(),
+                r.max_abs_arcsec,
+                deg(r.max_at_shift_deg),
+                r.max_at_start_face,
+                r.max_at_step
+            ),
+        ),
+        (
+            "blind",
+            format!(
+                "harmonic orders {n}, {}, … of the encoder error are invisible to this method",
+                2 * n
+            ),
+        ),
+    ];
     let sf = &result.sin_fit;
     let worst = sf
         .shifts
         .iter()
         .map(|x| x.difference_arcsec.abs())
         .fold(0.0, f64::max);
-    let _ = writeln!(
-        s,
-        "sin-fit check (A, B from S = {}°): A = {:.4}″, B = {:.4} rad; max |U_fit − U| = {:.1e}″",
-        deg(sf.reference_shift_deg),
-        sf.amplitude_arcsec,
-        sf.phase_rad,
-        worst
-    );
+    facts.push((
+        "sin-fit check",
+        format!(
+            "A = {:.4}″, B = {:.4} rad from S = {}°; max |U_fit − U| = {worst:.1e}″",
+            sf.amplitude_arcsec,
+            sf.phase_rad,
+            deg(sf.reference_shift_deg)
+        ),
+    ));
     if let Some(b) = budget {
-        let _ = writeln!(
-            s,
-            "budget: u_c = {:.4}″, ν_eff = {}, k = {:.3}, U = {:.4}″ ({} %), attached to every point",
-            b.combined_standard_uncertainty,
-            b.effective_dof
-                .map(|d| d.to_string())
-                .unwrap_or_else(|| "∞".into()),
-            b.coverage_factor,
-            b.expanded_uncertainty,
-            b.level * 100.0
-        );
+        facts.push((
+            "budget",
+            format!(
+                "u_c = {:.4}″, ν_eff = {}, k = {:.3}, U = {:.4}″ ({} %), attached to every point",
+                b.combined_standard_uncertainty,
+                b.effective_dof
+                    .map(|d| d.to_string())
+                    .unwrap_or_else(|| "∞".into()),
+                b.coverage_factor,
+                b.expanded_uncertainty,
+                b.level * 100.0
+            ),
+        ));
     }
-    let _ = writeln!(
-        s,
-        "blind: harmonic orders {n}, {}, … of the encoder error are invisible to this method",
-        2 * n
-    );
-    for w in &report.warnings {
-        let _ = writeln!(s, "warning: {w}");
+    s += &key_values(&facts);
+    let us: Vec<f64> = result.points.iter().filter_map(|p| p.u_arcsec).collect();
+    let u_range = |v: &[f64]| {
+        if v.is_empty() {
+            "—".to_string()
+        } else {
+            let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = v.iter().copied().fold(0.0, f64::max);
+            format!("{lo:.4}…{hi:.4}″")
+        }
+    };
+    let mut t = TextTable::new(&["", "points", "p-p", "rms", "fit u", "largest"]);
+    if let Some(enc) = report.channels.get("encoder") {
+        let top: Vec<String> = enc
+            .harmonics
+            .iter()
+            .take(3)
+            .map(|h| format!("order {} {:.4}″", h.order, h.amplitude_arcsec))
+            .collect();
+        t.row(vec![
+            "encoder".into(),
+            format!("{} points", enc.points),
+            format!("{:.4}″", enc.peak_to_peak_arcsec),
+            format!("{:.4}″", enc.rms_arcsec),
+            u_range(&us),
+            top.join(", "),
+        ]);
     }
-    let _ = writeln!(
-        s,
-        "wrote {}, {}, {}",
-        args.output.join("encoder.csv").display(),
-        args.output.join("polygon.csv").display(),
-        args.output.join("report.json").display()
+    let betas: Vec<f64> = result
+        .polygon
+        .iter()
+        .map(|f| f.pitch_deviation_arcsec)
+        .collect();
+    let (bmin, bmax) = betas
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| {
+            (lo.min(*b), hi.max(*b))
+        });
+    let beta_rms = (betas.iter().map(|b| b * b).sum::<f64>() / betas.len().max(1) as f64).sqrt();
+    let bu: Vec<f64> = result.polygon.iter().filter_map(|f| f.u_arcsec).collect();
+    t.row(vec![
+        "polygon β".into(),
+        format!("{n} faces"),
+        format!("{:.4}″", bmax - bmin),
+        format!("{beta_rms:.4}″"),
+        u_range(&bu),
+        format!("{bmin:+.4}″ … {bmax:+.4}″ (Σβ = 0)"),
+    ]);
+    let _ = writeln!(s, "\n{}", t.render().trim_end());
+    s += &ending(
+        &report.warnings,
+        &args.output,
+        &[
+            "encoder.csv".into(),
+            "polygon.csv".into(),
+            "report.json".into(),
+        ],
+        "encoder map with its uncertainty band, pitch deviations, fit residuals",
     );
     s
 }

@@ -128,7 +128,12 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
     let report = build_report(args, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
-    write_tables_and_report(&args.output, &[(&args.channel, &cal.map, None)], &json)?;
+    write_tables_and_report(
+        &args.output,
+        &[(&args.channel, &cal.map, None)],
+        &json,
+        &crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, &report),
+    )?;
     if args.json {
         return Ok(json);
     }

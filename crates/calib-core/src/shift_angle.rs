@@ -344,6 +344,21 @@ pub struct Residuals {
     pub max_at_step: usize,
 }
 
+/// The residual `ε − model` of one reading.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ReadingResidual {
+    /// The shift, degrees.
+    pub shift_deg: f64,
+    /// The start face `j`.
+    pub start_face: usize,
+    /// The step `i` (1..n).
+    pub step: usize,
+    /// The encoder angle of the reading, `(i−1)·360°/n + S`, degrees.
+    pub angle_deg: f64,
+    /// `ε_ij − model`, arcsec.
+    pub residual_arcsec: f64,
+}
+
 /// The sin-fit check of section 3.1 for one shift.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SinFitShift {
@@ -390,6 +405,8 @@ pub struct ShiftAngleResult {
     pub setup_errors: Vec<SetupError>,
     /// The residuals of the estimate.
     pub residuals: Residuals,
+    /// The residual of every reading, in the order of the readings.
+    pub reading_residuals: Vec<ReadingResidual>,
     /// The sin-fit check.
     pub sin_fit: SinFit,
 }
@@ -404,6 +421,17 @@ pub fn calibrate(readings: &Readings, method: Method) -> Result<ShiftAngleResult
     let n = readings.faces;
     let pitch = 360.0 / n as f64;
     let residuals = residuals(readings, &est);
+    let mut reading_residuals = Vec::with_capacity(readings.len());
+    for_each_residual(readings, &est, |s, r, i, res| {
+        let shift = &readings.shifts[s];
+        reading_residuals.push(ReadingResidual {
+            shift_deg: shift.shift_deg,
+            start_face: shift.rows[r].start_face,
+            step: i + 1,
+            angle_deg: i as f64 * pitch + shift.shift_deg,
+            residual_arcsec: res,
+        });
+    });
     let mut points = Vec::with_capacity(readings.shifts.len() * n);
     for (s, shift) in readings.shifts.iter().enumerate() {
         for i in 0..n {
@@ -443,6 +471,7 @@ pub fn calibrate(readings: &Readings, method: Method) -> Result<ShiftAngleResult
         polygon,
         setup_errors,
         residuals,
+        reading_residuals,
         sin_fit,
     })
 }

@@ -176,7 +176,10 @@ fn paper_method_is_accurate_unless_eps_theta_shares_an_order() {
         );
     }
     let ratio = doubled / shared;
-    assert!((1.7..2.3).contains(&ratio), "residual ratio {ratio:.3} for m doubled");
+    assert!(
+        (1.7..2.3).contains(&ratio),
+        "residual ratio {ratio:.3} for m doubled"
+    );
 }
 
 /// Sessions at 0°, 90°, 180°, 270° cannot see orders that are multiples of 4: they are left out

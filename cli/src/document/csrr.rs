@@ -1,0 +1,284 @@
+//! The report of `calib csrr`.
+
+use super::{harmonics_table, num, provenance};
+use calib_core::ErrorMap;
+use calib_core::Report;
+use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::csrr::{Calibration, Method, observability::observability};
+use calib_report::plots::{self, MapLayers, OrderMarks, TimelinePanel};
+use calib_report::trace::Trace;
+use calib_report::{Document, Section, Span, Table};
+
+/// Observability below which a fitted order counts as ill-conditioned (noise amplified more
+/// than about 3×).
+pub const ILL_CONDITIONED: f64 = 0.1;
+
+/// What the report compares each map with: a truth (from `--truth`) or the reference encoder.
+pub struct Comparisons<'a> {
+    /// The truth maps of A and B, where given.
+    pub truth: Option<(&'a ErrorMap, &'a ErrorMap)>,
+}
+
+/// The fitted orders whose observability is below [`ILL_CONDITIONED`] (not left out).
+pub fn ill_conditioned(cal: &Calibration) -> Vec<usize> {
+    if cal.method != Method::Joint {
+        return Vec::new();
+    }
+    let deltas: Vec<f64> = cal.sessions.iter().map(|s| s.absolute_rotation).collect();
+    let weights: Vec<f64> = cal.sessions.iter().map(|s| s.samples as f64).collect();
+    (1..=cal.max_order)
+        .filter(|h| !cal.excluded.iter().any(|e| e.order == *h))
+        .filter(|&h| observability(h, &deltas, &weights) < ILL_CONDITIONED)
+        .collect()
+}
+
+/// The comparison of channel A (`a = true`) or B: its truth, else what the reference says.
+fn comparison(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option<(String, Vec<(f64, f64)>)> {
+    if let Some((ta, tb)) = cmp.truth {
+        return Some(("truth".into(), plots::map_points(if a { ta } else { tb })));
+    }
+    let r = cal.reference.as_ref()?;
+    let pts = if a {
+        &r.a_vs_reference
+    } else {
+        &r.b_vs_reference
+    };
+    Some((
+        "reference measurement".into(),
+        pts.iter()
+            .map(|(x, e)| (x.to_degrees(), e * ARCSEC_PER_RAD))
+            .collect(),
+    ))
+}
+
+/// The largest |comparison − map| of channel A or B, arcsec (the error left after correction).
+pub fn after_correction(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option<(String, f64)> {
+    let (name, pts) = comparison(cal, cmp, a)?;
+    let map = if a { &cal.a } else { &cal.b };
+    let res = MapLayers::of(map).compared_with(&name, pts).residual()?;
+    let (lo, hi) = res
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.1), hi.max(p.1))
+        });
+    (lo <= hi).then_some((name, hi - lo))
+}
+
+/// The document. `trace` holds three channels: A's and B's rotation (revolutions, unwrapped)
+/// and their relative angle (degrees).
+pub fn document(
+    names: (&str, &str),
+    cal: &Calibration,
+    report: &Report,
+    trace: &Trace,
+    cmp: &Comparisons,
+) -> Document {
+    let (na, nb) = names;
+    let mut doc = Document::new(
+        &format!("CSRR self-calibration of `{na}` and `{nb}`"),
+        provenance(report),
+    );
+    doc.warnings = report.warnings.clone();
+    doc.push(summary(names, cal, report, cmp));
+    doc.push(sessions(names, cal, trace));
+    for (name, map, a) in [(na, &cal.a, true), (nb, &cal.b, false)] {
+        let mut layers = MapLayers::of(map);
+        if let Some((label, pts)) = comparison(cal, cmp, a) {
+            layers = layers.compared_with(&label, pts);
+        }
+        let mut s = Section::new(&format!("Sensor {name}")).figure(plots::error_map(
+            &format!("map-{name}"),
+            name,
+            &layers,
+        ));
+        if let Some(z) = plots::dominant_order(map)
+            .and_then(|h| plots::zoom(&format!("zoom-{name}"), name, &layers, h))
+        {
+            s = s.figure(z);
+        }
+        if let Some(ch) = report.channels.get(name) {
+            s = s.table(harmonics_table(name, ch));
+        }
+        doc.push(s);
+    }
+    doc.push(spectrum(names, cal));
+    if let Some(r) = &cal.reference {
+        let y: Vec<(usize, f64)> = r.effective_range.iter().map(|e| (e.order, e.y)).collect();
+        let table = r.effective_range.iter().zip(&r.eps_theta).fold(
+            Table::new(
+                "Sampling non-uniformity ε_θ and the paper method's predicted residual, per order",
+                &[
+                    "order Ω",
+                    "m_Ω (″)",
+                    "|Y_Ω| (1)",
+                    &format!("|Y|·A {na} (″)"),
+                    &format!("|Y|·A {nb} (″)"),
+                ],
+            ),
+            |t, (e, m)| {
+                t.row([
+                    e.order.to_string(),
+                    num(m.amplitude_arcsec, 4),
+                    num(e.y, 5),
+                    num(e.predicted_a_arcsec, 4),
+                    num(e.predicted_b_arcsec, 4),
+                ])
+            },
+        );
+        doc.push(
+            Section::new("Reference encoder check")
+                .text(&format!(
+                    "Largest |map − map against the reference|: {} ″ ({na}), {} ″ ({nb}); the \
+                     reference's own error is part of the difference.",
+                    num(r.a_max_diff_arcsec, 3),
+                    num(r.b_max_diff_arcsec, 3)
+                ))
+                .figure(plots::y_chart("effective-range", &y))
+                .table(table),
+        );
+    }
+    doc
+}
+
+fn summary(names: (&str, &str), cal: &Calibration, report: &Report, cmp: &Comparisons) -> Section {
+    let solver = match cal.method {
+        Method::Joint => "joint least squares",
+        Method::Paper => "paper (eqs. 4–7)",
+    };
+    let mut t = Table::new("Result", &["quantity", "value"])
+        .row(["solver".to_string(), solver.to_string()])
+        .row(["sessions used".to_string(), cal.sessions.len().to_string()])
+        .row([
+            "orders fitted".to_string(),
+            format!("1–{} ({} left out)", cal.max_order, cal.excluded.len()),
+        ]);
+    if let Some(r) = cal.residual_rms {
+        t = t
+            .row([
+                "fit residual RMS per sample (″)".to_string(),
+                num(r * ARCSEC_PER_RAD, 4),
+            ])
+            .row(["solver iterations".to_string(), cal.iterations.to_string()]);
+    }
+    if let Some(adv) = cal.advice {
+        t = t.row([
+            "one more session at (°)".to_string(),
+            format!(
+                "{:.1} (would raise the worst observability to {:.2})",
+                adv.extra_rotation.to_degrees(),
+                adv.min_observability
+            ),
+        ]);
+    }
+    let mut channels = Table::new(
+        "Maps (error = reading − true angle, zero mean)",
+        &[
+            "channel",
+            "table",
+            "peak to peak (″)",
+            "RMS (″)",
+            "after correction, peak to peak (″)",
+        ],
+    );
+    for (name, a) in [(names.0, true), (names.1, false)] {
+        if let Some(ch) = report.channels.get(name) {
+            let after = after_correction(cal, cmp, a)
+                .map_or("— (no truth or reference)".to_string(), |(n, v)| {
+                    format!("{} ({n})", num(v, 3))
+                });
+            channels = channels.row([
+                name.to_string(),
+                ch.table.clone(),
+                num(ch.peak_to_peak_arcsec, 3),
+                num(ch.rms_arcsec, 3),
+                after,
+            ]);
+        }
+    }
+    Section::new("Summary").table(t).table(channels)
+}
+
+fn sessions(names: (&str, &str), cal: &Calibration, trace: &Trace) -> Section {
+    let spans: Vec<Span> = cal
+        .sessions
+        .iter()
+        .map(|s| Span {
+            from: s.start_s,
+            to: s.end_s,
+            label: format!("#{}", s.index),
+        })
+        .collect();
+    let fig = plots::timeline(
+        "timeline",
+        "Session timeline",
+        &format!(
+            "Top: rotation of {} and {} (revolutions, unwrapped); bottom: their relative angle. \
+             Shaded: the sessions used, numbered as in the table.",
+            names.0, names.1
+        ),
+        trace,
+        &[
+            TimelinePanel {
+                label: "rotation (rev)".into(),
+                channels: vec![0, 1],
+            },
+            TimelinePanel {
+                label: format!("{} − {} (°)", names.0, names.1),
+                channels: vec![2],
+            },
+        ],
+        &spans,
+    );
+    let table = cal.sessions.iter().fold(
+        Table::new(
+            "Sessions",
+            &[
+                "#",
+                "start (s)",
+                "end (s)",
+                "revolutions",
+                "samples",
+                "relative rotation Δ (°)",
+            ],
+        ),
+        |t, s| {
+            t.row([
+                s.index.to_string(),
+                num(s.start_s, 3),
+                num(s.end_s, 3),
+                num(s.revolutions, 2),
+                s.samples.to_string(),
+                num(s.relative_rotation.to_degrees(), 4),
+            ])
+        },
+    );
+    Section::new("Sessions").figure(fig).table(table)
+}
+
+fn spectrum(names: (&str, &str), cal: &Calibration) -> Section {
+    let marks = OrderMarks {
+        blind: cal.excluded.iter().map(|e| e.order).collect(),
+        ill_conditioned: ill_conditioned(cal),
+        ill_conditioned_name: format!("ill-conditioned (observability < {ILL_CONDITIONED})"),
+    };
+    let max = cal.max_order.max(1);
+    let fig = plots::spectrum(
+        "spectrum",
+        &[
+            (names.0, plots::amplitudes(&cal.a, max)),
+            (names.1, plots::amplitudes(&cal.b, max)),
+        ],
+        &marks,
+    );
+    let mut s = Section::new("Harmonic spectrum").figure(fig);
+    if !cal.excluded.is_empty() {
+        s = s.table(cal.excluded.iter().fold(
+            Table::new(
+                "Orders left out: the sessions' relative rotations cannot separate them",
+                &["order", "observability (0 blind … 1 ideal)"],
+            ),
+            |t, e| t.row([e.order.to_string(), num(e.observability, 4)]),
+        ));
+    }
+    s
+}

@@ -1,0 +1,79 @@
+//! What every command shares about presentation: the global options (`--quiet`, `--plots`) and
+//! progress bars on standard error.
+//!
+//! The options are set once, from `main`, before the command runs; the bars read them, and so
+//! does the output writer (for `--plots`), so a method command gets both without passing them
+//! around.
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+/// Options of every command (clap `global`: accepted before or after the subcommand).
+#[derive(Debug, Clone, Default, PartialEq, clap::Args)]
+pub struct Global {
+    /// No progress bars on standard error (they are hidden anyway when it is not a terminal).
+    #[arg(long, short = 'q', global = true)]
+    pub quiet: bool,
+    /// Also write every plot of report.html as a standalone SVG and PNG into DIR (method
+    /// commands).
+    #[arg(long, global = true, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
+}
+
+static GLOBAL: OnceLock<Global> = OnceLock::new();
+
+/// Sets the global options; the first call wins.
+pub fn set(global: Global) {
+    let _ = GLOBAL.set(global);
+}
+
+fn global() -> &'static Global {
+    GLOBAL.get_or_init(Global::default)
+}
+
+/// The `--plots` folder, if given.
+pub fn plots_dir() -> Option<&'static Path> {
+    global().plots.as_deref()
+}
+
+fn target() -> ProgressDrawTarget {
+    if global().quiet {
+        ProgressDrawTarget::hidden()
+    } else {
+        // indicatif draws nothing when standard error is not a terminal (CI logs stay clean).
+        ProgressDrawTarget::stderr()
+    }
+}
+
+/// A spinner counting the samples of the log at `path` while it is read: advance
+/// it by [`TICK`] every [`TICK`] samples, and finish it with [`ProgressBar::finish_and_clear`].
+pub fn reading(path: &Path) -> ProgressBar {
+    let name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let bar = ProgressBar::with_draw_target(None, target());
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} reading {msg}: {human_pos} samples ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar.set_message(name);
+    bar
+}
+
+/// A spinner with the elapsed time, for a step without a measure of progress (a solve).
+pub fn working(what: &str) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(None, target());
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar.set_message(what.to_string());
+    bar.enable_steady_tick(Duration::from_millis(120));
+    bar
+}
+
+/// Advances the reading bar every this many samples (drawing on each would cost time).
+pub const TICK: u64 = 4096;
