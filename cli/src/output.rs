@@ -11,13 +11,14 @@ pub fn table_name(channel: &str) -> String {
 }
 
 /// Writes one table per `(channel, map, standard uncertainty)` and `report.json` into `dir`
-/// (created if missing). Every file goes to a temporary name first and all are renamed into
-/// place only when all were written, so a failed run leaves none of them behind.
+/// (created if missing); returns the names of the files written. Every file goes to a temporary
+/// name first and all are renamed into place only when all were written, so a failed run leaves
+/// none of them behind.
 pub fn write_tables_and_report(
     dir: &Path,
     tables: &[(&str, &ErrorMap, Option<&[f64]>)],
     report_json: &str,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<String>> {
     let rendered = tables
         .iter()
         .map(|(name, map, u)| Ok((table_name(name), calib_io::table::render_table(map, *u)?)))
@@ -30,5 +31,7 @@ pub fn write_tables_and_report(
     }
     outputs.add(&dir.join("report.json"), report_json.as_bytes())?;
     outputs.commit()?;
-    Ok(())
+    let mut files: Vec<String> = rendered.into_iter().map(|(file, _)| file).collect();
+    files.push("report.json".into());
+    Ok(files)
 }

@@ -1,5 +1,6 @@
 //! `calib csrr`: self-calibration of two coaxial sensors.
 
+use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
@@ -7,11 +8,11 @@ use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
-use calib_core::{AngleUnit, ChannelReport, Report, SessionReport};
+use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report, SessionReport};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The solver, as chosen on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -34,11 +35,16 @@ pub enum MethodArg {
 ///
 /// Writes DIR/<a>.csv and DIR/<b>.csv (correction tables: angle_deg, error_arcsec,
 /// correction_arcsec; error = reading − true angle, correction = −error, as a function of the
-/// sensor's own reading, zero mean) and DIR/report.json, and prints a summary.
+/// sensor's own reading, zero mean) and DIR/report.json, and prints a summary. With several
+/// logs, each log's files go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
+///
+/// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
+/// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The log (.csv or .mcap).
-    pub log: PathBuf,
+    /// The logs (.csv or .mcap), calibrated independently and in parallel.
+    #[arg(required = true, value_name = "LOG")]
+    pub logs: Vec<PathBuf>,
     /// Output folder.
     #[arg(short, long = "output", default_value = "calib-out")]
     pub output: PathBuf,
@@ -80,9 +86,13 @@ pub struct Args {
     /// Benchmark readings of A and B for `--method paper`, degrees.
     #[arg(long, num_args = 2, value_names = ["A_DEG", "B_DEG"], default_values_t = [0.0, 0.0])]
     pub benchmarks: Vec<f64>,
-    /// Print report.json on standard output instead of the summary.
+    /// Print report.json on standard output instead of the summary (summary.json with several
+    /// logs).
     #[arg(long)]
     pub json: bool,
+    /// Pipelines and gates.
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 /// Runs `calib csrr`.
@@ -110,13 +120,25 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.max_order == Some(0) {
         return Err(Usage("--max-order must be at least 1".into()).into());
     }
-    let mut reader = open_log(&args.log, args.unit)?;
-    let ia = channel(&reader, &args.log, &args.a)?;
-    let ib = channel(&reader, &args.log, &args.b)?;
+    batch::run(
+        "csrr",
+        &args.logs,
+        &args.output,
+        &args.batch,
+        args.json,
+        |log, out| calibrate(args, log, out),
+    )
+}
+
+/// Calibrates one log into the folder `out`.
+fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
+    let mut reader = open_log(log, args.unit)?;
+    let ia = channel(&reader, log, &args.a)?;
+    let ib = channel(&reader, log, &args.b)?;
     let ir = args
         .reference
         .as_deref()
-        .map(|r| channel(&reader, &args.log, r))
+        .map(|r| channel(&reader, log, r))
         .transpose()?;
     let opts = CsrrOptions {
         method: match args.method {
@@ -141,7 +163,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     };
     let mut csrr = Csrr::new(opts);
     for sample in reader.by_ref() {
-        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         match ir {
             Some(ir) => {
                 csrr.push_with_reference(s.t, s.values[ia], s.values[ib], s.values[ir], s.session)
@@ -150,12 +172,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         }
     }
     let cal = csrr.finish().map_err(|e| {
-        let pair = format!(
-            "{}: channels `{}` and `{}`",
-            args.log.display(),
-            args.a,
-            args.b
-        );
+        let pair = format!("{}: channels `{}` and `{}`", log.display(), args.a, args.b);
         let context = match &e {
             CsrrError::NeverMoves { sensor } => {
                 let name = if *sensor == 'A' { &args.a } else { &args.b };
@@ -165,23 +182,59 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         };
         anyhow::Error::new(e).context(context)
     })?;
-    let mut warnings = reader.warnings(&args.log);
+    let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, &cal, warnings);
+    let report = build_report(args, log, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
-    write_tables_and_report(
-        &args.output,
+    let files = write_tables_and_report(
+        out,
         &[(&args.a, &cal.a, None), (&args.b, &cal.b, None)],
         &json,
     )?;
-    if args.json {
-        return Ok(json);
-    }
-    Ok(render_summary(args, &cal, &report))
+    let text = if args.json {
+        json
+    } else {
+        render_summary(args, out, &cal, &report)
+    };
+    let after = |map: &ErrorMap, vs_reference: &[(f64, f64)]| {
+        let d = vs_reference
+            .iter()
+            .map(|&(angle, e)| map.eval_linear(angle) - e);
+        let (lo, hi) = d.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+        (hi >= lo).then_some((hi - lo) * ARCSEC_PER_RAD)
+    };
+    let channels = [
+        (
+            &args.a,
+            &cal.a,
+            cal.reference.as_ref().map(|r| &r.a_vs_reference),
+        ),
+        (
+            &args.b,
+            &cal.b,
+            cal.reference.as_ref().map(|r| &r.b_vs_reference),
+        ),
+    ]
+    .into_iter()
+    .map(|(name, map, vs_reference)| ChannelFigures {
+        channel: name.clone(),
+        peak_to_peak_before_arcsec: report.channels[name].peak_to_peak_arcsec,
+        peak_to_peak_after_arcsec: vs_reference.and_then(|v| after(map, v)),
+    })
+    .collect();
+    Ok(Outcome {
+        text,
+        channels,
+        residual_rms_arcsec: cal.residual_rms.map(|r| r * ARCSEC_PER_RAD),
+        warnings: report.warnings,
+        files,
+    })
 }
 
-fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report {
+fn build_report(args: &Args, log: &Path, cal: &Calibration, warnings: Vec<String>) -> Report {
     let mut channels = BTreeMap::new();
     channels.insert(
         args.a.clone(),
@@ -263,7 +316,7 @@ fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report
     Report {
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "csrr".to_string(),
-        inputs: vec![args.log.display().to_string()],
+        inputs: vec![log.display().to_string()],
         command_line: Some(crate::input::command_line()),
         channels,
         sessions,
@@ -272,7 +325,7 @@ fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report
     }
 }
 
-fn render_summary(args: &Args, cal: &Calibration, report: &Report) -> String {
+fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -> String {
     let mut o = String::new();
     let method = match cal.method {
         Method::Joint => "joint least squares",
@@ -316,7 +369,7 @@ fn render_summary(args: &Args, cal: &Calibration, report: &Report) -> String {
             map.peak_to_peak() * ARCSEC_PER_RAD,
             ch.rms_arcsec,
             top.join(", "),
-            args.output.join(&ch.table).display()
+            out.join(&ch.table).display()
         );
     }
     match cal.residual_rms {
@@ -361,6 +414,6 @@ fn render_summary(args: &Args, cal: &Calibration, report: &Report) -> String {
     for w in &report.warnings {
         let _ = writeln!(o, "\nwarning: {w}");
     }
-    let _ = writeln!(o, "\nwrote {}", args.output.join("report.json").display());
+    let _ = writeln!(o, "\nwrote {}", out.join("report.json").display());
     o
 }

@@ -1,12 +1,13 @@
 //! `calib shift-angle`: load readings (and a budget) → calibrate → render tables, report, summary.
 
+use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use anyhow::Context as _;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::shift_angle::{self, Method, ShiftAngleResult};
 use calib_core::uncertainty::{self, BudgetResult};
 use calib_core::{ChannelReport, ErrorMap, Report};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Calibrate an encoder at every angle with a polygon and an autocollimator (shift-angle method).
 ///
@@ -36,13 +37,21 @@ use std::path::PathBuf;
 ///                residuals of the fit (a check of the measurement), the sin-fit check of
 ///                section 3.1, the budget.
 ///
+/// With several READINGS files, each one's files go to DIR/<file stem>/ and DIR/summary.json
+/// holds every file's verdict.
+///
 /// The method cannot see harmonics of orders n, 2n, … of the encoder error (the closure of each
 /// shift, eq. 2, removes them), like the traditional polygon calibration.
+///
+/// Exit status: 0 all calibrated and passed the gates, 1 bad or insufficient data, 2 bad usage,
+/// 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
-    /// The readings CSV (shift_deg,start_face,step,reading_arcsec).
-    pub readings: PathBuf,
+    /// The readings CSVs (shift_deg,start_face,step,reading_arcsec), calibrated independently
+    /// and in parallel.
+    #[arg(required = true, value_name = "READINGS")]
+    pub readings: Vec<PathBuf>,
     /// Output directory.
     #[arg(
         short = 'o',
@@ -63,9 +72,13 @@ pub struct Args {
     /// uncertainty are attached to every point of encoder.csv.
     #[arg(long, value_name = "FILE")]
     pub budget: Option<PathBuf>,
-    /// Print report.json to standard output instead of the summary.
+    /// Print report.json to standard output instead of the summary (summary.json with several
+    /// files).
     #[arg(long)]
     pub json: bool,
+    /// Pipelines and gates.
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 /// The estimator, on the command line.
@@ -79,7 +92,6 @@ pub enum MethodArg {
 
 /// Runs `calib shift-angle`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    let readings = calib_io::readings::read_readings(&args.readings, args.faces)?;
     let budget = match &args.budget {
         Some(path) => {
             let b = calib_io::budget::read_budget(path)?;
@@ -87,41 +99,63 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         }
         None => None,
     };
+    batch::run(
+        "shift-angle",
+        &args.readings,
+        &args.output,
+        &args.batch,
+        args.json,
+        |path, out| calibrate(args, path, out, budget.as_ref()),
+    )
+}
+
+/// Calibrates one readings file into the folder `out`.
+fn calibrate(
+    args: &Args,
+    path: &Path,
+    out: &Path,
+    budget: Option<&BudgetResult>,
+) -> anyhow::Result<Outcome> {
+    let readings = calib_io::readings::read_readings(path, args.faces)?;
     let method = match args.method {
         MethodArg::Joint => Method::Joint,
         MethodArg::Paper => Method::Paper,
     };
-    let result = shift_angle::calibrate(&readings, method)
-        .with_context(|| format!("{}", args.readings.display()))?;
-    let report = build_report(args, &readings, &result, budget.as_ref())?;
+    let result =
+        shift_angle::calibrate(&readings, method).with_context(|| format!("{}", path.display()))?;
+    let report = build_report(args, path, &readings, &result, budget)?;
     let report_json = serde_json::to_string_pretty(&report)? + "\n";
 
-    std::fs::create_dir_all(&args.output).with_context(|| {
-        format!(
-            "cannot create the output directory {}",
-            args.output.display()
-        )
-    })?;
-    let encoder_csv = render_encoder(&result, budget.as_ref());
+    std::fs::create_dir_all(out)
+        .with_context(|| format!("cannot create the output directory {}", out.display()))?;
+    let encoder_csv = render_encoder(&result, budget);
     let polygon_csv = render_polygon(&result);
-    for (name, text) in [
-        ("encoder.csv", &encoder_csv),
-        ("polygon.csv", &polygon_csv),
-        ("report.json", &report_json),
-    ] {
-        calib_io::atomic::write_atomic(&args.output.join(name), text.as_bytes())?;
+    let files = ["encoder.csv", "polygon.csv", "report.json"];
+    let mut outputs = calib_io::atomic::OutputSet::new();
+    for (name, text) in files.iter().zip([&encoder_csv, &polygon_csv, &report_json]) {
+        outputs.add(&out.join(name), text.as_bytes())?;
     }
-    if args.json {
-        Ok(report_json)
+    outputs.commit()?;
+    let text = if args.json {
+        report_json
     } else {
-        Ok(render_summary(
-            args,
-            &readings,
-            &result,
-            budget.as_ref(),
-            &report,
-        ))
-    }
+        render_summary(out, &readings, &result, budget, &report)
+    };
+    Ok(Outcome {
+        text,
+        channels: report
+            .channels
+            .iter()
+            .map(|(name, c)| ChannelFigures {
+                channel: name.clone(),
+                peak_to_peak_before_arcsec: c.peak_to_peak_arcsec,
+                peak_to_peak_after_arcsec: None,
+            })
+            .collect(),
+        residual_rms_arcsec: Some(result.residuals.rms_arcsec),
+        warnings: report.warnings,
+        files: files.map(String::from).to_vec(),
+    })
 }
 
 fn opt(v: Option<f64>) -> String {
@@ -203,6 +237,7 @@ fn uniform_map(result: &ShiftAngleResult) -> Option<ErrorMap> {
 
 fn build_report(
     args: &Args,
+    path: &Path,
     readings: &shift_angle::Readings,
     result: &ShiftAngleResult,
     budget: Option<&BudgetResult>,
@@ -296,7 +331,7 @@ fn build_report(
     if let Some(b) = budget {
         put("budget", serde_json::to_value(b)?);
     }
-    let mut inputs = vec![args.readings.display().to_string()];
+    let mut inputs = vec![path.display().to_string()];
     if let Some(b) = &args.budget {
         inputs.push(b.display().to_string());
     }
@@ -313,7 +348,7 @@ fn build_report(
 }
 
 fn render_summary(
-    args: &Args,
+    out: &Path,
     readings: &shift_angle::Readings,
     result: &ShiftAngleResult,
     budget: Option<&BudgetResult>,
@@ -422,9 +457,9 @@ fn render_summary(
     let _ = writeln!(
         s,
         "wrote {}, {}, {}",
-        args.output.join("encoder.csv").display(),
-        args.output.join("polygon.csv").display(),
-        args.output.join("report.json").display()
+        out.join("encoder.csv").display(),
+        out.join("polygon.csv").display(),
+        out.join("report.json").display()
     );
     s
 }
