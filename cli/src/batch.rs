@@ -33,7 +33,7 @@ pub struct BatchArgs {
     pub junit: Option<PathBuf>,
     /// Gate: exit 3 when a calibrated channel's peak-to-peak error exceeds ARCSEC (see
     /// --gate-on). The outputs are written all the same.
-    #[arg(long, value_name = "ARCSEC", value_parser = positive_arcsec)]
+    #[arg(long, value_name = "ARCSEC", value_parser = positive_arcsec, allow_hyphen_values = true)]
     pub max_pp: Option<f64>,
     /// What --max-pp judges. before: the calibrated map's peak-to-peak (the sensor's error
     /// without correction). after: what is left after applying the correction, where the
@@ -45,7 +45,7 @@ pub struct BatchArgs {
     pub gate_on: Option<GateOn>,
     /// Gate: exit 3 when the fit's residual RMS exceeds ARCSEC (csrr joint: per sample;
     /// shift-angle: per reading). Methods without a fit fail this gate.
-    #[arg(long, value_name = "ARCSEC", value_parser = positive_arcsec)]
+    #[arg(long, value_name = "ARCSEC", value_parser = positive_arcsec, allow_hyphen_values = true)]
     pub max_residual: Option<f64>,
     /// Gate: exit 3 when the report of a log has any warning.
     #[arg(long)]
@@ -241,7 +241,7 @@ where
     let stdout = if json {
         summary_json
     } else {
-        render_text(&results, &summary_path)
+        render_text(&results, output, &summary_path)
     };
     let code = [exit::USAGE, exit::DATA, exit::GATE]
         .into_iter()
@@ -365,10 +365,10 @@ fn judge(
 }
 
 /// Standard output for several logs: each log's summary in input order, then the verdicts.
-fn render_text(results: &[LogResult], summary_path: &Path) -> String {
+fn render_text(results: &[LogResult], output: &Path, summary_path: &Path) -> String {
     let mut s = String::new();
     for r in results {
-        let _ = writeln!(s, "=== {} → {}", r.log, r.output);
+        let _ = writeln!(s, "=== {} → {}", r.log, output.join(&r.output).display());
         match &r.error {
             Some(e) => {
                 let _ = writeln!(s, "error: {e}");
@@ -415,7 +415,7 @@ fn write_junit(path: &Path, method: &str, results: &[LogResult]) -> anyhow::Resu
 fn render_junit(method: &str, results: &[LogResult]) -> String {
     let count = |st: Status| results.iter().filter(|r| r.status == st).count();
     let (n, failures, errors) = (results.len(), count(Status::Fail), count(Status::Error));
-    let suite = xml_escape(&format!("calib {method}"));
+    let suite = xml_attr(&format!("calib {method}"));
     let mut s = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
     let _ = writeln!(
         s,
@@ -429,8 +429,8 @@ fn render_junit(method: &str, results: &[LogResult]) -> String {
         let _ = writeln!(
             s,
             "    <testcase name=\"{}\" classname=\"{}\">",
-            xml_escape(&r.log),
-            xml_escape(&format!("calib.{method}"))
+            xml_attr(&r.log),
+            xml_attr(&format!("calib.{method}"))
         );
         match r.status {
             Status::Pass => {}
@@ -438,8 +438,8 @@ fn render_junit(method: &str, results: &[LogResult]) -> String {
                 let _ = writeln!(
                     s,
                     "      <failure type=\"gate\" message=\"{}\">{}</failure>",
-                    xml_escape(&r.gate_failures[0]),
-                    xml_escape(&r.gate_failures.join("\n"))
+                    xml_attr(&r.gate_failures[0]),
+                    xml_text(&r.gate_failures.join("\n"))
                 );
             }
             Status::Error => {
@@ -452,13 +452,13 @@ fn render_junit(method: &str, results: &[LogResult]) -> String {
                 let _ = writeln!(
                     s,
                     "      <error type=\"{kind}\" message=\"{}\">{}</error>",
-                    xml_escape(e.lines().next().unwrap_or_default()),
-                    xml_escape(e)
+                    xml_attr(e.lines().next().unwrap_or_default()),
+                    xml_text(e)
                 );
             }
         }
         if !r.text.is_empty() {
-            let _ = writeln!(s, "      <system-out>{}</system-out>", xml_escape(&r.text));
+            let _ = writeln!(s, "      <system-out>{}</system-out>", xml_text(&r.text));
         }
         let _ = writeln!(s, "    </testcase>");
     }
@@ -466,10 +466,16 @@ fn render_junit(method: &str, results: &[LogResult]) -> String {
     s
 }
 
-/// `text` escaped for XML 1.0 text and attribute values: markup characters as entities, line
-/// breaks and tabs as character references (attribute values would turn them into spaces), and
-/// the control characters XML 1.0 cannot carry as U+FFFD.
-fn xml_escape(text: &str) -> String {
+/// `text` escaped for an XML 1.0 attribute value: as [`xml_text`], and line breaks and tabs as
+/// character references (a parser would turn them into spaces).
+fn xml_attr(text: &str) -> String {
+    xml_text(text).replace('\n', "&#10;").replace('\t', "&#9;")
+}
+
+/// `text` escaped for XML 1.0 character data: markup characters as entities, carriage returns
+/// as a character reference (a parser would drop them), and the control characters XML 1.0
+/// cannot carry as U+FFFD.
+fn xml_text(text: &str) -> String {
     let mut s = String::with_capacity(text.len());
     for c in text.chars() {
         match c {
@@ -478,9 +484,8 @@ fn xml_escape(text: &str) -> String {
             '>' => s.push_str("&gt;"),
             '"' => s.push_str("&quot;"),
             '\'' => s.push_str("&apos;"),
-            '\n' => s.push_str("&#10;"),
             '\r' => s.push_str("&#13;"),
-            '\t' => s.push_str("&#9;"),
+            '\n' | '\t' => s.push(c),
             c if (c as u32) < 0x20 || c == '\u{FFFE}' || c == '\u{FFFF}' => s.push('\u{FFFD}'),
             c => s.push(c),
         }
@@ -503,9 +508,12 @@ mod tests {
 
     #[test]
     fn escaping_covers_markup_line_breaks_and_forbidden_controls() {
+        let raw = "a<b & \"c\" 'd'>\n\t\r\u{1}é";
+        let text = "a&lt;b &amp; &quot;c&quot; &apos;d&apos;&gt;\n\t&#13;\u{FFFD}é";
+        assert_eq!(xml_text(raw), text);
         assert_eq!(
-            xml_escape("a<b & \"c\" 'd'>\n\u{1}é"),
-            "a&lt;b &amp; &quot;c&quot; &apos;d&apos;&gt;&#10;\u{FFFD}é"
+            xml_attr(raw),
+            text.replace('\n', "&#10;").replace('\t', "&#9;")
         );
     }
 
