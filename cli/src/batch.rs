@@ -390,7 +390,8 @@ fn render_text(results: &[LogResult], output: &Path, summary_path: &Path) -> Str
             Status::Error => ("ERROR", r.error.clone().unwrap_or_default()),
         };
         let first_line = why.lines().next().unwrap_or_default();
-        let _ = writeln!(s, "  {status:<5}  {:<width$}  {first_line}", r.log);
+        let line = format!("  {status:<5}  {:<width$}  {first_line}", r.log);
+        let _ = writeln!(s, "{}", line.trim_end());
     }
     let count = |st: Status| results.iter().filter(|r| r.status == st).count();
     let _ = writeln!(
