@@ -322,8 +322,7 @@ fn judge(
                 (Some(c.peak_to_peak_before_arcsec), "before correction")
             };
             match value {
-                // `!(v <= max)` also fails a NaN.
-                Some(v) if !(v <= max) => r.gate_failures.push(format!(
+                Some(v) if exceeds(v, max) => r.gate_failures.push(format!(
                     "`{}`: peak-to-peak {what} {v:.3}″ > {max}″ (--max-pp)",
                     c.channel
                 )),
@@ -337,7 +336,7 @@ fn judge(
     }
     if let Some(max) = opts.max_residual {
         match o.residual_rms_arcsec {
-            Some(v) if !(v <= max) => r.gate_failures.push(format!(
+            Some(v) if exceeds(v, max) => r.gate_failures.push(format!(
                 "fit residual RMS {v:.4}″ > {max}″ (--max-residual)"
             )),
             Some(_) => {}
@@ -362,6 +361,11 @@ fn judge(
     r.files = o.files.clone();
     r.text = o.text.clone();
     r
+}
+
+/// Whether `value` fails a gate of `max`: above it, or not a number at all.
+fn exceeds(value: f64, max: f64) -> bool {
+    value > max || value.is_nan()
 }
 
 /// Standard output for several logs: each log's summary in input order, then the verdicts.
