@@ -83,6 +83,9 @@ fn several_logs_give_one_folder_each_a_summary_and_junit_and_equal_runs_equal_by
         }
         let report = read_json(&out.join(folder).join("report.json"));
         assert_eq!(report["method"], "csrr");
+        // The program is named `calib`, not by the path that started it.
+        let command = report["command_line"].as_str().unwrap();
+        assert!(command.starts_with("calib csrr logs/run1.mcap "), "{command}");
     }
     assert!(!out.join("still").join("report.json").exists());
     // Equal logs give equal tables.

@@ -339,7 +339,7 @@ fn build_report(
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "shift-angle".into(),
         inputs,
-        command_line: Some(std::env::args().collect::<Vec<_>>().join(" ")),
+        command_line: Some(crate::input::command_line()),
         channels: [("encoder".to_string(), channel)].into_iter().collect(),
         sessions: Vec::new(),
         warnings,
