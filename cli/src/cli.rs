@@ -9,7 +9,9 @@ use clap::{Parser, Subcommand};
 /// messages) and writes each sensor's error map as a correction table, plus a report.
 ///
 /// Start with `calib inspect LOG` to see what a log holds, then run a method, e.g.
-/// `calib csrr run.mcap -o out/`. Exit status: 0 success, 1 bad or insufficient data, 2 bad usage.
+/// `calib csrr run.mcap -o out/`. Exit status: 0 success, 1 bad or insufficient data, 2 bad usage,
+/// 3 a gate failed (--max-pp, --max-residual, --fail-on-warning, En > 1 in compare; the outputs
+/// are written all the same).
 #[derive(Debug, Parser, PartialEq)]
 #[command(name = "calib", version, about, long_about)]
 pub struct Cli {
@@ -28,18 +30,14 @@ pub enum Command {
     Inspect(commands::inspect::Args),
     /// Write a simulated run with a known truth, from a scenario file.
     Simulate(commands::simulate::Args),
-    /// Self-calibrate two coaxial sensors by the CSRR method.
+    // The rest take their help from their `Args` docs (a doc comment here would replace it).
     Csrr(commands::csrr::Args),
-    // Help from its `Args` doc.
     Multihead(commands::multihead::Args),
-    // The next three take their help from their `Args` docs (a doc comment here would replace it).
+    Tdr(commands::tdr::Args),
     ShiftAngle(commands::shift_angle::Args),
+    Reference(commands::reference::Args),
     Uncertainty(commands::uncertainty::Args),
     Compare(commands::compare::Args),
-    // Help from its `Args` doc too.
-    Reference(commands::reference::Args),
-    Export(commands::export::Args),
-    // Help from its `Args` doc too.
-    Tdr(commands::tdr::Args),
     Apply(commands::apply::Args),
+    Export(commands::export::Args),
 }

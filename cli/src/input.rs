@@ -57,9 +57,11 @@ pub fn file_stem(channel: &str) -> String {
 }
 
 /// The command line that is running, arguments quoted where the shell would need it, for
-/// reports: what produced a table should be reproducible from the report alone.
+/// reports: what produced a table should be reproducible from the report alone. The program is
+/// written `calib` whatever path started it, so equal runs give equal reports on any machine.
 pub fn command_line() -> String {
-    std::env::args()
+    std::iter::once("calib".to_string())
+        .chain(std::env::args().skip(1))
         .map(|a| {
             if !a.is_empty()
                 && a.chars()

@@ -4,6 +4,7 @@
 // tables such as `[[component]]`, placeholders such as `<a>.csv`), not rustdoc markup.
 #![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 
+mod batch;
 mod cli;
 mod commands;
 mod document;
@@ -19,25 +20,30 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
-    match commands::run(cli) {
-        Ok(output) => {
-            let mut stdout = std::io::stdout().lock();
-            match stdout
-                .write_all(output.as_bytes())
-                .and_then(|()| stdout.flush())
-            {
-                // A closed pipe (`calib … | head`) is not a failure of calib.
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("calib: cannot write to standard output: {e}");
-                    ExitCode::from(exit::DATA)
-                }
-            }
+    let (output, code) = match commands::run(cli) {
+        Ok(output) => (output, 0),
+        // Outputs written and a summary to print, but a non-zero status (a gate, failed logs).
+        Err(err) if err.is::<exit::Failed>() => {
+            let failed = err.downcast::<exit::Failed>().expect("checked by is()");
+            eprintln!("calib: {}", failed.message);
+            (failed.stdout, failed.code)
         }
         Err(err) => {
             eprintln!("calib: error: {err:#}");
-            ExitCode::from(exit::code_of(&err))
+            return ExitCode::from(exit::code_of(&err));
+        }
+    };
+    let mut stdout = std::io::stdout().lock();
+    match stdout
+        .write_all(output.as_bytes())
+        .and_then(|()| stdout.flush())
+    {
+        // A closed pipe (`calib … | head`) is not a failure of calib.
+        Ok(()) => ExitCode::from(code),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::from(code),
+        Err(e) => {
+            eprintln!("calib: cannot write to standard output: {e}");
+            ExitCode::from(exit::DATA)
         }
     }
 }

@@ -13,13 +13,13 @@ pub fn table_name(channel: &str) -> String {
 }
 
 /// Writes one table per `(channel, map, standard uncertainty)`, `report.json` and the document
-/// as `report.html` into `dir`; see [`write_outputs`].
+/// as `report.html` into `dir`; returns the names of the files written. See [`write_outputs`].
 pub fn write_tables_and_report(
     dir: &Path,
     tables: &[(&str, &ErrorMap, Option<&[f64]>)],
     report_json: &str,
     document: &Document,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<String>> {
     let mut files = tables
         .iter()
         .map(|(name, map, u)| {
@@ -34,14 +34,15 @@ pub fn write_tables_and_report(
 }
 
 /// Writes `files` (name, contents) and the document as `report.html` into `dir`, and with
-/// `--plots DIR` every plot as SVG and PNG there (folders created if missing). Every file goes to
+/// `--plots DIR` every plot as SVG and PNG there (folders created if missing); returns the names
+/// of the files written into `dir`. Every file goes to
 /// a temporary name first and all are renamed into place only when all were written, so a failed
 /// run leaves none of them behind.
 pub fn write_outputs(
     dir: &Path,
     files: &[(String, Vec<u8>)],
     document: &Document,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<String>> {
     let html = document.to_html()?;
     let plots = match crate::ui::plots_dir() {
         Some(p) => Some((p, document.plot_files()?)),
@@ -64,5 +65,7 @@ pub fn write_outputs(
         }
     }
     outputs.commit()?;
-    Ok(())
+    let mut written: Vec<String> = files.iter().map(|(file, _)| file.clone()).collect();
+    written.push("report.html".into());
+    Ok(written)
 }

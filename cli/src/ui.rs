@@ -5,7 +5,7 @@
 //! does the output writer (for `--plots`), so a method command gets both without passing them
 //! around.
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 use std::time::Duration;
@@ -38,13 +38,18 @@ pub fn plots_dir() -> Option<&'static Path> {
     global().plots.as_deref()
 }
 
-fn target() -> ProgressDrawTarget {
-    if global().quiet {
-        ProgressDrawTarget::hidden()
-    } else {
-        // indicatif draws nothing when standard error is not a terminal (CI logs stay clean).
-        ProgressDrawTarget::stderr()
-    }
+/// Where every bar draws: one stack on standard error, so the bars of logs read in parallel
+/// sit one above the other.
+fn bars() -> &'static MultiProgress {
+    static BARS: OnceLock<MultiProgress> = OnceLock::new();
+    BARS.get_or_init(|| {
+        MultiProgress::with_draw_target(if global().quiet {
+            ProgressDrawTarget::hidden()
+        } else {
+            // indicatif draws nothing when standard error is not a terminal (CI logs stay clean).
+            ProgressDrawTarget::stderr()
+        })
+    })
 }
 
 /// A spinner counting the samples of the log at `path` while it is read: advance
@@ -54,7 +59,7 @@ pub fn reading(path: &Path) -> ProgressBar {
         || path.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    let bar = ProgressBar::with_draw_target(None, target());
+    let bar = bars().add(ProgressBar::new_spinner());
     bar.set_style(
         ProgressStyle::with_template("{spinner} reading {msg}: {human_pos} samples ({elapsed})")
             .unwrap_or_else(|_| ProgressStyle::default_spinner()),
@@ -65,7 +70,7 @@ pub fn reading(path: &Path) -> ProgressBar {
 
 /// A spinner with the elapsed time, for a step without a measure of progress (a solve).
 pub fn working(what: &str) -> ProgressBar {
-    let bar = ProgressBar::with_draw_target(None, target());
+    let bar = bars().add(ProgressBar::new_spinner());
     bar.set_style(
         ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
             .unwrap_or_else(|_| ProgressStyle::default_spinner()),

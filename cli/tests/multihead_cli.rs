@@ -58,7 +58,13 @@ fn selfa_joint_meets_the_bar_and_names_the_blind_orders() {
     expect_exit(&o, 0);
     // report.html: the map, its zoom and the spectrum with order 84 (lcm of 3, 4, 7) marked blind.
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    for id in ["fig-map-h1", "fig-zoom-h1", "fig-spectrum", "blind order (left out)", "h12"] {
+    for id in [
+        "fig-map-h1",
+        "fig-zoom-h1",
+        "fig-spectrum",
+        "blind order (left out)",
+        "h12",
+    ] {
         assert!(html.contains(id), "report.html lacks {id}");
     }
     assert!(!html.contains("NaN"));

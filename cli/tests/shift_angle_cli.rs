@@ -290,13 +290,18 @@ fn compare_passes_within_uncertainty_and_lists_failures() {
         .collect();
     let bumped_path = dir.path().join("bumped.csv");
     std::fs::write(&bumped_path, bumped).unwrap();
+    // A failed gate: exit 3, the listing on standard output, compare.csv written all the same.
+    std::fs::remove_file(out.join("compare.csv")).unwrap();
     let o = calib(&["compare", s(&enc), s(&bumped_path), "-o", s(&out)]);
-    assert_eq!(o.status.code(), Some(1));
-    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(3));
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(
-        e.contains("1 of 360 points with En > 1") && e.contains("90.0000"),
-        "{e}"
+        text.contains("1 of 360 points with En > 1") && text.contains("90.0000"),
+        "{text}"
     );
+    assert!(stderr(&o).contains("gate failed: 1 of 360 points with En > 1"));
+    let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 361, "a header and one row per point");
 
     // No uncertainty in the second map and no --U2: bad usage.
     let bare = dir.path().join("bare.csv");

@@ -93,7 +93,11 @@ fn rolling_bearing_drag_shows_in_the_map_and_is_warned_about() {
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_mentions(
         &html,
-        &["fig-map-enc", "fig-spectrum", "changes with speed like a drag"],
+        &[
+            "fig-map-enc",
+            "fig-spectrum",
+            "changes with speed like a drag",
+        ],
     );
     let got = read_table(&out.join("enc.csv"));
     let truth = read_table(&dir.path().join("coast.truth/enc.csv"));

@@ -1,4 +1,4 @@
-//! `calib compare`: load two maps → En comparison → render; exit 1 when a point fails.
+//! `calib compare`: load two maps → En comparison → render; exit 3 (a gate) when a point fails.
 
 use anyhow::Context as _;
 use calib_core::compare::{self, Comparison, MapPoint};
@@ -19,8 +19,11 @@ use std::path::{Path, PathBuf};
 /// from the table's expanded_uncertainty_arcsec column, else from k·u_arcsec (--k).
 ///
 /// Writes DIR/compare.csv: angle_deg, error1_arcsec, error2_arcsec, difference_arcsec
-/// (error1 − error2), U1_arcsec, U2_arcsec, En. Exit status 0 when every En ≤ 1; 1 with a listing
-/// of the points that fail.
+/// (error1 − error2), U1_arcsec, U2_arcsec, En.
+///
+/// Exit status: 0 when every En ≤ 1; 3 (a failed gate, for pipelines that check a calibration
+/// against a stored one) when some En > 1, with the points that fail listed and compare.csv
+/// written all the same; 1 bad or insufficient data; 2 bad usage.
 #[derive(Debug, clap::Args, PartialEq)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -81,15 +84,25 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     })?;
     let csv_path = args.output.join("compare.csv");
     calib_io::atomic::write_atomic(&csv_path, render_csv(&c).as_bytes())?;
-    let summary = render_summary(args, &c, &csv_path);
-    if c.failures > 0 {
-        anyhow::bail!("{summary}");
-    }
-    if args.json {
-        Ok(serde_json::to_string_pretty(&c)? + "\n")
+    let stdout = if args.json {
+        serde_json::to_string_pretty(&c)? + "\n"
     } else {
-        Ok(summary)
+        render_summary(args, &c, &csv_path)
+    };
+    if c.failures > 0 {
+        return Err(crate::exit::Failed {
+            stdout,
+            code: crate::exit::GATE,
+            message: format!(
+                "gate failed: {} of {} points with En > 1 (max {:.3}): the maps disagree beyond their uncertainties",
+                c.failures,
+                c.points.len(),
+                c.max_en
+            ),
+        }
+        .into());
     }
+    Ok(stdout)
 }
 
 /// The map's points with their expanded uncertainties.

@@ -1,5 +1,6 @@
 //! `calib csrr`: self-calibration of two coaxial sensors.
 
+use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::document::csrr::{self as document, Comparisons};
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
@@ -39,11 +40,16 @@ pub enum MethodArg {
 /// Writes DIR/<a>.csv and DIR/<b>.csv (correction tables: angle_deg, error_arcsec,
 /// correction_arcsec; error = reading − true angle, correction = −error, as a function of the
 /// sensor's own reading, zero mean), DIR/report.json and DIR/report.html (error maps, spectrum,
-/// session timeline), and prints a summary.
+/// session timeline), and prints a summary. With several logs, each log's files go to
+/// DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
+///
+/// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
+/// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The log (.csv or .mcap).
-    pub log: PathBuf,
+    /// The logs (.csv or .mcap), calibrated independently and in parallel.
+    #[arg(required = true, value_name = "LOG")]
+    pub logs: Vec<PathBuf>,
     /// Output folder.
     #[arg(short, long = "output", default_value = "calib-out")]
     pub output: PathBuf,
@@ -89,9 +95,13 @@ pub struct Args {
     /// Benchmark readings of A and B for `--method paper`, degrees.
     #[arg(long, num_args = 2, value_names = ["A_DEG", "B_DEG"], default_values_t = [0.0, 0.0])]
     pub benchmarks: Vec<f64>,
-    /// Print report.json on standard output instead of the summary.
+    /// Print report.json on standard output instead of the summary (summary.json with several
+    /// logs).
     #[arg(long)]
     pub json: bool,
+    /// Pipelines and gates.
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 /// Runs `calib csrr`.
@@ -119,13 +129,25 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.max_order == Some(0) {
         return Err(Usage("--max-order must be at least 1".into()).into());
     }
-    let mut reader = open_log(&args.log, args.unit)?;
-    let ia = channel(&reader, &args.log, &args.a)?;
-    let ib = channel(&reader, &args.log, &args.b)?;
+    batch::run(
+        "csrr",
+        &args.logs,
+        &args.output,
+        &args.batch,
+        args.json,
+        |log, out| calibrate(args, log, out),
+    )
+}
+
+/// Calibrates one log into the folder `out`.
+fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
+    let mut reader = open_log(log, args.unit)?;
+    let ia = channel(&reader, log, &args.a)?;
+    let ib = channel(&reader, log, &args.b)?;
     let ir = args
         .reference
         .as_deref()
-        .map(|r| channel(&reader, &args.log, r))
+        .map(|r| channel(&reader, log, r))
         .transpose()?;
     let opts = CsrrOptions {
         method: match args.method {
@@ -155,9 +177,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .transpose()?;
     let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
-    let bar = crate::ui::reading(&args.log);
+    let bar = crate::ui::reading(log);
     for (n, sample) in reader.by_ref().enumerate() {
-        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         if n as u64 % crate::ui::TICK == 0 {
             bar.inc(crate::ui::TICK);
         }
@@ -174,12 +196,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let cal = csrr.finish();
     solving.finish_and_clear();
     let cal = cal.map_err(|e| {
-        let pair = format!(
-            "{}: channels `{}` and `{}`",
-            args.log.display(),
-            args.a,
-            args.b
-        );
+        let pair = format!("{}: channels `{}` and `{}`", log.display(), args.a, args.b);
         let context = match &e {
             CsrrError::NeverMoves { sensor } => {
                 let name = if *sensor == 'A' { &args.a } else { &args.b };
@@ -189,10 +206,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         };
         anyhow::Error::new(e).context(context)
     })?;
-    let mut warnings = reader.warnings(&args.log);
+    let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, &cal, warnings);
+    let report = build_report(args, log, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
     let comparisons = Comparisons {
         truth: truth.as_ref().map(|(a, b)| (a, b)),
@@ -204,16 +221,33 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         &trace.trace,
         &comparisons,
     );
-    write_tables_and_report(
-        &args.output,
+    let files = write_tables_and_report(
+        out,
         &[(&args.a, &cal.a, None), (&args.b, &cal.b, None)],
         &json,
         &doc,
     )?;
-    if args.json {
-        return Ok(json);
-    }
-    Ok(render_summary(args, &cal, &report, &comparisons))
+    let text = if args.json {
+        json
+    } else {
+        render_summary(args, out, &cal, &report, &comparisons)
+    };
+    let channels = [(&args.a, true), (&args.b, false)]
+        .into_iter()
+        .map(|(name, a)| ChannelFigures {
+            channel: name.clone(),
+            peak_to_peak_before_arcsec: report.channels[name].peak_to_peak_arcsec,
+            peak_to_peak_after_arcsec: document::after_correction(&cal, &comparisons, a)
+                .map(|(_, pp)| pp),
+        })
+        .collect();
+    Ok(Outcome {
+        text,
+        channels,
+        residual_rms_arcsec: cal.residual_rms.map(|r| r * ARCSEC_PER_RAD),
+        warnings: report.warnings,
+        files,
+    })
 }
 
 /// The true maps of A and B from `--truth DIR`.
@@ -250,7 +284,7 @@ impl TraceRecorder {
     }
 }
 
-fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report {
+fn build_report(args: &Args, log: &Path, cal: &Calibration, warnings: Vec<String>) -> Report {
     let mut channels = BTreeMap::new();
     channels.insert(
         args.a.clone(),
@@ -332,7 +366,7 @@ fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report
     Report {
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "csrr".to_string(),
-        inputs: vec![args.log.display().to_string()],
+        inputs: vec![log.display().to_string()],
         command_line: Some(crate::input::command_line()),
         channels,
         sessions,
@@ -341,7 +375,13 @@ fn build_report(args: &Args, cal: &Calibration, warnings: Vec<String>) -> Report
     }
 }
 
-fn render_summary(args: &Args, cal: &Calibration, report: &Report, cmp: &Comparisons) -> String {
+fn render_summary(
+    args: &Args,
+    out: &Path,
+    cal: &Calibration,
+    report: &Report,
+    cmp: &Comparisons,
+) -> String {
     let mut o = String::new();
     let method = match cal.method {
         Method::Joint => "joint least squares",
@@ -461,7 +501,7 @@ fn render_summary(args: &Args, cal: &Calibration, report: &Report, cmp: &Compari
     ];
     o += &ending(
         &report.warnings,
-        &args.output,
+        out,
         &files,
         "error maps, spectrum with blind orders, session timeline",
     );

@@ -1,5 +1,6 @@
 //! `calib reference`: cross-calibration of an encoder against a better reference encoder.
 
+use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
@@ -11,7 +12,7 @@ use calib_core::{AngleUnit, ChannelReport, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
 const MAX_POINTS: usize = 3_600_000;
@@ -26,11 +27,16 @@ const MAX_POINTS: usize = 3_600_000;
 ///
 /// Writes DIR/<dut>.csv (angle_deg, error_arcsec, correction_arcsec, u_arcsec; correction =
 /// −error, applied as reading + correction(reading)), DIR/report.json and DIR/report.html (the
-/// map with its uncertainty band, the ISO 230-2 figures), and prints a summary.
+/// map with its uncertainty band, the ISO 230-2 figures), and prints a summary. With several
+/// logs, each log's files go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
+///
+/// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
+/// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The log (.csv or .mcap).
-    pub log: PathBuf,
+    /// The logs (.csv or .mcap), calibrated independently and in parallel.
+    #[arg(required = true, value_name = "LOG")]
+    pub logs: Vec<PathBuf>,
     /// Channel of the encoder to calibrate (device under test).
     #[arg(long)]
     pub dut: String,
@@ -60,9 +66,13 @@ pub struct Args {
     /// approach: backlash settles).
     #[arg(long, default_value_t = 1.0)]
     pub approach: f64,
-    /// Print report.json on standard output instead of the summary.
+    /// Print report.json on standard output instead of the summary (summary.json with several
+    /// logs).
     #[arg(long)]
     pub json: bool,
+    /// Pipelines and gates.
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 /// Runs `calib reference`.
@@ -91,10 +101,22 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         )
         .into());
     }
-    let mut reader = open_log(&args.log, args.unit)?;
-    let id = channel(&reader, &args.log, &args.dut)?;
-    let ir = channel(&reader, &args.log, &args.reference)?;
-    let bar = crate::ui::reading(&args.log);
+    batch::run(
+        "reference",
+        &args.logs,
+        &args.output,
+        &args.batch,
+        args.json,
+        |log, out| calibrate(args, log, out),
+    )
+}
+
+/// Calibrates one log into the folder `out`.
+fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
+    let mut reader = open_log(log, args.unit)?;
+    let id = channel(&reader, log, &args.dut)?;
+    let ir = channel(&reader, log, &args.reference)?;
+    let bar = crate::ui::reading(log);
     let mut cal = ReferenceCal::new(ReferenceOptions {
         points: args.points,
         min_speed: args.min_speed.to_radians(),
@@ -103,7 +125,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         approach: args.approach.to_radians(),
     });
     for (n, sample) in reader.by_ref().enumerate() {
-        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         if n as u64 % crate::ui::TICK == 0 {
             bar.inc(crate::ui::TICK);
         }
@@ -113,30 +135,63 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let cal = cal.finish().with_context(|| {
         format!(
             "{}: DUT `{}`, reference `{}`",
-            args.log.display(),
+            log.display(),
             args.dut,
             args.reference
         )
     })?;
-    let mut warnings = reader.warnings(&args.log);
+    let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, &cal, warnings);
+    let report = build_report(args, log, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
     let doc = crate::document::reference::document(&args.dut, &args.reference, &cal, &report);
-    write_tables_and_report(
-        &args.output,
-        &[(&args.dut, &cal.map, Some(&cal.u))],
-        &json,
-        &doc,
-    )?;
-    if args.json {
-        return Ok(json);
-    }
-    Ok(render_summary(args, &cal, &report))
+    let files = write_tables_and_report(out, &[(&args.dut, &cal.map, Some(&cal.u))], &json, &doc)?;
+    let text = if args.json {
+        json
+    } else {
+        render_summary(args, out, &cal, &report)
+    };
+    Ok(Outcome {
+        text,
+        channels: vec![ChannelFigures {
+            channel: args.dut.clone(),
+            peak_to_peak_before_arcsec: report.channels[&args.dut].peak_to_peak_arcsec,
+            peak_to_peak_after_arcsec: peak_to_peak_after(&cal),
+        }],
+        residual_rms_arcsec: None,
+        warnings: report.warnings,
+        files,
+    })
 }
 
-fn build_report(args: &Args, cal: &ReferenceCalibration, warnings: Vec<String>) -> Report {
+/// What the correction leaves of the DUT's error, arcsec: the peak-to-peak, over the grid points
+/// and both directions, of each direction's mean deviation minus the map (the map is the mean of
+/// the two directions, so this is the hysteresis a single table cannot correct).
+fn peak_to_peak_after(cal: &ReferenceCalibration) -> Option<f64> {
+    let residuals =
+        cal.up
+            .iter()
+            .zip(&cal.down)
+            .zip(cal.map.values())
+            .flat_map(|((up, down), map)| {
+                [up, down]
+                    .into_iter()
+                    .filter(|p| p.n > 0)
+                    .map(move |p| p.mean - map)
+            });
+    let (lo, hi) = residuals.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+        (lo.min(v), hi.max(v))
+    });
+    (hi >= lo).then_some((hi - lo) * ARCSEC_PER_RAD)
+}
+
+fn build_report(
+    args: &Args,
+    log: &Path,
+    cal: &ReferenceCalibration,
+    warnings: Vec<String>,
+) -> Report {
     let mut channels = BTreeMap::new();
     channels.insert(
         args.dut.clone(),
@@ -162,7 +217,7 @@ fn build_report(args: &Args, cal: &ReferenceCalibration, warnings: Vec<String>) 
     Report {
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "reference".to_string(),
-        inputs: vec![args.log.display().to_string()],
+        inputs: vec![log.display().to_string()],
         command_line: Some(crate::input::command_line()),
         channels,
         sessions: Vec::new(),
@@ -171,7 +226,7 @@ fn build_report(args: &Args, cal: &ReferenceCalibration, warnings: Vec<String>) 
     }
 }
 
-fn render_summary(args: &Args, cal: &ReferenceCalibration, report: &Report) -> String {
+fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &Report) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,
@@ -228,7 +283,7 @@ fn render_summary(args: &Args, cal: &ReferenceCalibration, report: &Report) -> S
     );
     o += &ending(
         &report.warnings,
-        &args.output,
+        out,
         &[ch.table.clone(), "report.json".to_string()],
         "error map with its uncertainty band, each direction, spectrum",
     );

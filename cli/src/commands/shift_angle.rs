@@ -1,5 +1,6 @@
 //! `calib shift-angle`: load readings (and a budget) → calibrate → render tables, report, summary.
 
+use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context as _;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -7,7 +8,7 @@ use calib_core::shift_angle::{self, Method, ShiftAngleResult};
 use calib_core::uncertainty::{self, BudgetResult};
 use calib_core::{ChannelReport, ErrorMap, Report};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Calibrate an encoder at every angle with a polygon and an autocollimator (shift-angle method).
 ///
@@ -39,14 +40,21 @@ use std::path::PathBuf;
 ///
 ///   report.html  the encoder map with its uncertainty band, the polygon's pitch deviations,
 ///                the fit residuals per reading, and the numbers as tables.
+/// With several READINGS files, each one's files go to DIR/<file stem>/ and DIR/summary.json
+/// holds every file's verdict.
 ///
 /// The method cannot see harmonics of orders n, 2n, … of the encoder error (the closure of each
 /// shift, eq. 2, removes them), like the traditional polygon calibration.
+///
+/// Exit status: 0 all calibrated and passed the gates, 1 bad or insufficient data, 2 bad usage,
+/// 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
-    /// The readings CSV (shift_deg,start_face,step,reading_arcsec).
-    pub readings: PathBuf,
+    /// The readings CSVs (shift_deg,start_face,step,reading_arcsec), calibrated independently
+    /// and in parallel.
+    #[arg(required = true, value_name = "READINGS")]
+    pub readings: Vec<PathBuf>,
     /// Output directory.
     #[arg(
         short = 'o',
@@ -67,9 +75,13 @@ pub struct Args {
     /// uncertainty are attached to every point of encoder.csv.
     #[arg(long, value_name = "FILE")]
     pub budget: Option<PathBuf>,
-    /// Print report.json to standard output instead of the summary.
+    /// Print report.json to standard output instead of the summary (summary.json with several
+    /// files).
     #[arg(long)]
     pub json: bool,
+    /// Pipelines and gates.
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 /// The estimator, on the command line.
@@ -83,7 +95,6 @@ pub enum MethodArg {
 
 /// Runs `calib shift-angle`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    let readings = calib_io::readings::read_readings(&args.readings, args.faces)?;
     let budget = match &args.budget {
         Some(path) => {
             let b = calib_io::budget::read_budget(path)?;
@@ -91,20 +102,38 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         }
         None => None,
     };
+    batch::run(
+        "shift-angle",
+        &args.readings,
+        &args.output,
+        &args.batch,
+        args.json,
+        |path, out| calibrate(args, path, out, budget.as_ref()),
+    )
+}
+
+/// Calibrates one readings file into the folder `out`.
+fn calibrate(
+    args: &Args,
+    path: &Path,
+    out: &Path,
+    budget: Option<&BudgetResult>,
+) -> anyhow::Result<Outcome> {
+    let readings = calib_io::readings::read_readings(path, args.faces)?;
     let method = match args.method {
         MethodArg::Joint => Method::Joint,
         MethodArg::Paper => Method::Paper,
     };
-    let result = shift_angle::calibrate(&readings, method)
-        .with_context(|| format!("{}", args.readings.display()))?;
-    let report = build_report(args, &readings, &result, budget.as_ref())?;
+    let result =
+        shift_angle::calibrate(&readings, method).with_context(|| format!("{}", path.display()))?;
+    let report = build_report(args, path, &readings, &result, budget)?;
     let report_json = serde_json::to_string_pretty(&report)? + "\n";
 
-    let encoder_csv = render_encoder(&result, budget.as_ref());
+    let encoder_csv = render_encoder(&result, budget);
     let polygon_csv = render_polygon(&result);
-    let doc = crate::document::shift_angle::document(&readings, &result, budget.as_ref(), &report);
-    crate::output::write_outputs(
-        &args.output,
+    let doc = crate::document::shift_angle::document(&readings, &result, budget, &report);
+    let files = crate::output::write_outputs(
+        out,
         &[
             ("encoder.csv".into(), encoder_csv.into_bytes()),
             ("polygon.csv".into(), polygon_csv.into_bytes()),
@@ -112,17 +141,26 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ],
         &doc,
     )?;
-    if args.json {
-        Ok(report_json)
+    let text = if args.json {
+        report_json
     } else {
-        Ok(render_summary(
-            args,
-            &readings,
-            &result,
-            budget.as_ref(),
-            &report,
-        ))
-    }
+        render_summary(out, &readings, &result, budget, &report)
+    };
+    Ok(Outcome {
+        text,
+        channels: report
+            .channels
+            .iter()
+            .map(|(name, c)| ChannelFigures {
+                channel: name.clone(),
+                peak_to_peak_before_arcsec: c.peak_to_peak_arcsec,
+                peak_to_peak_after_arcsec: None,
+            })
+            .collect(),
+        residual_rms_arcsec: Some(result.residuals.rms_arcsec),
+        warnings: report.warnings,
+        files,
+    })
 }
 
 fn opt(v: Option<f64>) -> String {
@@ -204,6 +242,7 @@ fn uniform_map(result: &ShiftAngleResult) -> Option<ErrorMap> {
 
 fn build_report(
     args: &Args,
+    path: &Path,
     readings: &shift_angle::Readings,
     result: &ShiftAngleResult,
     budget: Option<&BudgetResult>,
@@ -297,7 +336,7 @@ fn build_report(
     if let Some(b) = budget {
         put("budget", serde_json::to_value(b)?);
     }
-    let mut inputs = vec![args.readings.display().to_string()];
+    let mut inputs = vec![path.display().to_string()];
     if let Some(b) = &args.budget {
         inputs.push(b.display().to_string());
     }
@@ -314,7 +353,7 @@ fn build_report(
 }
 
 fn render_summary(
-    args: &Args,
+    out: &Path,
     readings: &shift_angle::Readings,
     result: &ShiftAngleResult,
     budget: Option<&BudgetResult>,
@@ -443,7 +482,7 @@ fn render_summary(
     let _ = writeln!(s, "\n{}", t.render().trim_end());
     s += &ending(
         &report.warnings,
-        &args.output,
+        out,
         &[
             "encoder.csv".into(),
             "polygon.csv".into(),

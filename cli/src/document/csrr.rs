@@ -4,7 +4,7 @@ use super::{harmonics_table, num, provenance};
 use calib_core::ErrorMap;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::csrr::{Calibration, Method, observability::observability};
+use calib_core::csrr::{Calibration, Method, observability};
 use calib_report::plots::{self, MapLayers, OrderMarks, TimelinePanel};
 use calib_report::trace::Trace;
 use calib_report::{Document, Section, Span, Table};

@@ -15,14 +15,17 @@
 //! - [`reference_cal`]: cross-calibration against a better reference encoder, with ISO 230-2 figures.
 //! - [`compare`]: two calibrations of one sensor compared point by point with the En number.
 //! - [`correction`]: readings corrected with a map, as `calib apply` does.
-//!
 //! - [`csrr`]: CSRR self-calibration of two coaxial sensors (joint least squares, or the seed
 //!   paper's method); [`segment`] finds its sessions; [`inspect`] summarizes a log.
 //! - [`multihead`]: self-calibration of one scale read by several heads (joint least squares,
 //!   or the equal-division average of the SelfA paper), head angle errors included.
-//! - [`shift_angle`], [`uncertainty`], [`compare`]: polygon cross-calibration, GUM budgets, En.
 //! - [`simulate`]: realistic runs with a known truth.
 //! - [`tdr`]: self-calibration of one encoder from a free spin-down (Lu & Trumper's TDR).
+//!
+//! The crate's `examples/` folder holds one program per method, each fed from the simulator in
+//! memory and checking its result against the truth: `cargo run -p calib-core --example
+//! csrr_joint` (also `csrr_paper`, `reference`, `shift_angle`, `uncertainty`, `compare`,
+//! `simulate`).
 //!
 //! # Conventions
 //! Error `e = reading − true angle`, correction `= −e`; maps are functions of the sensor's own

@@ -33,7 +33,7 @@
 //! `e(r_i) = r_i − θ(r_i)` on the output grid, exact whatever orders that takes.
 //!
 //! # Solution of each step
-//! Samples are first reduced to fine bins of `x` per session ([`super::bins`]). The normal
+//! Samples are first reduced to fine bins of `x` per session (`csrr/bins.rs`). The normal
 //! equations `AᵀNA·u = AᵀN·r` (`N` = bin counts) are solved by conjugate gradient without forming
 //! `A`: `A·u` synthesizes both series on a uniform grid by inverse FFT and interpolates them at
 //! the bins' `θ_a` and `θ_b` (the `nufft` module), scaled by `1/(1 + ε′)`; `Aᵀ` scales, spreads and
@@ -61,7 +61,7 @@ use crate::harmonics::FourierSeries;
 
 /// Options of the joint solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JointOptions {
+pub(crate) struct JointOptions {
     /// Highest order fitted in each sensor's error (as a function of the true angle).
     pub max_order: usize,
     /// Orders whose observability ([`super::observability::observability`]) is below this are
@@ -78,7 +78,7 @@ pub struct JointOptions {
 
 impl JointOptions {
     /// Defaults for a given maximum order.
-    pub fn with_max_order(max_order: usize) -> Self {
+    pub(crate) fn with_max_order(max_order: usize) -> Self {
         JointOptions {
             max_order,
             min_observability: 0.01,
@@ -100,7 +100,7 @@ pub struct ExcludedOrder {
 
 /// The joint solve's result.
 #[derive(Debug, Clone, PartialEq)]
-pub struct JointSolution {
+pub(crate) struct JointSolution {
     /// Sensor A's error as a function of the true angle, `ε_a(θ)` (orders `1..=max_order`, zero
     /// at excluded orders). Its map as a function of A's reading is [`reading_map`].
     pub a: FourierSeries,
@@ -348,7 +348,10 @@ fn conjugate_gradient(
 }
 
 /// Solves the joint CSRR equation for the binned sessions. See the module docs.
-pub fn solve(sessions: &[SessionData], opts: &JointOptions) -> Result<JointSolution, CsrrError> {
+pub(crate) fn solve(
+    sessions: &[SessionData],
+    opts: &JointOptions,
+) -> Result<JointSolution, CsrrError> {
     if sessions.len() < 2 {
         return Err(CsrrError::TooFewSessions {
             found: sessions.len(),
@@ -502,7 +505,7 @@ pub fn solve(sessions: &[SessionData], opts: &JointOptions) -> Result<JointSolut
 /// The map of an error given as a function of the true angle, `ε(θ)`, as a function of the
 /// reading: `e(r_i) = r_i − θ(r_i)` with `θ + ε(θ) = r_i`, on `points` grid points. Exact
 /// whatever orders the reading-domain map holds.
-pub fn reading_map(series: &FourierSeries, points: usize) -> ErrorMap {
+pub(crate) fn reading_map(series: &FourierSeries, points: usize) -> ErrorMap {
     let orders: Vec<usize> = (1..=series.max_order()).collect();
     let grid = (16 * series.max_order()).max(64).next_power_of_two();
     let mut eval = SeriesEval::new(orders, grid);

@@ -18,12 +18,17 @@
 //! # Example
 //! The crate root's example feeds five simulated sessions to [`Csrr`] and reads both maps.
 
-pub mod bins;
+// `joint` and `paper` are public for their documentation and result types; the solvers'
+// building blocks stay private, and the reference check's types are re-exported here.
+mod bins;
 pub mod joint;
 pub(crate) mod nufft;
-pub mod observability;
+mod observability;
 pub mod paper;
-pub mod reference;
+mod reference;
+
+pub use observability::observability;
+pub use reference::{EffectiveRange, EpsHarmonic, ReferenceCheck};
 
 use crate::angle::ARCSEC_PER_RAD;
 use crate::error_map::ErrorMap;
@@ -32,11 +37,11 @@ use crate::segment::{SegmentOptions, Segmentation, Segmenter, SessionSink};
 use bins::{Bin, SessionBinner};
 use joint::{ExcludedOrder, JointOptions};
 use paper::{PaperAccumulator, PaperPoint};
-use reference::{ReferenceAccumulator, ReferenceCheck};
+use reference::ReferenceAccumulator;
 
 /// One session, reduced to bins of A's reading.
 #[derive(Debug, Clone, PartialEq)]
-pub struct SessionData {
+pub(crate) struct SessionData {
     /// Session id from the segmenter.
     pub id: usize,
     /// Start, s.

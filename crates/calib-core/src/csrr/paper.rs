@@ -57,7 +57,7 @@ struct Open {
 
 /// A [`SessionSink`] collecting the paper method's per-session quantities as the log streams.
 #[derive(Debug, Default)]
-pub struct PaperAccumulator {
+pub(crate) struct PaperAccumulator {
     bench_a: f64,
     bench_b: f64,
     open: Option<Open>,
@@ -79,7 +79,7 @@ fn crossing(from: f64, to: f64, v: f64) -> Option<f64> {
 
 impl PaperAccumulator {
     /// Benchmark values of A and B, rad.
-    pub fn new(bench_a: f64, bench_b: f64) -> Self {
+    pub(crate) fn new(bench_a: f64, bench_b: f64) -> Self {
         PaperAccumulator {
             bench_a: wrap_2pi(bench_a),
             bench_b: wrap_2pi(bench_b),
@@ -89,7 +89,7 @@ impl PaperAccumulator {
 
     /// Each session's point, and the sessions in which a sensor never crossed its benchmark
     /// over a whole revolution.
-    pub fn into_points(self) -> (Vec<PaperPoint>, Vec<usize>) {
+    pub(crate) fn into_points(self) -> (Vec<PaperPoint>, Vec<usize>) {
         (self.points, self.no_crossing)
     }
 }
@@ -154,7 +154,7 @@ impl SessionSink for PaperAccumulator {
 
 /// The map through `(angle, error)` points by periodic linear interpolation on `points` grid
 /// points, mean removed.
-pub fn map_from_points(pts: &[(f64, f64)], points: usize) -> Result<ErrorMap, CsrrError> {
+pub(crate) fn map_from_points(pts: &[(f64, f64)], points: usize) -> Result<ErrorMap, CsrrError> {
     if pts.len() < 3 {
         return Err(CsrrError::PaperTooFewSessions { found: pts.len() });
     }

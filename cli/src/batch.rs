@@ -1,0 +1,532 @@
+//! Running a method over several logs, for CI pipelines: one output folder per log, calibrated in
+//! parallel, gates on the results, `summary.json` and a JUnit XML file.
+//!
+//! A method command plugs in by flattening [`BatchArgs`] into its arguments and handing
+//! [`run`] a closure that calibrates one log into one folder and returns an [`Outcome`].
+//!
+//! Layout: with one log (and no `--per-log`) the output folder holds that log's files directly,
+//! as it always did; with several, `DIR/<log stem>/` holds each log's files (`-2`, `-3`, … added
+//! to stems that repeat, in input order) and `DIR/summary.json` the verdict of every log.
+//!
+//! Exit status over all logs: `2` if a log was bad usage (a missing file, an unknown channel),
+//! else `1` if a log could not be calibrated, else `3` if a log failed a gate, else `0`. Every
+//! log is processed whatever happens to the others, and every output is written.
+
+use crate::exit::{self, Failed};
+use crate::input::file_stem;
+use anyhow::Context;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Options every method command shares: pipelines over many logs, and gates.
+#[derive(Debug, Clone, clap::Args, PartialEq)]
+pub struct BatchArgs {
+    /// Logs calibrated at the same time (default: the number of cores).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub jobs: Option<u16>,
+    /// Write a JUnit XML file: one test case per log, a <failure> where a gate failed, an
+    /// <error> where the log could not be calibrated.
+    #[arg(long, value_name = "FILE")]
+    pub junit: Option<PathBuf>,
+    /// Gate: exit 3 when a calibrated channel's peak-to-peak error exceeds ARCSEC (see
+    /// --gate-on). The outputs are written all the same.
+    #[arg(long, value_name = "ARCSEC", value_parser = positive_arcsec, allow_hyphen_values = true)]
+    pub max_pp: Option<f64>,
+    /// What --max-pp judges. before: the calibrated map's peak-to-peak (the sensor's error
+    /// without correction). after: what is left after applying the correction, where the
+    /// method can measure it: csrr with --ref (the peak-to-peak of calibrated map − the error
+    /// the reference sees), reference (the peak-to-peak of each direction's mean deviation −
+    /// the map: the hysteresis the correction cannot remove). Elsewhere the gate fails, naming
+    /// the channel.
+    #[arg(long, value_enum, value_name = "WHEN", requires = "max_pp")]
+    pub gate_on: Option<GateOn>,
+    /// Gate: exit 3 when the fit's residual RMS exceeds ARCSEC (csrr joint: per sample;
+    /// shift-angle: per reading). Methods without a fit fail this gate.
+    #[arg(long, value_name = "ARCSEC", value_parser = positive_arcsec, allow_hyphen_values = true)]
+    pub max_residual: Option<f64>,
+    /// Gate: exit 3 when the report of a log has any warning.
+    #[arg(long)]
+    pub fail_on_warning: bool,
+    /// Use the layout for several logs (DIR/<log stem>/, DIR/summary.json) even for one log:
+    /// for scripts whose wildcard may match a single file.
+    #[arg(long)]
+    pub per_log: bool,
+}
+
+/// What `--max-pp` judges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GateOn {
+    /// The calibrated map's peak-to-peak: the sensor's error without correction.
+    Before,
+    /// The peak-to-peak left after correction, where the method can measure it.
+    After,
+}
+
+/// clap value parser for gate thresholds: a positive, finite number of arcseconds.
+fn positive_arcsec(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("`{s}`: give a positive number of arcseconds")),
+    }
+}
+
+/// The figures of one calibrated channel that the gates judge.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChannelFigures {
+    /// The channel's name, as in the report.
+    pub channel: String,
+    /// Peak-to-peak of its calibrated map (its error without correction), arcsec.
+    pub peak_to_peak_before_arcsec: f64,
+    /// Peak-to-peak left after correction, arcsec, where the method measures it.
+    pub peak_to_peak_after_arcsec: Option<f64>,
+}
+
+/// What calibrating one log into one folder gave.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    /// What the command prints for this log alone: its summary, or report.json with `--json`.
+    pub text: String,
+    /// Every calibrated channel, in report order.
+    pub channels: Vec<ChannelFigures>,
+    /// RMS of the fit's residuals, arcsec, for methods that fit.
+    pub residual_rms_arcsec: Option<f64>,
+    /// The report's warnings.
+    pub warnings: Vec<String>,
+    /// The files written, relative to the log's output folder.
+    pub files: Vec<String>,
+}
+
+/// The verdict on one log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+enum Status {
+    Pass,
+    Fail,
+    Error,
+}
+
+/// One log's line in `summary.json`.
+#[derive(Debug, Serialize)]
+struct LogResult {
+    log: String,
+    /// The log's output folder, relative to the output folder (`.` with one log).
+    output: String,
+    status: Status,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    channels: Vec<ChannelFigures>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    residual_rms_arcsec: Option<f64>,
+    warnings: Vec<String>,
+    /// The gates that failed, one line each.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    gate_failures: Vec<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    error: Option<String>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    files: Vec<String>,
+    #[serde(skip)]
+    exit_code: u8,
+    #[serde(skip)]
+    text: String,
+}
+
+/// The gates as they were set, for `summary.json`.
+#[derive(Debug, Serialize)]
+struct Gates {
+    max_pp_arcsec: Option<f64>,
+    gate_on: GateOn,
+    max_residual_arcsec: Option<f64>,
+    fail_on_warning: bool,
+}
+
+/// `summary.json`.
+#[derive(Debug, Serialize)]
+struct Summary<'a> {
+    calib_version: &'static str,
+    method: &'a str,
+    gates: Gates,
+    passed: usize,
+    failed: usize,
+    errors: usize,
+    logs: &'a [LogResult],
+}
+
+/// Calibrates every log of `logs` with `calibrate(log, folder)`, judges each against the gates,
+/// and writes `summary.json` (several logs) and the JUnit file. Returns what to print; a run
+/// with a failed gate or a failed log returns [`Failed`] with the exit status described in the
+/// module's documentation. With one log (and no `--per-log`) the log's own error is returned as
+/// it is, so a single calibration behaves exactly as a plain command.
+pub fn run<F>(
+    method: &str,
+    logs: &[PathBuf],
+    output: &Path,
+    opts: &BatchArgs,
+    json: bool,
+    calibrate: F,
+) -> anyhow::Result<String>
+where
+    F: Fn(&Path, &Path) -> anyhow::Result<Outcome> + Sync,
+{
+    if logs.len() == 1 && !opts.per_log {
+        let result = calibrate(&logs[0], output);
+        let judged = judge(&logs[0], ".", result.as_ref(), opts);
+        if let Some(path) = &opts.junit {
+            write_junit(path, method, std::slice::from_ref(&judged))?;
+        }
+        let outcome = result?;
+        if judged.status == Status::Fail {
+            return Err(Failed {
+                stdout: outcome.text,
+                code: exit::GATE,
+                message: format!("gate failed: {}", judged.gate_failures.join("; ")),
+            }
+            .into());
+        }
+        return Ok(outcome.text);
+    }
+
+    let folders = folder_names(logs);
+    std::fs::create_dir_all(output)
+        .with_context(|| format!("cannot create the output folder {}", output.display()))?;
+    let jobs = match opts.jobs {
+        Some(n) => usize::from(n),
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs)
+        .build()
+        .context("cannot start the worker threads")?;
+    // `collect` keeps the input order whatever order the logs finish in.
+    let results: Vec<LogResult> = pool.install(|| {
+        logs.par_iter()
+            .zip(&folders)
+            .map(|(log, folder)| {
+                let result = calibrate(log, &output.join(folder));
+                judge(log, folder, result.as_ref(), opts)
+            })
+            .collect()
+    });
+
+    let count = |s: Status| results.iter().filter(|r| r.status == s).count();
+    let (passed, failed, errors) = (
+        count(Status::Pass),
+        count(Status::Fail),
+        count(Status::Error),
+    );
+    let summary = Summary {
+        calib_version: env!("CARGO_PKG_VERSION"),
+        method,
+        gates: Gates {
+            max_pp_arcsec: opts.max_pp,
+            gate_on: opts.gate_on.unwrap_or(GateOn::Before),
+            max_residual_arcsec: opts.max_residual,
+            fail_on_warning: opts.fail_on_warning,
+        },
+        passed,
+        failed,
+        errors,
+        logs: &results,
+    };
+    let summary_json = calib_io::report::render_json(&summary)?;
+    let summary_path = output.join("summary.json");
+    calib_io::atomic::write_atomic(&summary_path, summary_json.as_bytes())?;
+    if let Some(path) = &opts.junit {
+        write_junit(path, method, &results)?;
+    }
+
+    let stdout = if json {
+        summary_json
+    } else {
+        render_text(&results, output, &summary_path)
+    };
+    let code = [exit::USAGE, exit::DATA, exit::GATE]
+        .into_iter()
+        .find(|c| results.iter().any(|r| r.exit_code == *c));
+    match code {
+        None => Ok(stdout),
+        Some(code) => Err(Failed {
+            stdout,
+            code,
+            message: format!(
+                "{failed} of {} logs failed a gate, {errors} could not be calibrated; see {}",
+                results.len(),
+                summary_path.display()
+            ),
+        }
+        .into()),
+    }
+}
+
+/// The output folder of each log: its file stem made safe as a file name, with `-2`, `-3`, …
+/// appended where an earlier log already took the name.
+fn folder_names(logs: &[PathBuf]) -> Vec<String> {
+    let mut taken = BTreeSet::new();
+    logs.iter()
+        .map(|log| {
+            let stem = file_stem(&log.file_stem().unwrap_or_default().to_string_lossy());
+            let name = (1..)
+                .map(|k| {
+                    if k == 1 {
+                        stem.clone()
+                    } else {
+                        format!("{stem}-{k}")
+                    }
+                })
+                .find(|n| !taken.contains(n))
+                .expect("an unbounded range has a free name");
+            taken.insert(name.clone());
+            name
+        })
+        .collect()
+}
+
+/// Judges one log's outcome against the gates.
+fn judge(
+    log: &Path,
+    folder: &str,
+    result: Result<&Outcome, &anyhow::Error>,
+    opts: &BatchArgs,
+) -> LogResult {
+    let mut r = LogResult {
+        log: log.display().to_string(),
+        output: folder.to_string(),
+        status: Status::Pass,
+        channels: Vec::new(),
+        residual_rms_arcsec: None,
+        warnings: Vec::new(),
+        gate_failures: Vec::new(),
+        error: None,
+        files: Vec::new(),
+        exit_code: 0,
+        text: String::new(),
+    };
+    let o = match result {
+        Ok(o) => o,
+        Err(e) => {
+            r.status = Status::Error;
+            r.error = Some(format!("{e:#}"));
+            r.exit_code = exit::code_of(e);
+            return r;
+        }
+    };
+    if let Some(max) = opts.max_pp {
+        let after = opts.gate_on == Some(GateOn::After);
+        for c in &o.channels {
+            let (value, what) = if after {
+                (c.peak_to_peak_after_arcsec, "after correction")
+            } else {
+                (Some(c.peak_to_peak_before_arcsec), "before correction")
+            };
+            match value {
+                Some(v) if exceeds(v, max) => r.gate_failures.push(format!(
+                    "`{}`: peak-to-peak {what} {v:.3}″ > {max}″ (--max-pp)",
+                    c.channel
+                )),
+                Some(_) => {}
+                None => r.gate_failures.push(format!(
+                    "`{}`: this method and its options give no peak-to-peak after correction (--gate-on after; see --help)",
+                    c.channel
+                )),
+            }
+        }
+    }
+    if let Some(max) = opts.max_residual {
+        match o.residual_rms_arcsec {
+            Some(v) if exceeds(v, max) => r.gate_failures.push(format!(
+                "fit residual RMS {v:.4}″ > {max}″ (--max-residual)"
+            )),
+            Some(_) => {}
+            None => r.gate_failures.push(
+                "this method and its options fit no residuals (--max-residual; see --help)".into(),
+            ),
+        }
+    }
+    if opts.fail_on_warning {
+        for w in &o.warnings {
+            r.gate_failures
+                .push(format!("warning (--fail-on-warning): {w}"));
+        }
+    }
+    if !r.gate_failures.is_empty() {
+        r.status = Status::Fail;
+        r.exit_code = exit::GATE;
+    }
+    r.channels = o.channels.clone();
+    r.residual_rms_arcsec = o.residual_rms_arcsec;
+    r.warnings = o.warnings.clone();
+    r.files = o.files.clone();
+    r.text = o.text.clone();
+    r
+}
+
+/// Whether `value` fails a gate of `max`: above it, or not a number at all.
+fn exceeds(value: f64, max: f64) -> bool {
+    value > max || value.is_nan()
+}
+
+/// Standard output for several logs: each log's summary in input order, then the verdicts.
+fn render_text(results: &[LogResult], output: &Path, summary_path: &Path) -> String {
+    let mut s = String::new();
+    for r in results {
+        let _ = writeln!(s, "=== {} → {}", r.log, output.join(&r.output).display());
+        match &r.error {
+            Some(e) => {
+                let _ = writeln!(s, "error: {e}");
+            }
+            None => s.push_str(&r.text),
+        }
+        s.push('\n');
+    }
+    let width = results
+        .iter()
+        .map(|r| r.log.chars().count())
+        .max()
+        .unwrap_or(0);
+    let _ = writeln!(s, "summary");
+    for r in results {
+        let (status, why) = match r.status {
+            Status::Pass => ("pass", String::new()),
+            Status::Fail => ("FAIL", r.gate_failures.join("; ")),
+            Status::Error => ("ERROR", r.error.clone().unwrap_or_default()),
+        };
+        let first_line = why.lines().next().unwrap_or_default();
+        let line = format!("  {status:<5}  {:<width$}  {first_line}", r.log);
+        let _ = writeln!(s, "{}", line.trim_end());
+    }
+    let count = |st: Status| results.iter().filter(|r| r.status == st).count();
+    let _ = writeln!(
+        s,
+        "{} logs: {} passed, {} failed a gate, {} could not be calibrated\nwrote {}",
+        results.len(),
+        count(Status::Pass),
+        count(Status::Fail),
+        count(Status::Error),
+        summary_path.display()
+    );
+    s
+}
+
+/// Writes the JUnit XML file: one `<testcase>` per log.
+fn write_junit(path: &Path, method: &str, results: &[LogResult]) -> anyhow::Result<()> {
+    calib_io::atomic::write_atomic(path, render_junit(method, results).as_bytes())
+        .with_context(|| format!("cannot write the JUnit file {}", path.display()))
+}
+
+/// The JUnit XML of `results`: no times or host names, so equal runs give equal files.
+fn render_junit(method: &str, results: &[LogResult]) -> String {
+    let count = |st: Status| results.iter().filter(|r| r.status == st).count();
+    let (n, failures, errors) = (results.len(), count(Status::Fail), count(Status::Error));
+    let suite = xml_attr(&format!("calib {method}"));
+    let mut s = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+    let _ = writeln!(
+        s,
+        "<testsuites name=\"{suite}\" tests=\"{n}\" failures=\"{failures}\" errors=\"{errors}\">"
+    );
+    let _ = writeln!(
+        s,
+        "  <testsuite name=\"{suite}\" tests=\"{n}\" failures=\"{failures}\" errors=\"{errors}\" skipped=\"0\">"
+    );
+    for r in results {
+        let _ = writeln!(
+            s,
+            "    <testcase name=\"{}\" classname=\"{}\">",
+            xml_attr(&r.log),
+            xml_attr(&format!("calib.{method}"))
+        );
+        match r.status {
+            Status::Pass => {}
+            Status::Fail => {
+                let _ = writeln!(
+                    s,
+                    "      <failure type=\"gate\" message=\"{}\">{}</failure>",
+                    xml_attr(&r.gate_failures[0]),
+                    xml_text(&r.gate_failures.join("\n"))
+                );
+            }
+            Status::Error => {
+                let e = r.error.as_deref().unwrap_or_default();
+                let kind = if r.exit_code == exit::USAGE {
+                    "usage"
+                } else {
+                    "data"
+                };
+                let _ = writeln!(
+                    s,
+                    "      <error type=\"{kind}\" message=\"{}\">{}</error>",
+                    xml_attr(e.lines().next().unwrap_or_default()),
+                    xml_text(e)
+                );
+            }
+        }
+        if !r.text.is_empty() {
+            let _ = writeln!(s, "      <system-out>{}</system-out>", xml_text(&r.text));
+        }
+        let _ = writeln!(s, "    </testcase>");
+    }
+    s.push_str("  </testsuite>\n</testsuites>\n");
+    s
+}
+
+/// `text` escaped for an XML 1.0 attribute value: as [`xml_text`], and line breaks and tabs as
+/// character references (a parser would turn them into spaces).
+fn xml_attr(text: &str) -> String {
+    xml_text(text).replace('\n', "&#10;").replace('\t', "&#9;")
+}
+
+/// `text` escaped for XML 1.0 character data: markup characters as entities, carriage returns
+/// as a character reference (a parser would drop them), and the control characters XML 1.0
+/// cannot carry as U+FFFD.
+fn xml_text(text: &str) -> String {
+    let mut s = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => s.push_str("&amp;"),
+            '<' => s.push_str("&lt;"),
+            '>' => s.push_str("&gt;"),
+            '"' => s.push_str("&quot;"),
+            '\'' => s.push_str("&apos;"),
+            '\r' => s.push_str("&#13;"),
+            '\n' | '\t' => s.push(c),
+            c if (c as u32) < 0x20 || c == '\u{FFFE}' || c == '\u{FFFF}' => s.push('\u{FFFD}'),
+            c => s.push(c),
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn repeated_stems_get_numbered_folders_in_input_order() {
+        let logs: Vec<PathBuf> = ["x/run.mcap", "y/run.csv", "run-2.mcap", "z/a b.csv"]
+            .iter()
+            .map(PathBuf::from)
+            .collect();
+        assert_eq!(folder_names(&logs), ["run", "run-2", "run-2-2", "a_b"]);
+    }
+
+    #[test]
+    fn escaping_covers_markup_line_breaks_and_forbidden_controls() {
+        let raw = "a<b & \"c\" 'd'>\n\t\r\u{1}é";
+        let text = "a&lt;b &amp; &quot;c&quot; &apos;d&apos;&gt;\n\t&#13;\u{FFFD}é";
+        assert_eq!(xml_text(raw), text);
+        assert_eq!(
+            xml_attr(raw),
+            text.replace('\n', "&#10;").replace('\t', "&#9;")
+        );
+    }
+
+    #[test]
+    fn gate_thresholds_must_be_positive_numbers() {
+        assert_eq!(positive_arcsec("2.5"), Ok(2.5));
+        for bad in ["0", "-1", "nan", "inf", "abc", ""] {
+            assert!(positive_arcsec(bad).is_err(), "{bad}");
+        }
+    }
+}
