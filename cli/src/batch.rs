@@ -37,14 +37,15 @@ pub struct BatchArgs {
     pub max_pp: Option<f64>,
     /// What --max-pp judges. before: the calibrated map's peak-to-peak (the sensor's error
     /// without correction). after: what is left after applying the correction, where the
-    /// method can measure it: csrr with --ref (the peak-to-peak of calibrated map − the error
-    /// the reference sees), reference (the peak-to-peak of each direction's mean deviation −
-    /// the map: the hysteresis the correction cannot remove). Elsewhere the gate fails, naming
-    /// the channel.
+    /// method can measure it: csrr with --truth or --ref (the peak-to-peak of calibrated map −
+    /// the true error, or the error the reference sees), tdr with --ref (the same against the
+    /// reference), reference (the peak-to-peak of each direction's mean deviation − the map:
+    /// the hysteresis the correction cannot remove). Elsewhere the gate fails, naming the
+    /// channel.
     #[arg(long, value_enum, value_name = "WHEN", requires = "max_pp")]
     pub gate_on: Option<GateOn>,
-    /// Gate: exit 3 when the fit's residual RMS exceeds ARCSEC (csrr joint: per sample;
-    /// shift-angle: per reading). Methods without a fit fail this gate.
+    /// Gate: exit 3 when the fit's residual RMS exceeds ARCSEC (csrr joint, multihead joint and
+    /// tdr: per sample; shift-angle: per reading). Methods without a fit fail this gate.
     #[arg(long, value_name = "ARCSEC", value_parser = positive_arcsec, allow_hyphen_values = true)]
     pub max_residual: Option<f64>,
     /// Gate: exit 3 when the report of a log has any warning.
@@ -189,6 +190,12 @@ where
         return Ok(outcome.text);
     }
 
+    if crate::ui::plots_dir().is_some() {
+        return Err(exit::Usage(
+            "--plots takes one log: with several, each log's report.html holds its plots".into(),
+        )
+        .into());
+    }
     let folders = folder_names(logs);
     std::fs::create_dir_all(output)
         .with_context(|| format!("cannot create the output folder {}", output.display()))?;

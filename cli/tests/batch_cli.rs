@@ -110,7 +110,7 @@ fn several_logs_give_one_folder_each_a_summary_and_junit_and_equal_runs_equal_by
     assert_mentions(
         &text,
         &[
-            "out/run1-2/a.csv",
+            "into out/run1-2",
             "sensor A never moves",
             "wrote out/summary.json",
         ],
@@ -156,7 +156,7 @@ fn several_logs_give_one_folder_each_a_summary_and_junit_and_equal_runs_equal_by
         assert!(rms > 0.05 && rms < 0.1, "{rms}");
         assert_eq!(
             e["files"],
-            serde_json::json!(["a.csv", "b.csv", "report.json"])
+            serde_json::json!(["a.csv", "b.csv", "report.json", "report.html"])
         );
     }
     assert_eq!(entries[3]["status"], "error");

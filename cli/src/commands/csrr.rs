@@ -129,6 +129,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.max_order == Some(0) {
         return Err(Usage("--max-order must be at least 1".into()).into());
     }
+    if args.truth.is_some() && args.logs.len() > 1 {
+        return Err(
+            Usage("--truth DIR holds the truth of one log: give one log with it".into()).into(),
+        );
+    }
     batch::run(
         "csrr",
         &args.logs,

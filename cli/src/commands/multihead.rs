@@ -1,5 +1,6 @@
 //! `calib multihead`: self-calibration of one scale read by several heads.
 
+use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
@@ -12,7 +13,7 @@ use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Largest `--points` accepted (a 0.0001° grid).
 const MAX_POINTS: usize = 3_600_000;
@@ -44,11 +45,17 @@ pub enum MethodArg {
 ///
 /// Writes DIR/<first head>.csv (the scale's error as the first head reads it, as a function of
 /// its reading: angle_deg, error_arcsec, correction_arcsec; correction = −error, zero mean) and
-/// DIR/report.json (head angle errors, blind orders, residual), and prints a summary.
+/// DIR/report.json (head angle errors, blind orders, residual) and DIR/report.html, and prints a
+/// summary. With several logs, each log's files go to DIR/<log stem>/ and DIR/summary.json holds
+/// every log's verdict.
+///
+/// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
+/// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The log (.csv or .mcap).
-    pub log: PathBuf,
+    /// The logs (.csv or .mcap), calibrated independently and in parallel.
+    #[arg(required = true, value_name = "LOG")]
+    pub logs: Vec<PathBuf>,
     /// The heads as NAME@DEG (nominal angle in degrees), comma-separated or repeated; the first
     /// is the head whose map is written.
     #[arg(long, required = true, value_delimiter = ',', value_name = "NAME@DEG")]
@@ -81,6 +88,9 @@ pub struct Args {
     /// Print report.json on standard output instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// Pipelines and gates.
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 /// One `NAME@DEG` of `--heads`.
@@ -187,16 +197,34 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ..MultiheadOptions::default()
     };
     // Head and set problems concern the command line, whatever the log holds.
-    let mut mh = Multihead::new(heads.clone(), opts).map_err(|e| Usage(e.to_string()))?;
+    Multihead::new(heads.clone(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
+    batch::run(
+        "multihead",
+        &args.logs,
+        &args.output,
+        &args.batch,
+        args.json,
+        |log, out| calibrate(args, &heads, &opts, log, out),
+    )
+}
 
-    let mut reader = open_log(&args.log, args.unit)?;
+/// Calibrates one log into the folder `out`.
+fn calibrate(
+    args: &Args,
+    heads: &[Head],
+    opts: &MultiheadOptions,
+    log: &Path,
+    out: &Path,
+) -> anyhow::Result<Outcome> {
+    let mut mh = Multihead::new(heads.to_vec(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
+    let mut reader = open_log(log, args.unit)?;
     let columns = heads
         .iter()
-        .map(|h| channel(&reader, &args.log, &h.name))
+        .map(|h| channel(&reader, log, &h.name))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let mut readings = vec![0.0; columns.len()];
     for sample in reader.by_ref() {
-        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         for (r, &c) in readings.iter_mut().zip(&columns) {
             *r = s.values[c];
         }
@@ -205,7 +233,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let cal = mh.finish().with_context(|| {
         format!(
             "{}: heads {}",
-            args.log.display(),
+            log.display(),
             heads
                 .iter()
                 .map(|h| h.name.as_str())
@@ -213,22 +241,34 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
                 .join(", ")
         )
     })?;
-    let mut warnings = reader.warnings(&args.log);
+    let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
     let first = &heads[0].name;
-    let report = build_report(args, &heads, &cal, warnings);
+    let report = build_report(log, heads, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
-    write_tables_and_report(
-        &args.output,
+    let files = write_tables_and_report(
+        out,
         &[(first, &cal.map, None)],
         &json,
         &crate::document::multihead::document(first, &cal, &report),
     )?;
-    if args.json {
-        return Ok(json);
-    }
-    Ok(render_summary(args, &heads, &cal, &report))
+    let text = if args.json {
+        json
+    } else {
+        render_summary(args, out, heads, &cal, &report)
+    };
+    Ok(Outcome {
+        text,
+        channels: vec![ChannelFigures {
+            channel: first.clone(),
+            peak_to_peak_before_arcsec: report.channels[first].peak_to_peak_arcsec,
+            peak_to_peak_after_arcsec: None,
+        }],
+        residual_rms_arcsec: cal.residual_rms.map(|r| r * ARCSEC_PER_RAD),
+        warnings: report.warnings,
+        files,
+    })
 }
 
 fn readings_name(r: Option<Readings>) -> &'static str {
@@ -245,7 +285,7 @@ fn set_names(set: &[usize], heads: &[Head]) -> Vec<String> {
 }
 
 fn build_report(
-    args: &Args,
+    log: &Path,
     heads: &[Head],
     cal: &MultiheadCalibration,
     warnings: Vec<String>,
@@ -317,7 +357,7 @@ fn build_report(
     Report {
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "multihead".to_string(),
-        inputs: vec![args.log.display().to_string()],
+        inputs: vec![log.display().to_string()],
         command_line: Some(crate::input::command_line()),
         channels,
         sessions: Vec::new(),
@@ -341,6 +381,7 @@ fn list_orders(orders: impl ExactSizeIterator<Item = usize>) -> String {
 
 fn render_summary(
     args: &Args,
+    out: &Path,
     heads: &[Head],
     cal: &MultiheadCalibration,
     report: &Report,
@@ -418,7 +459,7 @@ fn render_summary(
         cal.map.peak_to_peak() * ARCSEC_PER_RAD,
         ch.rms_arcsec,
         top.join(", "),
-        args.output.join(&ch.table).display()
+        out.join(&ch.table).display()
     );
     let residual = cal.residual_rms.map_or(String::new(), |r| {
         format!(", residual RMS {:.4}″ per sample", r * ARCSEC_PER_RAD)
@@ -448,7 +489,7 @@ fn render_summary(
     for w in &report.warnings {
         let _ = writeln!(o, "\nwarning: {w}");
     }
-    let _ = writeln!(o, "\nwrote {}", args.output.join("report.json").display());
+    let _ = writeln!(o, "\nwrote {}", out.join("report.json").display());
     o
 }
 

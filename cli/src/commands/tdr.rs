@@ -1,5 +1,6 @@
 //! `calib tdr`: self-calibration of one encoder from a free spin-down (coast-down) log.
 
+use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::exit::Usage;
 use crate::input::{channel, command_line, open_log, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
@@ -10,7 +11,7 @@ use calib_core::{AngleUnit, ChannelReport, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
 const MAX_POINTS: usize = 3_600_000;
@@ -36,11 +37,16 @@ const MAX_DEGREE: usize = 60;
 ///
 /// Writes DIR/<channel>.csv (angle_deg, error_arcsec, correction_arcsec; error = reading − true
 /// angle, correction = −error, a function of the encoder's own reading, zero mean) and
-/// DIR/report.json, and prints a summary.
+/// DIR/report.json and DIR/report.html, and prints a summary. With several logs, each log's files
+/// go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
+///
+/// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
+/// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The log (.csv or .mcap).
-    pub log: PathBuf,
+    /// The logs (.csv or .mcap), calibrated independently and in parallel.
+    #[arg(required = true, value_name = "LOG")]
+    pub logs: Vec<PathBuf>,
     /// Channel of the encoder to calibrate.
     #[arg(long)]
     pub channel: String,
@@ -70,6 +76,9 @@ pub struct Args {
     /// Print report.json on standard output instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// Pipelines and gates.
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 /// Runs `calib tdr`.
@@ -99,12 +108,24 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if !(args.min_revolutions.is_finite() && args.min_revolutions >= 1.0) {
         return Err(Usage("--min-revolutions must be at least 1".into()).into());
     }
-    let mut reader = open_log(&args.log, args.unit)?;
-    let ic = channel(&reader, &args.log, &args.channel)?;
+    batch::run(
+        "tdr",
+        &args.logs,
+        &args.output,
+        &args.batch,
+        args.json,
+        |log, out| calibrate(args, log, out),
+    )
+}
+
+/// Calibrates one log into the folder `out`.
+fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
+    let mut reader = open_log(log, args.unit)?;
+    let ic = channel(&reader, log, &args.channel)?;
     let ir = args
         .reference
         .as_ref()
-        .map(|r| channel(&reader, &args.log, r))
+        .map(|r| channel(&reader, log, r))
         .transpose()?;
     let mut tdr = Tdr::new(TdrOptions {
         max_order: args.max_order,
@@ -114,7 +135,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ..TdrOptions::default()
     });
     for sample in reader.by_ref() {
-        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
+        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         match ir {
             Some(ir) => tdr.push_with_reference(s.t, s.values[ic], s.values[ir]),
             None => tdr.push(s.t, s.values[ic]),
@@ -122,29 +143,46 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     }
     let cal = tdr
         .finish()
-        .with_context(|| format!("{}: channel `{}`", args.log.display(), args.channel))?;
-    let mut warnings = reader.warnings(&args.log);
+        .with_context(|| format!("{}: channel `{}`", log.display(), args.channel))?;
+    let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, &cal, warnings);
+    let report = build_report(args, log, &cal, warnings);
     let json = calib_io::report::render_json(&report)?;
-    write_tables_and_report(
-        &args.output,
+    let files = write_tables_and_report(
+        out,
         &[(&args.channel, &cal.map, None)],
         &json,
         &crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, &report),
     )?;
-    if args.json {
-        return Ok(json);
-    }
-    Ok(render_summary(args, &cal, &report))
+    let text = if args.json {
+        json
+    } else {
+        render_summary(args, out, &cal, &report)
+    };
+    // After correction: what the reference still sees of the corrected encoder.
+    let after = cal
+        .reference
+        .as_ref()
+        .map(|r| cal.map.minus(&r.map).peak_to_peak() * ARCSEC_PER_RAD);
+    Ok(Outcome {
+        text,
+        channels: vec![ChannelFigures {
+            channel: args.channel.clone(),
+            peak_to_peak_before_arcsec: report.channels[&args.channel].peak_to_peak_arcsec,
+            peak_to_peak_after_arcsec: after,
+        }],
+        residual_rms_arcsec: Some(cal.residual_rms * ARCSEC_PER_RAD),
+        warnings: report.warnings,
+        files,
+    })
 }
 
 fn rpm(rad_s: f64) -> f64 {
     rad_s * 60.0 / std::f64::consts::TAU
 }
 
-fn build_report(args: &Args, cal: &TdrCalibration, warnings: Vec<String>) -> Report {
+fn build_report(args: &Args, log: &Path, cal: &TdrCalibration, warnings: Vec<String>) -> Report {
     let mut channels = BTreeMap::new();
     channels.insert(
         args.channel.clone(),
@@ -210,7 +248,7 @@ fn build_report(args: &Args, cal: &TdrCalibration, warnings: Vec<String>) -> Rep
     Report {
         calib_version: env!("CARGO_PKG_VERSION").to_string(),
         method: "tdr".to_string(),
-        inputs: vec![args.log.display().to_string()],
+        inputs: vec![log.display().to_string()],
         command_line: Some(command_line()),
         channels,
         sessions: Vec::new(),
@@ -219,7 +257,7 @@ fn build_report(args: &Args, cal: &TdrCalibration, warnings: Vec<String>) -> Rep
     }
 }
 
-fn render_summary(args: &Args, cal: &TdrCalibration, report: &Report) -> String {
+fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report) -> String {
     let mut o = String::new();
     let m = &cal.motion;
     let _ = writeln!(
@@ -252,7 +290,7 @@ fn render_summary(args: &Args, cal: &TdrCalibration, report: &Report) -> String 
         cal.map.peak_to_peak() * ARCSEC_PER_RAD,
         ch.rms_arcsec,
         top.join(", "),
-        args.output.join(&ch.table).display()
+        out.join(&ch.table).display()
     );
     if let (Some(name), Some(r)) = (&args.reference, &cal.reference) {
         let _ = writeln!(
@@ -270,6 +308,6 @@ fn render_summary(args: &Args, cal: &TdrCalibration, report: &Report) -> String 
     for w in &report.warnings {
         let _ = writeln!(o, "\nwarning: {w}");
     }
-    let _ = writeln!(o, "\nwrote {}", args.output.join("report.json").display());
+    let _ = writeln!(o, "\nwrote {}", out.join("report.json").display());
     o
 }
