@@ -24,8 +24,8 @@
 //!
 //! The crate's `examples/` folder holds one program per method, each fed from the simulator in
 //! memory and checking its result against the truth: `cargo run -p calib-core --example
-//! csrr_joint` (also `csrr_paper`, `reference`, `shift_angle`, `uncertainty`, `compare`,
-//! `simulate`).
+//! csrr_joint` (also `csrr_paper`, `multihead`, `tdr`, `reference`, `shift_angle`,
+//! `uncertainty`, `compare`, `simulate`).
 //!
 //! # Conventions
 //! Error `e = reading − true angle`, correction `= −e`; maps are functions of the sensor's own
