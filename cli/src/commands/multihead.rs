@@ -486,10 +486,12 @@ fn render_summary(
             list_orders(cal.ill_conditioned.iter().map(|e| e.order))
         );
     }
-    for w in &report.warnings {
-        let _ = writeln!(o, "\nwarning: {w}");
-    }
-    let _ = writeln!(o, "\nwrote {}", out.join("report.json").display());
+    o += &crate::summary::ending(
+        &report.warnings,
+        out,
+        &vec![ch.table.clone(), "report.json".to_string()],
+        "the scale's map, its spectrum with the blind orders, every head's angle error",
+    );
     o
 }
 

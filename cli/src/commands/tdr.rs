@@ -305,9 +305,14 @@ fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report
         cal.drag_gain * ARCSEC_PER_RAD,
         cal.drag_gain
     );
-    for w in &report.warnings {
-        let _ = writeln!(o, "\nwarning: {w}");
-    }
-    let _ = writeln!(o, "\nwrote {}", out.join("report.json").display());
+    o += &crate::summary::ending(
+        &report.warnings,
+        out,
+        &vec![
+            report.channels[&args.channel].table.clone(),
+            "report.json".to_string(),
+        ],
+        "the map, its spectrum with the speed-dependent orders marked, the coast",
+    );
     o
 }

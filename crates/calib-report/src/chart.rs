@@ -414,10 +414,12 @@ impl Figure {
     }
 }
 
-/// Tick labels: few significant digits, no trailing zeros, powers of ten for tiny or huge.
+/// Tick labels: few significant digits, no trailing zeros, powers of ten for tiny or huge. A
+/// linear axis's zero tick comes out of the step arithmetic as ±1e-16 or so: below 1e-12 (far
+/// under any amplitude drawn, in arcseconds or degrees) a tick is zero.
 fn tick(v: f64) -> String {
     let a = v.abs();
-    if v == 0.0 {
+    if a < 1e-12 {
         "0".into()
     } else if !(1e-3..1e5).contains(&a) {
         format!("{v:.0e}")
@@ -636,5 +638,6 @@ mod tests {
         assert_eq!(tick(120.0), "120");
         assert_eq!(tick(-0.00001), "-1e-5");
         assert_eq!(tick(0.0), "0");
+        assert_eq!(tick(-2.2e-16), "0");
     }
 }
