@@ -40,6 +40,7 @@
 mod cdr;
 mod json;
 mod read;
+mod records;
 mod write;
 
 pub use read::{IgnoredTopic, JOIN_QUEUE, McapReader};
