@@ -20,7 +20,11 @@ pub fn write_tables_and_report(
 ) -> anyhow::Result<()> {
     let rendered = tables
         .iter()
-        .map(|(name, map, u)| Ok((table_name(name), calib_io::table::render_table(map, *u)?)))
+        .map(|(name, map, u)| {
+            let text = calib_io::table::render_table(map, *u)
+                .with_context(|| format!("the table of channel `{name}`"))?;
+            Ok((table_name(name), text))
+        })
         .collect::<anyhow::Result<Vec<_>>>()?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create the output folder {}", dir.display()))?;

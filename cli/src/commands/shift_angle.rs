@@ -96,6 +96,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let report = build_report(args, &readings, &result, budget.as_ref())?;
     let report_json = serde_json::to_string_pretty(&report)? + "\n";
 
+    check_values(&result).with_context(|| format!("{}", args.readings.display()))?;
     std::fs::create_dir_all(&args.output).with_context(|| {
         format!(
             "cannot create the output directory {}",
@@ -104,13 +105,16 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     })?;
     let encoder_csv = render_encoder(&result, budget.as_ref());
     let polygon_csv = render_polygon(&result);
+    // All three or none: a failed write leaves no table without its report.
+    let mut outputs = calib_io::atomic::OutputSet::new();
     for (name, text) in [
         ("encoder.csv", &encoder_csv),
         ("polygon.csv", &polygon_csv),
         ("report.json", &report_json),
     ] {
-        calib_io::atomic::write_atomic(&args.output.join(name), text.as_bytes())?;
+        outputs.add(&args.output.join(name), text.as_bytes())?;
     }
+    outputs.commit()?;
     if args.json {
         Ok(report_json)
     } else {
@@ -164,6 +168,37 @@ pub fn render_encoder(result: &ShiftAngleResult, budget: Option<&BudgetResult>) 
         }
     }
     s
+}
+
+/// Refuses a result with a value no table may hold (non-finite, or beyond
+/// [`calib_io::table::MAX_TABLE_ARCSEC`]): extreme readings solve to numbers no encoder or
+/// polygon has, and a wrong table is worse than none.
+fn check_values(result: &ShiftAngleResult) -> anyhow::Result<()> {
+    let limit = calib_io::table::MAX_TABLE_ARCSEC;
+    let bad = |v: f64| !(v.abs() <= limit);
+    for p in &result.points {
+        if bad(p.error_arcsec) || p.u_arcsec.is_some_and(bad) {
+            anyhow::bail!(
+                "the encoder's error at {:.6}° solves to {}″ (u {:?}), not a finite value within \
+                 ±{limit}″: check the readings' unit (arcseconds) and values; no table was written",
+                p.angle_deg,
+                p.error_arcsec,
+                p.u_arcsec
+            );
+        }
+    }
+    for f in &result.polygon {
+        if bad(f.pitch_deviation_arcsec) || f.u_arcsec.is_some_and(bad) {
+            anyhow::bail!(
+                "face {}'s pitch deviation solves to {}″ (u {:?}), not a finite value within \
+                 ±{limit}″: check the readings' unit (arcseconds) and values; no table was written",
+                f.face,
+                f.pitch_deviation_arcsec,
+                f.u_arcsec
+            );
+        }
+    }
+    Ok(())
 }
 
 /// `polygon.csv`.
