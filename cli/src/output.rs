@@ -12,7 +12,9 @@ pub fn table_name(channel: &str) -> String {
 
 /// Writes one table per `(channel, map, standard uncertainty)` and `report.json` into `dir`
 /// (created if missing). Every file goes to a temporary name first and all are renamed into
-/// place only when all were written, so a failed run leaves none of them behind.
+/// place only when all were written, so a failed run leaves none of them behind. The report is
+/// renamed last: a run killed between two renames leaves complete tables, and a report only
+/// beside all of its tables.
 pub fn write_tables_and_report(
     dir: &Path,
     tables: &[(&str, &ErrorMap, Option<&[f64]>)],
