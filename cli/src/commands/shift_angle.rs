@@ -175,7 +175,7 @@ pub fn render_encoder(result: &ShiftAngleResult, budget: Option<&BudgetResult>) 
 /// polygon has, and a wrong table is worse than none.
 fn check_values(result: &ShiftAngleResult) -> anyhow::Result<()> {
     let limit = calib_io::table::MAX_TABLE_ARCSEC;
-    let bad = |v: f64| !(v.abs() <= limit);
+    let bad = |v: f64| !v.is_finite() || v.abs() > limit;
     for p in &result.points {
         if bad(p.error_arcsec) || p.u_arcsec.is_some_and(bad) {
             anyhow::bail!(

@@ -372,8 +372,11 @@ fn shift_readings(
     Readings::new(faces, shifts).expect("valid readings")
 }
 
-fn shift_case()
--> impl Strategy<Value = (usize, Vec<f64>, Vec<(usize, f64, f64)>, Vec<f64>, Vec<f64>)> {
+/// Faces, shifts (degrees), the encoder's harmonics `(order, arcsec, phase°)`, the polygon's
+/// pitch deviations and setup errors (arcsec).
+type ShiftCase = (usize, Vec<f64>, Vec<(usize, f64, f64)>, Vec<f64>, Vec<f64>);
+
+fn shift_case() -> impl Strategy<Value = ShiftCase> {
     (5usize..16).prop_flat_map(|faces| {
         (
             Just(faces),

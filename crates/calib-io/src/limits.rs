@@ -28,23 +28,25 @@ pub(crate) fn reading_problem(
         ));
     }
     let rev = rad / TAU;
-    (!(rev.abs() <= MAX_READING_REV)).then(|| {
-        format!(
-            "reading {shown} is {rev:.3e} revolutions from zero, beyond the {MAX_READING_REV:e} an \
-             angle can be held to 0.002″; check the channel's unit (--unit), or subtract a whole \
-             number of revolutions from the readings"
-        )
-    })
+    if rev.abs() <= MAX_READING_REV {
+        return None;
+    }
+    Some(format!(
+        "reading {shown} is {rev:.3e} revolutions from zero, beyond the {MAX_READING_REV:e} an \
+         angle can be held to 0.002″; check the channel's unit (--unit), or subtract a whole \
+         number of revolutions from the readings"
+    ))
 }
 
 /// Why a time stamp of `t` seconds cannot be used, if it cannot.
 pub(crate) fn time_problem(t: f64) -> Option<String> {
-    (!(t.abs() <= MAX_TIME_S)).then(|| {
-        format!(
-            "time stamp {t} s is beyond ±{MAX_TIME_S:e} s (the year 2286); time stamps must be \
-             in seconds — convert milliseconds or nanoseconds"
-        )
-    })
+    if t.abs() <= MAX_TIME_S {
+        return None;
+    }
+    Some(format!(
+        "time stamp {t} s is beyond ±{MAX_TIME_S:e} s (the year 2286); time stamps must be in \
+         seconds — convert milliseconds or nanoseconds"
+    ))
 }
 
 #[cfg(test)]
