@@ -23,10 +23,9 @@ pub fn write_tables_and_report(
     let mut files = tables
         .iter()
         .map(|(name, map, u)| {
-            Ok((
-                table_name(name),
-                calib_io::table::render_table(map, *u)?.into_bytes(),
-            ))
+            let text = calib_io::table::render_table(map, *u)
+                .with_context(|| format!("the table of channel `{name}`"))?;
+            Ok((table_name(name), text.into_bytes()))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     files.push(("report.json".to_string(), report_json.as_bytes().to_vec()));
@@ -35,9 +34,10 @@ pub fn write_tables_and_report(
 
 /// Writes `files` (name, contents) and the document as `report.html` into `dir`, and with
 /// `--plots DIR` every plot as SVG and PNG there (folders created if missing); returns the names
-/// of the files written into `dir`. Every file goes to
-/// a temporary name first and all are renamed into place only when all were written, so a failed
-/// run leaves none of them behind.
+/// of the files written into `dir`. Every file goes to a temporary name first and all are renamed
+/// into place only when all were written, so a failed run leaves none of them behind. The reports
+/// are renamed last: a run killed between two renames leaves complete tables, and a report only
+/// beside all of its tables.
 pub fn write_outputs(
     dir: &Path,
     files: &[(String, Vec<u8>)],

@@ -129,6 +129,7 @@ fn calibrate(
     let report = build_report(args, path, &readings, &result, budget)?;
     let report_json = serde_json::to_string_pretty(&report)? + "\n";
 
+    check_values(&result).with_context(|| format!("{}", path.display()))?;
     let encoder_csv = render_encoder(&result, budget);
     let polygon_csv = render_polygon(&result);
     let doc = crate::document::shift_angle::document(&readings, &result, budget, &report);
@@ -203,6 +204,37 @@ pub fn render_encoder(result: &ShiftAngleResult, budget: Option<&BudgetResult>) 
         }
     }
     s
+}
+
+/// Refuses a result with a value no table may hold (non-finite, or beyond
+/// [`calib_io::table::MAX_TABLE_ARCSEC`]): extreme readings solve to numbers no encoder or
+/// polygon has, and a wrong table is worse than none.
+fn check_values(result: &ShiftAngleResult) -> anyhow::Result<()> {
+    let limit = calib_io::table::MAX_TABLE_ARCSEC;
+    let bad = |v: f64| !v.is_finite() || v.abs() > limit;
+    for p in &result.points {
+        if bad(p.error_arcsec) || p.u_arcsec.is_some_and(bad) {
+            anyhow::bail!(
+                "the encoder's error at {:.6}° solves to {}″ (u {:?}), not a finite value within \
+                 ±{limit}″: check the readings' unit (arcseconds) and values; no table was written",
+                p.angle_deg,
+                p.error_arcsec,
+                p.u_arcsec
+            );
+        }
+    }
+    for f in &result.polygon {
+        if bad(f.pitch_deviation_arcsec) || f.u_arcsec.is_some_and(bad) {
+            anyhow::bail!(
+                "face {}'s pitch deviation solves to {}″ (u {:?}), not a finite value within \
+                 ±{limit}″: check the readings' unit (arcseconds) and values; no table was written",
+                f.face,
+                f.pitch_deviation_arcsec,
+                f.u_arcsec
+            );
+        }
+    }
+    Ok(())
 }
 
 /// `polygon.csv`.

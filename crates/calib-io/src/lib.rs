@@ -12,6 +12,7 @@
 //! - [`readings`]: shift-angle readings (`shift_deg,start_face,step,reading_arcsec`).
 //! - [`budget`]: GUM uncertainty budgets (TOML).
 //! - [`points`]: tolerant reader of error tables on any grid, for comparisons.
+//! - [`limits`]: the range of readings and time stamps readers accept.
 //!
 //! Every reader streams: memory stays bounded whatever the log's length. Every error names the
 //! file and the line or message it concerns ([`Error`]).
@@ -37,6 +38,7 @@ pub mod atomic;
 pub mod budget;
 pub mod csv_log;
 pub mod error;
+pub mod limits;
 pub mod log;
 pub mod mcap_log;
 pub mod points;

@@ -78,6 +78,44 @@ pub enum RenderError {
         /// The offending value, radians.
         value: f64,
     },
+    /// A value beyond [`MAX_TABLE_ARCSEC`]: a wrong solve or wrong data, not a sensor's error.
+    #[error(
+        "the {what} at grid point {index} is {arcsec:.0}″, beyond half a revolution ({MAX_TABLE_ARCSEC}″): \
+         no sensor errs by that much, so the data or the solve are wrong (check the channel's unit and \
+         that it records the shaft's angle); no table was written"
+    )]
+    Absurd {
+        /// 0-based grid point.
+        index: usize,
+        /// `error` or `uncertainty`.
+        what: &'static str,
+        /// The offending value, arcseconds.
+        arcsec: f64,
+    },
+}
+
+/// The largest error or uncertainty (arcseconds) a table may hold: half a revolution. An angle
+/// error beyond it cannot be told from one of the other sign; a map that holds one comes from
+/// wrong data or a failed solve, and a wrong table is worse than none.
+pub const MAX_TABLE_ARCSEC: f64 = 648_000.0;
+
+/// The first value of `values` that is not finite (or, with `non_negative`, negative), or whose
+/// magnitude exceeds [`MAX_TABLE_ARCSEC`].
+fn check_values(values: &[f64], what: &'static str, non_negative: bool) -> Result<(), RenderError> {
+    for (index, &value) in values.iter().enumerate() {
+        if !value.is_finite() || (non_negative && value < 0.0) {
+            return Err(RenderError::BadValue { index, what, value });
+        }
+        let arcsec = value * ARCSEC_PER_RAD;
+        if arcsec.abs() > MAX_TABLE_ARCSEC {
+            return Err(RenderError::Absurd {
+                index,
+                what,
+                arcsec,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Renders a correction table (see the [module docs](self) for the format and precision).
@@ -106,30 +144,9 @@ pub fn render_table(map: &ErrorMap, u: Option<&[f64]>) -> Result<String, RenderE
                 given: u.len(),
             });
         }
-        if let Some((index, &value)) = u
-            .iter()
-            .enumerate()
-            .find(|&(_, &v)| !(v.is_finite() && v >= 0.0))
-        {
-            return Err(RenderError::BadValue {
-                index,
-                what: "uncertainty",
-                value,
-            });
-        }
+        check_values(u, "uncertainty", true)?;
     }
-    if let Some((index, &value)) = map
-        .values()
-        .iter()
-        .enumerate()
-        .find(|&(_, v)| !v.is_finite())
-    {
-        return Err(RenderError::BadValue {
-            index,
-            what: "error",
-            value,
-        });
-    }
+    check_values(map.values(), "error", false)?;
 
     let mut out = String::with_capacity(48 * (n + 1));
     out.push_str(HEADER);
@@ -176,7 +193,7 @@ pub fn write_table(path: &Path, map: &ErrorMap, u: Option<&[f64]>) -> Result<(),
 ///
 /// Checks, with an error naming the file, line and column for each: the header (the three
 /// columns, optionally `u_arcsec`, in any order, nothing else), numbers in every field, finite
-/// values, non-negative uncertainties, `correction_arcsec = −error_arcsec` within the rounding of
+/// values at most [`MAX_TABLE_ARCSEC`] in magnitude, non-negative uncertainties, `correction_arcsec = −error_arcsec` within the rounding of
 /// the two fields as written, at least 2 rows, and angles on the uniform grid `i·360/N` starting
 /// at 0 (within [`GRID_TOLERANCE_DEG`]). A grid that is off says how: not starting at 0°, 360°
 /// repeating 0°, uneven steps, or an even step that does not make up one revolution.
@@ -266,9 +283,24 @@ pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
                 ))
             }
         };
+        // An error, correction or uncertainty beyond half a revolution is no sensor's.
+        let arcsec = |col: usize| -> Result<f64, Error> {
+            let v = number(col)?;
+            if v.abs() > MAX_TABLE_ARCSEC {
+                return Err(err(
+                    line(),
+                    Some(&names[col]),
+                    format!(
+                        "{v}″ is beyond half a revolution ({MAX_TABLE_ARCSEC}″): no sensor errs \
+                         by that much; the table is damaged or was written in another unit"
+                    ),
+                ));
+            }
+            Ok(v)
+        };
         let angle = number(angle_col)?;
-        let e = number(error_col)?;
-        let c = number(corr_col)?;
+        let e = arcsec(error_col)?;
+        let c = arcsec(corr_col)?;
         let slack = half_unit(record.get(error_col).unwrap_or_default())
             + half_unit(record.get(corr_col).unwrap_or_default())
             // Decimal-to-binary conversion of the two fields.
@@ -284,7 +316,7 @@ pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
             ));
         }
         if let (Some(u), Some(col)) = (u.as_mut(), u_col) {
-            let v = number(col)?;
+            let v = arcsec(col)?;
             if v < 0.0 {
                 return Err(err(
                     line(),

@@ -293,3 +293,32 @@ fn arbitrary_bytes_never_panic() {
         }
     }
 }
+
+#[test]
+fn extreme_readings_and_times_are_errors_not_numbers() {
+    // 1e12 degrees is 2.8e9 revolutions: beyond what an f64 holds to 0.002″.
+    let m = error_of("t,a\n0,1\n1,1e12\n", 3, Some("a"));
+    assert!(m.contains("revolutions from zero"), "{m}");
+    // A billion revolutions, unwrapped.
+    let m = error_of("t,a\n0,360000000000\n", 2, Some("a"));
+    assert!(m.contains("revolutions from zero"), "{m}");
+    // Nanoseconds written as seconds.
+    let m = error_of("t,a\n1700000000000000000,1\n", 2, Some("t"));
+    assert!(m.contains("nanoseconds"), "{m}");
+    let m = error_of("t,a\n-9.2e18,1\n", 2, Some("t"));
+    assert!(m.contains("beyond"), "{m}");
+    // Ten million revolutions and the year 2286 still pass.
+    let samples = read_str("t,a\n9999999999,3600000000\n").unwrap();
+    assert_eq!(samples[0].values, [3.6e9_f64.to_radians()]);
+}
+
+#[test]
+fn finite_readings_that_overflow_in_radians_are_errors() {
+    // 1e308 revolutions is a finite number whose conversion to radians is not.
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_tmp(&dir, b"t,a\n0,1e308\n");
+    let err = read_with(&path, Some(AngleUnit::Rev)).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("revolutions from zero"), "{text}");
+    assert!(text.contains("line 2"), "{text}");
+}

@@ -669,3 +669,105 @@ fn files_without_summary_are_scanned_for_their_topics() {
     assert_eq!(samples.len(), 50);
     assert_eq!(samples[49].values[0], 49.0);
 }
+
+#[test]
+fn extreme_positions_and_stamps_are_errors_naming_the_joint() {
+    let dir = temp();
+    let mut wild_nanosec = joint_state(T0 + 2, &["a", "b"], &[0.0, 1.0]);
+    wild_nanosec.header.stamp.nanosec = 4_000_000_000;
+    let cases: Vec<(&str, Vec<u8>, &str, &str)> = vec![
+        (
+            "nan",
+            cdr(&joint_state(T0 + 2, &["a", "b"], &[f64::NAN, 1.0]), false),
+            "a",
+            "not a finite number",
+        ),
+        (
+            "inf",
+            cdr(
+                &joint_state(T0 + 2, &["a", "b"], &[0.0, f64::INFINITY]),
+                true,
+            ),
+            "b",
+            "not a finite number",
+        ),
+        (
+            "billion_revolutions",
+            cdr(
+                &joint_state(T0 + 2, &["a", "b"], &[0.0, 1e9 * std::f64::consts::TAU]),
+                false,
+            ),
+            "b",
+            "revolutions from zero",
+        ),
+        (
+            "nanosec",
+            cdr(&wild_nanosec, false),
+            "/joint_states",
+            "nanosec is 4000000000",
+        ),
+    ];
+    for (name, bad, channel, expect) in cases {
+        let path = dir.path().join(format!("{name}.mcap"));
+        log_with_bad_message(&path, &bad);
+        let (read, err) = first_error(&path);
+        assert_eq!(read, 2, "{name}");
+        let (index, got, message) = mcap_error(err);
+        assert_eq!(index, Some(2), "{name}");
+        assert_eq!(got.as_deref(), Some(channel), "{name}");
+        assert!(message.contains(expect), "{name}: {message}");
+    }
+}
+
+#[test]
+fn extreme_json_values_are_errors_naming_the_field() {
+    let dir = temp();
+    for (name, bad) in [
+        ("degrees", r#"{"a": 1, "b": 1e12}"#),
+        ("overflow", r#"{"a": 1, "b": 1e308}"#),
+    ] {
+        let path = dir.path().join(format!("{name}.mcap"));
+        let mut b = Builder::new(&path, None, true);
+        let ch = b.json_topic("/enc");
+        b.put(ch, 1, br#"{"a": 1, "b": 2}"#);
+        b.put(ch, 2, bad.as_bytes());
+        b.finish();
+        let opts = ReadOptions {
+            unit: Some(AngleUnit::Rev),
+            ..ReadOptions::default()
+        };
+        let reader = McapReader::open(&path, &opts).expect("open");
+        let mut results: Vec<_> = reader.collect();
+        assert_eq!(results.len(), 2, "{name}");
+        assert!(results[0].is_ok(), "{name}");
+        let (index, _, message) = mcap_error(results.pop().expect("two").unwrap_err());
+        assert_eq!(index, Some(1), "{name}");
+        assert!(message.contains("field `b`"), "{name}: {message}");
+        assert!(
+            message.contains("revolutions from zero"),
+            "{name}: {message}"
+        );
+    }
+}
+
+#[test]
+fn log_times_near_the_i64_limit_are_read_or_refused_never_wrapped() {
+    let dir = temp();
+    let path = dir.path().join("late.mcap");
+    let mut b = Builder::new(&path, None, true);
+    let ch = b.json_topic("/enc");
+    let last_ok = i64::MAX as u64;
+    b.put(ch, last_ok - 1, br#"{"a": 1}"#);
+    b.put(ch, last_ok, br#"{"a": 2}"#);
+    b.put(ch, last_ok + 1, br#"{"a": 3}"#);
+    b.finish();
+    let reader = McapReader::open(&path, &ReadOptions::default()).expect("open");
+    let mut results: Vec<_> = reader.collect();
+    assert_eq!(results.len(), 3);
+    let t0 = results[0].as_ref().expect("first").t;
+    let t1 = results[1].as_ref().expect("second").t;
+    assert!(t0 <= t1 && (t1 - secs(last_ok)).abs() < 1e-5, "{t0} {t1}");
+    let (index, _, message) = mcap_error(results.pop().expect("three").unwrap_err());
+    assert_eq!(index, Some(2));
+    assert!(message.contains("beyond the year 2262"), "{message}");
+}

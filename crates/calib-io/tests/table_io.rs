@@ -273,3 +273,52 @@ fn missing_table_names_the_file() {
     assert!(matches!(err, Error::Io { .. }));
     assert!(err.to_string().contains("/no/such/table.csv"), "{err}");
 }
+
+#[test]
+fn absurd_values_are_refused_in_both_directions() {
+    use calib_io::table::MAX_TABLE_ARCSEC;
+    // Half a revolution passes; beyond it no sensor errs.
+    let edge = ErrorMap::new(arcsec(&[MAX_TABLE_ARCSEC, -MAX_TABLE_ARCSEC]));
+    assert!(render_table(&edge, None).is_ok());
+    let huge = ErrorMap::new(arcsec(&[0.0, 0.0, 3e6, -3e6]));
+    let err = render_table(&huge, None).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            RenderError::Absurd {
+                index: 2,
+                what: "error",
+                ..
+            }
+        ),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("no table was written"), "{err}");
+    let small = ErrorMap::new(arcsec(&[1.0, -1.0]));
+    assert!(matches!(
+        render_table(&small, Some(&arcsec(&[0.1, 1e9]))),
+        Err(RenderError::Absurd {
+            index: 1,
+            what: "uncertainty",
+            ..
+        })
+    ));
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("a.csv");
+    assert!(write_table(&path, &huge, None).is_err());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+
+    // Reading: a table of such values was damaged or written in another unit.
+    let m = error_of(
+        &format!("{H}0,1,-1\n180,1e7,-1e7\n"),
+        3,
+        Some("error_arcsec"),
+    );
+    assert!(m.contains("beyond half a revolution"), "{m}");
+    let m = error_of(
+        "angle_deg,error_arcsec,correction_arcsec,u_arcsec\n0,1,-1,0.1\n180,-1,1,7e5\n",
+        3,
+        Some("u_arcsec"),
+    );
+    assert!(m.contains("beyond half a revolution"), "{m}");
+}

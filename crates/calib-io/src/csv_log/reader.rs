@@ -202,6 +202,9 @@ impl CsvReader {
                 ),
             ));
         }
+        if let Some(problem) = crate::limits::time_problem(t) {
+            return Err(self.error(Some(self.t_col), problem));
+        }
         if let Some((prev_t, prev_pos)) = &self.prev {
             let prev_t = *prev_t;
             if t <= prev_t && !self.allow_unordered_time {
@@ -227,17 +230,11 @@ impl CsvReader {
             let raw = field(c);
             let v = parse_f64(raw)
                 .ok_or_else(|| self.error(Some(c), fields::not_a_number(raw, "a reading")))?;
-            if !v.is_finite() {
-                return Err(self.error(
-                    Some(c),
-                    format!(
-                        "reading `{}` is not a finite number; remove the row or repair the \
-                         recording (calib cannot calibrate from missing readings)",
-                        fields::show(raw)
-                    ),
-                ));
+            let rad = v * self.rad_per_unit;
+            if let Some(problem) = crate::limits::reading_problem(fields::show(raw), v, rad) {
+                return Err(self.error(Some(c), problem));
             }
-            values.push(v * self.rad_per_unit);
+            values.push(rad);
         }
 
         let session = match self.session_col {

@@ -15,8 +15,9 @@
 //!
 //! # Streaming
 //! The summary is read by seeking to the footer; the data section is then read front to back
-//! through a buffered file reader by [`mcap::io::MessageReader`], which holds at most one chunk
-//! at a time. Memory is therefore bounded by the chunk size, whatever the length of the log (a
+//! through a buffered file reader by the `records` module's stream over the `mcap` crate's
+//! linear reader, which holds at most one chunk at a time and checks every length inside a record
+//! before parsing it. Memory is therefore bounded by the chunk size, whatever the length of the log (a
 //! memory map would keep every page read resident: as much memory as the log is long). The
 //! stream stops at the data end record, so a damaged or missing summary does not stop reading
 //! the data.
@@ -40,6 +41,7 @@ use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, Summar
 use super::JOINT_STATE_SCHEMA;
 use super::cdr::JointState;
 use super::json;
+use super::records::{self, StreamError};
 use crate::{Error, ReadDiagnostics, ReadOptions, Truncation};
 
 /// Messages each topic may hold while waiting for the other topics' messages at the same stamp.
@@ -114,7 +116,7 @@ impl Read for Source {
     }
 }
 
-type Stream = mcap::io::MessageReader<Source>;
+type Stream = records::Stream<Source>;
 
 /// A message stream over `file` from its start, and its count of bytes read.
 fn stream(mut file: File, len: u64) -> io::Result<(Stream, Arc<AtomicU64>)> {
@@ -125,19 +127,16 @@ fn stream(mut file: File, len: u64) -> io::Result<(Stream, Arc<AtomicU64>)> {
         consumed: Arc::clone(&consumed),
     };
     let options = LinearReaderOptions::default()
-        // Stop at the data end record: the summary after it is read separately, and its damage
-        // must not cost the data.
+        // The stream stops at the data end record; a file cut between two records just ends.
         .with_skip_end_magic(true)
         // No record can be longer than the file; a corrupt length must not drive an allocation.
         .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
-    Ok((
-        mcap::io::MessageReader::new_with_options(source, options),
-        consumed,
-    ))
+    Ok((records::Stream::new(source, options), consumed))
 }
 
-/// The file's summary, read by seeking to its footer; `None` if it has none or it is damaged
-/// (as in a truncated file).
+/// The file's summary as the `mcap` crate reads it (chunk indexes and statistics, which `calib
+/// apply` copies the compression from), found by seeking to its footer; `None` if it has none or
+/// it is damaged (as in a truncated file). Reading samples uses [`records::read_summary`].
 pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
     let options = SummaryReaderOptions::default()
         .with_file_size(len)
@@ -366,15 +365,23 @@ impl McapReader {
             ignored: Vec::new(),
         };
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
-        let expected =
-            read_summary(&mut file, len).map(|summary| expected_topics(&summary, &mut registry));
+        let expected = records::read_summary(&mut file, len)
+            .map(|summary| expected_topics(&summary, &mut registry));
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut messages = 0u64;
+        let mut damage = None;
         if expected.as_ref().is_none_or(|e| !e.is_empty()) {
             let (mut peek, _) = stream(file, len).map_err(io)?;
             for (index, message) in (&mut peek).enumerate() {
-                // Errors here are reported by the iteration, at the same message.
-                let Ok(message) = message else { break };
+                // Errors here are reported by the iteration, at the same message, unless no
+                // usable topic comes before them.
+                let message = match message {
+                    Ok(message) => message,
+                    Err(e) => {
+                        damage = Some((index as u64, e));
+                        break;
+                    }
+                };
                 messages += 1;
                 let index = index as u64;
                 let resolved = registry
@@ -400,6 +407,19 @@ impl McapReader {
             file = peek.into_inner().file.into_inner();
         }
         if registry.topics.is_empty() {
+            if let Some((index, e)) = damage {
+                if !matches!(e, StreamError::Mcap(McapError::UnexpectedEof)) {
+                    return Err(mcap_error(
+                        path,
+                        Some(index),
+                        None,
+                        format!(
+                            "the file is damaged here ({e}) before any JointState or JSON \
+                             message; recover what is left with `mcap recover`"
+                        ),
+                    ));
+                }
+            }
             if messages == 0 && registry.ignored.is_empty() {
                 return Err(Error::Empty {
                     path: path.to_path_buf(),
@@ -624,7 +644,9 @@ impl Iterator for McapReader {
                     // Reading stopped at the first incomplete record, or inside it (a cut chunk)
                     // where the last message came out.
                     return match e {
-                        McapError::UnexpectedEof if self.note_truncation() => None,
+                        StreamError::Mcap(McapError::UnexpectedEof) if self.note_truncation() => {
+                            None
+                        }
                         _ => Some(Err(mcap_error(
                             &self.path,
                             Some(self.index),
@@ -652,15 +674,15 @@ impl Iterator for McapReader {
 }
 
 /// The usable topics the summary lists with at least one message; ignored ones go to `registry`.
-fn expected_topics(summary: &mcap::read::Summary, registry: &mut Registry) -> Vec<String> {
+fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<String> {
     let mut channels: Vec<_> = summary.channels.values().collect();
     channels.sort_by_key(|c| c.id);
     let mut topics = Vec::new();
     for channel in channels {
         let has_messages = summary
-            .stats
+            .message_counts
             .as_ref()
-            .and_then(|s| s.channel_message_counts.get(&channel.id))
+            .and_then(|counts| counts.get(&channel.id))
             .is_none_or(|&n| n > 0);
         if !has_messages {
             continue;
@@ -756,7 +778,23 @@ fn decode(
                     ),
                 ));
             }
+            let start = out.len();
             out.extend(js.positions());
+            for (name, &rad) in topic.names.iter().zip(&out[start..]) {
+                if let Some(problem) = crate::limits::reading_problem(rad, rad, rad) {
+                    return Err((Some(name.clone()), problem));
+                }
+            }
+            if js.nanosec >= 1_000_000_000 {
+                return Err((
+                    None,
+                    format!(
+                        "header.stamp.nanosec is {}, not below 10⁹; the publisher's stamps are \
+                         broken (nanoseconds must be the fraction of the second)",
+                        js.nanosec
+                    ),
+                ));
+            }
             if js.sec == 0 && js.nanosec == 0 {
                 log_time_ns(message.log_time).map_err(|m| (None, m))
             } else {
@@ -778,7 +816,11 @@ fn decode(
                 };
                 match (i, value) {
                     (Some(i), Some(v)) => {
-                        out[i] = v * scale;
+                        let rad = v * scale;
+                        if let Some(problem) = crate::limits::reading_problem(v, v, rad) {
+                            return Err(format!("field `{key}`: {problem}"));
+                        }
+                        out[i] = rad;
                         seen[i] = true;
                         next = i + 1;
                         Ok(())

@@ -1,0 +1,296 @@
+//! The MCAP records calib reads — schemas, channels, messages and statistics — with every length
+//! field inside a record checked against the record's own length before it is parsed.
+//!
+//! The `mcap` crate parses a string or byte field by reserving the length its `u32` prefix claims,
+//! so a damaged file whose channel topic claims 4 GB makes it allocate 4 GB (found by fuzzing).
+//! Record lengths themselves are bounded by the reader options (no record longer than the file or
+//! its chunk). Here the records' inner fields are walked first and parsed only when every length
+//! fits; records calib does not need (attachments, metadata, indexes) are skipped unparsed.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::fmt;
+use std::fs::File;
+use std::io::{self, BufReader, Read, Seek, SeekFrom};
+use std::sync::Arc;
+
+use mcap::read::ChannelAccumulator;
+use mcap::records::{Record, op};
+use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use mcap::{McapError, Message};
+
+/// Why the stream stopped.
+#[derive(Debug)]
+pub(crate) enum StreamError {
+    /// Reported by the `mcap` crate.
+    Mcap(McapError),
+    /// A field's length exceeds what is left of its record.
+    Length(String),
+}
+
+impl fmt::Display for StreamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StreamError::Mcap(e) => write!(f, "{e}"),
+            StreamError::Length(m) => f.write_str(m),
+        }
+    }
+}
+
+impl From<McapError> for StreamError {
+    fn from(e: McapError) -> Self {
+        StreamError::Mcap(e)
+    }
+}
+
+/// Walks a record body field by field.
+struct Fields<'a> {
+    body: &'a [u8],
+    pos: usize,
+    record: &'static str,
+}
+
+impl Fields<'_> {
+    fn skip(&mut self, n: usize, field: &str) -> Result<(), StreamError> {
+        let left = self.body.len() - self.pos;
+        if n > left {
+            return Err(StreamError::Length(format!(
+                "the {} record's {field} claims {n} bytes but only {left} remain in the record",
+                self.record
+            )));
+        }
+        self.pos += n;
+        Ok(())
+    }
+    fn u32(&mut self, field: &str) -> Result<usize, StreamError> {
+        let at = self.pos;
+        self.skip(4, field)?;
+        let bytes: [u8; 4] = self.body[at..at + 4].try_into().unwrap_or_default();
+        Ok(u32::from_le_bytes(bytes) as usize)
+    }
+    /// A `u32`-prefixed string or byte array.
+    fn prefixed(&mut self, field: &str) -> Result<(), StreamError> {
+        let n = self.u32(field)?;
+        self.skip(n, field)
+    }
+    /// A `u32`-byte-length-prefixed map of strings to strings.
+    fn string_map(&mut self, field: &str) -> Result<(), StreamError> {
+        let n = self.u32(field)?;
+        let end = self.pos;
+        self.skip(n, field)?;
+        let mut inner = Fields {
+            body: &self.body[end..end + n],
+            pos: 0,
+            record: self.record,
+        };
+        while inner.pos < n {
+            inner.prefixed(field)?;
+            inner.prefixed(field)?;
+        }
+        Ok(())
+    }
+}
+
+/// Checks the inner lengths of a schema or channel record.
+fn check(opcode: u8, body: &[u8]) -> Result<(), StreamError> {
+    match opcode {
+        op::SCHEMA => {
+            let mut f = Fields {
+                body,
+                pos: 0,
+                record: "schema",
+            };
+            f.skip(2, "id")?;
+            f.prefixed("name")?;
+            f.prefixed("encoding")?;
+            f.prefixed("data")
+        }
+        op::CHANNEL => {
+            let mut f = Fields {
+                body,
+                pos: 0,
+                record: "channel",
+            };
+            f.skip(4, "id")?;
+            f.prefixed("topic")?;
+            f.prefixed("message encoding")?;
+            f.string_map("metadata")
+        }
+        _ => Ok(()),
+    }
+}
+
+/// A stream of messages from an MCAP file's data section, to its data end record.
+pub(crate) struct Stream<R> {
+    source: R,
+    reader: LinearReader,
+    channels: ChannelAccumulator<'static>,
+    done: bool,
+}
+
+impl<R: Read> Stream<R> {
+    pub(crate) fn new(source: R, options: LinearReaderOptions) -> Self {
+        Stream {
+            source,
+            reader: LinearReader::new_with_options(options),
+            channels: ChannelAccumulator::default(),
+            done: false,
+        }
+    }
+
+    pub(crate) fn into_inner(self) -> R {
+        self.source
+    }
+
+    fn next_message(&mut self) -> Option<Result<Message<'static>, StreamError>> {
+        loop {
+            let event = match self.reader.next_event()? {
+                Ok(event) => event,
+                Err(e) => return Some(Err(e.into())),
+            };
+            let (opcode, data) = match event {
+                LinearReadEvent::ReadRequest(need) => {
+                    let read = loop {
+                        match self.source.read(self.reader.insert(need)) {
+                            Ok(n) => break n,
+                            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                            Err(e) => return Some(Err(McapError::Io(e).into())),
+                        }
+                    };
+                    self.reader.notify_read(read);
+                    continue;
+                }
+                LinearReadEvent::Record { opcode, data } => (opcode, data),
+            };
+            match opcode {
+                // The summary after it is read separately; its damage must not cost the data.
+                op::DATA_END => return None,
+                op::SCHEMA | op::CHANNEL | op::MESSAGE => {}
+                _ => continue,
+            }
+            if let Err(e) = check(opcode, data) {
+                return Some(Err(e));
+            }
+            let record = match mcap::parse_record(opcode, data) {
+                Ok(record) => record,
+                Err(e) => return Some(Err(e.into())),
+            };
+            let added = match record {
+                Record::Schema { header, data } => self
+                    .channels
+                    .add_schema(header, Cow::Owned(data.into_owned())),
+                Record::Channel(channel) => self.channels.add_channel(channel),
+                Record::Message { header, data } => {
+                    let Some(channel) = self.channels.get(header.channel_id) else {
+                        return Some(Err(McapError::UnknownChannel(
+                            header.sequence,
+                            header.channel_id,
+                        )
+                        .into()));
+                    };
+                    return Some(Ok(Message {
+                        channel,
+                        sequence: header.sequence,
+                        log_time: header.log_time,
+                        publish_time: header.publish_time,
+                        data: Cow::Owned(data.into_owned()),
+                    }));
+                }
+                _ => Ok(()),
+            };
+            if let Err(e) = added {
+                return Some(Err(e.into()));
+            }
+        }
+    }
+}
+
+impl<R: Read> Iterator for Stream<R> {
+    type Item = Result<Message<'static>, StreamError>;
+
+    /// The next message; after an error or the data end record, `None`.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let item = self.next_message();
+        self.done = !matches!(item, Some(Ok(_)));
+        item
+    }
+}
+
+/// What calib needs from a file's summary section.
+pub(crate) struct Summary {
+    /// Every channel, by ID.
+    pub channels: HashMap<u16, Arc<mcap::Channel<'static>>>,
+    /// Messages per channel ID, if the summary has statistics.
+    pub message_counts: Option<std::collections::BTreeMap<u16, u64>>,
+}
+
+/// The length of the footer record: opcode, length, summary start, summary offset start, CRC.
+const FOOTER_LEN: u64 = 1 + 8 + 8 + 8 + 4;
+
+/// Reads the summary section of a file of `len` bytes, found through its footer; `None` if it has
+/// none or it is damaged (as in a truncated file). Reads only the schema, channel and statistics
+/// records, each checked as in the data section.
+pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
+    let magic = mcap::MAGIC.len() as u64;
+    let footer_at = len.checked_sub(magic + FOOTER_LEN)?;
+    if footer_at < magic {
+        return None;
+    }
+    let mut tail = [0u8; (FOOTER_LEN + 8) as usize];
+    file.seek(SeekFrom::Start(footer_at)).ok()?;
+    file.read_exact(&mut tail).ok()?;
+    if tail[0] != op::FOOTER || &tail[FOOTER_LEN as usize..] != mcap::MAGIC {
+        return None;
+    }
+    let u64_at = |i: usize| u64::from_le_bytes(tail[i..i + 8].try_into().unwrap_or_default());
+    let (start, offsets) = (u64_at(9), u64_at(17));
+    let end = if offsets != 0 { offsets } else { footer_at };
+    if start == 0 || start < magic || start > end || end > footer_at {
+        return None;
+    }
+    file.seek(SeekFrom::Start(start)).ok()?;
+    let mut file = BufReader::new(file.take(end - start));
+    let mut summary = Summary {
+        channels: HashMap::new(),
+        message_counts: None,
+    };
+    let mut accumulator = ChannelAccumulator::default();
+    let mut ids = Vec::new();
+    let mut left = end - start;
+    let mut head = [0u8; 9];
+    let mut body = Vec::new();
+    while left > 0 {
+        file.read_exact(&mut head).ok()?;
+        let n = u64::from_le_bytes(head[1..].try_into().unwrap_or_default());
+        left = left.checked_sub(9)?.checked_sub(n)?;
+        let opcode = head[0];
+        if !matches!(opcode, op::SCHEMA | op::CHANNEL | op::STATISTICS) {
+            io::copy(&mut (&mut file).take(n), &mut io::sink()).ok()?;
+            continue;
+        }
+        // `n` fits: it is at most the summary's length, which is at most the file's.
+        body.resize(usize::try_from(n).ok()?, 0);
+        file.read_exact(&mut body).ok()?;
+        check(opcode, &body).ok()?;
+        match mcap::parse_record(opcode, &body).ok()? {
+            Record::Schema { header, data } => accumulator
+                .add_schema(header, Cow::Owned(data.into_owned()))
+                .ok()?,
+            Record::Channel(channel) => {
+                ids.push(channel.id);
+                accumulator.add_channel(channel).ok()?;
+            }
+            Record::Statistics(stats) => {
+                summary.message_counts = Some(stats.channel_message_counts)
+            }
+            _ => {}
+        }
+    }
+    for id in ids {
+        summary.channels.insert(id, accumulator.get(id)?);
+    }
+    Some(summary)
+}

@@ -1,0 +1,44 @@
+//! Inputs found by the fuzz targets in `fuzz/` that crashed, hung or exhausted memory, kept in the
+//! normal test suite so they stay fixed. The files are under `tests/fuzz-regressions/` (the
+//! fuzz input less its first byte, which only chose the read options).
+
+use calib_io::mcap_log::McapReader;
+use calib_io::{Error, ReadOptions};
+use std::path::{Path, PathBuf};
+
+fn input(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fuzz-regressions")
+        .join(name)
+}
+
+/// Every error an MCAP file gives, opening and reading it to the end.
+fn mcap_errors(path: &Path) -> Vec<String> {
+    match McapReader::open(path, &ReadOptions::default()) {
+        Err(e) => vec![e.to_string()],
+        Ok(reader) => reader
+            .filter_map(Result::err)
+            .map(|e: Error| e.to_string())
+            .collect(),
+    }
+}
+
+/// mcap_reader, out of memory: a channel record whose topic length claims 2.2 GB (the `mcap`
+/// crate reserves a string's claimed length before reading it). Now every length inside a record
+/// is checked against the record first: an error naming the field, no allocation.
+#[test]
+fn a_channel_topic_claiming_gigabytes_is_an_error_not_an_allocation() {
+    let path = input("mcap-channel-topic-claims-2gb.mcap");
+    let errors = mcap_errors(&path);
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(
+        errors[0].contains("channel record's topic claims 2248146957 bytes"),
+        "{}",
+        errors[0]
+    );
+    assert!(
+        errors[0].contains("mcap-channel-topic-claims-2gb.mcap"),
+        "{}",
+        errors[0]
+    );
+}
