@@ -42,3 +42,20 @@ fn a_channel_topic_claiming_gigabytes_is_an_error_not_an_allocation() {
         errors[0]
     );
 }
+
+/// mcap_reader, overflow: in an uncompressed chunk, a record longer than what is left of the
+/// chunk made the `mcap` crate's count of remaining chunk bytes wrap (a panic in debug builds, a
+/// read past the chunk in release builds). The vendored `mcap` (`vendor/mcap`) checks it: the
+/// chunk ends in the middle of a record, an error naming the file.
+#[test]
+fn a_record_overrunning_its_uncompressed_chunk_is_an_error() {
+    let path = input("mcap-uncompressed-chunk-record-overruns-chunk.mcap");
+    let errors = mcap_errors(&path);
+    assert!(!errors.is_empty(), "the damaged chunk went unnoticed");
+    assert!(
+        errors
+            .iter()
+            .any(|e| e.contains("mcap-uncompressed-chunk-record-overruns-chunk.mcap")),
+        "{errors:?}"
+    );
+}
