@@ -51,7 +51,8 @@ fn comparison(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option<(String, 
     ))
 }
 
-/// The largest |comparison − map| of channel A or B, arcsec (the error left after correction).
+/// The peak-to-peak of comparison − map for channel A or B, arcsec (the error left after
+/// correction), with the comparison's name.
 pub fn after_correction(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option<(String, f64)> {
     let (name, pts) = comparison(cal, cmp, a)?;
     let map = if a { &cal.a } else { &cal.b };
