@@ -198,7 +198,11 @@ fn a_killed_calibration_leaves_only_complete_files() {
                 calib_io::table::read_table(&f).unwrap();
             } else if f.extension().is_some_and(|e| e == "html") {
                 let html = std::fs::read_to_string(&f).unwrap();
-                assert!(html.trim_end().ends_with("</html>"), "{} is cut", f.display());
+                assert!(
+                    html.trim_end().ends_with("</html>"),
+                    "{} is cut",
+                    f.display()
+                );
             } else {
                 let text = std::fs::read_to_string(&f).unwrap();
                 serde_json::from_str::<serde_json::Value>(&text).unwrap();
