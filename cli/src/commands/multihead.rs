@@ -489,7 +489,7 @@ fn render_summary(
     o += &crate::summary::ending(
         &report.warnings,
         out,
-        &vec![ch.table.clone(), "report.json".to_string()],
+        &[ch.table.clone(), "report.json".to_string()],
         "the scale's map, its spectrum with the blind orders, every head's angle error",
     );
     o

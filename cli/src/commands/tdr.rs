@@ -308,7 +308,7 @@ fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report
     o += &crate::summary::ending(
         &report.warnings,
         out,
-        &vec![
+        &[
             report.channels[&args.channel].table.clone(),
             "report.json".to_string(),
         ],
