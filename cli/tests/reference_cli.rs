@@ -232,6 +232,22 @@ fn both_directions_give_the_reversal_value() {
     assert!((u - 0.2).abs() < 1e-3, "{u}");
 }
 
+/// The back-and-forth run with the reference column replaced by `f(reference reading)`.
+fn with_reference(f: impl Fn(f64) -> f64) -> String {
+    back_and_forth(0.0)
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                format!("{l}\n")
+            } else {
+                let c: Vec<&str> = l.split(',').collect();
+                format!("{},{},{}\n", c[0], c[1], f(c[2].parse().unwrap()))
+            }
+        })
+        .collect()
+}
+
 #[test]
 fn bad_inputs_fail_cleanly() {
     let dir = tempfile::tempdir().unwrap();
@@ -278,59 +294,40 @@ fn bad_inputs_fail_cleanly() {
     expect_exit(&o, 2);
 
     // A reference that never moves.
-    let still: String = back_and_forth(0.0)
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            if i == 0 {
-                format!("{l}\n")
-            } else {
-                let f: Vec<&str> = l.split(',').collect();
-                format!("{},{},12.5\n", f[0], f[1])
-            }
-        })
-        .collect();
+    let still = with_reference(|_| 12.5);
     let log = write(dir.path(), "still.csv", &still);
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "dut",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
-    let err = expect_exit(&o, 1);
+    let err = expect_exit(
+        &calib(&[
+            "reference",
+            s(&log),
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            s(&out),
+        ]),
+        1,
+    );
     assert_mentions(&err, &["still.csv", "`ref`", "does not move"]);
     assert_no_output(&out);
 
     // A reference on another shaft (turning the other way).
-    let reversed: String = back_and_forth(0.0)
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            if i == 0 {
-                format!("{l}\n")
-            } else {
-                let f: Vec<&str> = l.split(',').collect();
-                let r: f64 = f[2].parse().unwrap();
-                format!("{},{},{}\n", f[0], f[1], (-r).rem_euclid(360.0))
-            }
-        })
-        .collect();
+    let reversed = with_reference(|r| (-r).rem_euclid(360.0));
     let log = write(dir.path(), "reversed.csv", &reversed);
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "dut",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
-    let err = expect_exit(&o, 1);
+    let err = expect_exit(
+        &calib(&[
+            "reference",
+            s(&log),
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            s(&out),
+        ]),
+        1,
+    );
     assert_mentions(&err, &["reversed.csv", "does not follow"]);
     assert_no_output(&out);
 
@@ -341,17 +338,19 @@ fn bad_inputs_fail_cleanly() {
         .map(|l| format!("{l}\n"))
         .collect();
     let log = write(dir.path(), "short.csv", &short);
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "dut",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
-    let err = expect_exit(&o, 1);
+    let err = expect_exit(
+        &calib(&[
+            "reference",
+            s(&log),
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            s(&out),
+        ]),
+        1,
+    );
     assert_mentions(
         &err,
         &[
