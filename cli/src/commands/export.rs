@@ -59,13 +59,10 @@ pub struct Args {
 }
 
 /// Largest `--points` accepted.
-const MAX_POINTS: usize = 3_600_000;
 
 /// Runs `calib export`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    if args.points.is_some_and(|p| !(2..=MAX_POINTS).contains(&p)) {
-        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
-    }
+    crate::input::check_points(args.points)?;
     if args.scale.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
         return Err(Usage("--scale must be a positive number of arcseconds per LSB".into()).into());
     }

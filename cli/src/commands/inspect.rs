@@ -38,6 +38,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let opts = ReadOptions {
         unit: args.unit,
         allow_unordered_time: true,
+        skip_damaged: crate::ui::skip_damaged(),
     };
     let mut reader = open_log_with(&args.log, opts)?;
     let names: Vec<String> = reader.channels().iter().map(|c| c.name.clone()).collect();

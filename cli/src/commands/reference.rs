@@ -15,7 +15,6 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 /// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
-const MAX_POINTS: usize = 3_600_000;
 
 /// Calibrate an encoder (the DUT) against a better reference encoder on the same shaft.
 ///
@@ -84,9 +83,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    if !(2..=MAX_POINTS).contains(&args.points) {
-        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
-    }
+    crate::input::check_points(Some(args.points))?;
     let finite_nonneg = |v: f64| v.is_finite() && v >= 0.0;
     if !(finite_nonneg(args.ref_u)
         && finite_nonneg(args.approach)

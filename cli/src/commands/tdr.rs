@@ -14,7 +14,6 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 /// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
-const MAX_POINTS: usize = 3_600_000;
 /// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
 const MAX_ORDER: usize = 1000;
 /// Largest `--motion-degree` accepted (Chebyshev series of higher degree can follow the error).
@@ -90,9 +89,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    if !(2..=MAX_POINTS).contains(&args.points) {
-        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
-    }
+    crate::input::check_points(Some(args.points))?;
     if !(1..=MAX_ORDER).contains(&args.max_order) {
         return Err(Usage(format!("--max-order must be between 1 and {MAX_ORDER}")).into());
     }

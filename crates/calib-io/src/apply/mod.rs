@@ -30,7 +30,7 @@ mod csv;
 mod mcap;
 
 use crate::log::LogFormat;
-use crate::{Error, Truncation};
+use crate::{DamagedChunk, Error, Truncation};
 use calib_core::correction::{Correction, Wrapping};
 use calib_core::{AngleUnit, ErrorMap};
 use std::path::Path;
@@ -45,6 +45,9 @@ pub struct ApplyOptions {
     pub unit: Option<AngleUnit>,
     /// How the channel's readings are wrapped; detected from their range if `None`.
     pub wrapping: Option<Wrapping>,
+    /// MCAP: leave out chunks that do not match their CRC (listed in
+    /// [`Applied::damaged_chunks`]) instead of failing on the first.
+    pub skip_damaged: bool,
 }
 
 /// What [`apply`] did.
@@ -66,6 +69,9 @@ pub struct Applied {
     /// Where an MCAP log ended early (a crashed recording): the output holds everything before
     /// the break, as a complete file.
     pub truncated: Option<Truncation>,
+    /// MCAP chunks left out of the output because they were damaged (with
+    /// [`ApplyOptions::skip_damaged`]).
+    pub damaged_chunks: Vec<DamagedChunk>,
 }
 
 /// The readings of a channel seen by a pass over a log.
@@ -124,7 +130,7 @@ pub fn apply(
     let unit = opts.unit.unwrap_or(AngleUnit::Deg);
     let range = match format {
         LogFormat::Csv => csv::scan(input, &opts.channel, unit)?,
-        LogFormat::Mcap => mcap::scan(input, &opts.channel, unit)?,
+        LogFormat::Mcap => mcap::scan(input, &opts.channel, unit, opts.skip_damaged)?,
     };
     if range.count == 0 {
         return Err(Error::Data {
@@ -139,11 +145,12 @@ pub fn apply(
         .wrapping
         .unwrap_or_else(|| Wrapping::detect(range.min, range.max, range.unit));
     let fix = |unit| Correction::new(map.clone(), unit, wrapping);
-    let (readings, copied, truncated) = match format {
+    let (readings, copied, truncated, damaged_chunks) = match format {
         LogFormat::Csv => (
             csv::rewrite(input, output, &opts.channel, &fix(unit))?,
             0,
             None,
+            Vec::new(),
         ),
         LogFormat::Mcap => {
             let done = mcap::rewrite(
@@ -152,8 +159,9 @@ pub fn apply(
                 &opts.channel,
                 &fix(AngleUnit::Rad),
                 &fix(unit),
+                opts.skip_damaged,
             )?;
-            (done.readings, done.copied, done.truncated)
+            (done.readings, done.copied, done.truncated, done.damaged)
         }
     };
     Ok(Applied {
@@ -164,5 +172,6 @@ pub fn apply(
         range: (range.min, range.max),
         copied,
         truncated,
+        damaged_chunks,
     })
 }

@@ -119,7 +119,7 @@ impl Read for Source {
 type Stream = records::Stream<Source>;
 
 /// A message stream over `file` from its start, and its count of bytes read.
-fn stream(mut file: File, len: u64) -> io::Result<(Stream, Arc<AtomicU64>)> {
+fn stream(mut file: File, len: u64, skip_damaged: bool) -> io::Result<(Stream, Arc<AtomicU64>)> {
     file.seek(SeekFrom::Start(0))?;
     let consumed = Arc::new(AtomicU64::new(0));
     let source = Source {
@@ -131,7 +131,10 @@ fn stream(mut file: File, len: u64) -> io::Result<(Stream, Arc<AtomicU64>)> {
         .with_skip_end_magic(true)
         // No record can be longer than the file; a corrupt length must not drive an allocation.
         .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
-    Ok((records::Stream::new(source, options), consumed))
+    Ok((
+        records::Stream::new(source, options, skip_damaged),
+        consumed,
+    ))
 }
 
 /// The file's summary as the `mcap` crate reads it (chunk indexes and statistics, which `calib
@@ -370,8 +373,9 @@ impl McapReader {
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut messages = 0u64;
         let mut damage = None;
+        let mut skipped = Vec::new();
         if expected.as_ref().is_none_or(|e| !e.is_empty()) {
-            let (mut peek, _) = stream(file, len).map_err(io)?;
+            let (mut peek, _) = stream(file, len, opts.skip_damaged).map_err(io)?;
             for (index, message) in (&mut peek).enumerate() {
                 // Errors here are reported by the iteration, at the same message, unless no
                 // usable topic comes before them.
@@ -404,10 +408,27 @@ impl McapReader {
                     break;
                 }
             }
+            skipped = peek.damaged().to_vec();
             file = peek.into_inner().file.into_inner();
         }
         if registry.topics.is_empty() {
+            if !skipped.is_empty() {
+                let list: Vec<String> = skipped.iter().map(|c| c.to_string()).collect();
+                return Err(mcap_error(
+                    path,
+                    None,
+                    None,
+                    format!(
+                        "no JointState or JSON message is left once the damaged chunks are \
+                         skipped (--skip-damaged): {}; repair the file or record again",
+                        list.join("; ")
+                    ),
+                ));
+            }
             if let Some((index, e)) = damage {
+                if let StreamError::Damaged(_) = e {
+                    return Err(damaged_error(path, index, &e));
+                }
                 if !matches!(e, StreamError::Mcap(McapError::UnexpectedEof)) {
                     return Err(mcap_error(
                         path,
@@ -419,6 +440,20 @@ impl McapReader {
                         ),
                     ));
                 }
+            }
+            // A file cut before its first usable message is cut, whatever else it holds: say so
+            // rather than that it holds no samples.
+            if let Some(at) = find_break(path) {
+                return Err(mcap_error(
+                    path,
+                    None,
+                    None,
+                    format!(
+                        "the file is cut short at byte {at} of {len}, before its first JointState \
+                         or JSON message (a recording that stopped early, or a partial copy); \
+                         copy the file again or record again"
+                    ),
+                ));
             }
             if messages == 0 && registry.ignored.is_empty() {
                 return Err(Error::Empty {
@@ -477,7 +512,7 @@ impl McapReader {
                 });
             }
         }
-        let (stream, consumed) = stream(file, len).map_err(io)?;
+        let (stream, consumed) = stream(file, len, opts.skip_damaged).map_err(io)?;
         Ok(McapReader {
             path: path.to_path_buf(),
             stream: Box::new(stream),
@@ -606,9 +641,11 @@ impl McapReader {
         true
     }
 
-    /// Counts what is still waiting for a partner when the stream ends.
+    /// Counts what is still waiting for a partner when the stream ends, and lists the damaged
+    /// chunks left out.
     fn finish(&mut self) {
         self.done = true;
+        self.diagnostics.damaged_chunks = self.stream.damaged().to_vec();
         for topic in &mut self.registry.topics {
             self.diagnostics.unjoined_messages += topic.queue.len() as u64;
             topic.queue.clear();
@@ -647,6 +684,9 @@ impl Iterator for McapReader {
                         StreamError::Mcap(McapError::UnexpectedEof) if self.note_truncation() => {
                             None
                         }
+                        StreamError::Damaged(_) | StreamError::DataCrc => {
+                            Some(Err(damaged_error(&self.path, self.index, &e)))
+                        }
                         _ => Some(Err(mcap_error(
                             &self.path,
                             Some(self.index),
@@ -671,6 +711,18 @@ impl Iterator for McapReader {
             }
         }
     }
+}
+
+/// The error for a damaged chunk or data section met after `index` messages.
+fn damaged_error(path: &Path, index: u64, e: &StreamError) -> Error {
+    let what = match e {
+        StreamError::Damaged(_) => {
+            "none of its messages were used: run with --skip-damaged to calibrate without them \
+             (they are then listed in the report), or repair the file"
+        }
+        _ => "calib cannot tell which readings it changed: repair the file or record again",
+    };
+    mcap_error(path, Some(index), None, format!("{e}; {what}"))
 }
 
 /// The usable topics the summary lists with at least one message; ignored ones go to `registry`.
@@ -781,7 +833,8 @@ fn decode(
             let start = out.len();
             out.extend(js.positions());
             for (name, &rad) in topic.names.iter().zip(&out[start..]) {
-                if let Some(problem) = crate::limits::reading_problem(rad, rad, rad) {
+                let shown = crate::limits::readable(rad);
+                if let Some(problem) = crate::limits::reading_problem(shown, rad, rad) {
                     return Err((Some(name.clone()), problem));
                 }
             }
