@@ -58,7 +58,6 @@ pub struct Args {
     pub output: Option<PathBuf>,
 }
 
-/// Largest `--points` accepted.
 
 /// Runs `calib export`.
 pub fn run(args: &Args) -> anyhow::Result<String> {

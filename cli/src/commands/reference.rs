@@ -14,7 +14,6 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
 
 /// Calibrate an encoder (the DUT) against a better reference encoder on the same shaft.
 ///

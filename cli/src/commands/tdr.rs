@@ -13,7 +13,6 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
 /// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
 const MAX_ORDER: usize = 1000;
 /// Largest `--motion-degree` accepted (Chebyshev series of higher degree can follow the error).

@@ -301,8 +301,9 @@ pub const MANIFEST: &str = ".calib-manifest";
 ///   instant there is no folder, never a mixed one.
 ///
 /// So after a run, killed or not, the folder holds exactly one run's files. A folder holding
-/// other files too (`-o .` beside the logs) cannot be swapped without moving them: there the
-/// files are renamed in one by one, then the previous run's files not written this time are
+/// other files too (`-o .` beside the logs) cannot be swapped without moving them, nor can a
+/// folder whose parent is not writable or is another file system (a mount point), nor the
+/// working directory: there the files are staged inside it and renamed in one by one, then the previous run's files not written this time are
 /// removed, and the manifest is renamed in last, naming the set that is complete. With several
 /// folders (`--plots DIR`), they are replaced in the reverse order of their first file, so the
 /// folder of the first file (the output folder) is replaced last.
@@ -316,6 +317,9 @@ pub struct OutputSet {
 struct Staged {
     target: PathBuf,
     staging: PathBuf,
+    /// The staging folder is inside the target (its parent is not writable or is another file
+    /// system), so the files can only be renamed in one by one.
+    inside: bool,
     files: Vec<String>,
 }
 
@@ -343,10 +347,11 @@ impl OutputSet {
         let k = match self.folders.iter().position(|f| f.target == folder) {
             Some(k) => k,
             None => {
-                let staging = staging_beside(&folder).map_err(io_err)?;
+                let (staging, inside) = staging_for(&folder).map_err(io_err)?;
                 self.folders.push(Staged {
                     target: folder,
                     staging,
+                    inside,
                     files: Vec::new(),
                 });
                 self.folders.len() - 1
@@ -380,21 +385,43 @@ impl Drop for OutputSet {
     }
 }
 
-/// A new, registered staging folder beside `folder` (an absolute path).
-fn staging_beside(folder: &Path) -> io::Result<PathBuf> {
+/// A new, registered staging folder for `folder` (an absolute path): beside it where its parent
+/// is writable and on the same file system (so that one rename can swap them), else inside it;
+/// and whether it is inside.
+fn staging_for(folder: &Path) -> io::Result<(PathBuf, bool)> {
     let name = folder
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
-        .ok_or_else(|| io::Error::other("the root folder cannot be an output folder"))?;
-    let parent = parent_of(folder);
-    let prefix = temp_prefix(&name);
-    let staging = tempfile::Builder::new()
-        .prefix(&prefix)
-        .suffix(".tmp")
-        .tempdir_in(parent)?
-        .keep();
+        .unwrap_or_default();
+    let make = |dir: &Path| {
+        tempfile::Builder::new()
+            .prefix(&temp_prefix(&name))
+            .suffix(".tmp")
+            .tempdir_in(dir)
+            .map(tempfile::TempDir::keep)
+    };
+    let parent = folder.parent().filter(|p| same_file_system(folder, p));
+    let (staging, inside) = match parent.map(make) {
+        Some(Ok(staging)) => (staging, false),
+        _ => (make(folder)?, true),
+    };
     register(&staging);
-    Ok(staging)
+    Ok((staging, inside))
+}
+
+#[cfg(unix)]
+fn same_file_system(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev(),
+        _ => false,
+    }
+}
+
+/// Without device numbers, assume one file system: a failed swap is an error, nothing is lost.
+#[cfg(not(unix))]
+fn same_file_system(_a: &Path, _b: &Path) -> bool {
+    true
 }
 
 impl Staged {
@@ -414,10 +441,11 @@ impl Staged {
             .map_err(io_err(&self.target.join(MANIFEST)))?;
         sync_dir(&self.staging);
         fault_point();
+        let swap = !self.inside && replaceable(&self.target);
         if let Some(f) = self
             .files
             .iter()
-            .find(|f| self.target.join(f).is_dir() && !replaceable(&self.target))
+            .find(|f| self.target.join(f).is_dir() && !swap)
         {
             return Err(Error::Write {
                 path: self.target.join(f),
@@ -426,7 +454,7 @@ impl Staged {
                         .into(),
             });
         }
-        if replaceable(&self.target) {
+        if swap {
             self.swap().map_err(io_err(&self.target))
         } else {
             self.file_by_file()
@@ -511,6 +539,14 @@ fn read_manifest(folder: &Path) -> Vec<String> {
 /// files its manifest lists. A temporary file of a live run (a concurrent run into the same
 /// folder) is another run's business, so it keeps the folder from being replaced.
 fn replaceable(folder: &Path) -> bool {
+    // The working directory (or one holding it) is never swapped: the user's shell would be left
+    // in a removed folder.
+    if std::env::current_dir()
+        .and_then(std::fs::canonicalize)
+        .is_ok_and(|cwd| cwd.starts_with(folder))
+    {
+        return false;
+    }
     let Ok(entries) = std::fs::read_dir(folder) else {
         return !folder.exists();
     };
@@ -602,6 +638,86 @@ mod tests {
         f.commit().unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "aXcdef");
         assert_eq!(entries(dir.path()), ["t.bin"]);
+    }
+
+    #[test]
+    fn temporary_names_carry_the_owner() {
+        assert_eq!(stale_owner(".a.csv.calib-123.AbC9x1.tmp"), Some(123));
+        assert_eq!(stale_owner(".out.calib-77.Xy12Zq.old.tmp"), Some(77));
+        assert_eq!(stale_owner("a.csv"), None);
+        assert_eq!(stale_owner(".a.csv.AbC9x1.tmp"), None);
+        assert_eq!(stale_owner(".calib-manifest"), None);
+        let dir = tempfile::tempdir().unwrap();
+        let f = temp_file_beside(&dir.path().join("t.csv")).unwrap();
+        let name = f.path().file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(stale_owner(&name), Some(std::process::id()), "{name}");
+    }
+
+    #[test]
+    fn an_output_set_replaces_its_folder_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a1").unwrap();
+        set.add(&out.join("b.csv"), b"b1").unwrap();
+        set.commit().unwrap();
+        assert_eq!(entries(&out), [MANIFEST, "a.csv", "b.csv"]);
+        // A second set without b.csv: the folder holds exactly it.
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a2").unwrap();
+        set.add(&out.join("c.csv"), b"c2").unwrap();
+        set.commit().unwrap();
+        assert_eq!(entries(&out), [MANIFEST, "a.csv", "c.csv"]);
+        assert_eq!(std::fs::read(out.join("a.csv")).unwrap(), b"a2");
+        assert_eq!(entries(dir.path()), ["out"]);
+        // Dropped uncommitted: nothing changes and nothing is left.
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a3").unwrap();
+        drop(set);
+        assert_eq!(std::fs::read(out.join("a.csv")).unwrap(), b"a2");
+        assert_eq!(entries(dir.path()), ["out"]);
+        // Other tests run alongside: only this folder's entries must be gone from the list.
+        assert!(!lock_live().iter().any(|p| p.starts_with(dir.path())));
+    }
+
+    #[test]
+    fn a_shared_folder_keeps_its_other_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        std::fs::write(out.join("run.csv"), "the user's log").unwrap();
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a1").unwrap();
+        set.add(&out.join("b.csv"), b"b1").unwrap();
+        set.commit().unwrap();
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a2").unwrap();
+        set.commit().unwrap();
+        assert_eq!(entries(&out), [MANIFEST, "a.csv", "run.csv"]);
+        assert_eq!(
+            std::fs::read_to_string(out.join(MANIFEST)).unwrap(),
+            "a.csv\n"
+        );
+        assert_eq!(entries(dir.path()), ["out"]);
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_runs_go_and_live_ones_stay() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        child.wait().unwrap();
+        let dead = format!(".a.csv.calib-{}.AbCdEf.tmp", child.id());
+        let mine = format!(".a.csv.calib-{}.AbCdEf.tmp", std::process::id());
+        std::fs::write(dir.path().join(&dead), "x").unwrap();
+        std::fs::create_dir(
+            dir.path()
+                .join(format!(".out.calib-{}.QwErTy.tmp", child.id())),
+        )
+        .unwrap();
+        std::fs::write(dir.path().join(&mine), "x").unwrap();
+        assert_eq!(remove_stale(dir.path()), 2);
+        assert_eq!(entries(dir.path()), [mine]);
     }
 
     #[test]

@@ -663,7 +663,9 @@ impl Iterator for McapReader {
         loop {
             let message = match self.stream.next() {
                 Some(Ok(message)) => {
-                    self.consumed_at_last = self.consumed.load(Ordering::Relaxed);
+                    // Chunks are held until checked: where this message's bytes ended is where
+                    // the reader was when it gave the message, not where the check got to.
+                    self.consumed_at_last = self.stream.consumed_at_last();
                     message
                 }
                 None => {

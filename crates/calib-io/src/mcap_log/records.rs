@@ -146,10 +146,11 @@ fn check(opcode: u8, body: &[u8]) -> Result<(), StreamError> {
 pub(crate) struct Checked<R> {
     source: R,
     reader: LinearReader,
-    /// Records of the chunk being read, held until it has ended with a matching CRC.
-    held: VecDeque<(u8, Vec<u8>)>,
-    /// Records ready to be handed on.
-    ready: VecDeque<(u8, Vec<u8>)>,
+    /// Records of the chunk being read, held until it has ended with a matching CRC, each with
+    /// the bytes read from `source` when the reader gave it.
+    held: VecDeque<(u8, Vec<u8>, u64)>,
+    /// Records ready to be handed on, likewise.
+    ready: VecDeque<(u8, Vec<u8>, u64)>,
     /// The error to give once `ready` is drained; nothing follows it.
     failed: Option<StreamError>,
     ended: bool,
@@ -158,6 +159,9 @@ pub(crate) struct Checked<R> {
     pub(crate) damaged: Vec<crate::DamagedChunk>,
     /// Bytes read from `source`.
     pub(crate) consumed: u64,
+    /// `consumed` when the reader gave the record last handed on: the bytes that record came
+    /// from end before it (where a truncated file's readable data ends).
+    pub(crate) consumed_at_last: u64,
 }
 
 impl<R: Read> Checked<R> {
@@ -177,6 +181,7 @@ impl<R: Read> Checked<R> {
             skip_damaged,
             damaged: Vec::new(),
             consumed: 0,
+            consumed_at_last: 0,
         }
     }
 
@@ -202,8 +207,9 @@ impl<R: Read> Checked<R> {
     /// The next record, after its chunk (if it is in one) has been checked.
     pub(crate) fn next_record(&mut self) -> Option<Result<(u8, Vec<u8>), StreamError>> {
         loop {
-            if let Some(record) = self.ready.pop_front() {
-                return Some(Ok(record));
+            if let Some((opcode, data, consumed)) = self.ready.pop_front() {
+                self.consumed_at_last = consumed;
+                return Some(Ok((opcode, data)));
             }
             if let Some(e) = self.failed.take() {
                 self.ended = true;
@@ -242,7 +248,7 @@ impl<R: Read> Checked<R> {
                     continue;
                 }
                 Ok(LinearReadEvent::Record { opcode, data }) => {
-                    let record = (opcode, data.to_vec());
+                    let record = (opcode, data.to_vec(), self.consumed);
                     if self.reader.in_chunk() {
                         self.held.push_back(record);
                     } else {
@@ -311,6 +317,11 @@ impl<R: Read> Stream<R> {
     /// The damaged chunks left out so far.
     pub(crate) fn damaged(&self) -> &[crate::DamagedChunk] {
         &self.records.damaged
+    }
+
+    /// The bytes read from the source when the reader gave the last record handed on.
+    pub(crate) fn consumed_at_last(&self) -> u64 {
+        self.records.consumed_at_last
     }
 
     fn next_message(&mut self) -> Option<Result<Message<'static>, StreamError>> {
@@ -450,4 +461,25 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
         summary.channels.insert(id, accumulator.get(id)?);
     }
     Some(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The channel record of the fuzz input `mcap-channel-topic-claims-2gb.mcap`, in short: a
+    /// topic length claiming 2.2 GB is an error naming the field, before any allocation.
+    #[test]
+    fn a_topic_claiming_gigabytes_is_a_length_error() {
+        let mut body = Vec::new();
+        body.extend_from_slice(&1u16.to_le_bytes()); // id
+        body.extend_from_slice(&1u16.to_le_bytes()); // schema id
+        body.extend_from_slice(&2_248_146_957u32.to_le_bytes()); // topic length
+        body.extend_from_slice(b"/joint_states");
+        let err = check(op::CHANNEL, &body).unwrap_err().to_string();
+        assert!(
+            err.contains("channel record's topic claims 2248146957 bytes"),
+            "{err}"
+        );
+    }
 }
