@@ -38,6 +38,17 @@ pub fn check_range(option: &str, value: f64, low: f64, high: f64, unit: &str) ->
     )))
 }
 
+/// Checks that `value` of `option` is a finite number of at least 0, naming the option.
+pub fn check_non_negative(option: &str, value: f64, unit: &str) -> Result<(), Usage> {
+    if value.is_finite() && value >= 0.0 {
+        return Ok(());
+    }
+    Err(Usage(format!(
+        "{option} {} is outside its range: a finite number of at least 0 {unit}",
+        calib_io::limits::readable(value)
+    )))
+}
+
 /// Checks that `path` can be a log before it is opened: it exists (exit 2 if not, naming it)
 /// and is not a folder (exit 2). The one place that decides what a log path may be, so that
 /// folder formats (a rosbag2 bag directory) are accepted here.

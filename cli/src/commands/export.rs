@@ -58,17 +58,15 @@ pub struct Args {
     pub output: Option<PathBuf>,
 }
 
-
 /// Runs `calib export`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
     crate::input::check_points(args.points)?;
     if args.scale.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
         return Err(Usage("--scale must be a positive number of arcseconds per LSB".into()).into());
     }
-    if !(args.min_amplitude.is_finite() && args.min_amplitude >= 0.0) || args.orders == Some(0) {
-        return Err(
-            Usage("--min-amplitude must be at least 0 and --orders at least 1".into()).into(),
-        );
+    crate::input::check_non_negative("--min-amplitude", args.min_amplitude, "arcseconds")?;
+    if args.orders == Some(0) {
+        return Err(Usage("--orders 0 is outside its range: at least 1".into()).into());
     }
     if !args.table.exists() {
         return Err(Usage(format!(

@@ -14,7 +14,6 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-
 /// Calibrate an encoder (the DUT) against a better reference encoder on the same shaft.
 ///
 /// Record both encoders turning together: whole revolutions, ideally 5 or more in each direction
@@ -83,20 +82,16 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     crate::input::check_points(Some(args.points))?;
-    let finite_nonneg = |v: f64| v.is_finite() && v >= 0.0;
-    if !(finite_nonneg(args.ref_u)
-        && finite_nonneg(args.approach)
-        && args.min_speed.is_finite()
-        && args.min_speed > 0.0
-        && args.follow_tol.is_finite()
-        && args.follow_tol > 0.0)
-    {
-        return Err(Usage(
-            "--min-speed and --follow-tol must be positive, --ref-u and --approach at least 0"
-                .into(),
-        )
-        .into());
-    }
+    crate::input::check_non_negative("--ref-u", args.ref_u, "arcseconds")?;
+    crate::input::check_non_negative("--approach", args.approach, "degrees")?;
+    crate::input::check_range(
+        "--min-speed",
+        args.min_speed,
+        0.0,
+        360_000.0,
+        "degrees per second",
+    )?;
+    crate::input::check_range("--follow-tol", args.follow_tol, 0.0, 180.0, "degrees")?;
     batch::run(
         "reference",
         &args.logs,
