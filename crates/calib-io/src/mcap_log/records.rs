@@ -189,19 +189,17 @@ impl<R: Read> Checked<R> {
         self.source
     }
 
-    /// Notes the chunk `span` as damaged by `error`: skipped, or the end of the stream.
+    /// Notes the chunk `span` as damaged by `error` (`in_chunk`: met inside the chunk, which is
+    /// then abandoned to skip it; a CRC mismatch is met after it): skipped, or the end of the
+    /// stream.
     fn damaged(&mut self, span: Option<ChunkSpan>, error: McapError, in_chunk: bool) {
         self.held.clear();
-        let damage = crate::DamagedChunk::new(span, self.reader_position(), &error);
+        let damage = crate::DamagedChunk::new(span, self.reader.position(), &error);
         if self.skip_damaged && (!in_chunk || self.reader.skip_chunk()) {
             self.damaged.push(damage);
         } else {
             self.failed = Some(StreamError::Damaged(damage));
         }
-    }
-
-    fn reader_position(&self) -> u64 {
-        self.reader.position()
     }
 
     /// The next record, after its chunk (if it is in one) has been checked.
