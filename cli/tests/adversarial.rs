@@ -433,6 +433,31 @@ fn dev_zero_and_endless_lines_fail_within_seconds() {
     assert!(stderr(&o).contains("device"), "{}", stderr(&o));
     assert!(started.elapsed() < Duration::from_secs(5));
 
+    // A named pipe that never ends a line: refused once the limit is read, naming the line.
+    let pipe = dir.path().join("pipe.csv");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&pipe)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let mut writer = Command::new("sh")
+        .args([
+            "-c",
+            &format!("yes y | tr -d '\\n' | head -c 2000000000 > '{}'", s(&pipe)),
+        ])
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    let o = calib(&["csrr", s(&pipe), "-o", s(&dir.path().join("o3"))]);
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    common::assert_mentions(&stderr(&o), &["line 1", "longer than 1048576 bytes"]);
+    assert!(started.elapsed() < Duration::from_secs(10));
+    let _ = writer.kill();
+    let _ = writer.wait();
+
     // A file of one 8 MB line: refused at the limit, naming the line, without reading it all.
     let long = dir.path().join("long.csv");
     let mut text = b"t,a,b\n".to_vec();

@@ -42,7 +42,8 @@ impl LogFormat {
     /// number, or another known kind of file (compressed, an archive, a ROS 1 bag, a database,
     /// UTF-16 or binary data), which is an error saying what the file is and what to do. Other
     /// text is CSV if the extension says so (or is unknown and the text looks like CSV).
-    /// Devices and sockets are refused: a log is a file (a named pipe is read as CSV).
+    /// Devices and sockets are refused: a log is a file (a named pipe, which can be read only
+    /// once, is taken by its extension).
     pub fn detect(path: &Path) -> Result<Self, Error> {
         let io = |source| Error::Io {
             path: path.to_path_buf(),
@@ -58,6 +59,11 @@ impl LogFormat {
                     "this is a device or socket, not a log file; name a .csv or .mcap file".into()
                 },
             });
+        }
+        if is_fifo(&meta) {
+            // A pipe can be read once: its first bytes cannot be looked at before the reader
+            // reads them. Its extension decides.
+            return Self::for_output(path);
         }
         let mut head = [0u8; 16];
         let mut file = std::fs::File::open(path).map_err(io)?;
