@@ -6,7 +6,9 @@ use crate::input::{channel, command_line, open_log, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
+use calib_core::tdr::{
+    FALSE_ORDER_PROBABILITY, Tdr, TdrCalibration, TdrOptions, significance_threshold,
+};
 use calib_core::{AngleUnit, ChannelReport, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -17,6 +19,9 @@ use std::path::{Path, PathBuf};
 const MAX_POINTS: usize = 3_600_000;
 /// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
 const MAX_ORDER: usize = 1000;
+/// Largest `--max-drag-order` accepted: a drag's imprint falls as 1/h², and each order costs
+/// two columns of the dense fit.
+const MAX_DRAG_ORDER: usize = 100;
 /// Largest `--motion-degree` accepted (Chebyshev series of higher degree can follow the error).
 const MAX_DEGREE: usize = 60;
 
@@ -29,11 +34,16 @@ const MAX_DEGREE: usize = 60;
 /// in time) and the map (a Fourier series of the reading) are fitted together by least squares.
 /// A driven plateau before the release and the slow end of the coast are left out.
 ///
-/// It cannot tell encoder error from an angle-dependent drag (rolling bearings, motor cogging,
-/// unbalance): a drag deceleration a_h at order h appears in the map as a_h/h²·⟨ω⁻²⟩. Use an air
-/// bearing with the motor uncoupled, and read the warnings: the fit checks whether the map
-/// changes with speed the way drag would make it. With --ref, the map is also checked against a
-/// reference encoder on the same shaft.
+/// The orders come from the data: every order the coast resolves is tested (by default up to
+/// 0.4 × the samples per revolution at its slowest end) and those standing above the noise are
+/// kept; periodic structure left in the residual above the highest order is warned about.
+///
+/// An angle-dependent drag (rolling bearings, motor cogging, unbalance) shakes the shaft by
+/// a_h/(h·ω)² at order h. Its imprint grows as 1/ω² while the encoder's error does not change
+/// with speed, so over a coast whose speed falls enough (1/ω² varying by ≥ 10 % RMS) the drag is
+/// fitted jointly and separated from the map, and reported. Over a narrower coast it cannot be,
+/// and the warnings say how far the shaft must coast down. With --ref, the map is also checked
+/// against a reference encoder on the same shaft.
 ///
 /// Writes DIR/<channel>.csv (angle_deg, error_arcsec, correction_arcsec; error = reading − true
 /// angle, correction = −error, a function of the encoder's own reading, zero mean) and
@@ -56,10 +66,13 @@ pub struct Args {
     /// Output folder.
     #[arg(short, long = "output", default_value = "calib-out")]
     pub output: PathBuf,
-    /// Highest harmonic order of the map. Keep it below half the samples per revolution at the
-    /// highest speed.
-    #[arg(long, default_value_t = 32)]
-    pub max_order: usize,
+    /// Highest harmonic order tested. Default: 0.4 × the samples per revolution where the coast
+    /// is slowest (at most 500). Only orders that stand above the noise are kept in the map.
+    #[arg(long)]
+    pub max_order: Option<usize>,
+    /// Highest order of angle-dependent drag fitted and separated from the map (0: none).
+    #[arg(long, default_value_t = 16)]
+    pub max_drag_order: usize,
     /// Degree of the motion's polynomial (Chebyshev series in time); default: chosen by the
     /// Bayesian information criterion, at most 30 and at most half the revolutions.
     #[arg(long)]
@@ -93,8 +106,17 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if !(2..=MAX_POINTS).contains(&args.points) {
         return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
     }
-    if !(1..=MAX_ORDER).contains(&args.max_order) {
+    if args
+        .max_order
+        .is_some_and(|h| !(1..=MAX_ORDER).contains(&h))
+    {
         return Err(Usage(format!("--max-order must be between 1 and {MAX_ORDER}")).into());
+    }
+    if args.max_drag_order > MAX_DRAG_ORDER {
+        return Err(Usage(format!(
+            "--max-drag-order must be between 0 and {MAX_DRAG_ORDER}"
+        ))
+        .into());
     }
     if args
         .motion_degree
@@ -129,6 +151,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         .transpose()?;
     let mut tdr = Tdr::new(TdrOptions {
         max_order: args.max_order,
+        max_drag_order: args.max_drag_order,
         motion_degree: args.motion_degree,
         points: args.points,
         min_revolutions: args.min_revolutions,
@@ -208,7 +231,24 @@ fn build_report(args: &Args, log: &Path, cal: &TdrCalibration, warnings: Vec<Str
     );
     details.insert("revolutions".to_string(), json!(cal.revolutions));
     details.insert("samples_used".to_string(), json!(cal.samples_used));
-    details.insert("max_order".to_string(), json!(args.max_order));
+    details.insert(
+        "orders".to_string(),
+        json!({
+            "max_order_tested": cal.max_order,
+            "samples_per_revolution_densest": cal.samples_per_revolution_densest,
+            "kept": cal.orders,
+            "rule": format!(
+                "an order is kept when its coefficients' chi-square against their covariance exceeds 2·ln(M/α) = {:.2} (M = {} orders tested, α = {})",
+                significance_threshold(cal.max_order),
+                cal.max_order,
+                FALSE_ORDER_PROBABILITY
+            ),
+            "residual_structure": cal.unresolved.iter().map(|h| {
+                let h = h.to_report();
+                json!({"order": h.order, "amplitude_arcsec": h.amplitude_arcsec, "phase_deg": h.phase_deg})
+            }).collect::<Vec<_>>(),
+        }),
+    );
     details.insert(
         "residual_rms_arcsec".to_string(),
         json!(cal.residual_rms * ARCSEC_PER_RAD),
@@ -226,10 +266,30 @@ fn build_report(args: &Args, log: &Path, cal: &TdrCalibration, warnings: Vec<Str
             })
         })
         .collect();
+    let separated: Vec<_> = cal
+        .drag
+        .iter()
+        .map(|d| {
+            let h = d.deceleration.to_report();
+            json!({
+                "order": h.order,
+                "deceleration_rad_s2": d.deceleration.amplitude,
+                "phase_deg": h.phase_deg,
+                "imprint_arcsec": d.imprint * ARCSEC_PER_RAD,
+                "u_imprint_arcsec": d.u_imprint * ARCSEC_PER_RAD,
+            })
+        })
+        .collect();
+    let sep = &cal.drag_separation;
     details.insert(
         "drag".to_string(),
         json!({
             "ambiguity": cal.ambiguity,
+            "separated": sep.separated,
+            "inverse_square_speed_variation": sep.variation,
+            "separation_noise_gain": sep.noise_gain,
+            "max_drag_order": args.max_drag_order,
+            "terms": separated,
             "mean_inverse_square_speed_s2": cal.drag_gain,
             "map_shift_arcsec_per_rad_s2_over_order_squared": cal.drag_gain * ARCSEC_PER_RAD,
             "speed_dependent_orders": dependence,
@@ -301,10 +361,53 @@ fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report
     }
     let _ = writeln!(
         o,
-        "\ndrag: an angle-dependent deceleration of 1 rad/s² at order h would add {:.3}″/h² to the map's order h (⟨ω⁻²⟩ = {:.3e} s²); TDR cannot tell it from encoder error",
-        cal.drag_gain * ARCSEC_PER_RAD,
-        cal.drag_gain
+        "orders: {} kept of 1–{} tested (those above the noise){}",
+        cal.orders.len(),
+        cal.max_order,
+        if cal.unresolved.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; residual structure above them at {} orders",
+                cal.unresolved.len()
+            )
+        }
     );
+    let sep = &cal.drag_separation;
+    if sep.separated && !cal.drag.is_empty() {
+        let list: Vec<String> = cal
+            .drag
+            .iter()
+            .map(|d| {
+                format!(
+                    "order {}: {:.4} rad/s² ({:.3}″ ± {:.3}″ at the mean 1/ω²)",
+                    d.deceleration.order,
+                    d.deceleration.amplitude,
+                    d.imprint * ARCSEC_PER_RAD,
+                    d.u_imprint * ARCSEC_PER_RAD
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            o,
+            "\ndrag separated from the map (1/ω² varies by {:.0} % over the coast): {}",
+            100.0 * sep.variation,
+            list.join(", ")
+        );
+    } else if sep.separated {
+        let _ = writeln!(
+            o,
+            "\ndrag: none found above the noise (1/ω² varies by {:.0} % over the coast, enough to separate it)",
+            100.0 * sep.variation
+        );
+    } else {
+        let _ = writeln!(
+            o,
+            "\ndrag: not separable on this coast; a deceleration of 1 rad/s² at order h would add {:.3}″/h² to the map's order h (⟨ω⁻²⟩ = {:.3e} s²)",
+            cal.drag_gain * ARCSEC_PER_RAD,
+            cal.drag_gain
+        );
+    }
     o += &crate::summary::ending(
         &report.warnings,
         out,
@@ -312,7 +415,7 @@ fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report
             report.channels[&args.channel].table.clone(),
             "report.json".to_string(),
         ],
-        "the map, its spectrum with the speed-dependent orders marked, the coast",
+        "the map, its spectrum with the drag orders marked, the drag, the coast",
     );
     o
 }
