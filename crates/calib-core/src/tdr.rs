@@ -101,6 +101,7 @@
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper};
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
+use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation_uncertainty};
 use nalgebra::{DMatrix, DVector};
 use std::f64::consts::TAU;
 
@@ -339,6 +340,9 @@ pub struct TdrCalibration {
     pub speed_dependence: Vec<SpeedDependence>,
     /// The check against a reference channel, when one was pushed.
     pub reference: Option<ReferenceCheck>,
+    /// The standard uncertainty of the map at every table point, with its budget (module docs,
+    /// "Uncertainty").
+    pub uncertainty: MapUncertainty,
     /// What the user should know.
     pub warnings: Vec<String>,
     /// What the method cannot separate ([`DRAG_AMBIGUITY`]), for reports.
@@ -462,11 +466,12 @@ impl Tdr {
         let span = (t[0], t[t.len() - 1]);
 
         // 1. Which orders the data hold: every order to h, the motion at its highest degree.
-        let screen =
-            screen_orders(t, r, &y, span, max_degree, h).ok_or(TdrError::Underdetermined {
+        let mut screen = screen_orders(t, r, &y, span, max_degree, h, None).ok_or(
+            TdrError::Underdetermined {
                 unknowns,
                 samples: t.len(),
-            })?;
+            },
+        )?;
         let screen_motion = TdrMotion {
             degree: max_degree,
             t_start: span.0,
@@ -555,6 +560,20 @@ impl Tdr {
                 "the map changes with speed as angle-dependent drag would make it ({}): part of these orders is likely the shaft's motion, not the encoder (see the ambiguity note)",
                 list.join(", ")
             ));
+        }
+
+        // 2b. Unseparated drag inflates the screening's noise estimate and hides small orders:
+        // screen again with the drag found.
+        if !drag_orders.is_empty() {
+            let weights = DragWeights {
+                orders: drag_orders.clone(),
+                motion: screen_motion.clone(),
+                gain: drag_gain,
+            };
+            if let Some(again) = screen_orders(t, r, &y, span, max_degree, h, Some(weights)) {
+                screen.kept = again.kept;
+                screen.dropped = again.dropped;
+            }
         }
 
         // 3. The final fit: the kept orders (and the drag's), the motion's degree by BIC.
@@ -662,6 +681,15 @@ impl Tdr {
             ));
         }
 
+        let uncertainty = map_uncertainty(
+            &basis,
+            &fit,
+            &series,
+            &unresolved,
+            screen.dropped,
+            self.opts.points,
+        );
+
         let mixed = !self.reference.is_empty() && self.reference.len() != self.r.len();
         if mixed {
             warnings.push(
@@ -697,6 +725,7 @@ impl Tdr {
             drag,
             speed_dependence,
             reference,
+            uncertainty,
             warnings,
             ambiguity: DRAG_AMBIGUITY,
         })
@@ -1081,6 +1110,71 @@ fn lower_triangular_inverse(l: &DMatrix<f64>) -> DMatrix<f64> {
     x
 }
 
+/// The map's budget. The fit's noise: the map at `x` is `c(x)ᵀβ_E`, `c(x)` the `cos kx, sin kx`
+/// of the kept orders, so `u_fit(x)² = σ²·c(x)ᵀ[(AᵀA)⁻¹]_EE·c(x) = σ²·‖L⁻¹·c(x)‖²` (with the
+/// motion's and the drag's columns in the fit: their correlation with the map is included).
+/// Periodic structure the residual still holds above the fitted orders is missing from the map:
+/// each such order of amplitude `A` errs by `A·cos(kx + φ)`, RMS `A/√2`, taken as a uniform
+/// component. The orders the significance rule dropped hold, on average over the circle, what
+/// their coefficients hold beyond their noise ([`Screen::dropped`]). And the table's linear
+/// interpolation.
+fn map_uncertainty(
+    basis: &Basis,
+    fit: &Fit,
+    series: &FourierSeries,
+    unresolved: &[Harmonic],
+    dropped: f64,
+    points: usize,
+) -> MapUncertainty {
+    let f = basis.degree + 1;
+    let n = basis.len();
+    let cols: Vec<usize> = (f..f + 2 * basis.orders.len()).collect();
+    // B = L⁻¹ restricted to the map's columns.
+    let b = DMatrix::from_fn(n, cols.len(), |i, j| fit.l_inv[(i, cols[j])]);
+    let mut c = DVector::<f64>::zeros(cols.len());
+    let u_fit: Vec<f64> = (0..points)
+        .map(|i| {
+            let x = TAU * i as f64 / points as f64;
+            for (j, &k) in basis.orders.iter().enumerate() {
+                let (sn, cs) = (k as f64 * x).sin_cos();
+                c[2 * j] = cs;
+                c[2 * j + 1] = sn;
+            }
+            fit.sigma * (&b * &c).norm()
+        })
+        .collect();
+    let missing = (unresolved
+        .iter()
+        .map(|h| h.amplitude.powi(2) / 2.0)
+        .sum::<f64>())
+    .sqrt();
+    let mut components = vec![MapComponent {
+        name: "noise of the readings propagated through the fit".into(),
+        evaluation: Evaluation::TypeA,
+        u: u_fit,
+    }];
+    if dropped > 0.0 {
+        components.push(MapComponent {
+            name: "orders below the significance threshold, left out of the map".into(),
+            evaluation: Evaluation::TypeA,
+            u: vec![dropped],
+        });
+    }
+    if missing > 0.0 {
+        components.push(MapComponent {
+            name: "periodic structure in the residual above the orders fitted".into(),
+            evaluation: Evaluation::TypeA,
+            u: vec![missing],
+        });
+    }
+    components.push(MapComponent {
+        name: "linear interpolation between table points".into(),
+        evaluation: Evaluation::TypeB,
+        u: vec![interpolation_uncertainty(&series.harmonics(), points)],
+    });
+    MapUncertainty::combine(points, components)
+}
+
 /// The ascending union of two ascending order lists.
 fn union(a: &[usize], b: &[usize]) -> Vec<usize> {
     let mut u: Vec<usize> = a.iter().chain(b).copied().collect();
@@ -1097,6 +1191,9 @@ struct Screen {
     kept: Vec<usize>,
     /// The motion's Chebyshev coefficients.
     motion: Vec<f64>,
+    /// The RMS over the circle of what the dropped orders hold, estimated without bias:
+    /// `sqrt(½·Σ_dropped (a_k² + b_k² − var a_k − var b_k))` (0 when the sum is negative), rad.
+    dropped: f64,
 }
 
 fn screen_orders(
@@ -1106,35 +1203,46 @@ fn screen_orders(
     span: (f64, f64),
     degree: usize,
     h: usize,
+    drag: Option<DragWeights>,
 ) -> Option<Screen> {
     let basis = Basis {
         t0: span.0,
         t1: span.1,
         degree,
         orders: (1..=h).collect(),
-        drag: None,
+        drag,
     };
     let normal = fourier_normal_equations(&basis, t, r, y, h);
     let fit = Fit::with_normal(&basis, t, r, y, &normal)?;
     let threshold = significance_threshold(h);
     let f = degree + 1;
-    let kept = (1..=h)
-        .filter(|&k| fit.chi_square(f + 2 * (k - 1), f + 2 * k - 1) > threshold)
-        .collect();
+    let mut kept = Vec::new();
+    let mut dropped_power = 0.0;
+    for k in 1..=h {
+        let (c, s) = (f + 2 * (k - 1), f + 2 * k - 1);
+        if fit.chi_square(c, s) > threshold {
+            kept.push(k);
+        } else {
+            let noise = fit.sigma.powi(2) * (fit.covariance(c, c) + fit.covariance(s, s));
+            dropped_power += fit.beta[c].powi(2) + fit.beta[s].powi(2) - noise;
+        }
+    }
     Some(Screen {
         kept,
         motion: fit.beta[..=degree].to_vec(),
+        dropped: (dropped_power.max(0.0) / 2.0).sqrt(),
     })
 }
 
 /// Rows per block of [`fourier_normal_equations`].
 const BLOCK: usize = 1024;
 
-/// The normal equations of a basis of the motion and every order `1..=h` (no drag), built in
+/// The normal equations of a basis of the motion, every order `1..=h` and a few drag columns, built in
 /// `O(N·(p + h)·p)` rather than `O(N·h²)`: the Fourier–Fourier block comes from the moments
 /// `C_m + iS_m = Σ_n e^{imr_n}`, `m = 0..2h`, by `cos jr·cos kr = ½(cos(j−k)r + cos(j+k)r)`,
 /// `sin jr·sin kr = ½(cos(j−k)r − cos(j+k)r)`, `cos jr·sin kr = ½(sin(j+k)r − sin(j−k)r)`; the
-/// motion's blocks and `Aᵀy` by matrix products over blocks of rows.
+/// motion's blocks and `Aᵀy` by matrix products over blocks of rows; the drag's columns, if
+/// any, in one more pass.
 fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: &[f64], h: usize) -> Normal {
     let p1 = basis.degree + 1;
     let n = p1 + 2 * h;
@@ -1208,6 +1316,35 @@ fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: &[f64], h: u
             g[(cj, sk)] = 0.5 * (sm[s] - sin(j as isize - k as isize));
             g[(sk, cj)] = g[(cj, sk)];
         }
+    }
+    if basis.drag.is_some() {
+        // The drag's few columns against all: one pass with full rows.
+        let total = basis.len();
+        let mut big = DMatrix::<f64>::zeros(total, total);
+        big.view_mut((0, 0), (n, n)).copy_from(&g);
+        let mut rhs_big = DVector::<f64>::zeros(total);
+        rhs_big.rows_mut(0, n).copy_from(&rhs);
+        let mut row = vec![0.0; total];
+        let mut trig = Vec::new();
+        for i in 0..t.len() {
+            basis.row(t[i], r[i], &mut row, &mut trig);
+            for d in n..total {
+                let rd = row[d];
+                rhs_big[d] += rd * y[i];
+                for (b, &rb) in row.iter().enumerate().take(d + 1) {
+                    big[(d, b)] += rd * rb;
+                }
+            }
+        }
+        for d in n..total {
+            for b in 0..d {
+                big[(b, d)] = big[(d, b)];
+            }
+        }
+        return Normal {
+            g: big,
+            rhs: rhs_big,
+        };
     }
     Normal { g, rhs }
 }
