@@ -81,6 +81,30 @@ fn air_bearing_coast_matches_the_truth_and_the_reference() {
     let printed: Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(printed, read_json(&out2.join("report.json")));
     assert!(printed["details"]["reference"].is_null());
+
+    // Every point has its standard uncertainty, summarized in the report and on stdout.
+    let table = std::fs::read_to_string(out.join("enc.csv")).unwrap();
+    assert!(
+        table.starts_with("angle_deg,error_arcsec,correction_arcsec,u_arcsec"),
+        "{}",
+        &table[..80]
+    );
+    let u = &report["details"]["uncertainty"]["enc"];
+    let u_max = u["u_max_arcsec"].as_f64().unwrap();
+    // σ·√(2K/N) for ~13 orders over 60 000 samples ≈ 0.0015″, more where orders correlate.
+    assert!((0.0005..0.01).contains(&u_max), "{u}");
+    assert_eq!(u["components"][0]["type"], "A");
+    assert_mentions(&text, &["standard uncertainty u of the table"]);
+    // `calib compare` takes u_arcsec from both tables: the same log twice gives En = 0.
+    let cmp = dir.path().join("cmp");
+    let o = calib(&[
+        "compare",
+        s(&out.join("enc.csv")),
+        s(&out2.join("enc.csv")),
+        "-o",
+        s(&cmp),
+    ]);
+    expect_exit(&o, 0);
 }
 
 #[test]

@@ -228,7 +228,18 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     );
     let files = write_tables_and_report(
         out,
-        &[(&args.a, &cal.a, None), (&args.b, &cal.b, None)],
+        &[
+            (
+                &args.a,
+                &cal.a,
+                cal.uncertainty.as_ref().map(|(u, _)| u.u.as_slice()),
+            ),
+            (
+                &args.b,
+                &cal.b,
+                cal.uncertainty.as_ref().map(|(_, u)| u.u.as_slice()),
+            ),
+        ],
         &json,
         &doc,
     )?;
@@ -313,6 +324,15 @@ fn build_report(args: &Args, log: &Path, cal: &Calibration, warnings: Vec<String
     let mut details = BTreeMap::new();
     details.insert("solver".to_string(), json!(cal.method));
     details.insert("max_order".to_string(), json!(cal.max_order));
+    if let Some((ua, ub)) = &cal.uncertainty {
+        details.insert(
+            "uncertainty".to_string(),
+            json!({
+                args.a.clone(): crate::document::uncertainty_json(ua),
+                args.b.clone(): crate::document::uncertainty_json(ub),
+            }),
+        );
+    }
     details.insert(
         "excluded_orders".to_string(),
         json!(
@@ -446,6 +466,20 @@ fn render_summary(
                 cal.max_order
             ),
         )),
+    }
+    if let Some((ua, ub)) = &cal.uncertainty {
+        facts.push((
+            "uncertainty u",
+            format!(
+                "max {:.4}″ rms {:.4}″ ({}), max {:.4}″ rms {:.4}″ ({}) — standard, at every table point",
+                ua.max() * ARCSEC_PER_RAD,
+                ua.rms() * ARCSEC_PER_RAD,
+                args.a,
+                ub.max() * ARCSEC_PER_RAD,
+                ub.rms() * ARCSEC_PER_RAD,
+                args.b
+            ),
+        ));
     }
     if let Some(r) = &cal.reference {
         facts.push((

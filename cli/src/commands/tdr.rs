@@ -174,7 +174,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let json = calib_io::report::render_json(&report)?;
     let files = write_tables_and_report(
         out,
-        &[(&args.channel, &cal.map, None)],
+        &[(&args.channel, &cal.map, Some(&cal.uncertainty.u))],
         &json,
         &crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, &report),
     )?;
@@ -231,6 +231,7 @@ fn build_report(args: &Args, log: &Path, cal: &TdrCalibration, warnings: Vec<Str
     );
     details.insert("revolutions".to_string(), json!(cal.revolutions));
     details.insert("samples_used".to_string(), json!(cal.samples_used));
+    details.insert("max_order".to_string(), json!(cal.max_order));
     details.insert(
         "orders".to_string(),
         json!({
@@ -248,6 +249,10 @@ fn build_report(args: &Args, log: &Path, cal: &TdrCalibration, warnings: Vec<Str
                 json!({"order": h.order, "amplitude_arcsec": h.amplitude_arcsec, "phase_deg": h.phase_deg})
             }).collect::<Vec<_>>(),
         }),
+    );
+    details.insert(
+        "uncertainty".to_string(),
+        json!({ args.channel.clone(): crate::document::uncertainty_json(&cal.uncertainty) }),
     );
     details.insert(
         "residual_rms_arcsec".to_string(),
@@ -351,6 +356,12 @@ fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report
         ch.rms_arcsec,
         top.join(", "),
         out.join(&ch.table).display()
+    );
+    let _ = writeln!(
+        o,
+        "standard uncertainty u of the table: max {:.4}″, rms {:.4}″ (budget in report.json)",
+        cal.uncertainty.max() * ARCSEC_PER_RAD,
+        cal.uncertainty.rms() * ARCSEC_PER_RAD
     );
     if let (Some(name), Some(r)) = (&args.reference, &cal.reference) {
         let _ = writeln!(

@@ -34,7 +34,8 @@ pub fn document(
         ]);
     doc.push(Section::new("Summary").table(facts));
 
-    let mut layers = MapLayers::of(&cal.map);
+    let (band_name, band) = super::uncertainty_band(&cal.map, &cal.uncertainty);
+    let mut layers = MapLayers::of(&cal.map).with_band(&band_name, band);
     if let (Some(r), Some(name)) = (&cal.reference, reference) {
         layers = layers.compared_with(
             &format!("{channel} − {name} (reference)"),
@@ -61,6 +62,7 @@ pub fn document(
     if let Some(ch) = report.channels.get(channel) {
         s = s.table(harmonics_table(channel, ch));
     }
+    s = s.table(super::uncertainty_table(channel, &cal.uncertainty));
     doc.push(s);
     let marks = if cal.drag_separation.separated {
         OrderMarks {
