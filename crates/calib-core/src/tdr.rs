@@ -1191,8 +1191,11 @@ struct Screen {
     kept: Vec<usize>,
     /// The motion's Chebyshev coefficients.
     motion: Vec<f64>,
-    /// The RMS over the circle of what the dropped orders hold, estimated without bias:
-    /// `sqrt(½·Σ_dropped (a_k² + b_k² − var a_k − var b_k))` (0 when the sum is negative), rad.
+    /// The RMS over the circle of what the dropped orders hold: `sqrt(½·(P + s_P))` with
+    /// `P = Σ_dropped (a_k² + b_k² − var a_k − var b_k)` the unbiased estimate of their power and
+    /// `s_P` its standard deviation (`var |x|² = 4v² + 4v|μ|²` per order), rad. The estimate
+    /// alone is as noisy as it is large when many orders hold little; one standard deviation
+    /// above it makes it a one-sided 84 % bound that does not vanish with the noise.
     dropped: f64,
 }
 
@@ -1217,20 +1220,24 @@ fn screen_orders(
     let threshold = significance_threshold(h);
     let f = degree + 1;
     let mut kept = Vec::new();
-    let mut dropped_power = 0.0;
+    let (mut power, mut power_var) = (0.0, 0.0);
     for k in 1..=h {
         let (c, s) = (f + 2 * (k - 1), f + 2 * k - 1);
         if fit.chi_square(c, s) > threshold {
             kept.push(k);
         } else {
             let noise = fit.sigma.powi(2) * (fit.covariance(c, c) + fit.covariance(s, s));
-            dropped_power += fit.beta[c].powi(2) + fit.beta[s].powi(2) - noise;
+            let excess = fit.beta[c].powi(2) + fit.beta[s].powi(2) - noise;
+            power += excess;
+            // var |x|² = 4v² + 4v|μ|² for a pair of variance v each and mean μ.
+            let v = 0.5 * noise;
+            power_var += 4.0 * v * v + 4.0 * v * excess.max(0.0);
         }
     }
     Some(Screen {
         kept,
         motion: fit.beta[..=degree].to_vec(),
-        dropped: (dropped_power.max(0.0) / 2.0).sqrt(),
+        dropped: ((power + power_var.sqrt()).max(0.0) / 2.0).sqrt(),
     })
 }
 

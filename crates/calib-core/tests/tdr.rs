@@ -94,7 +94,7 @@ fn air_bearing_coast_recovers_the_encoder_map() {
         "air bearing: max |map − truth| {diff:.4}″; ≤ 2u at {:.1} %, median u {median_u:.4}″",
         100.0 * covered
     );
-    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 93–98 %).
+    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 96–99 %).
     assert!((0.90..=0.999).contains(&covered), "{covered}");
     assert!(median_u < 0.01, "{median_u}″");
     // The reference's own error is 0.05″ at order 3, so the check sees ≈ 0.05″.
@@ -152,7 +152,7 @@ fn orders_come_from_the_data_and_order_128_is_kept() {
         cal.max_order,
         100.0 * covered
     );
-    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 93–98 %).
+    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 96–99 %).
     assert!((0.90..=0.999).contains(&covered), "{covered}");
     assert!(median_u < 0.01, "{median_u}″");
     assert!(diff < 0.03, "max |map − truth| = {diff}″");
@@ -230,7 +230,7 @@ fn drag_is_separated_from_the_encoder_error_over_a_wide_coast() {
         cal.drag,
         100.0 * covered
     );
-    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 93–98 %).
+    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 96–99 %).
     assert!((0.90..=0.999).contains(&covered), "{covered}");
     assert!(median_u < 0.01, "{median_u}″");
     assert!(diff < 0.06, "max |map − truth| = {diff}″");
@@ -269,7 +269,7 @@ fn rolling_bearing_drag_is_separated_over_a_coast_that_slows_by_half() {
         "bearing coast: max |map − truth| {diff:.4}″; ≤ 2u at {:.1} %, median u {median_u:.4}″",
         100.0 * covered
     );
-    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 93–98 %).
+    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 96–99 %).
     assert!((0.90..=0.999).contains(&covered), "{covered}");
     assert!(median_u < 0.01, "{median_u}″");
     let found: Vec<usize> = cal.drag.iter().map(|d| d.deceleration.order).collect();
