@@ -529,7 +529,8 @@ fn fit_noise(orders: &[usize], deltas: &[f64], weights: &[f64], sigma: f64) -> f
     sigma * var.sqrt()
 }
 
-/// The budget of one CSRR map of `points` points: the fit's noise ([`fit_noise`], Type A) and
+/// The budget of one CSRR map of `points` points: the fit's noise `u_fit` (Type A, propagated
+/// through the joint fit's per-order blocks: see `docs/uncertainty.md`) and
 /// the linear interpolation of the table between its points
 /// ([`interpolation_uncertainty`], Type B).
 pub fn map_uncertainty(u_fit: f64, series: &FourierSeries, points: usize) -> MapUncertainty {
