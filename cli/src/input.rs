@@ -3,9 +3,111 @@
 use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::AngleUnit;
-use calib_core::sample::channel_index;
-use calib_io::{LogReader, ReadOptions};
+use calib_io::align::{AlignOptions, Alignment};
+use calib_io::{LogReader, ReadOptions, TimeSource};
+use std::fmt::Write;
 use std::path::Path;
+
+/// Which stamps a message is read at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum TimeArg {
+    /// The stamp the publisher wrote (`header.stamp`); the log time where it is zero.
+    Header,
+    /// The time the recorder logged the message.
+    Log,
+}
+
+/// How a log's channels are timed and aligned (MCAP): the command's first channel sets the clock,
+/// every other channel is interpolated (cubic) at its stamps from its own samples.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct LogArgs {
+    /// Time of an MCAP message: its `header.stamp` or its log time.
+    #[arg(long, value_enum, default_value_t = TimeArg::Header)]
+    pub time: TimeArg,
+    /// Longest interval between two samples of a channel that is interpolated across, seconds
+    /// (default: 2.5 of that channel's median intervals). A clock sample inside a longer gap is
+    /// dropped and counted, never invented.
+    #[arg(long, value_name = "SECONDS")]
+    pub max_gap: Option<f64>,
+}
+
+impl LogArgs {
+    /// The options of reading and aligning.
+    pub fn options(&self) -> anyhow::Result<(TimeSource, AlignOptions)> {
+        if self.max_gap.is_some_and(|g| !(g > 0.0 && g.is_finite())) {
+            return Err(Usage("--max-gap must be a positive number of seconds".into()).into());
+        }
+        let time = match self.time {
+            TimeArg::Header => TimeSource::Header,
+            TimeArg::Log => TimeSource::Log,
+        };
+        Ok((
+            time,
+            AlignOptions {
+                max_gap_s: self.max_gap,
+            },
+        ))
+    }
+}
+
+/// Opens the log at `path` reading the channels `names` only, in this order, the first setting
+/// the clock: sample value `k` is channel `names[k]`.
+pub fn open_selected(
+    path: &Path,
+    unit: Option<AngleUnit>,
+    log: &LogArgs,
+    names: &[&str],
+) -> anyhow::Result<LogReader> {
+    let (time, align) = log.options()?;
+    let mut reader = open_log_with(
+        path,
+        ReadOptions {
+            unit,
+            time,
+            ..ReadOptions::default()
+        },
+    )?;
+    let indices = names
+        .iter()
+        .map(|n| channel(&reader, path, n))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    reader.select(&indices, align);
+    Ok(reader)
+}
+
+/// The alignment of a log read, for report.json's `details.alignment`; `None` where every
+/// channel was read at the clock's own stamps with nothing dropped.
+pub fn alignment_detail(reader: &LogReader) -> Option<serde_json::Value> {
+    reader
+        .alignment()
+        .filter(|a| !a.is_exact())
+        .and_then(|a| serde_json::to_value(a).ok())
+}
+
+/// Summary lines on how the channels were aligned on the clock; empty where nothing was
+/// interpolated or dropped.
+pub fn alignment_text(alignment: Option<&Alignment>) -> String {
+    let mut o = String::new();
+    let Some(a) = alignment.filter(|a| !a.is_exact()) else {
+        return o;
+    };
+    let _ = writeln!(
+        o,
+        "aligned on the clock of `{}`: {} of its {} samples kept",
+        a.clock, a.samples, a.clock_samples
+    );
+    for c in &a.channels {
+        let offset = c
+            .median_offset_s
+            .map_or_else(|| "—".to_string(), |o| format!("{:+.3} ms", o * 1e3));
+        let _ = writeln!(
+            o,
+            "  {}: median offset {offset}, {} interpolated, {} exact, {} dropped",
+            c.channel, c.interpolated, c.exact, c.dropped
+        );
+    }
+    o
+}
 
 /// clap value parser for `--unit`.
 pub fn parse_unit(s: &str) -> Result<AngleUnit, String> {
@@ -31,15 +133,21 @@ pub fn open_log_with(path: &Path, opts: ReadOptions) -> anyhow::Result<LogReader
     LogReader::open(path, &opts).with_context(|| format!("cannot read {}", path.display()))
 }
 
-/// The index of channel `name` of the log at `path`.
+/// The index of channel `name` of the log at `path` among all its channels (an unknown or
+/// ambiguous name is a usage error).
 pub fn channel(reader: &LogReader, path: &Path, name: &str) -> anyhow::Result<usize> {
-    channel_index(reader.channels(), name).with_context(|| format!("{}", path.display()))
+    reader
+        .resolve(name)
+        .with_context(|| format!("{}", path.display()))
 }
 
-/// A channel name as a file name: characters other than letters, digits, `-`, `_` and `.`
-/// become `_` (JointState names such as `arm/joint1` stay usable).
+/// A channel name as a file name: a leading `/` is dropped and characters other than letters,
+/// digits, `-`, `_` and `.` become `_` (`/sensor_a/joint_states/encoder` →
+/// `sensor_a_joint_states_encoder`; JointState names such as `arm/joint1` stay usable).
 pub fn file_stem(channel: &str) -> String {
     let s: String = channel
+        .strip_prefix('/')
+        .unwrap_or(channel)
         .chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
