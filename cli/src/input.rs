@@ -4,6 +4,7 @@ use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::AngleUnit;
 use calib_io::align::{AlignOptions, Alignment};
+use calib_io::csv_log::dialect::TimeUnit;
 use calib_io::{LogReader, ReadOptions, TimeSource};
 use std::fmt::Write;
 use std::path::Path;
@@ -17,8 +18,9 @@ pub enum TimeArg {
     Log,
 }
 
-/// How a log's channels are timed and aligned (MCAP): the command's first channel sets the clock,
-/// every other channel is interpolated (cubic) at its stamps from its own samples.
+/// How a log is timed: the CSV time column, the MCAP stamps, and how channels on different
+/// clocks are aligned (the command's first channel sets the clock, every other channel is
+/// interpolated, quintic, at its stamps from its own samples).
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct LogArgs {
     /// Time of an MCAP message: its `header.stamp` or its log time.
@@ -29,11 +31,23 @@ pub struct LogArgs {
     /// dropped and counted, never invented.
     #[arg(long, value_name = "SECONDS")]
     pub max_gap: Option<f64>,
+    /// The time column of a CSV log (default: `t`, `time` or `timestamp`, any case, with a unit
+    /// suffix such as ` [s]`, `_ms` or ` (us)` honoured).
+    #[arg(long, value_name = "NAME")]
+    pub time_column: Option<String>,
+    /// Unit of a CSV log's time column: s, ms, us or ns (default: its name's suffix, else s).
+    #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
+    pub time_unit: Option<TimeUnit>,
+}
+
+/// clap value parser for `--time-unit`.
+fn parse_time_unit(s: &str) -> Result<TimeUnit, String> {
+    s.parse()
 }
 
 impl LogArgs {
-    /// The options of reading and aligning.
-    pub fn options(&self) -> anyhow::Result<(TimeSource, AlignOptions)> {
+    /// The options of reading (with readings in `unit`) and aligning.
+    pub fn options(&self, unit: Option<AngleUnit>) -> anyhow::Result<(ReadOptions, AlignOptions)> {
         if self.max_gap.is_some_and(|g| !(g > 0.0 && g.is_finite())) {
             return Err(Usage("--max-gap must be a positive number of seconds".into()).into());
         }
@@ -41,8 +55,15 @@ impl LogArgs {
             TimeArg::Header => TimeSource::Header,
             TimeArg::Log => TimeSource::Log,
         };
-        Ok((
+        let read = ReadOptions {
+            unit,
             time,
+            time_column: self.time_column.clone(),
+            time_unit: self.time_unit,
+            ..ReadOptions::default()
+        };
+        Ok((
+            read,
             AlignOptions {
                 max_gap_s: self.max_gap,
             },
@@ -58,15 +79,8 @@ pub fn open_selected(
     log: &LogArgs,
     names: &[&str],
 ) -> anyhow::Result<LogReader> {
-    let (time, align) = log.options()?;
-    let mut reader = open_log_with(
-        path,
-        ReadOptions {
-            unit,
-            time,
-            ..ReadOptions::default()
-        },
-    )?;
+    let (read, align) = log.options(unit)?;
+    let mut reader = open_log_with(path, read)?;
     let indices = names
         .iter()
         .map(|n| channel(&reader, path, n))

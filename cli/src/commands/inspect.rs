@@ -39,18 +39,17 @@ pub struct Args {
     /// Print the findings as JSON instead of tables.
     #[arg(long)]
     pub json: bool,
-    /// How MCAP channels are timed and aligned.
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
     #[command(flatten)]
     pub input: LogArgs,
 }
 
 /// Runs `calib inspect`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    let (time, align) = args.input.options()?;
+    let (opts, align) = args.input.options(args.unit)?;
     let opts = ReadOptions {
-        unit: args.unit,
         allow_unordered_time: true,
-        time,
+        ..opts
     };
     let mut reader = open_log_with(&args.log, opts)?;
     let names: Vec<String> = reader.names().iter().map(|n| n.display.clone()).collect();

@@ -97,7 +97,7 @@ pub struct Args {
     /// Pipelines and gates.
     #[command(flatten)]
     pub batch: BatchArgs,
-    /// How MCAP channels are timed and aligned.
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
     #[command(flatten)]
     pub input: LogArgs,
 }

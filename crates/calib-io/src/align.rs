@@ -6,16 +6,21 @@
 //! every other channel is interpolated at the clock's stamp from its own samples.
 //!
 //! # Interpolation
-//! Cubic: the Lagrange polynomial through the channel's two samples either side of the stamp
-//! (`s₋₁ ≤ s₀ ≤ t < s₁ ≤ s₂`, nodes at their own, possibly jittered, stamps). Its error is
-//! `f⁽⁴⁾(ξ)/4! · Π(t − sₖ)`, at most `(9/16)/24 · h⁴ · max|f⁽⁴⁾|` for equal steps `h`. For a
-//! reading that carries an error of order `n` with amplitude `A`, sampled `N` times per period
-//! of that order (`ωh = 2π/N`), linear interpolation errs by up to `A·(ωh)²/8` and cubic by up to
-//! `0.0234·A·(ωh)⁴`. At the CSRR paper's first experiment (order 72, `A` ≈ 24″, 400 Hz at
-//! 10 r/min: `N` = 33) that is 0.11″ for linear — as much as the whole calibration's residual —
-//! and 0.0007″ for cubic, below the 0.09″ resolution by two orders of magnitude, so a higher
-//! order buys nothing. The motion itself (constant speed, ramps) is a low-order polynomial over
-//! four samples and is interpolated exactly or nearly so.
+//! Quintic: the Lagrange polynomial through the channel's [`SIDE`] = 3 samples on either side of
+//! the stamp, at their own (possibly jittered) stamps. Its error is `f⁽⁶⁾(ξ)/6! · Π(t − sₖ)`, at
+//! most `0.0049·h⁶·max|f⁽⁶⁾|` mid-way between equally spaced samples `h` apart; four points
+//! (cubic) give `0.0234·h⁴·max|f⁽⁴⁾|`, two (linear) `h²/8·max|f″|`. For a reading that carries an
+//! error of order `n` and amplitude `A`, sampled `N` times per period of that order
+//! (`ωh = 2π/N`), that is `A·(ωh)^k` times those constants. The CSRR paper's first experiment
+//! (400 Hz at 10 r/min, `testdata/scenarios/csrr72.toml`) has order 72 at 24″ sampled 33 times
+//! per period — linear 0.11″, as much as the whole calibration's residual, cubic 0.0007″ — but
+//! also order 216 at 14″ sampled 11 times and order 432 at 1″ sampled 5.6 times per period:
+//! cubic 0.034″ and 0.038″ there, quintic 0.002″ and 0.010″. Measured on that run with B on a
+//! clock 3/8 of a period off (`cli/tests/recordings_cli.rs`): cubic 0.130″, quintic 0.074″
+//! against 0.076″ synchronized. Near a gap or the ends of a channel fewer nodes are used.
+//! The motion itself (constant speed, ramps) is a low-order polynomial over six samples.
+//! Noise is not amplified: the mid-way weights `(3, −25, 150, 150, −25, 3)/256` have a sum of
+//! squares of 0.71.
 //!
 //! Readings may be wrapped to one revolution: the nodes are unwrapped against `s₀`'s reading
 //! before interpolating (a shaft turns less than half a revolution between two samples), and
@@ -55,6 +60,9 @@ pub const DEFAULT_GAP_INTERVALS: f64 = 2.5;
 
 /// Intervals of a channel from which its median interval is taken.
 pub const GAP_WINDOW: usize = 64;
+
+/// Samples of a channel on each side of a clock stamp its reading there is interpolated from.
+pub const SIDE: usize = 3;
 
 /// Clock samples that may wait for a lagging channel, and samples a channel may hold ahead of
 /// the clock: a minute at 1 kHz, more than any recorder buffers between topics.
@@ -218,15 +226,19 @@ impl Series {
         if s[j].0 - s[i].0 > gap {
             return Decision::Drop;
         }
-        let right = if j + 1 < s.len() {
-            (s[j + 1].0 - s[j].0 <= gap).then_some(j + 1)
-        } else if finished {
-            None
-        } else {
+        // Up to SIDE nodes each side, as far as no gap separates them from the stamp.
+        let mut hi = j;
+        while hi + 1 < s.len() && hi + 1 < j + SIDE && s[hi + 1].0 - s[hi].0 <= gap {
+            hi += 1;
+        }
+        if hi + 1 == s.len() && hi + 1 < j + SIDE && !finished {
             return Decision::Wait;
-        };
-        let left = (i >= 1 && s[i].0 - s[i - 1].0 <= gap).then(|| i - 1);
-        let nodes: Vec<usize> = left.into_iter().chain([i, j]).chain(right).collect();
+        }
+        let mut lo = i;
+        while lo >= 1 && lo + SIDE > i + 1 && s[lo].0 - s[lo - 1].0 <= gap {
+            lo -= 1;
+        }
+        let nodes: Vec<usize> = (lo..=hi).collect();
         let offset = if t - s[i].0 <= s[j].0 - t {
             s[i].0 - t
         } else {
@@ -238,10 +250,10 @@ impl Series {
         }
     }
 
-    /// Forgets the samples no later clock stamp (≥ `t`) can need: all but the last two at or
-    /// before `t`.
+    /// Forgets the samples no later clock stamp (≥ `t`) can need: all but the last [`SIDE`] at
+    /// or before `t`.
     fn prune(&mut self, t: i64) {
-        while self.samples.len() > 2 && self.samples[2].0 <= t {
+        while self.samples.len() > SIDE && self.samples[SIDE].0 <= t {
             self.samples.pop_front();
         }
     }
@@ -436,9 +448,9 @@ mod tests {
     }
 
     #[test]
-    fn cubic_is_exact_for_cubics_at_jittered_stamps() {
-        // A cubic in time is reproduced exactly by four-point Lagrange interpolation, whatever
-        // the nodes' spacing: the check of the weights.
+    fn interpolation_is_exact_for_cubics_at_jittered_stamps() {
+        // A cubic in time is reproduced exactly by Lagrange interpolation through four or more
+        // nodes, whatever their spacing: the check of the weights.
         // Small steps between samples (< 0.2 rad), as of a turning shaft.
         let f = |t: f64| 0.3 + 0.02 * t - 1e-4 * t * t + 1e-6 * t * t * t;
         let mut records = Vec::new();
@@ -455,8 +467,7 @@ mod tests {
         let out = run(&mut a, &records);
         // The first clock stamp precedes the other channel's first sample: not extrapolated.
         assert_eq!(out.len(), 199);
-        // The first has no node before its left neighbour: quadratic, not exact for a cubic.
-        for s in &out[1..] {
+        for s in &out {
             let want = f(s.t * 1e3);
             // Rounding only: values below 10 summed over four nodes with weights below 2.
             assert!((s.values[1] - want).abs() < 1e-12, "{} {want}", s.values[1]);

@@ -65,6 +65,11 @@ pub struct ReadOptions {
     pub allow_unordered_time: bool,
     /// Which time stamps MCAP messages are read at.
     pub time: TimeSource,
+    /// The time column of a CSV log (default: `t`, `time` or `timestamp`, with or without a
+    /// unit suffix).
+    pub time_column: Option<String>,
+    /// The unit of a CSV log's time column (default: its name's suffix, else seconds).
+    pub time_unit: Option<csv_log::dialect::TimeUnit>,
 }
 
 /// The time of a message: the stamp its publisher wrote, or when the recorder logged it.

@@ -26,7 +26,7 @@
 //! Channels are named as [`crate::naming`] says (the joint name where unique, else
 //! `TOPIC/JOINT`). Channels on several topics, or joints published in separate messages, are
 //! aligned on the first selected channel's stamps by [`crate::align`]: an exact stamp is kept,
-//! any other interpolated (cubic) from the channel's own samples, never across a gap and never
+//! any other interpolated (quintic) from the channel's own samples, never across a gap and never
 //! extrapolated; what cannot be aligned is counted in [`McapReader::alignment`].
 //!
 //! # Damaged files
