@@ -141,7 +141,12 @@ fn csrr_from_three_clocks_matches_the_truth() {
     assert_eq!(alignment["clock"], "/sensor_a/joint_states/encoder");
     let clock = alignment["clock_samples"].as_u64().unwrap();
     assert_eq!(alignment["samples"].as_u64().unwrap(), clock - 2);
-    for (c, offset) in alignment["channels"].as_array().unwrap().iter().zip([9.0, -9.0]) {
+    for (c, offset) in alignment["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip([9.0, -9.0])
+    {
         assert_eq!(c["dropped"], 2, "{c}");
         assert_eq!(c["interpolated"].as_u64().unwrap(), clock - 2, "{c}");
         // B's nearest sample is 9/24 period after A's stamp, the reference's 9/24 before.
@@ -200,7 +205,10 @@ fn inspect_lists_topics_with_type_rate_and_qualified_channels() {
             .lines()
             .find(|l| l.trim_start().starts_with(t))
             .unwrap_or_else(|| panic!("{t} missing:\n{out}"));
-        assert_mentions(line, &["sensor_msgs/msg/JointState", "cdr", "400 msg", "400.00 Hz"]);
+        assert_mentions(
+            line,
+            &["sensor_msgs/msg/JointState", "cdr", "400 msg", "400.00 Hz"],
+        );
         assert!(out.contains(&format!("      {t}/encoder\n")), "{out}");
     }
     // B and the reference are 0.9 and 1.6 ms after A: each interpolated at A's stamps but A's
@@ -218,7 +226,10 @@ fn inspect_lists_topics_with_type_rate_and_qualified_channels() {
     expect_exit(&o, 0);
     let v: Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["topics"].as_array().unwrap().len(), 3);
-    assert_eq!(v["topics"][1]["channels"][0], "/sensor_b/joint_states/encoder");
+    assert_eq!(
+        v["topics"][1]["channels"][0],
+        "/sensor_b/joint_states/encoder"
+    );
     assert_eq!(v["alignment"]["samples"], 399);
 }
 
@@ -265,7 +276,14 @@ fn lab_csv_with_semicolons_metadata_and_a_time_unit_is_read() {
     assert!(stdout(&o).contains("400.00 Hz mean"));
     let o = calib(&["inspect", s(&lab_export()), "--time-column", "Zeit"]);
     let err = expect_exit(&o, 1);
-    assert_mentions(&err, &["lab-export.csv: line 5", "no column `Zeit`", "Time [ms], enc_a, enc_b"]);
+    assert_mentions(
+        &err,
+        &[
+            "lab-export.csv: line 5",
+            "no column `Zeit`",
+            "Time [ms], enc_a, enc_b",
+        ],
+    );
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.csv");
     let text = std::fs::read_to_string(lab_export()).unwrap();

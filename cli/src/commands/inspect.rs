@@ -124,11 +124,7 @@ fn render_topics(topics: &[TopicInfo]) -> String {
         return o;
     }
     let read = topics.iter().filter(|t| !t.channels.is_empty()).count();
-    let _ = writeln!(
-        o,
-        "topics: {read} read, {} not read",
-        topics.len() - read
-    );
+    let _ = writeln!(o, "topics: {read} read, {} not read", topics.len() - read);
     let width = topics.iter().map(|t| t.topic.len()).max().unwrap_or(0);
     let type_width = topics.iter().map(|t| t.schema.len()).max().unwrap_or(0);
     for t in topics {

@@ -485,7 +485,11 @@ mod tests {
         for k in 0..100i64 {
             let ns = k * 10;
             // The other channel misses k = 40..=44 (a gap of 6 intervals).
-            let other = if (40..=44).contains(&k) { NAN } else { k as f64 };
+            let other = if (40..=44).contains(&k) {
+                NAN
+            } else {
+                k as f64
+            };
             records.push((ns, [k as f64, other]));
         }
         let mut a = Aligner::new(vec![0, 1], AlignOptions::default());
@@ -496,7 +500,12 @@ mod tests {
         assert_eq!((r.channels[0].exact, r.channels[0].dropped), (95, 5));
         assert_eq!(r.channels[0].interpolated, 0);
         // A user-given gap of 7 intervals bridges it.
-        let mut a = Aligner::new(vec![0, 1], AlignOptions { max_gap_s: Some(70e-9) });
+        let mut a = Aligner::new(
+            vec![0, 1],
+            AlignOptions {
+                max_gap_s: Some(70e-9),
+            },
+        );
         assert_eq!(run(&mut a, &records).len(), 100);
     }
 

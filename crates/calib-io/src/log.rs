@@ -1,7 +1,7 @@
 //! Any log calib reads, behind one interface: [`LogReader`] and [`LogWriter`].
 
-use crate::csv_log::{CsvReader, CsvWriter};
 use crate::align::{AlignOptions, Alignment};
+use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
 use crate::{Error, ReadDiagnostics, ReadOptions};
@@ -86,8 +86,7 @@ pub struct LogReader {
 
 enum Inner {
     Csv(CsvReader),
-    // Boxed: the MCAP reader is large.
-    Mcap(Box<McapReader>),
+    Mcap(McapReader),
 }
 
 impl LogReader {
@@ -95,7 +94,7 @@ impl LogReader {
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
         let inner = match LogFormat::detect(path)? {
             LogFormat::Csv => Inner::Csv(CsvReader::open(path, opts)?),
-            LogFormat::Mcap => Inner::Mcap(Box::new(McapReader::open(path, opts)?)),
+            LogFormat::Mcap => Inner::Mcap(McapReader::open(path, opts)?),
         };
         let names = match &inner {
             Inner::Csv(r) => r

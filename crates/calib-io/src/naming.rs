@@ -138,6 +138,10 @@ mod tests {
             "{err}"
         );
         let err = resolve(&names, "roll").unwrap_err();
-        assert!(err.to_string().contains("it has: /left/joint_states/pan, tilt"), "{err}");
+        assert!(
+            err.to_string()
+                .contains("it has: /left/joint_states/pan, tilt"),
+            "{err}"
+        );
     }
 }

@@ -48,7 +48,10 @@ fn python_fixture_joins_joint_states_with_json_reference() {
     // stamp and missing (a gap of 6 intervals, beyond 2.5) for i = 100..=104; the two stray
     // messages are nodes only.
     let alignment = reader.alignment();
-    assert_eq!((alignment.clock.as_str(), alignment.clock_samples), ("a", 300));
+    assert_eq!(
+        (alignment.clock.as_str(), alignment.clock_samples),
+        ("a", 300)
+    );
     let counts: Vec<_> = alignment
         .channels
         .iter()
@@ -372,7 +375,11 @@ fn a_joint_first_seen_after_the_peek_window_is_an_error() {
         let msg = joint_state(T0 + i, &["a", "b"], &[0.0, 1.0]);
         b.put(ch, i, &cdr(&msg, false));
     }
-    b.put(ch, n, &cdr(&joint_state(T0 + n, &["a", "c"], &[0.0, 1.0]), false));
+    b.put(
+        ch,
+        n,
+        &cdr(&joint_state(T0 + n, &["a", "c"], &[0.0, 1.0]), false),
+    );
     b.finish();
     let (read, err) = first_error(&path);
     assert_eq!(read as u64, n);
@@ -596,7 +603,11 @@ fn stamps_off_the_clock_are_interpolated_never_extrapolated() {
         let ns = T0 + i * 1_000_000;
         b.put(a, ns, &cdr(&joint_state(ns, &["a"], &[1.0]), false));
         // Half a millisecond off: never equal. ref turns at 1°/ms.
-        b.put(r, ns + 500_000, format!(r#"{{"ref": {}}}"#, i as f64 + 0.5).as_bytes());
+        b.put(
+            r,
+            ns + 500_000,
+            format!(r#"{{"ref": {}}}"#, i as f64 + 0.5).as_bytes(),
+        );
     }
     b.finish();
     let (reader, samples) = read_all(&path, &ReadOptions::default());
@@ -605,7 +616,11 @@ fn stamps_off_the_clock_are_interpolated_never_extrapolated() {
     assert_eq!(samples.len(), 99);
     for (s, i) in samples.iter().zip(1..) {
         // A straight line is interpolated exactly (to rounding).
-        assert!((s.values[1].to_degrees() - i as f64).abs() < 1e-9, "{i}: {:?}", s.values);
+        assert!(
+            (s.values[1].to_degrees() - i as f64).abs() < 1e-9,
+            "{i}: {:?}",
+            s.values
+        );
     }
     let c = &reader.alignment().channels[0];
     assert_eq!((c.interpolated, c.exact, c.dropped), (99, 0, 1));
@@ -635,7 +650,11 @@ fn joints_published_in_separate_messages_are_separate_series() {
     // a's 100 stamps; c has no sample before the first.
     assert_eq!(samples.len(), 99);
     for s in &samples {
-        assert!((s.values[2] - 2.0 * s.values[0]).abs() < 1e-12, "{:?}", s.values);
+        assert!(
+            (s.values[2] - 2.0 * s.values[0]).abs() < 1e-12,
+            "{:?}",
+            s.values
+        );
         assert_eq!(s.values[1], -s.values[0]);
     }
 }
@@ -664,7 +683,10 @@ fn alignment_queues_stay_bounded_when_a_topic_lags() {
         samples[0].values,
         [first as f64, (first as f64).to_radians()]
     );
-    assert_eq!(reader.alignment().channels[0].dropped, n - ALIGN_QUEUE as u64);
+    assert_eq!(
+        reader.alignment().channels[0].dropped,
+        n - ALIGN_QUEUE as u64
+    );
 }
 
 #[test]

@@ -86,7 +86,8 @@ impl TimeUnit {
 impl std::str::FromStr for TimeUnit {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        TimeUnit::from_suffix(s).ok_or_else(|| format!("unknown time unit `{s}`; use s, ms, us or ns"))
+        TimeUnit::from_suffix(s)
+            .ok_or_else(|| format!("unknown time unit `{s}`; use s, ms, us or ns"))
     }
 }
 
@@ -103,9 +104,8 @@ pub fn sniff(head: &[u8]) -> Dialect {
             .take(SNIFF_RECORDS)
             .map_while(Result::ok)
             .collect();
-        let numeric = |r: &csv::ByteRecord| {
-            2 * r.iter().filter(|f| parse_f64(f).is_some()).count() > r.len()
-        };
+        let numeric =
+            |r: &csv::ByteRecord| 2 * r.iter().filter(|f| parse_f64(f).is_some()).count() > r.len();
         let header = records.windows(2).position(|w| {
             w[0].len() >= 2
                 && w[0].len() == w[1].len()
@@ -139,11 +139,10 @@ pub fn time_column(
         }
         None => {
             // An exact `t` first: the plain dialect's name.
-            let i = names.iter().position(|n| n == "t").or_else(|| {
-                names
-                    .iter()
-                    .position(|n| parse_time_name(n).is_some())
-            })?;
+            let i = names
+                .iter()
+                .position(|n| n == "t")
+                .or_else(|| names.iter().position(|n| parse_time_name(n).is_some()))?;
             (i, parse_time_name(&names[i]).and_then(|(_, u)| u))
         }
     };

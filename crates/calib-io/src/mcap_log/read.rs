@@ -833,8 +833,6 @@ fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<S
 }
 
 /// A topic's channels from its first message.
-
-/// A topic's channels from its first message.
 fn first_message(message: &mcap::Message, encoding: Encoding, scale: f64) -> Result<Topic, String> {
     let mut topic = Topic {
         name: message.channel.topic.clone(),
