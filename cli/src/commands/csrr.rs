@@ -11,6 +11,7 @@ use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
 use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report, SessionReport};
+use calib_io::prefetch::Prefetch;
 use calib_report::trace::Trace;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -157,7 +158,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut names = vec![args.a.as_str(), args.b.as_str()];
     names.extend(args.reference.as_deref());
-    let mut reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = open_selected(log, args.unit, &args.input, &names)?;
     let (ia, ib) = (0, 1);
     let ir = args.reference.as_ref().map(|_| 2);
     let opts = CsrrOptions {
@@ -189,7 +190,9 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
     let bar = crate::ui::reading(log);
-    for (n, sample) in reader.by_ref().enumerate() {
+    // Decoding runs ahead on a second thread while this one segments and bins.
+    let mut samples = Prefetch::new(reader);
+    for (n, sample) in samples.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         if n as u64 % crate::ui::TICK == 0 {
             bar.inc(crate::ui::TICK);
@@ -203,6 +206,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         }
     }
     bar.finish_and_clear();
+    let reader = samples.finish();
     let solving = crate::ui::working("solving");
     let cal = csrr.finish();
     solving.finish_and_clear();
