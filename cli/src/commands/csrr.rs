@@ -3,7 +3,7 @@
 use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::document::csrr::{self as document, Comparisons};
 use crate::exit::Usage;
-use crate::input::{channel, open_log, parse_unit};
+use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
@@ -43,6 +43,12 @@ pub enum MethodArg {
 /// sensor's own reading, zero mean), DIR/report.json and DIR/report.html (error maps, spectrum,
 /// session timeline), and prints a summary. With several logs, each log's files go to
 /// DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
+///
+/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
+/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table
+/// is named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned
+/// on A's stamps (see --time, --max-gap).
 ///
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
@@ -103,6 +109,9 @@ pub struct Args {
     /// Pipelines and gates.
     #[command(flatten)]
     pub batch: BatchArgs,
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
+    #[command(flatten)]
+    pub input: LogArgs,
 }
 
 /// Runs `calib csrr`.
@@ -147,14 +156,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
-    let reader = open_log(log, args.unit)?;
-    let ia = channel(&reader, log, &args.a)?;
-    let ib = channel(&reader, log, &args.b)?;
-    let ir = args
-        .reference
-        .as_deref()
-        .map(|r| channel(&reader, log, r))
-        .transpose()?;
+    let mut names = vec![args.a.as_str(), args.b.as_str()];
+    names.extend(args.reference.as_deref());
+    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let (ia, ib) = (0, 1);
+    let ir = args.reference.as_ref().map(|_| 2);
     let opts = CsrrOptions {
         method: match args.method {
             MethodArg::Joint => Method::Joint,
@@ -218,7 +224,10 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, log, &cal, warnings);
+    let mut report = build_report(args, log, &cal, warnings);
+    if let Some(a) = alignment_detail(&reader) {
+        report.details.insert("alignment".to_string(), a);
+    }
     let json = calib_io::report::render_json(&report)?;
     let comparisons = Comparisons {
         truth: truth.as_ref().map(|(a, b)| (a, b)),
@@ -250,7 +259,8 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let text = if args.json {
         json
     } else {
-        render_summary(args, out, &cal, &report, &comparisons)
+        alignment_text(reader.alignment().as_ref())
+            + &render_summary(args, out, &cal, &report, &comparisons)
     };
     let channels = [(&args.a, true), (&args.b, false)]
         .into_iter()

@@ -2,7 +2,7 @@
 
 use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{channel, open_log, parse_unit};
+use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
@@ -29,6 +29,12 @@ const MAX_POINTS: usize = 3_600_000;
 /// −error, applied as reading + correction(reading)), DIR/report.json and DIR/report.html (the
 /// map with its uncertainty band, the ISO 230-2 figures), and prints a summary. With several
 /// logs, each log's files go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
+///
+/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
+/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table
+/// is named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned
+/// on the stamps of the DUT (see --time, --max-gap).
 ///
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
@@ -73,6 +79,9 @@ pub struct Args {
     /// Pipelines and gates.
     #[command(flatten)]
     pub batch: BatchArgs,
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
+    #[command(flatten)]
+    pub input: LogArgs,
 }
 
 /// Runs `calib reference`.
@@ -113,9 +122,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
-    let mut reader = open_log(log, args.unit)?;
-    let id = channel(&reader, log, &args.dut)?;
-    let ir = channel(&reader, log, &args.reference)?;
+    let names = [args.dut.as_str(), args.reference.as_str()];
+    let mut reader = open_selected(log, args.unit, &args.input, &names)?;
+    let (id, ir) = (0, 1);
     let bar = crate::ui::reading(log);
     let mut cal = ReferenceCal::new(ReferenceOptions {
         points: args.points,
@@ -143,14 +152,17 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, log, &cal, warnings);
+    let mut report = build_report(args, log, &cal, warnings);
+    if let Some(a) = alignment_detail(&reader) {
+        report.details.insert("alignment".to_string(), a);
+    }
     let json = calib_io::report::render_json(&report)?;
     let doc = crate::document::reference::document(&args.dut, &args.reference, &cal, &report);
     let files = write_tables_and_report(out, &[(&args.dut, &cal.map, Some(&cal.u))], &json, &doc)?;
     let text = if args.json {
         json
     } else {
-        render_summary(args, out, &cal, &report)
+        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
     };
     Ok(Outcome {
         text,

@@ -2,7 +2,9 @@
 
 use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{channel, command_line, open_log, parse_unit};
+use crate::input::{
+    LogArgs, alignment_detail, alignment_text, command_line, open_selected, parse_unit,
+};
 use crate::output::{table_name, write_tables_and_report};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -50,6 +52,12 @@ const MAX_DEGREE: usize = 60;
 /// DIR/report.json and DIR/report.html, and prints a summary. With several logs, each log's files
 /// go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
 ///
+/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
+/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table
+/// is named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned
+/// on the stamps of --channel (see --time, --max-gap).
+///
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
@@ -92,6 +100,9 @@ pub struct Args {
     /// Pipelines and gates.
     #[command(flatten)]
     pub batch: BatchArgs,
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
+    #[command(flatten)]
+    pub input: LogArgs,
 }
 
 /// Runs `calib tdr`.
@@ -142,13 +153,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
-    let mut reader = open_log(log, args.unit)?;
-    let ic = channel(&reader, log, &args.channel)?;
-    let ir = args
-        .reference
-        .as_ref()
-        .map(|r| channel(&reader, log, r))
-        .transpose()?;
+    let mut names = vec![args.channel.as_str()];
+    names.extend(args.reference.as_deref());
+    let mut reader = open_selected(log, args.unit, &args.input, &names)?;
+    let ic = 0;
+    let ir = args.reference.as_ref().map(|_| 1);
     let mut tdr = Tdr::new(TdrOptions {
         max_order: args.max_order,
         max_drag_order: args.max_drag_order,
@@ -170,7 +179,10 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, log, &cal, warnings);
+    let mut report = build_report(args, log, &cal, warnings);
+    if let Some(a) = alignment_detail(&reader) {
+        report.details.insert("alignment".to_string(), a);
+    }
     let json = calib_io::report::render_json(&report)?;
     let files = write_tables_and_report(
         out,
@@ -181,7 +193,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let text = if args.json {
         json
     } else {
-        render_summary(args, out, &cal, &report)
+        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
     };
     // After correction: what the reference still sees of the corrected encoder.
     let after = cal

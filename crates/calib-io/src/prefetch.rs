@@ -6,8 +6,8 @@
 //! channel, so wall time approaches the slower of the two instead of their sum. Memory stays
 //! bounded: at most [`DEPTH`] batches of [`BATCH`] samples wait at any time.
 //!
-//! The reader comes back with [`Prefetch::finish`], its diagnostics (truncation, unjoined
-//! messages) complete. The order of the items and the first error are exactly the reader's: the
+//! The reader comes back with [`Prefetch::finish`], its diagnostics (truncation, alignment)
+//! complete. The order of the items and the first error are exactly the reader's: the
 //! worker stops after the first error, as every caller does. Where no thread can be started the
 //! reader runs on the caller's thread, unchanged.
 
