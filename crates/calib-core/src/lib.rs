@@ -75,6 +75,7 @@ pub mod error_map;
 pub mod harmonics;
 pub mod inspect;
 pub mod multihead;
+pub mod range_map;
 pub mod reference_cal;
 pub mod report;
 pub mod sample;
@@ -86,6 +87,7 @@ pub mod uncertainty;
 
 pub use angle::{Angle, AngleUnit, Unwrapper};
 pub use error_map::ErrorMap;
+pub use range_map::RangeMap;
 pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
 pub use report::{ChannelReport, Report, SessionReport};
 pub use sample::{Channel, Sample};

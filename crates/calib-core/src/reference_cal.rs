@@ -53,6 +53,8 @@
 
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper};
 use crate::error_map::ErrorMap;
+use crate::range_map::RangeMap;
+use crate::angle::wrap_2pi;
 use std::f64::consts::{PI, TAU};
 
 /// Settings of a reference calibration.
@@ -71,6 +73,23 @@ pub struct ReferenceOptions {
     /// crossings are not used, radians (default 1°): the approach of ISO 230-2, which lets
     /// backlash and wind-up settle before positions are measured.
     pub approach: f64,
+    /// Largest gap of never-crossed readings, radians (default 5°), that a run otherwise
+    /// covering a whole turn may have and still give a whole-turn map, the gap bridged by
+    /// interpolation across it; a larger gap makes the map a range map.
+    pub max_gap: f64,
+    /// Where ISO 230-2's target positions lie (default: 20, see [`Targets`]).
+    pub targets: Targets,
+}
+
+/// The target positions of ISO 230-2, at which its figures are evaluated.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Targets {
+    /// `k` targets, one in the middle of each of `k` equal parts of the map's range (for a whole
+    /// turn: `(j + ½)·360°/k`), each moved to its nearest grid point.
+    Count(usize),
+    /// These readings, radians, each moved to its nearest grid point; every one must lie in the
+    /// map's range.
+    Angles(Vec<f64>),
 }
 
 impl Default for ReferenceOptions {
@@ -81,6 +100,8 @@ impl Default for ReferenceOptions {
             reference_u: 0.0,
             follow_tol: 5f64.to_radians(),
             approach: 1f64.to_radians(),
+            max_gap: 5f64.to_radians(),
+            targets: Targets::Count(20),
         }
     }
 }
@@ -88,24 +109,46 @@ impl Default for ReferenceOptions {
 /// Why a reference calibration cannot be made from the data.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReferenceError {
-    /// The DUT moved less than one revolution.
+    /// The DUT crossed fewer than two grid points while moving.
     #[error(
-        "the DUT turned {revolutions:.3} revolution(s) while moving; a reference calibration needs at least one whole \
-         revolution (record the shaft turning at least once, better 5 times in each direction)"
+        "the DUT turned {revolutions:.4} revolution(s) while moving and crossed {crossed} grid point(s); a reference \
+         calibration needs at least 2 (record the shaft turning over the range to calibrate, better 5 times in each direction)"
     )]
     TooLittleMotion {
         /// Revolutions of DUT travel while moving.
         revolutions: f64,
+        /// Grid points crossed.
+        crossed: usize,
     },
-    /// Some grid points were never crossed.
+    /// Grid points inside the covered range were never crossed.
     #[error(
-        "{missing} of {points} grid points were never crossed while moving; record whole revolutions so every angle is covered"
+        "{missing} of {points} grid points inside the range the DUT covered were never crossed while moving (the first at \
+         {first_deg:.3}°); the range must be swept without stopping in the middle: record the shaft turning through \
+         every angle of the range"
     )]
     NotCovered {
-        /// Grid points without data.
+        /// Grid points without data inside the range.
         missing: usize,
         /// Grid points.
         points: usize,
+        /// The first of them, degrees.
+        first_deg: f64,
+    },
+    /// The difference of the two readings at one DUT reading differs from pass to pass.
+    #[error(
+        "the reference does not follow the DUT: at the DUT's reading {at_deg:.3}° the difference of their readings \
+         differs by {spread_deg:.3}° between passes (at most {tol_deg}° allowed). A DUT's error repeats from pass to pass, \
+         however large; a reference on another shaft, slipping on its shaft, counting the other way round or in another \
+         unit does not: check that both are on the same shaft, count the same way round (negate one otherwise) and are \
+         in the same unit"
+    )]
+    NotRepeating {
+        /// The largest spread of the difference at one grid point, degrees.
+        spread_deg: f64,
+        /// Where, degrees of the DUT's reading.
+        at_deg: f64,
+        /// The tolerance, degrees.
+        tol_deg: f64,
     },
     /// The reference stays still while the DUT turns.
     #[error(
@@ -118,11 +161,13 @@ pub enum ReferenceError {
         /// DUT travel while moving, degrees.
         dut_deg: f64,
     },
-    /// The two encoders' motions differ by more than the tolerance.
+    /// The two encoders' motions differ by more than the tolerance, in a run that crosses no
+    /// reading twice (so nothing tells a drifting reference from a large DUT error).
     #[error(
         "the reference does not follow the DUT: the difference of their readings changed by {change_deg:.3}° over \
-         {revolutions:.2} revolution(s) (at most {tol_deg}° allowed); check that both are on the same shaft, count the same \
-         way round (negate one otherwise) and are in the same unit"
+         {revolutions:.2} revolution(s) (at most {tol_deg}° allowed), and the run crosses no reading twice, so a large \
+         DUT error cannot be told from a reference that drifts; check that both are on the same shaft, count the same \
+         way round (negate one otherwise) and are in the same unit, or record the motion back and forth"
     )]
     NotFollowing {
         /// Range of the reading difference while moving, degrees.
@@ -215,24 +260,113 @@ impl Iso230_2 {
     }
 }
 
+/// A calibrated map: over a whole turn, or over the range of readings the run covered.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TableMap {
+    /// A whole revolution (possibly with a small gap bridged, see [`Gap`]).
+    Turn(ErrorMap),
+    /// Part of a revolution: the DUT never covered a whole turn.
+    Range(RangeMap),
+}
+
+impl TableMap {
+    /// The values on the grid, radians.
+    pub fn values(&self) -> &[f64] {
+        match self {
+            TableMap::Turn(m) => m.values(),
+            TableMap::Range(m) => m.values(),
+        }
+    }
+    /// Number of grid points.
+    pub fn len(&self) -> usize {
+        self.values().len()
+    }
+    /// Always false: a map has at least one point.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+    /// Grid angle of point `i`, radians.
+    pub fn grid_angle(&self, i: usize) -> f64 {
+        match self {
+            TableMap::Turn(m) => m.grid_angle(i),
+            TableMap::Range(m) => m.grid_angle(i),
+        }
+    }
+    /// Peak-to-peak value, radians.
+    pub fn peak_to_peak(&self) -> f64 {
+        match self {
+            TableMap::Turn(m) => m.peak_to_peak(),
+            TableMap::Range(m) => m.peak_to_peak(),
+        }
+    }
+    /// Root mean square, radians.
+    pub fn rms(&self) -> f64 {
+        match self {
+            TableMap::Turn(m) => m.rms(),
+            TableMap::Range(m) => m.rms(),
+        }
+    }
+    /// The range `(start, end)`, radians, of a range map; `None` for a whole turn.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        match self {
+            TableMap::Turn(_) => None,
+            TableMap::Range(m) => Some((m.start(), m.end())),
+        }
+    }
+}
+
+/// Readings a run never reached, bridged in a whole-turn map by linear interpolation across
+/// them (periodic: from the last measured point before the gap to the first after it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gap {
+    /// The last measured grid angle before the gap, radians in `[0, 2π)`.
+    pub from: f64,
+    /// The first measured grid angle after it, radians (`from + size`, possibly above 2π).
+    pub to: f64,
+    /// `to − from`, radians.
+    pub size: f64,
+    /// Grid points inside the gap, whose values are interpolated, not measured.
+    pub points: usize,
+}
+
+/// ISO 230-2's statistics at one target position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetStats {
+    /// The target: the grid angle nearest the asked position, radians.
+    pub angle: f64,
+    /// Increasing readings.
+    pub up: PointStats,
+    /// Decreasing readings.
+    pub down: PointStats,
+}
+
 /// The result of a reference calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReferenceCalibration {
-    /// The DUT's error map (bidirectional mean), relative to the reference, zero mean.
-    pub map: ErrorMap,
+    /// The DUT's error map (bidirectional mean where both directions were measured), relative
+    /// to the reference, zero mean over its grid.
+    pub map: TableMap,
     /// Standard uncertainty of each map point, radians.
     pub u: Vec<f64>,
-    /// Statistics per grid point for increasing readings.
+    /// Statistics per map point for increasing readings (`n = 0` at bridged points).
     pub up: Vec<PointStats>,
-    /// Statistics per grid point for decreasing readings.
+    /// Statistics per map point for decreasing readings.
     pub down: Vec<PointStats>,
-    /// The ISO 230-2 figures.
+    /// The ISO 230-2 figures, over the target positions.
     pub iso: Iso230_2,
+    /// The ISO 230-2 target positions and their statistics.
+    pub targets: Vec<TargetStats>,
     /// DUT travel while moving, revolutions (both directions).
     pub revolutions: f64,
-    /// Fewest passes at a grid point in each direction (`up`, `down`); 0 for a direction without
-    /// data.
+    /// Fewest passes at a grid point crossed in each direction (`up`, `down`); 0 for a
+    /// direction without data.
     pub min_passes: (u32, u32),
+    /// The gap bridged in a whole-turn map, if the run left one.
+    pub gap: Option<Gap>,
+    /// The largest spread of the reading difference at one grid point between passes (any
+    /// direction), radians: how well the reference followed; `None` if no point was crossed
+    /// twice.
+    pub repeat_spread: Option<f64>,
     /// What the user should know about the result.
     pub warnings: Vec<String>,
 }
@@ -248,6 +382,9 @@ pub struct ReferenceCal {
     first: Option<(f64, f64)>,
     up: Vec<Welford>,
     down: Vec<Welford>,
+    /// Smallest and largest difference at each grid point, both directions.
+    low: Vec<f64>,
+    high: Vec<f64>,
     travel: f64,
     reference_travel: f64,
     d_min: f64,
@@ -293,6 +430,8 @@ impl ReferenceCal {
             first: None,
             up: vec![Welford::default(); n],
             down: vec![Welford::default(); n],
+            low: vec![f64::INFINITY; n],
+            high: vec![f64::NEG_INFINITY; n],
             travel: 0.0,
             reference_travel: 0.0,
             d_min: f64::INFINITY,
@@ -381,11 +520,6 @@ impl ReferenceCal {
         } else {
             ((lo / grid).ceil() as i64, (hi / grid).ceil() as i64 - 1)
         };
-        let bins = if du > 0.0 {
-            &mut self.up
-        } else {
-            &mut self.down
-        };
         for k in first..=last {
             let theta = k as f64 * grid;
             if s.travelled + (theta - s.u0).abs() < self.opts.approach {
@@ -397,7 +531,14 @@ impl ReferenceCal {
                 }
                 _ => s.d0 + (theta - s.u0) / du * (s.d1 - s.d0),
             };
-            bins[(k.rem_euclid(n as i64)) as usize].add(x);
+            let i = k.rem_euclid(n as i64) as usize;
+            if du > 0.0 {
+                self.up[i].add(x);
+            } else {
+                self.down[i].add(x);
+            }
+            self.low[i] = self.low[i].min(x);
+            self.high[i] = self.high[i].max(x);
         }
     }
 
@@ -410,9 +551,17 @@ impl ReferenceCal {
                 "the map needs at least 2 points, {n} asked for"
             )));
         }
+        let step = TAU / n as f64;
         let revolutions = self.travel / TAU;
-        if revolutions < 1.0 {
-            return Err(ReferenceError::TooLittleMotion { revolutions });
+        let covered: Vec<bool> = (0..n)
+            .map(|i| self.up[i].n > 0 || self.down[i].n > 0)
+            .collect();
+        let crossed = covered.iter().filter(|&&c| c).count();
+        if crossed < 2 {
+            return Err(ReferenceError::TooLittleMotion {
+                revolutions,
+                crossed,
+            });
         }
         if self.reference_travel < 0.1 * self.travel {
             return Err(ReferenceError::ReferenceStill {
@@ -420,49 +569,83 @@ impl ReferenceCal {
                 dut_deg: self.travel.to_degrees(),
             });
         }
-        let change = self.d_max - self.d_min;
-        if change > self.opts.follow_tol {
-            return Err(ReferenceError::NotFollowing {
-                change_deg: change.to_degrees(),
-                revolutions,
-                tol_deg: self.opts.follow_tol.to_degrees(),
-            });
+        let tol = self.opts.follow_tol;
+        let repeat = (0..n)
+            .filter(|&i| self.up[i].n + self.down[i].n >= 2)
+            .map(|i| (self.high[i] - self.low[i], i))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        match repeat {
+            Some((spread, i)) if spread > tol => {
+                return Err(ReferenceError::NotRepeating {
+                    spread_deg: spread.to_degrees(),
+                    at_deg: (i as f64 * step).to_degrees(),
+                    tol_deg: tol.to_degrees(),
+                });
+            }
+            None if self.d_max - self.d_min > tol => {
+                return Err(ReferenceError::NotFollowing {
+                    change_deg: (self.d_max - self.d_min).to_degrees(),
+                    revolutions,
+                    tol_deg: tol.to_degrees(),
+                });
+            }
+            _ => {}
         }
-        let missing = (0..n)
-            .filter(|&i| self.up[i].n == 0 && self.down[i].n == 0)
-            .count();
-        if missing > 0 {
-            return Err(ReferenceError::NotCovered { missing, points: n });
-        }
-        let raw: Vec<f64> = (0..n)
-            .map(|i| match (self.up[i].n, self.down[i].n) {
-                (0, _) => self.down[i].mean,
-                (_, 0) => self.up[i].mean,
-                _ => 0.5 * (self.up[i].mean + self.down[i].mean),
-            })
-            .collect();
-        let offset = raw.iter().sum::<f64>() / n as f64;
-        let stats = |w: &[Welford]| -> Vec<PointStats> {
-            w.iter()
-                .map(|w| PointStats {
-                    n: w.n,
-                    mean: w.mean - offset,
-                    s: (w.n >= 2).then(|| (w.m2.max(0.0) / f64::from(w.n - 1)).sqrt()),
-                })
-                .collect()
+        let layout = layout(&covered, step, self.opts.max_gap)?;
+        // The bins of the map's points, in grid order.
+        let bins: Vec<usize> = match layout {
+            Layout::Turn { .. } => (0..n).collect(),
+            Layout::Range { first, len } => (0..len).map(|j| (first + j) % n).collect(),
         };
-        let (up, down) = (stats(&self.up), stats(&self.down));
-        let iso = iso_230_2(&up, &down);
+        let measured = |i: usize| match (self.up[i].n, self.down[i].n) {
+            (0, 0) => None,
+            (0, _) => Some(self.down[i].mean),
+            (_, 0) => Some(self.up[i].mean),
+            _ => Some(0.5 * (self.up[i].mean + self.down[i].mean)),
+        };
+        let mut raw: Vec<f64> = bins.iter().map(|&i| measured(i).unwrap_or(0.0)).collect();
+        let gap = match layout {
+            Layout::Turn {
+                gap: Some((before, points)),
+            } => {
+                // Linear across the gap, from the measured point before it to the one after.
+                let after = (before + points + 1) % n;
+                let (y0, y1) = (raw[before], raw[after]);
+                for j in 1..=points {
+                    let f = j as f64 / (points + 1) as f64;
+                    raw[(before + j) % n] = y0 + f * (y1 - y0);
+                }
+                let from = before as f64 * step;
+                let size = (points + 1) as f64 * step;
+                Some(Gap {
+                    from,
+                    to: from + size,
+                    size,
+                    points,
+                })
+            }
+            _ => None,
+        };
+        let offset = raw.iter().sum::<f64>() / raw.len() as f64;
+        let stats = |w: &Welford| PointStats {
+            n: w.n,
+            mean: w.mean - offset,
+            s: (w.n >= 2).then(|| (w.m2.max(0.0) / f64::from(w.n - 1)).sqrt()),
+        };
+        let up: Vec<PointStats> = bins.iter().map(|&i| stats(&self.up[i])).collect();
+        let down: Vec<PointStats> = bins.iter().map(|&i| stats(&self.down[i])).collect();
         let (pool_up, pool_down) = (pooled(&self.up), pooled(&self.down));
         let sem2 = |p: &PointStats, pool: Option<f64>| -> Option<f64> {
             let s = p.s.or(pool)?;
             Some(s * s / f64::from(p.n))
         };
         let mut no_repeatability = false;
-        let u: Vec<f64> = (0..n)
-            .map(|i| {
-                let (a, b) = (&up[i], &down[i]);
+        let mut u: Vec<Option<f64>> = up
+            .iter()
+            .zip(&down)
+            .map(|(a, b)| {
                 let var = match (a.n, b.n) {
+                    (0, 0) => return None,
                     (0, _) => sem2(b, pool_down),
                     (_, 0) => sem2(a, pool_up),
                     _ => sem2(a, pool_up)
@@ -473,26 +656,70 @@ impl ReferenceCal {
                     no_repeatability = true;
                     0.0
                 });
-                (var + self.opts.reference_u.powi(2)).sqrt()
+                Some((var + self.opts.reference_u.powi(2)).sqrt())
             })
             .collect();
-        let min_passes = |p: &[PointStats]| p.iter().map(|p| p.n).min().unwrap_or(0);
+        if let Some(g) = gap {
+            // A bridged point carries the larger uncertainty of the two it is interpolated from
+            // (the interpolation's own error is unknown: the warning says so).
+            let before = (g.from / step).round() as usize % n;
+            let after = (before + g.points + 1) % n;
+            let edge = u[before].unwrap_or(0.0).max(u[after].unwrap_or(0.0));
+            for j in 1..=g.points {
+                u[(before + j) % n] = Some(edge);
+            }
+        }
+        let u: Vec<f64> = u.into_iter().map(|u| u.unwrap_or(0.0)).collect();
+
+        let map = match layout {
+            Layout::Turn { .. } => TableMap::Turn(ErrorMap::new(raw)),
+            Layout::Range { first, .. } => TableMap::Range(
+                RangeMap::new(first as f64 * step, step, raw)
+                    .map_err(|e| ReferenceError::Options(e.to_string()))?,
+            ),
+        };
+        let targets = target_points(&self.opts.targets, &map, step)?
+            .into_iter()
+            .map(|j| TargetStats {
+                angle: map.grid_angle(j),
+                up: up[j],
+                down: down[j],
+            })
+            .collect::<Vec<_>>();
+        let (t_up, t_down): (Vec<PointStats>, Vec<PointStats>) =
+            targets.iter().map(|t| (t.up, t.down)).unzip();
+        let iso = iso_230_2(&t_up, &t_down);
+
+        let min_passes = |p: &[PointStats]| p.iter().map(|p| p.n).filter(|&n| n > 0).min().unwrap_or(0);
         let min_passes = (min_passes(&up), min_passes(&down));
         let mut warnings = Vec::new();
         if no_repeatability {
             warnings.push(
                 "some points were crossed only once in every direction: their u_arcsec holds only the reference's \
-                 uncertainty; record several revolutions to estimate the repeatability"
+                 uncertainty; record several passes to estimate the repeatability"
                     .to_string(),
             );
         }
-        let (has_up, has_down) = (up.iter().any(|p| p.n > 0), down.iter().any(|p| p.n > 0));
-        if has_up && has_down && (min_passes.0 == 0 || min_passes.1 == 0) {
-            warnings.push(
-                "some points were crossed in one direction only, others in both: the map mixes unidirectional and \
-                 bidirectional means; record whole revolutions in each direction"
-                    .to_string(),
-            );
+        let (has_up, has_down) = (min_passes.0 > 0, min_passes.1 > 0);
+        if has_up && has_down {
+            // At a range's ends one direction is missing by design (the approach after each
+            // reversal); elsewhere a point measured one way only mixes the two directions.
+            let margin = self.opts.approach + 2.0 * step;
+            let len = up.len();
+            let inner = |j: usize| match map {
+                TableMap::Turn(_) => true,
+                TableMap::Range(_) => {
+                    let x = j as f64 * step;
+                    x > margin && (len - 1 - j) as f64 * step > margin
+                }
+            };
+            if (0..len).any(|j| inner(j) && (up[j].n == 0) != (down[j].n == 0)) {
+                warnings.push(
+                    "some points were crossed in one direction only, others in both: the map mixes unidirectional and \
+                     bidirectional means; record the motion over the whole range in each direction"
+                        .to_string(),
+                );
+            }
         }
         for (name, has, m) in [
             ("increasing", has_up, min_passes.0),
@@ -504,17 +731,133 @@ impl ReferenceCal {
                 ));
             }
         }
+        if let Some(g) = gap {
+            warnings.push(format!(
+                "the DUT never reached the readings between {:.3}° and {:.3}° (a gap of {:.3}° in the turn, {} grid point(s)): \
+                 the map bridges it by linear interpolation, not by measurement; record the whole turn to measure it \
+                 (a gap wider than --max-gap {}° gives a range table instead)",
+                g.from.to_degrees(),
+                wrap_2pi(g.to).to_degrees(),
+                g.size.to_degrees(),
+                g.points,
+                self.opts.max_gap.to_degrees()
+            ));
+        }
         Ok(ReferenceCalibration {
-            map: ErrorMap::new(raw),
+            map,
             u,
             up,
             down,
             iso,
+            targets,
             revolutions,
             min_passes,
+            gap,
+            repeat_spread: repeat.map(|r| r.0),
             warnings,
         })
     }
+}
+
+/// Which grid points a map holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Layout {
+    /// Every point; `gap` = (the measured bin before a bridged gap, the gap's bins).
+    Turn { gap: Option<(usize, usize)> },
+    /// `len` bins from `first` on (circularly).
+    Range { first: usize, len: usize },
+}
+
+/// The map's layout from the bins crossed: the whole turn if all were, or all but a gap of at
+/// most `max_gap` (bridged); else the range between the largest run of uncrossed bins' ends,
+/// which must hold every other uncrossed bin.
+fn layout(covered: &[bool], step: f64, max_gap: f64) -> Result<Layout, ReferenceError> {
+    let n = covered.len();
+    let Some(start) = covered.iter().position(|&c| c) else {
+        return Err(ReferenceError::TooLittleMotion {
+            revolutions: 0.0,
+            crossed: 0,
+        });
+    };
+    // Runs of uncrossed bins, walking once round the circle from a crossed one.
+    let (mut best, mut run, mut missing) = ((0, 0), None::<(usize, usize)>, 0);
+    for k in 1..=n {
+        let i = (start + k) % n;
+        if covered[i] {
+            if let Some(r) = run.take() {
+                best = if r.1 > best.1 { r } else { best };
+            }
+        } else {
+            missing += 1;
+            let r = run.get_or_insert((i, 0));
+            r.1 += 1;
+        }
+    }
+    let (gap_start, gap_len) = best;
+    if gap_len == 0 {
+        return Ok(Layout::Turn { gap: None });
+    }
+    if missing > gap_len {
+        let first = (0..n)
+            .map(|k| (gap_start + gap_len + k) % n)
+            .find(|&i| !covered[i])
+            .unwrap_or(gap_start);
+        return Err(ReferenceError::NotCovered {
+            missing: missing - gap_len,
+            points: n,
+            first_deg: (first as f64 * step).to_degrees(),
+        });
+    }
+    if (gap_len + 1) as f64 * step <= max_gap {
+        return Ok(Layout::Turn {
+            gap: Some(((gap_start + n - 1) % n, gap_len)),
+        });
+    }
+    Ok(Layout::Range {
+        first: (gap_start + gap_len) % n,
+        len: n - gap_len,
+    })
+}
+
+/// The map indices of the ISO 230-2 targets, in increasing order without repeats.
+fn target_points(targets: &Targets, map: &TableMap, step: f64) -> Result<Vec<usize>, ReferenceError> {
+    let len = map.len();
+    let (start, span) = match map {
+        TableMap::Turn(_) => (0.0, TAU),
+        TableMap::Range(m) => (m.start(), m.span()),
+    };
+    let index = |x: f64| -> usize {
+        let j = (x / step).round() as usize;
+        if matches!(map, TableMap::Turn(_)) { j % len } else { j.min(len - 1) }
+    };
+    let mut points: Vec<usize> = match targets {
+        Targets::Count(0) => {
+            return Err(ReferenceError::Options(
+                "at least one ISO 230-2 target is needed".to_string(),
+            ));
+        }
+        Targets::Count(k) => (0..*k)
+            .map(|j| index((j as f64 + 0.5) * span / *k as f64))
+            .collect(),
+        Targets::Angles(angles) => angles
+            .iter()
+            .map(|&a| {
+                let x = wrap_2pi(a - start);
+                if matches!(map, TableMap::Range(_)) && x > span + 0.5 * step {
+                    return Err(ReferenceError::Options(format!(
+                        "the target {:.4}° lies outside the map's range {:.4}°…{:.4}°; choose targets inside it",
+                        a.to_degrees(),
+                        start.to_degrees(),
+                        (start + span).to_degrees()
+                    )));
+                }
+                Ok(index(x))
+            })
+            .collect::<Result<_, _>>()?,
+    };
+    points.sort_unstable();
+    points.dedup();
+    Ok(points)
 }
 
 /// The pooled standard deviation of a direction's points with `n ≥ 2`.
