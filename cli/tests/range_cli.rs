@@ -164,10 +164,22 @@ fn a_swept_joint_gives_a_range_table_matching_the_truth() {
     assert!((lo - t_lo).abs() <= 1.5, "lower end {lo}° vs {t_lo}°");
     assert!((hi - t_hi).abs() <= 1.5, "upper end {hi}° vs {t_hi}°");
     let (e, n) = max_diff(&got, |a| {
-        Some(at(&truth_b, a)? - at(&truth_r, a).or_else(|| at(&truth_r, a.clamp(truth_r[0].0, truth_r[truth_r.len() - 1].0)))?)
+        Some(
+            at(&truth_b, a)?
+                - at(&truth_r, a).or_else(|| {
+                    at(
+                        &truth_r,
+                        a.clamp(truth_r[0].0, truth_r[truth_r.len() - 1].0),
+                    )
+                })?,
+        )
     });
     println!("a_swept_joint: max |map − truth| = {e:.4}″ over {n} points");
-    assert!(n + 2 >= got.len(), "only {n} of {} points compared", got.len());
+    assert!(
+        n + 2 >= got.len(),
+        "only {n} of {} points compared",
+        got.len()
+    );
     assert!(e < 0.5, "max |map − truth| = {e}″ (bar 0.5″)");
 
     let report = read_json(&out.join("report.json"));
@@ -175,7 +187,12 @@ fn a_swept_joint_gives_a_range_table_matching_the_truth() {
     assert!((range["start_deg"].as_f64().unwrap() - lo).abs() < 1e-5);
     assert!((range["end_deg"].as_f64().unwrap() - hi).abs() < 1e-5);
     assert!(report["details"]["gap"].is_null());
-    assert!(report["channels"]["b"]["harmonics"].as_array().unwrap().is_empty());
+    assert!(
+        report["channels"]["b"]["harmonics"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
     // 20 ISO 230-2 targets, each with both directions over 4 passes.
     let targets = report["details"]["iso230_2_targets"].as_array().unwrap();
     assert_eq!(targets.len(), 20);
@@ -185,7 +202,12 @@ fn a_swept_joint_gives_a_range_table_matching_the_truth() {
         assert_eq!(t["increasing"]["passes"], 4, "{t}");
         assert_eq!(t["decreasing"]["passes"], 4, "{t}");
     }
-    assert!(report["details"]["iso230_2"]["repeatability_arcsec"].as_f64().unwrap() < 3.0);
+    assert!(
+        report["details"]["iso230_2"]["repeatability_arcsec"]
+            .as_f64()
+            .unwrap()
+            < 3.0
+    );
     // report.html draws the map over the range, not over 0–360°.
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_mentions(&html, &["over the range", "range table"]);
@@ -215,7 +237,10 @@ fn a_resolver_with_a_large_error_and_a_gap_is_measured() {
     ]);
     expect_exit(&o, 0);
     let text = format!("{}{}", stdout(&o), stderr(&o));
-    assert_mentions(&text, &["never reached the readings between", "a gap of 1."]);
+    assert_mentions(
+        &text,
+        &["never reached the readings between", "a gap of 1."],
+    );
     let report = read_json(&out.join("report.json"));
     let gap = &report["details"]["gap"];
     let size = gap["size_deg"].as_f64().unwrap();
@@ -229,7 +254,9 @@ fn a_resolver_with_a_large_error_and_a_gap_is_measured() {
     println!("a_resolver: max |map − truth| = {e:.3}″ over {n} measured points");
     assert!(n > 3500, "{n}");
     assert!(e < 40.0, "max |map − truth| = {e}″");
-    let pp = report["channels"]["resolver"]["peak_to_peak_arcsec"].as_f64().unwrap();
+    let pp = report["channels"]["resolver"]["peak_to_peak_arcsec"]
+        .as_f64()
+        .unwrap();
     assert!((pp / 3600.0 - 30.0).abs() < 4.0, "p-p {pp}″");
 }
 
@@ -242,7 +269,12 @@ fn a_slipping_reference_is_refused() {
     let log = simulate(&scenario, dir.path(), "joint.csv");
     let text = std::fs::read_to_string(&log).unwrap();
     let rows: Vec<&str> = text.lines().collect();
-    let last_t: f64 = rows[rows.len() - 1].split(',').next().unwrap().parse().unwrap();
+    let last_t: f64 = rows[rows.len() - 1]
+        .split(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
     let header: Vec<&str> = rows[0].split(',').collect();
     let col = header.iter().position(|h| *h == "ref").unwrap();
     let mut slipped = format!("{}\n", rows[0]);
@@ -270,4 +302,134 @@ fn a_slipping_reference_is_refused() {
     );
     assert_mentions(&err, &["slipping.csv", "does not follow", "between passes"]);
     assert_no_output(&out);
+}
+
+/// The joint's range table in `apply` (inside corrected, outside copied and counted), `export`
+/// (range in the header, `harmonic` refused) and `compare` (over the common range).
+#[test]
+fn range_tables_in_apply_export_and_compare() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = write(dir.path(), "joint.toml", JOINT);
+    let log = simulate(&scenario, dir.path(), "joint.csv");
+    let out = dir.path().join("out");
+    let o = calib(&[
+        "reference",
+        s(&log),
+        "--dut",
+        "b",
+        "--ref",
+        "ref",
+        "-o",
+        s(&out),
+    ]);
+    expect_exit(&o, 0);
+    let table = out.join("b.csv");
+    let ((lo, hi), _) = read_range(&table);
+
+    // apply: readings inside the range corrected, the others left as they were.
+    let fixed = dir.path().join("fixed.csv");
+    let o = calib(&["apply", s(&table), s(&log), "-o", s(&fixed)]);
+    expect_exit(&o, 0);
+    let summary = stdout(&o);
+    assert_mentions(
+        &summary,
+        &["range", "lie outside the table's range", "copied unchanged"],
+    );
+    let rows = |p: &Path| -> Vec<(f64, f64)> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| {
+                let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+                (f[1], f[2])
+            })
+            .collect()
+    };
+    let (before, after) = (rows(&log), rows(&fixed));
+    let (mut lo_d, mut hi_d, mut outside) = (f64::INFINITY, f64::NEG_INFINITY, 0);
+    for ((b, r), (b2, r2)) in before.iter().zip(&after) {
+        assert_eq!(r, r2);
+        if *b < lo - 1e-6 || *b > hi + 1e-6 {
+            assert_eq!(b, b2, "a reading outside the range was changed");
+            outside += 1;
+        } else {
+            let d = (b2 - r) * 3600.0;
+            lo_d = lo_d.min(d);
+            hi_d = hi_d.max(d);
+        }
+    }
+    assert!(outside > 0);
+    assert_mentions(
+        &summary,
+        &[&format!("{outside} of {} readings", before.len())],
+    );
+    // Before: b − ref spans degrees; after: the noise (0.25″ per reading, ~5σ over 10⁵
+    // readings), the map's 0.24″ and the reference's 0.4″ p-p remain.
+    println!("apply: corrected b − ref spans {:.3}″", hi_d - lo_d);
+    assert!(
+        hi_d - lo_d < 3.0,
+        "corrected b − ref spans {}″",
+        hi_d - lo_d
+    );
+
+    // export: the range in the header; harmonic refused with the reason.
+    let o = calib(&["export", s(&table), "--format", "lut-f32-rad"]);
+    expect_exit(&o, 0);
+    let text = stdout(&o);
+    assert_mentions(
+        &text,
+        &[&format!("range: {lo:.6} to {hi:.6} deg"), "not periodic"],
+    );
+    let entries = text.lines().filter(|l| !l.starts_with('#')).count();
+    assert_eq!(
+        entries,
+        std::fs::read_to_string(&table).unwrap().lines().count() - 2
+    );
+    let err = expect_exit(&calib(&["export", s(&table), "--format", "harmonic"]), 2);
+    assert_mentions(&err, &["range table", "whole turn"]);
+
+    // compare: over the common range with the truth of b (whose range is wider).
+    let truth = dir.path().join("joint.truth/b.csv");
+    let cmp = dir.path().join("cmp");
+    let o = calib(&[
+        "compare",
+        s(&table),
+        s(&truth),
+        "--U1",
+        "1",
+        "--U2",
+        "0",
+        "-o",
+        s(&cmp),
+    ]);
+    expect_exit(&o, 0);
+    assert_mentions(&stdout(&o), &["common range", "mean difference removed"]);
+}
+
+/// CSRR, multi-head and TDR need whole turns: a joint's log gets an error saying so.
+#[test]
+fn whole_turn_methods_say_a_joint_needs_a_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = write(dir.path(), "joint.toml", JOINT);
+    let log = simulate(&scenario, dir.path(), "joint.csv");
+    let out = dir.path().join("out");
+    for args in [
+        vec!["csrr", s(&log), "--a", "b", "--b", "ref"],
+        vec!["multihead", s(&log), "--heads", "b@0,ref@180"],
+        vec!["tdr", s(&log), "--channel", "b"],
+    ] {
+        let mut args = args.clone();
+        args.extend(["-o", s(&out)]);
+        let err = expect_exit(&calib(&args), 1);
+        assert_mentions(
+            &err,
+            &[
+                "joint.csv",
+                "never turned a whole revolution",
+                "calib reference",
+            ],
+        );
+        assert_no_output(&out);
+    }
 }

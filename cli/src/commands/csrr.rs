@@ -182,6 +182,10 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         .transpose()?;
     let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
+    let (mut travel_a, mut travel_b) = (
+        crate::input::Travel::default(),
+        crate::input::Travel::default(),
+    );
     let bar = crate::ui::reading(log);
     for (n, sample) in reader.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
@@ -189,6 +193,8 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             bar.inc(crate::ui::TICK);
         }
         trace.push(s.t, s.values[ia], s.values[ib]);
+        travel_a.push(s.values[ia]);
+        travel_b.push(s.values[ib]);
         match ir {
             Some(ir) => {
                 csrr.push_with_reference(s.t, s.values[ia], s.values[ib], s.values[ir], s.session)
@@ -201,6 +207,13 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let cal = csrr.finish();
     solving.finish_and_clear();
     let cal = cal.map_err(|e| {
+        let needs = "CSRR's self-calibration needs sessions of whole turns";
+        if let Some(joint) = travel_a
+            .no_whole_turn(log, &args.a, needs)
+            .or_else(|| travel_b.no_whole_turn(log, &args.b, needs))
+        {
+            return joint;
+        }
         let pair = format!("{}: channels `{}` and `{}`", log.display(), args.a, args.b);
         let context = match &e {
             CsrrError::NeverMoves { sensor } => {

@@ -223,14 +223,26 @@ fn calibrate(
         .map(|h| channel(&reader, log, &h.name))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let mut readings = vec![0.0; columns.len()];
+    let mut travel = crate::input::Travel::default();
     for sample in reader.by_ref() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         for (r, &c) in readings.iter_mut().zip(&columns) {
             *r = s.values[c];
         }
+        travel.push(readings[0]);
         mh.push(&readings);
     }
-    let cal = mh.finish().with_context(|| {
+    let cal = mh.finish();
+    if cal.is_err()
+        && let Some(joint) = travel.no_whole_turn(
+            log,
+            &heads[0].name,
+            "multi-head self-calibration needs the scale to turn whole revolutions past the heads",
+        )
+    {
+        return Err(joint);
+    }
+    let cal = cal.with_context(|| {
         format!(
             "{}: heads {}",
             log.display(),

@@ -87,7 +87,7 @@ pub mod uncertainty;
 
 pub use angle::{Angle, AngleUnit, Unwrapper};
 pub use error_map::ErrorMap;
-pub use range_map::RangeMap;
 pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
+pub use range_map::RangeMap;
 pub use report::{ChannelReport, Report, SessionReport};
 pub use sample::{Channel, Sample};

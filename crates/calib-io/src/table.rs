@@ -50,8 +50,8 @@ use crate::atomic::AtomicFile;
 use crate::csv_log::{
     csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, wrong_width,
 };
-use calib_core::{ErrorMap, RangeMap};
 use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::{ErrorMap, RangeMap};
 use csv::ByteRecord;
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -553,9 +553,8 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
             ));
         }
         let step = (hi - lo) / (n - 1) as f64;
-        let map = RangeMap::new(lo.to_radians(), step.to_radians(), errors).map_err(|e| {
-            err(marker_line, None, e.to_string())
-        })?;
+        let map = RangeMap::new(lo.to_radians(), step.to_radians(), errors)
+            .map_err(|e| err(marker_line, None, e.to_string()))?;
         return Ok(AnyTable::Range(RangeTable { map, u }));
     }
     if let Some(i) = (0..n).find(|&i| (angles[i] - grid_deg(i, n)).abs() > GRID_TOLERANCE_DEG) {

@@ -144,8 +144,8 @@ use motion::{SessionPlan, State, Timeline, Timing};
 use rng::Rng;
 use sensor::{ErrorModel, FastSeries, Powers, Term};
 use spindown::Coast;
-use sweep::SweepTimeline;
 use std::f64::consts::TAU;
+use sweep::SweepTimeline;
 
 fn terms(harmonics: &[HarmonicSpec]) -> Vec<Term> {
     harmonics

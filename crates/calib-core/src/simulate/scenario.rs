@@ -668,15 +668,15 @@ fn validate_sweep(scenario: &Scenario, sw: &Sweep) -> Result<(), ScenarioError> 
         "≥ 1",
     )?;
     for (i, &v) in sw.speeds_deg_s.iter().enumerate() {
-        check(
-            || format!("sweep.speeds_deg_s[{i}]"),
-            v,
-            v > 0.0,
-            "> 0",
-        )?;
+        check(|| format!("sweep.speeds_deg_s[{i}]"), v, v > 0.0, "> 0")?;
     }
     check(|| "sweep.ramp_s".into(), sw.ramp_s, sw.ramp_s >= 0.0, "≥ 0")?;
-    check(|| "sweep.pause_s".into(), sw.pause_s, sw.pause_s >= 0.0, "≥ 0")?;
+    check(
+        || "sweep.pause_s".into(),
+        sw.pause_s,
+        sw.pause_s >= 0.0,
+        "≥ 0",
+    )?;
     Ok(())
 }
 

@@ -136,15 +136,7 @@ mod tests {
     #[test]
     fn strokes_reach_their_ends_and_return() {
         let d = |x: f64| x.to_radians();
-        let mut s = SweepTimeline::new(
-            d(15.0),
-            d(135.0),
-            2,
-            &[d(20.0), d(40.0)],
-            0.5,
-            1.0,
-            &[],
-        );
+        let mut s = SweepTimeline::new(d(15.0), d(135.0), 2, &[d(20.0), d(40.0)], 0.5, 1.0, &[]);
         // Stroke 1 at 20°/s: 0.5 s ramps cover 10°, cruise 110° in 5.5 s → 6.5 s. Stroke 2 at
         // 40°/s: ramps 20°, cruise 100° in 2.5 s → 3.5 s. Total 1 + 2·(6.5 + 1) + 2·(3.5 + 1).
         assert!((s.duration() - 25.0).abs() < 1e-12);
