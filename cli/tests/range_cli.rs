@@ -211,6 +211,10 @@ fn a_swept_joint_gives_a_range_table_matching_the_truth() {
     // report.html draws the map over the range, not over 0–360°.
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_mentions(&html, &["over the range", "range table"]);
+    assert!(
+        !html.contains("Harmonic spectrum"),
+        "a range has no spectrum"
+    );
 }
 
 /// The bar: one sweep 0 → 358.5° → 0 with a ±15° repeatable error and 1.5° never reached gives

@@ -141,6 +141,12 @@ fn corrections(map: &ErrorMap) -> Vec<f64> {
     map.values().iter().map(|e| -e * ARCSEC_PER_RAD).collect()
 }
 
+/// `x` with at most 9 decimals, trailing zeros dropped (`117.3`, `0.1`).
+fn trimmed(x: f64) -> String {
+    let s = format!("{x:.9}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 /// Where the entries of an export lie.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Grid {
@@ -201,10 +207,10 @@ fn render(args: &Args, map: &ErrorMap, grid: Grid) -> anyhow::Result<String> {
             head(format!(
                 "grid: entry i at reading {lo:.6} + i*{}/{} deg (i = 0..{}), both ends included, step {} deg, not periodic; \
                  interpolate linearly inside the range, leave readings outside it uncorrected",
-                hi - lo,
+                trimmed(hi - lo),
                 n - 1,
                 n - 1,
-                grid.step(n)
+                trimmed(grid.step(n))
             ));
         }
     }

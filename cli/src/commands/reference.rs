@@ -431,7 +431,11 @@ fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &
         &report.warnings,
         out,
         &[ch.table.clone(), "report.json".to_string()],
-        "error map with its uncertainty band, each direction, spectrum",
+        if cal.map.range().is_some() {
+            "error map over the range with its uncertainty band, each direction"
+        } else {
+            "error map with its uncertainty band, each direction, spectrum"
+        },
     );
     o
 }

@@ -32,6 +32,10 @@
 //!   friction = { coulomb = 0.0, viscous = 0.02, quadratic = 1e-4 }  # rad/s², 1/s, 1/rad
 //!   drag_harmonics = [{ order = 2, amplitude = 0.05, phase_deg = 30.0 }]  # rad/s²
 //!   ```
+//! - **Sweep** (`[sweep]`, replacing `[procedure]`, for a joint that never turns a whole
+//!   revolution): strokes `from_deg → to_deg → from_deg …` at a list of speeds with
+//!   raised-cosine ramps and pauses ([`Sweep`]); [`Scenario::range_truth`] gives each channel's
+//!   truth over the readings it swept.
 //! - **Heads on a shared scale**: a head at nominal `α` with angle error `δ` reads
 //!   `s + e_s(s) − α` at scale position `s = θ + α + δ` ([`Sensor`]).
 //!
@@ -323,10 +327,7 @@ impl Scenario {
     /// The shaft's true angle `θ = φ + ε_θ(φ)` and every reading `θ + e(θ)` increase with the
     /// nominal angle `φ` (validation bounds both slopes), so the swept readings run from the
     /// reading at the stroke's lower end to the reading at its upper end.
-    pub fn range_truth(
-        &self,
-        points: usize,
-    ) -> Result<Option<Vec<(String, Option<RangeMap>)>>, ScenarioError> {
+    pub fn range_truth(&self, points: usize) -> Result<Option<Vec<RangeTruth>>, ScenarioError> {
         let truths = self.sensor_truths()?;
         let Some(sw) = &self.sweep else {
             return Ok(None);
@@ -437,6 +438,10 @@ impl Scenario {
         }
     }
 }
+
+/// One channel's truth over a sweep ([`Scenario::range_truth`]): its name and its range map
+/// (`None` where its readings cover a whole revolution).
+pub type RangeTruth = (String, Option<RangeMap>);
 
 /// How many binary powers of `e^{iθ}` the channels on `mount` need.
 fn channel_powers_needed(channels: &[ChannelSim], mount: Mount) -> usize {
