@@ -114,11 +114,12 @@ impl Travel {
         }
     }
 
-    /// If the channel never turned a whole revolution, the error that says `method` needs whole
-    /// turns and what to do for a joint instead; `None` if it did.
+    /// If the channel moved (more than 1°) but never turned a whole revolution, the error that
+    /// says `method` needs whole turns and what to do for a joint instead; `None` if it turned
+    /// one, or stood still (the method's own error says that better).
     pub fn no_whole_turn(&self, log: &Path, channel: &str, method: &str) -> Option<anyhow::Error> {
         let span = self.span_deg();
-        (span < 360.0).then(|| {
+        (span > 1.0 && span < 360.0).then(|| {
             anyhow::anyhow!(
                 "{}: channel `{channel}` never turned a whole revolution (its readings span {span:.3}°): {method}; \
                  to map a joint that never turns a whole revolution, calibrate it against a reference encoder on its \
