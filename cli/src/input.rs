@@ -114,13 +114,13 @@ impl Travel {
         }
     }
 
-    /// If the channel moved (more than 1°) but never turned a whole revolution, the error that
-    /// says `method` needs whole turns and what to do for a joint instead; `None` if it turned
-    /// one, or stood still (the method's own error says that better).
-    pub fn no_whole_turn(&self, log: &Path, channel: &str, method: &str) -> Option<anyhow::Error> {
+    /// If the channel moved (more than 1°) but never turned a whole revolution, what to say
+    /// before the method's own error: that `method` needs whole turns, and what to do for a joint
+    /// instead. `None` if it turned one, or stood still (the method's own error says that).
+    pub fn no_whole_turn(&self, log: &Path, channel: &str, method: &str) -> Option<String> {
         let span = self.span_deg();
         (span > 1.0 && span < 360.0).then(|| {
-            anyhow::anyhow!(
+            format!(
                 "{}: channel `{channel}` never turned a whole revolution (its readings span {span:.3}°): {method}; \
                  to map a joint that never turns a whole revolution, calibrate it against a reference encoder on its \
                  shaft with `calib reference`, which writes a range table",

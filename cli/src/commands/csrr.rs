@@ -212,11 +212,11 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     solving.finish_and_clear();
     let cal = cal.map_err(|e| {
         let needs = "CSRR's self-calibration needs sessions of whole turns";
-        if let Some(joint) = travel_a
+        if let Some(hint) = travel_a
             .no_whole_turn(log, &args.a, needs)
             .or_else(|| travel_b.no_whole_turn(log, &args.b, needs))
         {
-            return joint;
+            return anyhow::Error::new(e).context(hint);
         }
         let pair = format!("{}: channels `{}` and `{}`", log.display(), args.a, args.b);
         let context = match &e {

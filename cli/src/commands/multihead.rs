@@ -232,16 +232,17 @@ fn calibrate(
         travel.push(readings[0]);
         mh.push(&readings);
     }
-    let cal = mh.finish();
-    if cal.is_err()
-        && let Some(joint) = travel.no_whole_turn(
+    let cal = mh.finish().map_err(|e| {
+        let hint = travel.no_whole_turn(
             log,
             &heads[0].name,
             "multi-head self-calibration needs the scale to turn whole revolutions past the heads",
-        )
-    {
-        return Err(joint);
-    }
+        );
+        match hint {
+            Some(hint) => anyhow::Error::new(e).context(hint),
+            None => anyhow::Error::new(e),
+        }
+    });
     let cal = cal.with_context(|| {
         format!(
             "{}: heads {}",

@@ -143,17 +143,18 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             None => tdr.push(s.t, s.values[ic]),
         }
     }
-    let cal = tdr.finish();
-    if cal.is_err()
-        && let Some(joint) = travel.no_whole_turn(
+    let cal = tdr.finish().map_err(|e| {
+        let hint = travel.no_whole_turn(
             log,
             &args.channel,
             "TDR needs a free coast of at least one whole turn (better many) to tell the encoder's error, periodic in \
              angle, from the motion; a coast over part of a turn cannot separate them",
-        )
-    {
-        return Err(joint);
-    }
+        );
+        match hint {
+            Some(hint) => anyhow::Error::new(e).context(hint),
+            None => anyhow::Error::new(e),
+        }
+    });
     let cal = cal.with_context(|| format!("{}: channel `{}`", log.display(), args.channel))?;
     let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());

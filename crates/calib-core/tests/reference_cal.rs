@@ -2,7 +2,9 @@
 //! ISO 230-2 figures, the uncertainty, and the refusals.
 
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{ReferenceCal, ReferenceError, ReferenceOptions, TableMap};
+use calib_core::reference_cal::{
+    ReferenceCal, ReferenceError, ReferenceOptions, TableMap, Targets,
+};
 use calib_core::{FourierSeries, Harmonic};
 use std::f64::consts::TAU;
 
@@ -55,7 +57,11 @@ fn run(
     noise: f64,
     ref_of: impl Fn(f64) -> f64,
 ) -> ReferenceCal {
-    let mut cal = ReferenceCal::new(ReferenceOptions::default());
+    // ISO 230-2 at every grid point (the default is 20 targets), so M is the map's p-p.
+    let mut cal = ReferenceCal::new(ReferenceOptions {
+        targets: Targets::Count(3600),
+        ..ReferenceOptions::default()
+    });
     let (e, mut rng) = (dut_error(), Noise(7));
     let mut t = 0.0;
     let mut push = |cal: &mut ReferenceCal, th: f64, sign: f64| {
