@@ -197,3 +197,57 @@ pub fn command_line() -> String {
         .collect::<Vec<_>>()
         .join(" ")
 }
+
+/// The travel of a channel's continuous (unwrapped) reading, to say when a method that needs
+/// whole turns was given a joint that never turned one.
+#[derive(Debug, Clone)]
+pub struct Travel {
+    unwrapper: calib_core::Unwrapper,
+    lo: f64,
+    hi: f64,
+}
+
+impl Default for Travel {
+    fn default() -> Self {
+        Travel {
+            unwrapper: calib_core::Unwrapper::new(),
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl Travel {
+    /// Adds a reading (radians); non-finite ones are skipped.
+    pub fn push(&mut self, reading: f64) {
+        if reading.is_finite() {
+            let u = self.unwrapper.unwrap(reading);
+            self.lo = self.lo.min(u);
+            self.hi = self.hi.max(u);
+        }
+    }
+
+    /// Largest minus smallest continuous reading, degrees (0 without readings).
+    pub fn span_deg(&self) -> f64 {
+        if self.hi >= self.lo {
+            (self.hi - self.lo).to_degrees()
+        } else {
+            0.0
+        }
+    }
+
+    /// If the channel moved (more than 1°) but never turned a whole revolution, what to say
+    /// before the method's own error: that `method` needs whole turns, and what to do for a joint
+    /// instead. `None` if it turned one, or stood still (the method's own error says that).
+    pub fn no_whole_turn(&self, log: &Path, channel: &str, method: &str) -> Option<String> {
+        let span = self.span_deg();
+        (span > 1.0 && span < 360.0).then(|| {
+            format!(
+                "{}: channel `{channel}` never turned a whole revolution (its readings span {span:.3}°): {method}; \
+                 to map a joint that never turns a whole revolution, calibrate it against a reference encoder on its \
+                 shaft with `calib reference`, which writes a range table",
+                log.display()
+            )
+        })
+    }
+}

@@ -189,6 +189,10 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         .transpose()?;
     let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
+    let (mut travel_a, mut travel_b) = (
+        crate::input::Travel::default(),
+        crate::input::Travel::default(),
+    );
     let bar = crate::ui::reading(log);
     // Decoding runs ahead on a second thread while this one segments and bins.
     let mut samples = Prefetch::new(reader);
@@ -198,6 +202,8 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             bar.inc(crate::ui::TICK);
         }
         trace.push(s.t, s.values[ia], s.values[ib]);
+        travel_a.push(s.values[ia]);
+        travel_b.push(s.values[ib]);
         match ir {
             Some(ir) => {
                 csrr.push_with_reference(s.t, s.values[ia], s.values[ib], s.values[ir], s.session)
@@ -211,6 +217,13 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let cal = csrr.finish();
     solving.finish_and_clear();
     let cal = cal.map_err(|e| {
+        let needs = "CSRR's self-calibration needs sessions of whole turns";
+        if let Some(hint) = travel_a
+            .no_whole_turn(log, &args.a, needs)
+            .or_else(|| travel_b.no_whole_turn(log, &args.b, needs))
+        {
+            return anyhow::Error::new(e).context(hint);
+        }
         let pair = format!("{}: channels `{}` and `{}`", log.display(), args.a, args.b);
         let context = match &e {
             CsrrError::NeverMoves { sensor } => {

@@ -33,6 +33,10 @@ pub enum Format {
 /// as reading + correction(reading)), the grid (entry i at reading i·360/N degrees), the units
 /// and, for integer look-up tables, the scale. Integer formats refuse to saturate: a scale too
 /// small for the table is an error naming the smallest that fits.
+///
+/// A range table (a joint that never turns a whole revolution) exports the same way, its header
+/// naming the range (entry i at reading LO + i·(HI − LO)/(N − 1), both ends included, nothing
+/// outside); `harmonic` refuses it, since a Fourier series needs a whole turn.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
     /// The correction table (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
@@ -81,13 +85,48 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    let table = calib_io::table::read_table(&args.table)
+    let table = calib_io::table::read_any_table(&args.table)
         .with_context(|| format!("cannot read {}", args.table.display()))?;
-    let map = match args.points {
-        Some(n) if n != table.map.len() => table.map.resample_linear(n),
-        _ => table.map,
-    };
-    let text = render(args, &map).with_context(|| format!("{}", args.table.display()))?;
+    let text = match table {
+        calib_io::table::AnyTable::Turn(table) => {
+            let map = match args.points {
+                Some(n) if n != table.map.len() => table.map.resample_linear(n),
+                _ => table.map,
+            };
+            render(args, &map, Grid::Turn)
+        }
+        calib_io::table::AnyTable::Range(table) => {
+            if args.format == Format::Harmonic {
+                return Err(Usage(format!(
+                    "{} is a range table ({:.6}° to {:.6}°): a joint that never turned a whole revolution has no \
+                     Fourier series (harmonics need the whole turn); export it as a look-up table (e.g. --format lut-f32-rad \
+                     or csv)",
+                    args.table.display(),
+                    table.map.start().to_degrees(),
+                    table.map.end().to_degrees()
+                ))
+                .into());
+            }
+            let m = &table.map;
+            let n = args.points.unwrap_or(m.len());
+            // Resampled linearly over the range, both ends kept.
+            let values = (0..n)
+                .map(|i| {
+                    m.eval_linear(m.start() + m.span() * i as f64 / (n - 1) as f64)
+                        .unwrap_or(0.0)
+                })
+                .collect();
+            render(
+                args,
+                &ErrorMap::new(values),
+                Grid::Range {
+                    lo: m.start().to_degrees(),
+                    hi: m.end().to_degrees(),
+                },
+            )
+        }
+    }
+    .with_context(|| format!("{}", args.table.display()))?;
     match &args.output {
         Some(path) => {
             calib_io::atomic::write_atomic(path, text.as_bytes())?;
@@ -102,8 +141,39 @@ fn corrections(map: &ErrorMap) -> Vec<f64> {
     map.values().iter().map(|e| -e * ARCSEC_PER_RAD).collect()
 }
 
-/// The export as text (pure).
-fn render(args: &Args, map: &ErrorMap) -> anyhow::Result<String> {
+/// `x` with at most 9 decimals, trailing zeros dropped (`117.3`, `0.1`).
+fn trimmed(x: f64) -> String {
+    let s = format!("{x:.9}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+/// Where the entries of an export lie.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Grid {
+    /// Entry i at i·360/N, periodic.
+    Turn,
+    /// Entry i at lo + i·(hi − lo)/(N − 1), degrees, both ends included.
+    Range { lo: f64, hi: f64 },
+}
+
+impl Grid {
+    fn angle(self, i: usize, n: usize) -> f64 {
+        match self {
+            Grid::Turn => 360.0 * i as f64 / n as f64,
+            Grid::Range { lo, hi } => lo + (hi - lo) * i as f64 / (n - 1) as f64,
+        }
+    }
+    fn step(self, n: usize) -> f64 {
+        match self {
+            Grid::Turn => 360.0 / n as f64,
+            Grid::Range { lo, hi } => (hi - lo) / (n - 1) as f64,
+        }
+    }
+}
+
+/// The export as text (pure). `map` holds the values on `grid` (for a range, its values are not
+/// periodic and its mean is the mean over the range).
+fn render(args: &Args, map: &ErrorMap, grid: Grid) -> anyhow::Result<String> {
     let n = map.len();
     let c = corrections(map);
     let comment = if args.format == Format::CArray {
@@ -124,11 +194,26 @@ fn render(args: &Args, map: &ErrorMap) -> anyhow::Result<String> {
         "sign: correction = -error (error = reading - true angle); corrected = reading + correction(reading)"
             .into(),
     );
-    head(format!(
-        "grid: entry i at reading i*360/{n} deg (i = 0..{}), 0 at reading 0, step {} deg, periodic; interpolate linearly",
-        n - 1,
-        360.0 / n as f64
-    ));
+    match grid {
+        Grid::Turn => head(format!(
+            "grid: entry i at reading i*360/{n} deg (i = 0..{}), 0 at reading 0, step {} deg, periodic; interpolate linearly",
+            n - 1,
+            360.0 / n as f64
+        )),
+        Grid::Range { lo, hi } => {
+            head(format!(
+                "range: {lo:.6} to {hi:.6} deg of the reading (a range table: a joint that never turns a whole revolution)"
+            ));
+            head(format!(
+                "grid: entry i at reading {lo:.6} + i*{}/{} deg (i = 0..{}), both ends included, step {} deg, not periodic; \
+                 interpolate linearly inside the range, leave readings outside it uncorrected",
+                trimmed(hi - lo),
+                n - 1,
+                n - 1,
+                trimmed(grid.step(n))
+            ));
+        }
+    }
     let codes = |max_code: i64, offset: i64| -> anyhow::Result<(f64, Vec<i64>)> {
         let largest = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         // The smallest scale that fits: the largest |correction| on the largest code.
@@ -179,11 +264,11 @@ fn render(args: &Args, map: &ErrorMap) -> anyhow::Result<String> {
         Format::CArray => {
             head("units: arcseconds (float)".into());
             let _ = writeln!(body, "#define CALIB_CORRECTION_POINTS {n}");
-            let _ = writeln!(
-                body,
-                "#define CALIB_CORRECTION_STEP_DEG {:e}",
-                360.0 / n as f64
-            );
+            let _ = writeln!(body, "#define CALIB_CORRECTION_STEP_DEG {:e}", grid.step(n));
+            if let Grid::Range { lo, hi } = grid {
+                let _ = writeln!(body, "#define CALIB_CORRECTION_START_DEG {lo:e}");
+                let _ = writeln!(body, "#define CALIB_CORRECTION_END_DEG {hi:e}");
+            }
             let _ = writeln!(
                 body,
                 "static const float calib_correction_arcsec[CALIB_CORRECTION_POINTS] = {{"
@@ -198,7 +283,7 @@ fn render(args: &Args, map: &ErrorMap) -> anyhow::Result<String> {
             head("units: degrees, arcseconds".into());
             let _ = writeln!(body, "angle_deg,correction_arcsec");
             for (i, v) in c.iter().enumerate() {
-                let _ = writeln!(body, "{:.6},{v:.6}", 360.0 * i as f64 / n as f64);
+                let _ = writeln!(body, "{:.6},{v:.6}", grid.angle(i, n));
             }
         }
         Format::Harmonic => {

@@ -230,14 +230,27 @@ fn calibrate(
     let mut reader = open_selected(log, args.unit, &args.input, &names)?;
     let columns: Vec<usize> = (0..names.len()).collect();
     let mut readings = vec![0.0; columns.len()];
+    let mut travel = crate::input::Travel::default();
     for sample in reader.by_ref() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         for (r, &c) in readings.iter_mut().zip(&columns) {
             *r = s.values[c];
         }
+        travel.push(readings[0]);
         mh.push(&readings);
     }
-    let cal = mh.finish().with_context(|| {
+    let cal = mh.finish().map_err(|e| {
+        let hint = travel.no_whole_turn(
+            log,
+            &heads[0].name,
+            "multi-head self-calibration needs the scale to turn whole revolutions past the heads",
+        );
+        match hint {
+            Some(hint) => anyhow::Error::new(e).context(hint),
+            None => anyhow::Error::new(e),
+        }
+    });
+    let cal = cal.with_context(|| {
         format!(
             "{}: heads {}",
             log.display(),

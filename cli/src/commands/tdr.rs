@@ -166,16 +166,28 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         min_revolutions: args.min_revolutions,
         ..TdrOptions::default()
     });
+    let mut travel = crate::input::Travel::default();
     for sample in reader.by_ref() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
+        travel.push(s.values[ic]);
         match ir {
             Some(ir) => tdr.push_with_reference(s.t, s.values[ic], s.values[ir]),
             None => tdr.push(s.t, s.values[ic]),
         }
     }
-    let cal = tdr
-        .finish()
-        .with_context(|| format!("{}: channel `{}`", log.display(), args.channel))?;
+    let cal = tdr.finish().map_err(|e| {
+        let hint = travel.no_whole_turn(
+            log,
+            &args.channel,
+            "TDR needs a free coast of at least one whole turn (better many) to tell the encoder's error, periodic in \
+             angle, from the motion; a coast over part of a turn cannot separate them",
+        );
+        match hint {
+            Some(hint) => anyhow::Error::new(e).context(hint),
+            None => anyhow::Error::new(e),
+        }
+    });
+    let cal = cal.with_context(|| format!("{}: channel `{}`", log.display(), args.channel))?;
     let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 

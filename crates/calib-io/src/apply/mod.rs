@@ -32,7 +32,7 @@ mod mcap;
 use crate::log::LogFormat;
 use crate::{Error, Truncation};
 use calib_core::correction::{Correction, Wrapping};
-use calib_core::{AngleUnit, ErrorMap};
+use calib_core::{AngleUnit, ErrorMap, RangeMap};
 use std::path::Path;
 
 /// What to correct and how.
@@ -66,6 +66,17 @@ pub struct Applied {
     /// Where an MCAP log ended early (a crashed recording): the output holds everything before
     /// the break, as a complete file.
     pub truncated: Option<Truncation>,
+    /// Readings outside a range table's range, copied unchanged (0 for a whole-turn table).
+    pub outside: u64,
+}
+
+/// The map [`apply_map`] corrects with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MapRef<'a> {
+    /// A whole-turn map: every reading is corrected.
+    Turn(&'a ErrorMap),
+    /// A range map: readings inside its range are corrected, the others copied unchanged.
+    Range(&'a RangeMap),
 }
 
 /// The readings of a channel seen by a pass over a log.
@@ -108,6 +119,17 @@ pub fn apply(
     map: &ErrorMap,
     opts: &ApplyOptions,
 ) -> Result<Applied, Error> {
+    apply_map(input, output, MapRef::Turn(map), opts)
+}
+
+/// [`apply`] with a whole-turn or a range map; with a range map the readings outside its range
+/// are copied unchanged and counted in [`Applied::outside`].
+pub fn apply_map(
+    input: &Path,
+    output: &Path,
+    map: MapRef<'_>,
+    opts: &ApplyOptions,
+) -> Result<Applied, Error> {
     let format = LogFormat::detect(input)?;
     let out_format = LogFormat::for_output(output)?;
     if out_format != format {
@@ -138,22 +160,25 @@ pub fn apply(
     let wrapping = opts
         .wrapping
         .unwrap_or_else(|| Wrapping::detect(range.min, range.max, range.unit));
-    let fix = |unit| Correction::new(map.clone(), unit, wrapping);
-    let (readings, copied, truncated) = match format {
-        LogFormat::Csv => (
-            csv::rewrite(input, output, &opts.channel, &fix(unit))?,
-            0,
-            None,
-        ),
+    let fix = |unit| match map {
+        MapRef::Turn(m) => Correction::new(m.clone(), unit, wrapping),
+        MapRef::Range(m) => Correction::with_range(m.clone(), unit, wrapping),
+    };
+    let (readings, copied, truncated, outside) = match format {
+        LogFormat::Csv => {
+            let f = fix(unit);
+            let n = csv::rewrite(input, output, &opts.channel, &f)?;
+            (n, 0, None, f.outside())
+        }
         LogFormat::Mcap => {
-            let done = mcap::rewrite(
-                input,
-                output,
-                &opts.channel,
-                &fix(AngleUnit::Rad),
-                &fix(unit),
-            )?;
-            (done.readings, done.copied, done.truncated)
+            let (joint, json) = (fix(AngleUnit::Rad), fix(unit));
+            let done = mcap::rewrite(input, output, &opts.channel, &joint, &json)?;
+            (
+                done.readings,
+                done.copied,
+                done.truncated,
+                joint.outside() + json.outside(),
+            )
         }
     };
     Ok(Applied {
@@ -164,5 +189,6 @@ pub fn apply(
         range: (range.min, range.max),
         copied,
         truncated,
+        outside,
     })
 }
