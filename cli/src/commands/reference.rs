@@ -31,7 +31,7 @@ const MAX_POINTS: usize = 3_600_000;
 ///
 /// A run that does not cover a whole turn gives a range table over the readings it crossed
 /// (a `# range_deg: LO to HI` first line, then the same columns); a whole turn but for a gap of at
-/// most --max-gap degrees gives a whole-turn table with the gap bridged by interpolation, and a
+/// most --bridge-gap degrees gives a whole-turn table with the gap bridged by interpolation, and a
 /// warning naming it. Large DUT errors (degrees) are measured: the reference is refused only if
 /// the difference of the readings at the same DUT reading differs from pass to pass by more than
 /// --follow-tol.
@@ -83,7 +83,7 @@ pub struct Args {
     /// Largest gap of never-reached readings, degrees, bridged by interpolation in a whole-turn
     /// table (with a warning); a wider gap gives a range table.
     #[arg(long, default_value_t = 5.0)]
-    pub max_gap: f64,
+    pub bridge_gap: f64,
     /// ISO 230-2 target positions: a count K (one in the middle of each of K equal parts of the
     /// map's range) or a list of readings in degrees (`--targets 20,40,60`); each moved to the
     /// nearest grid point.
@@ -147,12 +147,12 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         && args.min_speed > 0.0
         && args.follow_tol.is_finite()
         && args.follow_tol > 0.0
-        && finite_nonneg(args.max_gap)
-        && args.max_gap < 360.0)
+        && finite_nonneg(args.bridge_gap)
+        && args.bridge_gap < 360.0)
     {
         return Err(Usage(
-            "--min-speed and --follow-tol must be positive, --ref-u, --approach and --max-gap at least 0 \
-             (--max-gap below 360)"
+            "--min-speed and --follow-tol must be positive, --ref-u, --approach and --bridge-gap at least 0 \
+             (--bridge-gap below 360)"
                 .into(),
         )
         .into());
@@ -179,7 +179,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         reference_u: args.ref_u / ARCSEC_PER_RAD,
         follow_tol: args.follow_tol.to_radians(),
         approach: args.approach.to_radians(),
-        max_gap: args.max_gap.to_radians(),
+        max_gap: args.bridge_gap.to_radians(),
         targets: args.targets.clone(),
     });
     for (n, sample) in reader.by_ref().enumerate() {

@@ -773,7 +773,7 @@ impl ReferenceCal {
             warnings.push(format!(
                 "the DUT never reached the readings between {:.3}° and {:.3}° (a gap of {:.3}° in the turn, {} grid point(s)): \
                  the map bridges it by linear interpolation, not by measurement; record the whole turn to measure it \
-                 (a gap wider than --max-gap {}° gives a range table instead)",
+                 (a gap wider than --bridge-gap {}° gives a range table instead)",
                 g.from.to_degrees(),
                 wrap_2pi(g.to).to_degrees(),
                 g.size.to_degrees(),
