@@ -5,6 +5,8 @@
 //! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` (CDR) or JSON messages,
 //!   channels joined across topics on equal time stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
+//! - [`export`]: correction tables in the forms controllers load (look-up tables, moteus
+//!   `conf set` lines, SimpleFOC `CalibratedSensor` tables, harmonics).
 //! - [`atomic`]: output files that appear only when complete.
 //! - [`apply`]: a log rewritten with one channel corrected by an error map.
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
@@ -38,6 +40,7 @@ pub mod atomic;
 pub mod budget;
 pub mod csv_log;
 pub mod error;
+pub mod export;
 pub mod limits;
 pub mod log;
 pub mod mcap_log;
