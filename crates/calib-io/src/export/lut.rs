@@ -17,20 +17,19 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
     let c = corrections(target);
     let mut lines = Vec::new();
     let mut body = String::new();
-    // The corrections as the consumer will read them, arcseconds.
-    let read_back: Vec<f64>;
-    // Writing into a String cannot fail: the results of writeln! are ignored.
-    match opts.format {
+    // The corrections as the consumer will read them, arcseconds. Writing into a String cannot
+    // fail: the results of writeln! are ignored.
+    let read_back: Vec<f64> = match opts.format {
         Format::LutF32Rad => {
             lines.push(format!("units: radians (f32), one per line, {n} lines"));
             let values: Vec<f32> = c.iter().map(|v| (v / ARCSEC_PER_RAD) as f32).collect();
             for v in &values {
                 let _ = writeln!(body, "{v:e}");
             }
-            read_back = values
+            values
                 .iter()
                 .map(|&v| f64::from(v) * ARCSEC_PER_RAD)
-                .collect();
+                .collect()
         }
         Format::LutI16 | Format::LutU16 | Format::LutI8 => {
             let (max_code, offset, kind) = match opts.format {
@@ -48,7 +47,7 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
             for k in &codes {
                 let _ = writeln!(body, "{}", k + offset);
             }
-            read_back = codes.iter().map(|&k| k as f64 * scale).collect();
+            codes.iter().map(|&k| k as f64 * scale).collect()
         }
         Format::CArray => {
             lines.push("units: arcseconds (float)".into());
@@ -68,10 +67,10 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
                 let _ = writeln!(body, "    {},", row.join(", "));
             }
             let _ = writeln!(body, "}};");
-            read_back = written
+            written
                 .iter()
                 .map(|v| f64::from(v.parse::<f32>().unwrap_or(f32::NAN)))
-                .collect();
+                .collect()
         }
         _ => {
             lines.push("units: degrees, arcseconds".into());
@@ -80,12 +79,12 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
             for (i, v) in written.iter().enumerate() {
                 let _ = writeln!(body, "{:.6},{v}", 360.0 * i as f64 / n as f64);
             }
-            read_back = written
+            written
                 .iter()
                 .map(|v| v.parse().unwrap_or(f64::NAN))
-                .collect();
+                .collect()
         }
-    }
+    };
     Ok(Rendered {
         lines,
         body,

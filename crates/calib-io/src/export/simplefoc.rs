@@ -120,8 +120,9 @@ mod tests {
     use calib_core::{FourierSeries, Harmonic};
     use std::f64::consts::TAU;
 
-    /// `_2PI` of Arduino-FOC's `src/common/foc_utils.h`, as the float the driver computes with.
-    const TWO_PI: f32 = 6.283_185_307_18;
+    /// `_2PI` of Arduino-FOC's `src/common/foc_utils.h`, 6.28318530718, as the float the driver
+    /// computes with: the same `f32` as τ.
+    const TWO_PI: f32 = std::f32::consts::TAU;
 
     /// `CalibratedSensor::getSensorAngle()` in `f32`, for a raw mechanical angle.
     fn sensor_angle(lut: &[f32], mechanical: f32) -> f32 {
