@@ -109,7 +109,15 @@ fn csrr_report_shows_maps_against_the_truth_spectrum_and_timeline() {
     );
 
     let timeline = figure(&html, "timeline");
-    assert_mentions(timeline, &["time (s)", "rotation (rev)", "a − b (°)", "#4"]);
+    assert_mentions(
+        timeline,
+        &[
+            "time from log start (s)",
+            "rotation (rev)",
+            "a − b (°)",
+            "#4",
+        ],
+    );
     let map = figure(&html, "map-a");
     assert_mentions(
         map,

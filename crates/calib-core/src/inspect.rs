@@ -8,7 +8,7 @@
 //!
 //! The speed spectrum comes from `Σdθ/Σdt` in 1024 bins of each channel's own reading, over the
 //! samples where the channel moves within ±19 % of the speed it mostly turns at. It shows the sampling non-uniformity ε_θ of the seed paper
-//! (`000_…`, eq. 9) in the form a user can act on: a speed ripple of `p` % at order `h` is a
+//! (Gou et al., eq. 9) in the form a user can act on: a speed ripple of `p` % at order `h` is a
 //! position modulation of amplitude `p/100/h` rad. Computed from a sensor's own readings, it also
 //! contains that sensor's error slope `e'(θ)`: read it from a reference encoder where there is one.
 

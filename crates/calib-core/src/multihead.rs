@@ -1,5 +1,5 @@
 //! Multi-head self-calibration of one graduated scale: several read heads at known nominal
-//! angles around one scale (the SelfA encoder of the shift-angle paper `001_…`, section 2.3,
+//! angles around one scale (the SelfA encoder of the shift-angle paper of Hsieh et al. 2022, section 2.3,
 //! eqs. 8–9, and its section 3.2 with head sets of 3, 4 and 7).
 //!
 //! [`Multihead`] takes the heads' synchronized readings one sample at a time

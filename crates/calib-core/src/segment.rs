@@ -1,6 +1,6 @@
 //! Splitting a log of two coaxial sensors into stationary, co-rotating and turning segments.
 //!
-//! A CSRR log (seed paper `000_…`, section III-B, Fig. 4) alternates: the locked rotors turn
+//! A CSRR log (Gou et al., the CSRR paper, section III-B, Fig. 4) alternates: the locked rotors turn
 //! together for whole revolutions (a *session*), the shaft stops, rotor A alone is turned by Δ
 //! against rotor B, and the next session starts. The [`Segmenter`] classifies short blocks of
 //! samples (≈ [`SegmentOptions::block_s`]) and joins them:

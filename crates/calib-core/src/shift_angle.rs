@@ -1,7 +1,7 @@
 //! Shift-angle cross-calibration of a rotary encoder with a polygon and an autocollimator.
 //!
 //! After Hsieh, Watanabe, Hsu, *Calibration of Rotary Encoders Using a Shift-Angle Method*,
-//! Appl. Sci. 12 (2022) 5008 (`shared/papers/001_…`).
+//! Appl. Sci. 12 (2022) 5008.
 //!
 //! # The measurement (eq. 3)
 //! An `n`-face polygon sits on the encoder; the encoder is stepped by the pitch `P = 360°/n`.

@@ -309,8 +309,8 @@ pub struct TimelinePanel {
     pub channels: Vec<usize>,
 }
 
-/// A timeline of a log: panels of decimated traces over time, the given spans (sessions) shaded
-/// in every panel.
+/// A timeline of a log: panels of decimated traces over time, the given spans (sessions, in the
+/// log's own time stamps) shaded in every panel. Time runs in seconds from the log's first sample.
 pub fn timeline(
     id: &str,
     title: &str,
@@ -320,11 +320,23 @@ pub fn timeline(
     spans: &[Span],
 ) -> Figure {
     let colours = [Colour::Blue, Colour::Orange, Colour::Purple, Colour::Green];
+    let t0 = trace.start().unwrap_or(0.0);
+    let spans: Vec<Span> = spans
+        .iter()
+        .map(|s| Span {
+            from: s.from - t0,
+            to: s.to - t0,
+            label: s.label.clone(),
+        })
+        .collect();
     let charts = panels
         .iter()
         .map(|p| {
-            let mut chart = Chart::new(Axis::linear("time (s)"), Axis::linear(&p.label));
-            chart.spans = spans.to_vec();
+            let mut chart = Chart::new(
+                Axis::linear("time from log start (s)"),
+                Axis::linear(&p.label),
+            );
+            chart.spans = spans.clone();
             for (k, &c) in p.channels.iter().enumerate() {
                 chart = chart.with(Series::new(
                     trace.names().get(c).map_or("", |s| s.as_str()),

@@ -88,19 +88,26 @@ impl Trace {
         self.cells.iter().all(Option::is_none)
     }
 
-    /// Channel `k` as points `(t, value)`: each occupied bucket's minimum then maximum at its
-    /// centre time (at most twice the bucket count).
+    /// Time stamp of the first sample (s, on the log's own clock), if any.
+    pub fn start(&self) -> Option<f64> {
+        self.t0
+    }
+
+    /// Channel `k` as points `(t, value)` with `t` in seconds since the first sample (a ROS log's
+    /// stamps are seconds since 1970: absolute values would label every tick "2e9"). Each occupied
+    /// bucket gives its minimum then its maximum at its centre time (at most twice the bucket
+    /// count).
     pub fn series(&self, k: usize) -> Vec<(f64, f64)> {
-        let Some(t0) = self.t0 else {
+        if self.t0.is_none() {
             return Vec::new();
-        };
+        }
         self.cells
             .iter()
             .enumerate()
             .filter_map(|(i, c)| c.as_ref().map(|c| (i, c[k])))
             .filter(|(_, (lo, hi))| lo <= hi)
             .flat_map(|(i, (lo, hi))| {
-                let t = t0 + (i as f64 + 0.5) * self.width;
+                let t = (i as f64 + 0.5) * self.width;
                 [(t, lo), (t, hi)]
             })
             .collect()
@@ -128,6 +135,23 @@ mod tests {
             "{first}…{last} does not span the log"
         );
         assert!(s.windows(2).all(|w| w[0].0 <= w[1].0));
+    }
+
+    #[test]
+    fn times_count_from_the_first_sample() {
+        let t0 = 1.7e9;
+        let mut tr = Trace::new(&["x"], 16);
+        for i in 0..1000 {
+            tr.push(t0 + i as f64 * 0.01, &[i as f64]);
+        }
+        assert_eq!(tr.start(), Some(t0));
+        let s = tr.series(0);
+        assert!(s[0].0 >= 0.0 && s[0].0 < 1.0, "first point at {} s", s[0].0);
+        assert!(
+            s[s.len() - 1].0 < 11.0,
+            "last point at {} s",
+            s[s.len() - 1].0
+        );
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //!
 //! # Equation
 //! Sensor A reads `x = θ + ε_a(θ)`, sensor B reads `y = θ − Δ_k + ε_b(θ − Δ_k)` in session `k`
-//! (seed paper `000_…`, eq. 1). Written in terms of each sensor's error *as a function of its own
+//! (Gou et al., the CSRR paper, eq. 1). Written in terms of each sensor's error *as a function of its own
 //! reading*, `e_a(x) = x − θ` and `e_b(y) = y − (θ − Δ_k)`, so that subtracting gives, for every
 //! synchronized sample, exactly and whatever the size of the errors,
 //!

@@ -1,4 +1,4 @@
-//! CSRR self-calibration of two coaxial sensors (seed paper `000_…`, section II).
+//! CSRR self-calibration of two coaxial sensors (Gou et al., the CSRR paper, section II).
 //!
 //! Two sensors on one axis are read together while the axis turns whole revolutions; between
 //! these sessions one rotor is turned by Δ_k against the other. From the log, [`Csrr`] finds the

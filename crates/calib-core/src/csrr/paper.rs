@@ -1,4 +1,4 @@
-//! The CSRR method as published (seed paper `000_…`, section II-B).
+//! The CSRR method as published (Gou et al., the CSRR paper, section II-B).
 //!
 //! Per session `k`:
 //! - the relative rotation is the DC component of `f_ab = x − y` over whole revolutions of sensor
