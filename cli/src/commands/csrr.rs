@@ -11,6 +11,7 @@ use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
 use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report, SessionReport};
+use calib_io::prefetch::Prefetch;
 use calib_report::trace::Trace;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -146,7 +147,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
-    let mut reader = open_log(log, args.unit)?;
+    let reader = open_log(log, args.unit)?;
     let ia = channel(&reader, log, &args.a)?;
     let ib = channel(&reader, log, &args.b)?;
     let ir = args
@@ -183,7 +184,9 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
     let bar = crate::ui::reading(log);
-    for (n, sample) in reader.by_ref().enumerate() {
+    // Decoding runs ahead on a second thread while this one segments and bins.
+    let mut samples = Prefetch::new(reader);
+    for (n, sample) in samples.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         if n as u64 % crate::ui::TICK == 0 {
             bar.inc(crate::ui::TICK);
@@ -197,6 +200,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         }
     }
     bar.finish_and_clear();
+    let reader = samples.finish();
     let solving = crate::ui::working("solving");
     let cal = csrr.finish();
     solving.finish_and_clear();

@@ -45,6 +45,7 @@ pub mod limits;
 pub mod log;
 pub mod mcap_log;
 pub mod points;
+pub mod prefetch;
 pub mod readings;
 pub mod report;
 pub mod table;
