@@ -6,6 +6,8 @@
 //! - [`naming`]: channels addressed by joint name or `TOPIC/JOINT`.
 //! - [`align`]: channels on different clocks interpolated onto the first one's stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
+//! - [`export`]: correction tables in the forms controllers load (look-up tables, moteus
+//!   `conf set` lines, SimpleFOC `CalibratedSensor` tables, harmonics).
 //! - [`atomic`]: output files that appear only when complete.
 //! - [`apply`]: a log rewritten with one channel corrected by an error map.
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
@@ -40,6 +42,7 @@ pub mod atomic;
 pub mod budget;
 pub mod csv_log;
 pub mod error;
+pub mod export;
 pub mod limits;
 pub mod log;
 pub mod mcap_log;
