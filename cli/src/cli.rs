@@ -39,5 +39,6 @@ pub enum Command {
     Uncertainty(commands::uncertainty::Args),
     Compare(commands::compare::Args),
     Apply(commands::apply::Args),
+    Compose(commands::compose::Args),
     Export(commands::export::Args),
 }

@@ -104,6 +104,7 @@ pub fn code_of(err: &anyhow::Error) -> u8 {
         e.is::<Usage>()
             || e.is::<calib_core::angle::UnknownUnit>()
             || e.is::<calib_core::sample::UnknownChannel>()
+            || e.is::<calib_io::naming::ChannelLookup>()
     });
     if usage { USAGE } else { DATA }
 }

@@ -3,10 +3,126 @@
 use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::AngleUnit;
-use calib_core::sample::channel_index;
+use calib_io::align::{AlignOptions, Alignment};
+use calib_io::csv_log::dialect::TimeUnit;
 use calib_io::limits::MAX_TABLE_POINTS;
-use calib_io::{LogReader, ReadOptions};
+use calib_io::{LogReader, ReadOptions, TimeSource};
+use std::fmt::Write;
 use std::path::Path;
+
+/// Which stamps a message is read at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum TimeArg {
+    /// The stamp the publisher wrote (`header.stamp`); the log time where it is zero.
+    Header,
+    /// The time the recorder logged the message.
+    Log,
+}
+
+/// How a log is timed: the CSV time column, the MCAP stamps, and how channels on different
+/// clocks are aligned (the command's first channel sets the clock, every other channel is
+/// interpolated, quintic, at its stamps from its own samples).
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct LogArgs {
+    /// Time of an MCAP message: its `header.stamp` or its log time.
+    #[arg(long, value_enum, default_value_t = TimeArg::Header)]
+    pub time: TimeArg,
+    /// Longest interval between two samples of a channel that is interpolated across, seconds
+    /// (default: 2.5 of that channel's median intervals). A clock sample inside a longer gap is
+    /// dropped and counted, never invented.
+    #[arg(long, value_name = "SECONDS")]
+    pub max_gap: Option<f64>,
+    /// The time column of a CSV log (default: `t`, `time` or `timestamp`, any case, with a unit
+    /// suffix such as ` [s]`, `_ms` or ` (us)` honoured).
+    #[arg(long, value_name = "NAME")]
+    pub time_column: Option<String>,
+    /// Unit of a CSV log's time column: s, ms, us or ns (default: its name's suffix, else s).
+    #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
+    pub time_unit: Option<TimeUnit>,
+}
+
+/// clap value parser for `--time-unit`.
+fn parse_time_unit(s: &str) -> Result<TimeUnit, String> {
+    s.parse()
+}
+
+impl LogArgs {
+    /// The options of reading (with readings in `unit`) and aligning.
+    pub fn options(&self, unit: Option<AngleUnit>) -> anyhow::Result<(ReadOptions, AlignOptions)> {
+        if self.max_gap.is_some_and(|g| !(g > 0.0 && g.is_finite())) {
+            return Err(Usage("--max-gap must be a positive number of seconds".into()).into());
+        }
+        let time = match self.time {
+            TimeArg::Header => TimeSource::Header,
+            TimeArg::Log => TimeSource::Log,
+        };
+        let read = ReadOptions {
+            unit,
+            time,
+            time_column: self.time_column.clone(),
+            time_unit: self.time_unit,
+            ..ReadOptions::default()
+        };
+        Ok((
+            read,
+            AlignOptions {
+                max_gap_s: self.max_gap,
+            },
+        ))
+    }
+}
+
+/// Opens the log at `path` reading the channels `names` only, in this order, the first setting
+/// the clock: sample value `k` is channel `names[k]`.
+pub fn open_selected(
+    path: &Path,
+    unit: Option<AngleUnit>,
+    log: &LogArgs,
+    names: &[&str],
+) -> anyhow::Result<LogReader> {
+    let (read, align) = log.options(unit)?;
+    let mut reader = open_log_with(path, read)?;
+    let indices = names
+        .iter()
+        .map(|n| channel(&reader, path, n))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    reader.select(&indices, align);
+    Ok(reader)
+}
+
+/// The alignment of a log read, for report.json's `details.alignment`; `None` where every
+/// channel was read at the clock's own stamps with nothing dropped.
+pub fn alignment_detail(reader: &LogReader) -> Option<serde_json::Value> {
+    reader
+        .alignment()
+        .filter(|a| !a.is_exact())
+        .and_then(|a| serde_json::to_value(a).ok())
+}
+
+/// Summary lines on how the channels were aligned on the clock; empty where nothing was
+/// interpolated or dropped.
+pub fn alignment_text(alignment: Option<&Alignment>) -> String {
+    let mut o = String::new();
+    let Some(a) = alignment.filter(|a| !a.is_exact()) else {
+        return o;
+    };
+    let _ = writeln!(
+        o,
+        "aligned on the clock of `{}`: {} of its {} samples kept",
+        a.clock, a.samples, a.clock_samples
+    );
+    for c in &a.channels {
+        let offset = c
+            .median_offset_s
+            .map_or_else(|| "—".to_string(), |o| format!("{:+.3} ms", o * 1e3));
+        let _ = writeln!(
+            o,
+            "  {}: median offset {offset}, {} interpolated, {} exact, {} dropped",
+            c.channel, c.interpolated, c.exact, c.dropped
+        );
+    }
+    o
+}
 
 /// clap value parser for `--unit`.
 pub fn parse_unit(s: &str) -> Result<AngleUnit, String> {
@@ -83,15 +199,21 @@ pub fn open_log_with(path: &Path, mut opts: ReadOptions) -> anyhow::Result<LogRe
     LogReader::open(path, &opts).with_context(|| format!("cannot read {}", crate::ui::shown(path)))
 }
 
-/// The index of channel `name` of the log at `path`.
+/// The index of channel `name` of the log at `path` among all its channels (an unknown or
+/// ambiguous name is a usage error).
 pub fn channel(reader: &LogReader, path: &Path, name: &str) -> anyhow::Result<usize> {
-    channel_index(reader.channels(), name).with_context(|| format!("{}", path.display()))
+    reader
+        .resolve(name)
+        .with_context(|| format!("{}", path.display()))
 }
 
-/// A channel name as a file name: characters other than letters, digits, `-`, `_` and `.`
-/// become `_` (JointState names such as `arm/joint1` stay usable).
+/// A channel name as a file name: a leading `/` is dropped and characters other than letters,
+/// digits, `-`, `_` and `.` become `_` (`/sensor_a/joint_states/encoder` →
+/// `sensor_a_joint_states_encoder`; JointState names such as `arm/joint1` stay usable).
 pub fn file_stem(channel: &str) -> String {
     let s: String = channel
+        .strip_prefix('/')
+        .unwrap_or(channel)
         .chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
@@ -126,4 +248,58 @@ pub fn command_line() -> String {
         })
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+/// The travel of a channel's continuous (unwrapped) reading, to say when a method that needs
+/// whole turns was given a joint that never turned one.
+#[derive(Debug, Clone)]
+pub struct Travel {
+    unwrapper: calib_core::Unwrapper,
+    lo: f64,
+    hi: f64,
+}
+
+impl Default for Travel {
+    fn default() -> Self {
+        Travel {
+            unwrapper: calib_core::Unwrapper::new(),
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl Travel {
+    /// Adds a reading (radians); non-finite ones are skipped.
+    pub fn push(&mut self, reading: f64) {
+        if reading.is_finite() {
+            let u = self.unwrapper.unwrap(reading);
+            self.lo = self.lo.min(u);
+            self.hi = self.hi.max(u);
+        }
+    }
+
+    /// Largest minus smallest continuous reading, degrees (0 without readings).
+    pub fn span_deg(&self) -> f64 {
+        if self.hi >= self.lo {
+            (self.hi - self.lo).to_degrees()
+        } else {
+            0.0
+        }
+    }
+
+    /// If the channel moved (more than 1°) but never turned a whole revolution, what to say
+    /// before the method's own error: that `method` needs whole turns, and what to do for a joint
+    /// instead. `None` if it turned one, or stood still (the method's own error says that).
+    pub fn no_whole_turn(&self, log: &Path, channel: &str, method: &str) -> Option<String> {
+        let span = self.span_deg();
+        (span > 1.0 && span < 360.0).then(|| {
+            format!(
+                "{}: channel `{channel}` never turned a whole revolution (its readings span {span:.3}°): {method}; \
+                 to map a joint that never turns a whole revolution, calibrate it against a reference encoder on its \
+                 shaft with `calib reference`, which writes a range table",
+                log.display()
+            )
+        })
+    }
 }

@@ -1,5 +1,8 @@
 //! End-to-end tests of `calib export`: every format read back and compared with the table within
-//! its quantization step; saturation refused; the harmonic form's kept and dropped terms.
+//! its quantization step; saturation refused; the harmonic form's kept and dropped terms; the
+//! controller formats (moteus, SimpleFOC) decoded as their firmware does (the exact firmware
+//! arithmetic is re-implemented in `calib_io::export`'s unit tests); orders chosen before
+//! resampling.
 
 mod common;
 
@@ -160,7 +163,7 @@ fn a_scale_too_small_is_refused() {
 #[test]
 fn harmonic_form_keeps_the_largest_and_names_the_rest() {
     let dir = tempfile::tempdir().unwrap();
-    let (c, d) = export(dir.path(), &["--format", "harmonic", "--orders", "2"]);
+    let (c, d) = export(dir.path(), &["--format", "harmonic", "--harmonics", "2"]);
     assert_eq!(d[0], "order,amplitude_arcsec,phase_deg");
     let rows: Vec<(usize, f64, f64)> = d[1..]
         .iter()
@@ -191,4 +194,248 @@ fn harmonic_form_keeps_the_largest_and_names_the_rest() {
     // By threshold: 0.01″ keeps all three.
     let (_, d) = export(dir.path(), &["--format", "harmonic"]);
     assert_eq!(d.len(), 4, "{d:?}");
+}
+
+/// The numbers between the first `= {` and the next `};` of a C snippet.
+fn c_numbers(text: &str) -> Vec<String> {
+    let open = text.find("= {").unwrap() + 3;
+    let close = open + text[open..].find("};").unwrap();
+    text[open..close]
+        .split([',', '\n', ' '])
+        .filter(|t| !t.is_empty())
+        .map(|t| t.trim_end_matches('f').to_string())
+        .collect()
+}
+
+/// Linear interpolation of the 720-point table at `deg`: what a resampled table holds there.
+fn table_at(deg: f64) -> f64 {
+    let x = deg / 0.5;
+    let i = x.floor();
+    let f = x - i;
+    error_of(i * 0.5) * (1.0 - f) + error_of((i + 1.0) * 0.5) * f
+}
+
+#[test]
+fn help_lists_every_format_and_where_it_is_loaded() {
+    let o = calib(&["export", "--help"]);
+    expect_exit(&o, 0);
+    let help = stdout(&o);
+    for name in [
+        "lut-f32-rad",
+        "lut-i16",
+        "lut-u16",
+        "lut-i8",
+        "c-array",
+        "csv",
+        "harmonic",
+        "moteus",
+        "moteus-config",
+        "simplefoc",
+        "simplefoc-u16",
+    ] {
+        assert!(help.contains(&format!("{name}:")), "{name} in:\n{help}");
+    }
+    assert_mentions(
+        &help,
+        &[
+            "--write-config",
+            "--restore-config",
+            "CalibratedSensor(sensor, N, calib_lut)",
+            "calib_lut_load()",
+            "commit 06a3d52",
+            "commit 011c612",
+            "--harmonics",
+            "--orders",
+            "Not established from the source",
+        ],
+    );
+}
+
+#[test]
+fn moteus_lines_decode_to_the_table_and_their_header_goes_to_the_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = table(dir.path());
+    let o = calib(&["export", s(&t), "--format", "moteus", "--source", "1"]);
+    let err = expect_exit(&o, 0);
+    assert_mentions(
+        &err,
+        &["# calib", "correction = -error", "--write-config", "fit: "],
+    );
+    let text = stdout(&o);
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 256 + 3);
+    assert_eq!(lines[258], "conf write");
+    let prefix = "conf set motor_position.sources.1.compensation_";
+    let mut codes = vec![0i64; 256];
+    let mut scale = f64::NAN;
+    for line in &lines[1..258] {
+        let (key, value) = line.strip_prefix(prefix).unwrap().split_once(' ').unwrap();
+        match key.strip_prefix("table.") {
+            Some(i) => codes[i.parse::<usize>().unwrap()] = value.parse().unwrap(),
+            None => scale = value.parse().unwrap(),
+        }
+    }
+    // moteus adds code·scale/127 revolutions: the correction, −error, at i/256 of a turn.
+    // The scale is the largest |correction| (between 10″ and 12.05″ here): 127 codes span it.
+    let quantum = scale / 127.0 * 1_296_000.0;
+    assert!(
+        (10.0 / 127.0..=12.05 / 127.0).contains(&quantum),
+        "{quantum}″"
+    );
+    for (i, &k) in codes.iter().enumerate() {
+        let got = k as f64 * quantum;
+        let want = -table_at(i as f64 * 360.0 / 256.0);
+        // Half a code, and the table's 6-decimal rounding.
+        assert!(
+            (got - want).abs() <= quantum / 2.0 + TABLE,
+            "{i}: {got} vs {want}"
+        );
+    }
+    // To a file: the same lines; standard output says where, and shows the header.
+    let out = dir.path().join("a.moteus");
+    let o = calib(&[
+        "export",
+        s(&t),
+        "--format",
+        "moteus",
+        "--source",
+        "1",
+        "-o",
+        s(&out),
+    ]);
+    expect_exit(&o, 0);
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
+    assert_mentions(&stdout(&o), &["wrote", "compensation_scale", "fit: "]);
+    // The restore-config form: the same settings, a `#` header, no `conf`.
+    let (c, d) = export(dir.path(), &["--format", "moteus-config"]);
+    assert!(c.iter().any(|l| l.contains("--restore-config")));
+    assert_eq!(d.len(), 258);
+    assert!(
+        d.iter()
+            .all(|l| l.starts_with("motor_position.sources.0.compensation_"))
+    );
+    // moteus holds 256 entries, no other size; a scale too small is refused.
+    let o = calib(&["export", s(&t), "--format", "moteus", "--points", "512"]);
+    assert_mentions(&expect_exit(&o, 2), &["t.csv", "256", "not 512"]);
+    let o = calib(&["export", s(&t), "--format", "moteus", "--scale", "0.01"]);
+    assert_mentions(&expect_exit(&o, 2), &["--scale", "127"]);
+    let o = calib(&["export", s(&t), "--format", "moteus", "--source", "3"]);
+    expect_exit(&o, 2);
+}
+
+#[test]
+fn simplefoc_tables_hold_the_error_in_radians() {
+    let dir = tempfile::tempdir().unwrap();
+    let (c, d) = export(dir.path(), &["--format", "simplefoc", "--points", "200"]);
+    assert!(c.iter().any(|l| l.contains("returns raw - lut(raw)")));
+    let body = d.join("\n");
+    assert_mentions(
+        &body,
+        &[
+            "#define CALIB_LUT_SIZE 200",
+            "float calib_lut[CALIB_LUT_SIZE] = {",
+        ],
+    );
+    let values: Vec<f64> = c_numbers(&body)
+        .iter()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(values.len(), 200);
+    // Linear interpolation of the 0.5° table at 1.8° steps: within 0.002″ of error_of there.
+    for (i, v) in values.iter().enumerate() {
+        let want = table_at(i as f64 * 1.8);
+        assert!(
+            (v * 206264.80624709636 - want).abs() <= TABLE + 12.05 * 6e-8,
+            "{i}"
+        );
+    }
+    let (_, d) = export(
+        dir.path(),
+        &["--format", "simplefoc-u16", "--points", "200"],
+    );
+    let body = d.join("\n");
+    let scale: f64 = body
+        .lines()
+        .find_map(|l| l.strip_prefix("#define CALIB_LUT_SCALE_RAD "))
+        .unwrap()
+        .trim_end_matches('f')
+        .parse()
+        .unwrap();
+    let codes: Vec<f64> = c_numbers(&body)
+        .iter()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(codes.len(), 200);
+    assert_mentions(
+        &body,
+        &["calib_lut_load()", "- 32768) * CALIB_LUT_SCALE_RAD"],
+    );
+    let quantum = scale * 206264.80624709636;
+    for (i, k) in codes.iter().enumerate() {
+        let got = (k - 32768.0) * quantum;
+        let want = table_at(i as f64 * 1.8);
+        assert!(
+            (got - want).abs() <= quantum / 2.0 + TABLE,
+            "{i}: {got} vs {want}"
+        );
+    }
+}
+
+#[test]
+fn chosen_orders_are_resynthesized_before_resampling() {
+    let dir = tempfile::tempdir().unwrap();
+    let (c, d) = export(
+        dir.path(),
+        &["--format", "csv", "--points", "64", "--orders", "3,7"],
+    );
+    let harmonics = c.iter().find(|l| l.contains("harmonics: ")).unwrap();
+    assert!(harmonics.contains("kept orders 3, 7"), "{harmonics}");
+    // Left out: the 0.05″ of order 11, 0.1″ peak to peak (0.09998″ on the 0.5° grid).
+    let pp: f64 = harmonics
+        .split(" arcsec peak-to-peak")
+        .next()
+        .unwrap()
+        .rsplit(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((pp - 0.1).abs() < 1e-3, "{harmonics}");
+    assert!(c.iter().any(|l| l.contains("fit: ")));
+    // Each of the 64 rows is the kept series exactly (6 decimals in the table and the output).
+    for row in &d[1..] {
+        let (a, v) = row.split_once(',').unwrap();
+        let th = a.parse::<f64>().unwrap().to_radians();
+        let kept = 10.0 * (3.0 * th + 20f64.to_radians()).cos() + 2.0 * (7.0 * th).cos();
+        assert!((v.parse::<f64>().unwrap() + kept).abs() < 1e-5, "{row}");
+    }
+    // --harmonics 2 chooses the same two orders.
+    let (c, _) = export(
+        dir.path(),
+        &["--format", "csv", "--points", "64", "--harmonics", "2"],
+    );
+    assert!(
+        c.iter()
+            .any(|l| l.contains("kept the 2 largest orders, 3, 7"))
+    );
+    // An order the output grid cannot hold is refused, as are both options at once.
+    let t = table(dir.path());
+    let o = calib(&["export", s(&t), "--format", "moteus", "--orders", "3,200"]);
+    assert_mentions(
+        &expect_exit(&o, 2),
+        &["order 200", "256 points", "--points"],
+    );
+    let o = calib(&[
+        "export",
+        s(&t),
+        "--format",
+        "csv",
+        "--orders",
+        "3",
+        "--harmonics",
+        "2",
+    ]);
+    expect_exit(&o, 2);
+    let o = calib(&["export", s(&t), "--format", "csv", "--orders", "0"]);
+    expect_exit(&o, 2);
 }

@@ -28,7 +28,8 @@ fn inspect_json(log: &std::path::Path) -> Value {
 #[test]
 fn mcap_fixture_lists_channels_and_the_exact_sample_count() {
     // make_fixture.py: 300 JointStates joined with JSON /reference, which is missing for
-    // i = 100..=104, plus two stray JSON messages: 295 samples, 7 unjoined; /status is skipped.
+    // i = 100..=104, plus two stray JSON messages: aligned on a's clock, 295 samples (ref has
+    // a gap of 6 intervals there); /status is skipped.
     let log = testdata("mcap/fixture.mcap");
     let o = calib(&["inspect", s(&log)]);
     expect_exit(&o, 0);
@@ -45,7 +46,7 @@ fn mcap_fixture_lists_channels_and_the_exact_sample_count() {
         &out,
         &[
             "warning: ",
-            "fixture.mcap: 7 message(s) had no partner",
+            "fixture.mcap: 5 of 300 sample(s) of the clock `a` were dropped because channel `ref` could not be aligned there",
             "`/status`",
         ],
     );

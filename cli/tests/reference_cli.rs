@@ -75,6 +75,7 @@ fn simulated_run_matches_the_truth_difference() {
     let scenario = write(dir.path(), "run.toml", SCENARIO);
     let log = simulate(&scenario, dir.path(), "run.csv");
     let out = dir.path().join("out");
+    // ISO 230-2 at every grid point (the default is 20 targets), so E↑ is the map's p-p.
     let o = calib(&[
         "reference",
         s(&log),
@@ -84,11 +85,18 @@ fn simulated_run_matches_the_truth_difference() {
         "ref",
         "-o",
         s(&out),
+        "--targets",
+        "3600",
     ]);
     expect_exit(&o, 0);
     assert_mentions(
         &stdout(&o),
-        &["`b` against `ref`", "accuracy", "report.json"],
+        &[
+            "`b` against `ref`",
+            "accuracy",
+            "report.json",
+            "3600 targets",
+        ],
     );
 
     let got = read_table(&out.join("b.csv"));
@@ -194,6 +202,8 @@ fn both_directions_give_the_reversal_value() {
         "-o",
         s(&out),
         "--json",
+        "--targets",
+        "3600",
     ]);
     expect_exit(&o, 0);
     let report: Value = serde_json::from_str(&stdout(&o)).unwrap();
@@ -331,14 +341,16 @@ fn bad_inputs_fail_cleanly() {
     assert_mentions(&err, &["reversed.csv", "does not follow"]);
     assert_no_output(&out);
 
-    // Less than a revolution: the first 800 samples, 799 steps of 0.36°.
+    // Less than a revolution (the first 800 samples, 799 steps of 0.36° = 287.64°, one way): a
+    // range table from the end of the 1° approach to the last reading.
     let short: String = back_and_forth(0.0)
         .lines()
         .take(801)
         .map(|l| format!("{l}\n"))
         .collect();
     let log = write(dir.path(), "short.csv", &short);
-    let err = expect_exit(
+    let short_out = dir.path().join("short-out");
+    expect_exit(
         &calib(&[
             "reference",
             s(&log),
@@ -347,17 +359,39 @@ fn bad_inputs_fail_cleanly() {
             "--ref",
             "ref",
             "-o",
+            s(&short_out),
+        ]),
+        0,
+    );
+    let table = std::fs::read_to_string(short_out.join("dut.csv")).unwrap();
+    assert!(
+        table.starts_with("# range_deg: 1.100000 to 287.600000 "),
+        "{}",
+        table.lines().next().unwrap()
+    );
+
+    // A motion that crosses no grid point (0.72° on a 1° grid) gives nothing to map.
+    let tiny: String = back_and_forth(0.0)
+        .lines()
+        .take(3)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let log = write(dir.path(), "tiny.csv", &tiny);
+    let err = expect_exit(
+        &calib(&[
+            "reference",
+            s(&log),
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "--points",
+            "360",
+            "-o",
             s(&out),
         ]),
         1,
     );
-    assert_mentions(
-        &err,
-        &[
-            "short.csv",
-            "0.799 revolution",
-            "at least one whole revolution",
-        ],
-    );
+    assert_mentions(&err, &["tiny.csv", "crossed 0 grid point", "at least 2"]);
     assert_no_output(&out);
 }

@@ -49,9 +49,9 @@ fn air_bearing_coast_matches_the_truth_and_the_reference() {
     let truth = read_table(&dir.path().join("coast.truth/enc.csv"));
     let e = max_diff(&got, &truth);
     println!("air bearing: max |map − truth| = {e:.4}″");
-    // As in calib-core's tests/tdr.rs: σ ≈ 0.057″ per sample over 60 000 samples and 64
-    // unknowns gives a map rms ≈ 0.002″, its worst point ~4× that; the table's 6-decimal
-    // rounding adds nothing. Measured 0.0044″.
+    // As in calib-core's tests/tdr.rs: σ ≈ 0.057″ per sample over 60 000 samples and the ~13
+    // orders kept give a map rms ≈ 1e-3″, its worst point ~4× that; the table's 6-decimal
+    // rounding adds nothing. Measured 0.0056″.
     assert!(e < 0.02, "max |map − truth| = {e}″");
 
     let report = read_json(&out.join("report.json"));
@@ -63,6 +63,11 @@ fn air_bearing_coast_matches_the_truth_and_the_reference() {
     let d = &report["details"];
     assert!(d["drag"]["ambiguity"].as_str().unwrap().contains("bearing"));
     assert_eq!(d["drag"]["speed_dependent_orders"], serde_json::json!([]));
+    assert_eq!(d["drag"]["terms"], serde_json::json!([]));
+    // ~322 r/min at the slow end (its slowest window's mean speed), 2 kHz: ≈ 372 samples per
+    // revolution, orders to 0.4 × that tested.
+    assert_eq!(d["orders"]["max_order_tested"], 148);
+    assert!(text.contains("orders: "), "{text}");
     let rpm0 = d["motion"]["speed_start_rpm"].as_f64().unwrap();
     assert!((595.0..600.0).contains(&rpm0), "{rpm0}");
     // The reference's own error is 0.05″ (order 3).
@@ -76,10 +81,34 @@ fn air_bearing_coast_matches_the_truth_and_the_reference() {
     let printed: Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(printed, read_json(&out2.join("report.json")));
     assert!(printed["details"]["reference"].is_null());
+
+    // Every point has its standard uncertainty, summarized in the report and on stdout.
+    let table = std::fs::read_to_string(out.join("enc.csv")).unwrap();
+    assert!(
+        table.starts_with("angle_deg,error_arcsec,correction_arcsec,u_arcsec"),
+        "{}",
+        &table[..80]
+    );
+    let u = &report["details"]["uncertainty"]["enc"];
+    let u_max = u["u_max_arcsec"].as_f64().unwrap();
+    // σ·√(2K/N) for ~13 orders over 60 000 samples ≈ 0.0015″, more where orders correlate.
+    assert!((0.0005..0.01).contains(&u_max), "{u}");
+    assert_eq!(u["components"][0]["type"], "A");
+    assert_mentions(&text, &["standard uncertainty u of the table"]);
+    // `calib compare` takes u_arcsec from both tables: the same log twice gives En = 0.
+    let cmp = dir.path().join("cmp");
+    let o = calib(&[
+        "compare",
+        s(&out.join("enc.csv")),
+        s(&out2.join("enc.csv")),
+        "-o",
+        s(&cmp),
+    ]);
+    expect_exit(&o, 0);
 }
 
 #[test]
-fn rolling_bearing_drag_shows_in_the_map_and_is_warned_about() {
+fn rolling_bearing_drag_is_separated_and_reported() {
     let dir = tempfile::tempdir().unwrap();
     let log = simulate(
         &testdata("scenarios/spindown-bearing.toml"),
@@ -89,38 +118,41 @@ fn rolling_bearing_drag_shows_in_the_map_and_is_warned_about() {
     let out = dir.path().join("out");
     let o = calib(&["tdr", s(&log), "--channel", "enc", "-o", s(&out)]);
     expect_exit(&o, 0);
-    assert_mentions(&stdout(&o), &["warning", "angle-dependent drag", "order 2"]);
+    let text = stdout(&o);
+    assert_mentions(&text, &["drag separated", "order 2: 0.15", "order 4: 0.29"]);
+    assert!(!text.contains("warning"), "{text}");
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_mentions(
         &html,
         &[
             "fig-map-enc",
             "fig-spectrum",
-            "changes with speed like a drag",
+            "drag separated here",
+            "imprint",
         ],
     );
     let got = read_table(&out.join("enc.csv"));
     let truth = read_table(&dir.path().join("coast.truth/enc.csv"));
     let e = max_diff(&got, &truth);
     println!("rolling bearing: max |map − truth| = {e:.4}″");
-    // The drag of orders 2 and 4 shifts the map by (a_h/h²)·⟨ω⁻²⟩ = 3.94″ and 1.97″ (derived and
-    // checked harmonic by harmonic in calib-core's tests/tdr.rs); their sum peaks at 5.28″.
-    assert!((5.0..5.6).contains(&e), "max |map − truth| = {e}″");
+    // Unseparated, the drag of orders 2 and 4 shifted the map by 3.94″ and 1.97″. Separated
+    // (calib-core's tests/tdr.rs derives the tolerance): measured 0.024″.
+    assert!(e < 0.05, "max |map − truth| = {e}″");
     let report = read_json(&out.join("report.json"));
-    let orders: Vec<u64> = report["details"]["drag"]["speed_dependent_orders"]
+    let drag = &report["details"]["drag"];
+    assert_eq!(drag["separated"], true);
+    let orders: Vec<u64> = drag["terms"]
         .as_array()
         .unwrap()
         .iter()
         .map(|o| o["order"].as_u64().unwrap())
         .collect();
     assert_eq!(orders, [2, 4]);
-    assert!(
-        report["warnings"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .any(|w| w.as_str().unwrap().contains("drag"))
-    );
+    let a2 = drag["terms"][0]["deceleration_rad_s2"].as_f64().unwrap();
+    assert!((a2 / 0.15 - 1.0).abs() < 0.005, "{a2}");
+    assert_eq!(drag["speed_dependent_orders"], serde_json::json!([]));
+    let kept = report["details"]["orders"]["kept"].as_array().unwrap();
+    assert!(kept.len() < 20, "{kept:?}");
 }
 
 #[test]
@@ -173,6 +205,10 @@ fn usage_errors_exit_2() {
         (vec!["--channel", "enc", "--ref", "enc"], "both name"),
         (vec!["--channel", "nope"], "nope"),
         (vec!["--channel", "enc", "--max-order", "0"], "--max-order"),
+        (
+            vec!["--channel", "enc", "--max-drag-order", "101"],
+            "--max-drag-order",
+        ),
         (vec!["--channel", "enc", "--points", "1"], "--points"),
         (
             vec!["--channel", "enc", "--motion-degree", "0"],

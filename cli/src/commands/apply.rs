@@ -7,7 +7,8 @@ use calib_core::AngleUnit;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::correction::Wrapping;
 use calib_io::LogFormat;
-use calib_io::apply::{ApplyOptions, apply};
+use calib_io::apply::{ApplyOptions, MapRef, apply_map};
+use calib_io::table::AnyTable;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
@@ -37,6 +38,10 @@ pub enum Wrap {
 /// way (359.9999° corrected by +0.5″ becomes 0.0001°, not 360.0001°); accumulated ones stay
 /// accumulated. The log is read twice (once to find the readings' range, skipped with --wrap)
 /// and streamed: memory stays small whatever its size. OUT appears only when complete.
+///
+/// A range table (a joint that never turns a whole revolution, first line `# range_deg: LO to
+/// HI`) corrects the readings inside its range; readings outside it are copied unchanged,
+/// counted in the summary and warned about (never extrapolated).
 ///
 /// Example: `calib apply calib-out/a.csv run.mcap -o run-corrected.mcap`
 #[derive(Debug, clap::Args, PartialEq)]
@@ -98,7 +103,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    let table = calib_io::table::read_table(&args.table)
+    let table = calib_io::table::read_any_table(&args.table)
         .with_context(|| format!("cannot read the table {}", args.table.display()))?;
     let reader = open_log(&args.log, args.unit)?;
     channel(&reader, &args.log, &name).with_context(|| {
@@ -125,20 +130,35 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         },
         skip_damaged: crate::ui::skip_damaged(),
     };
-    let done = apply(&args.log, &args.output, &table.map, &opts)
+    let map = match &table {
+        AnyTable::Turn(t) => MapRef::Turn(&t.map),
+        AnyTable::Range(t) => MapRef::Range(&t.map),
+    };
+    let done = apply_map(&args.log, &args.output, map, &opts)
         .with_context(|| format!("cannot correct {}", args.log.display()))?;
 
     let mut o = String::new();
-    let map = &table.map;
+    let (points, pp, span) = match &table {
+        AnyTable::Turn(t) => (t.map.len(), t.map.peak_to_peak(), None),
+        AnyTable::Range(t) => (
+            t.map.len(),
+            t.map.peak_to_peak(),
+            Some((t.map.start().to_degrees(), t.map.end().to_degrees())),
+        ),
+    };
     let _ = writeln!(
         o,
-        "corrected {} readings of `{name}` in {} with {} ({} points, error peak-to-peak {:.3}″, \
-         interpolated linearly)",
-        done.readings,
+        "corrected {} readings of `{name}` in {} with {} ({points} points{}, error peak-to-peak \
+         {:.3}″, interpolated linearly)",
+        done.readings - done.outside,
         args.log.display(),
         args.table.display(),
-        map.len(),
-        map.peak_to_peak() * ARCSEC_PER_RAD
+        span.map_or(String::new(), |(lo, hi)| format!(
+            ", range {}° to {}°",
+            short(lo),
+            short(hi)
+        )),
+        pp * ARCSEC_PER_RAD
     );
     let unit = done.unit;
     let rev = unit.from_rad(std::f64::consts::TAU);
@@ -194,6 +214,17 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     }
     for w in warnings {
         let _ = writeln!(o, "note: {w}; copied unchanged");
+    }
+    if let Some((lo, hi)) = span.filter(|_| done.outside > 0) {
+        let _ = writeln!(
+            o,
+            "\nwarning: {} of {} readings of `{name}` lie outside the table's range {}° to {}° and were copied \
+             unchanged (a range table says nothing there); calibrate over the whole travel to correct them",
+            done.outside,
+            done.readings,
+            short(lo),
+            short(hi)
+        );
     }
     Ok(o)
 }

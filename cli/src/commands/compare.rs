@@ -18,6 +18,10 @@ use std::path::{Path, PathBuf};
 /// has a plus: uncertainties of independent results add.) U comes from --U1/--U2 if given, else
 /// from the table's expanded_uncertainty_arcsec column, else from k·u_arcsec (--k).
 ///
+/// Range tables (joints that never turn a whole revolution: a `# range_deg: LO to HI` first line)
+/// are compared over the range common to both maps, and since each is zero-mean over its own
+/// range, with the mean difference over the common range removed (said in the summary).
+///
 /// Writes DIR/compare.csv: angle_deg, error1_arcsec, error2_arcsec, difference_arcsec
 /// (error1 − error2), U1_arcsec, U2_arcsec, En.
 ///
@@ -67,9 +71,31 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     }
     let t1 = calib_io::points::read_points(&args.map1)?;
     let t2 = calib_io::points::read_points(&args.map2)?;
-    let m1 = with_expanded(&t1, &args.map1, args.u1, args.k, "--U1")?;
+    let mut m1 = with_expanded(&t1, &args.map1, args.u1, args.k, "--U1")?;
     let m2 = with_expanded(&t2, &args.map2, args.u2, args.k, "--U2")?;
-    let c = compare::compare(&m1, &m2, args.remove_mean).with_context(|| {
+    let common = common_range(&t1, &t2);
+    if let Some((lo, hi)) = common {
+        let before = m1.len();
+        m1.retain(|p| inside(p.angle_deg, lo, hi));
+        if m1.is_empty() {
+            return Err(crate::exit::Usage(format!(
+                "{} and {} have no range in common ({}): nothing to compare",
+                args.map1.display(),
+                args.map2.display(),
+                describe(&t1, &t2)
+            ))
+            .into());
+        }
+        if m1.len() < before {
+            eprintln!(
+                "note: comparing over the common range {lo:.6}° to {hi:.6}° ({} of MAP1's {before} points)",
+                m1.len()
+            );
+        }
+    }
+    // Range maps are zero-mean over their own ranges: over another range they differ by a constant.
+    let forced = common.is_some() && !args.remove_mean && !same_range(&t1, &t2);
+    let c = compare::compare(&m1, &m2, args.remove_mean || forced).with_context(|| {
         format!(
             "comparing {} with {}",
             args.map1.display(),
@@ -87,7 +113,21 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let stdout = if args.json {
         serde_json::to_string_pretty(&c)? + "\n"
     } else {
-        render_summary(args, &c, &csv_path)
+        let mut s = render_summary(args, &c, &csv_path);
+        if let Some((lo, hi)) = common {
+            s.insert_str(
+                0,
+                &format!(
+                    "range tables: compared over the common range {lo:.6}° to {hi:.6}°{}\n",
+                    if forced {
+                        " (mean difference removed: each map is zero-mean over its own range)"
+                    } else {
+                        ""
+                    }
+                ),
+            );
+        }
+        s
     };
     if c.failures > 0 {
         return Err(crate::exit::Failed {
@@ -103,6 +143,44 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     Ok(stdout)
+}
+
+/// A table's range, degrees: its own for a range table, the whole turn otherwise.
+fn range_of(t: &PointTable) -> (f64, f64) {
+    t.range.unwrap_or((0.0, 360.0))
+}
+
+/// The range common to two tables when either is a range table, `(lo, hi)` in degrees with `lo`
+/// in MAP1's range; `None` if both cover the whole turn (or nothing is common, as an empty range
+/// `lo > hi`).
+fn common_range(t1: &PointTable, t2: &PointTable) -> Option<(f64, f64)> {
+    if t1.range.is_none() && t2.range.is_none() {
+        return None;
+    }
+    let (a1, b1) = range_of(t1);
+    let (a2, b2) = range_of(t2);
+    // Shift MAP2's range by whole turns to overlap MAP1's where it can.
+    let shift = ((a1 - a2) / 360.0).round() * 360.0;
+    let best = [shift - 360.0, shift, shift + 360.0]
+        .into_iter()
+        .map(|k| (a1.max(a2 + k), b1.min(b2 + k)))
+        .max_by(|x, y| (x.1 - x.0).total_cmp(&(y.1 - y.0)))?;
+    Some(best)
+}
+
+fn same_range(t1: &PointTable, t2: &PointTable) -> bool {
+    let ((a1, b1), (a2, b2)) = (range_of(t1), range_of(t2));
+    (a1 - a2).abs() < 1e-6 && (b1 - b2).abs() < 1e-6
+}
+
+/// Whether `deg` (any turn) lies in `[lo, hi]` (within the 6-decimal rounding of a table).
+fn inside(deg: f64, lo: f64, hi: f64) -> bool {
+    lo <= hi && lo + (deg - lo + 1e-6).rem_euclid(360.0) - 1e-6 <= hi + 1e-6
+}
+
+fn describe(t1: &PointTable, t2: &PointTable) -> String {
+    let ((a1, b1), (a2, b2)) = (range_of(t1), range_of(t2));
+    format!("MAP1 covers {a1}° to {b1}°, MAP2 {a2}° to {b2}°")
 }
 
 /// The map's points with their expanded uncertainties.

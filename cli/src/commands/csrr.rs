@@ -3,7 +3,7 @@
 use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::document::csrr::{self as document, Comparisons};
 use crate::exit::Usage;
-use crate::input::{channel, open_log, parse_unit};
+use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
@@ -11,6 +11,7 @@ use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
 use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report, SessionReport};
+use calib_io::prefetch::Prefetch;
 use calib_report::trace::Trace;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -42,6 +43,12 @@ pub enum MethodArg {
 /// sensor's own reading, zero mean), DIR/report.json and DIR/report.html (error maps, spectrum,
 /// session timeline), and prints a summary. With several logs, each log's files go to
 /// DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
+///
+/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
+/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table
+/// is named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned
+/// on A's stamps (see --time, --max-gap).
 ///
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
@@ -102,6 +109,9 @@ pub struct Args {
     /// Pipelines and gates.
     #[command(flatten)]
     pub batch: BatchArgs,
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
+    #[command(flatten)]
+    pub input: LogArgs,
 }
 
 /// Runs `calib csrr`.
@@ -160,14 +170,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
-    let mut reader = open_log(log, args.unit)?;
-    let ia = channel(&reader, log, &args.a)?;
-    let ib = channel(&reader, log, &args.b)?;
-    let ir = args
-        .reference
-        .as_deref()
-        .map(|r| channel(&reader, log, r))
-        .transpose()?;
+    let mut names = vec![args.a.as_str(), args.b.as_str()];
+    names.extend(args.reference.as_deref());
+    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let (ia, ib) = (0, 1);
+    let ir = args.reference.as_ref().map(|_| 2);
     let opts = CsrrOptions {
         method: match args.method {
             MethodArg::Joint => Method::Joint,
@@ -196,13 +203,21 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         .transpose()?;
     let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
+    let (mut travel_a, mut travel_b) = (
+        crate::input::Travel::default(),
+        crate::input::Travel::default(),
+    );
     let bar = crate::ui::reading(log);
-    for (n, sample) in reader.by_ref().enumerate() {
+    // Decoding runs ahead on a second thread while this one segments and bins.
+    let mut samples = Prefetch::new(reader);
+    for (n, sample) in samples.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         if n as u64 % crate::ui::TICK == 0 {
             bar.inc(crate::ui::TICK);
         }
         trace.push(s.t, s.values[ia], s.values[ib]);
+        travel_a.push(s.values[ia]);
+        travel_b.push(s.values[ib]);
         match ir {
             Some(ir) => {
                 csrr.push_with_reference(s.t, s.values[ia], s.values[ib], s.values[ir], s.session)
@@ -211,10 +226,18 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         }
     }
     bar.finish_and_clear();
+    let reader = samples.finish();
     let solving = crate::ui::working("solving");
     let cal = csrr.finish();
     solving.finish_and_clear();
     let cal = cal.map_err(|e| {
+        let needs = "CSRR's self-calibration needs sessions of whole turns";
+        if let Some(hint) = travel_a
+            .no_whole_turn(log, &args.a, needs)
+            .or_else(|| travel_b.no_whole_turn(log, &args.b, needs))
+        {
+            return anyhow::Error::new(e).context(hint);
+        }
         let pair = format!("{}: channels `{}` and `{}`", log.display(), args.a, args.b);
         let context = match &e {
             CsrrError::NeverMoves { sensor } => {
@@ -238,7 +261,10 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, log, &cal, warnings);
+    let mut report = build_report(args, log, &cal, warnings);
+    if let Some(a) = alignment_detail(&reader) {
+        report.details.insert("alignment".to_string(), a);
+    }
     let json = calib_io::report::render_json(&report)?;
     let comparisons = Comparisons {
         truth: truth.as_ref().map(|(a, b)| (a, b)),
@@ -252,14 +278,26 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     );
     let files = write_tables_and_report(
         out,
-        &[(&args.a, &cal.a, None), (&args.b, &cal.b, None)],
+        &[
+            (
+                &args.a,
+                &cal.a,
+                cal.uncertainty.as_ref().map(|(u, _)| u.u.as_slice()),
+            ),
+            (
+                &args.b,
+                &cal.b,
+                cal.uncertainty.as_ref().map(|(_, u)| u.u.as_slice()),
+            ),
+        ],
         &json,
         &doc,
     )?;
     let text = if args.json {
         json
     } else {
-        render_summary(args, out, &cal, &report, &comparisons)
+        alignment_text(reader.alignment().as_ref())
+            + &render_summary(args, out, &cal, &report, &comparisons)
     };
     let channels = [(&args.a, true), (&args.b, false)]
         .into_iter()
@@ -337,6 +375,15 @@ fn build_report(args: &Args, log: &Path, cal: &Calibration, warnings: Vec<String
     let mut details = BTreeMap::new();
     details.insert("solver".to_string(), json!(cal.method));
     details.insert("max_order".to_string(), json!(cal.max_order));
+    if let Some((ua, ub)) = &cal.uncertainty {
+        details.insert(
+            "uncertainty".to_string(),
+            json!({
+                args.a.clone(): crate::document::uncertainty_json(ua),
+                args.b.clone(): crate::document::uncertainty_json(ub),
+            }),
+        );
+    }
     details.insert(
         "excluded_orders".to_string(),
         json!(
@@ -470,6 +517,20 @@ fn render_summary(
                 cal.max_order
             ),
         )),
+    }
+    if let Some((ua, ub)) = &cal.uncertainty {
+        facts.push((
+            "uncertainty u",
+            format!(
+                "max {:.4}″ rms {:.4}″ ({}), max {:.4}″ rms {:.4}″ ({}) — standard, at every table point",
+                ua.max() * ARCSEC_PER_RAD,
+                ua.rms() * ARCSEC_PER_RAD,
+                args.a,
+                ub.max() * ARCSEC_PER_RAD,
+                ub.rms() * ARCSEC_PER_RAD,
+                args.b
+            ),
+        ));
     }
     if let Some(r) = &cal.reference {
         facts.push((

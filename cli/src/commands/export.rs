@@ -1,61 +1,170 @@
-//! `calib export`: a correction table in the forms controllers load.
+//! `calib export`: a correction table in the forms controllers load. The formats live in
+//! `calib_io::export`; this command parses, reads the table, and writes.
 
 use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::ErrorMap;
-use calib_core::angle::{ARCSEC_PER_RAD, DEG_PER_RAD};
-use std::f64::consts::PI;
-use std::fmt::Write;
+use calib_io::export::{self, ExportError, ExportOptions, Keep, Span};
+use calib_io::table::AnyTable;
 use std::path::PathBuf;
 
-/// The output form.
+/// The output form, and where it is loaded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
-    /// One f32 per line: the correction in radians.
+    /// Own firmware: one f32 per line, the correction in radians.
     LutF32Rad,
-    /// One signed 16-bit code per line: correction = code × scale.
+    /// Own firmware: one int16 code per line, correction = code × scale.
     LutI16,
-    /// One unsigned 16-bit code per line (offset binary): correction = (code − 32768) × scale.
+    /// Own firmware: one uint16 code per line, correction = (code − 32768) × scale.
     LutU16,
-    /// One signed 8-bit code per line: correction = code × scale.
+    /// Own firmware: one int8 code per line, correction = code × scale.
     LutI8,
-    /// A C header with a `float` array of the correction in arcseconds.
+    /// Own firmware: a C header, a float array of the correction in arcseconds.
     CArray,
-    /// `angle_deg,correction_arcsec` rows.
+    /// Spreadsheets and scripts: `angle_deg,correction_arcsec` rows.
     Csv,
-    /// The correction's largest harmonics: `order,amplitude_arcsec,phase_deg` rows.
+    /// Own firmware summing harmonics: `order,amplitude_arcsec,phase_deg` rows of the correction.
     Harmonic,
+    /// mjbots moteus (firmware ≥ 0x0109): `conf set` lines for `moteus_tool -t ID --write-config
+    /// FILE` or its `--console`, ending with `conf write` (no comments: the header goes to the
+    /// terminal).
+    Moteus,
+    /// mjbots moteus: the same settings as `key value` lines with a `#` header, for `moteus_tool
+    /// -t ID --restore-config FILE`.
+    MoteusConfig,
+    /// SimpleFOC: C++ defining `float calib_lut[N]` for `CalibratedSensor(sensor, N, calib_lut)`
+    /// in the sketch.
+    Simplefoc,
+    /// SimpleFOC: the same table as `const uint16_t` codes (flash), decoded into `calib_lut` by
+    /// `calib_lut_load()` in `setup()`.
+    SimplefocU16,
+}
+
+impl Format {
+    fn to_io(self) -> export::Format {
+        match self {
+            Format::LutF32Rad => export::Format::LutF32Rad,
+            Format::LutI16 => export::Format::LutI16,
+            Format::LutU16 => export::Format::LutU16,
+            Format::LutI8 => export::Format::LutI8,
+            Format::CArray => export::Format::CArray,
+            Format::Csv => export::Format::Csv,
+            Format::Harmonic => export::Format::Harmonic,
+            Format::Moteus => export::Format::Moteus,
+            Format::MoteusConfig => export::Format::MoteusConfig,
+            Format::Simplefoc => export::Format::Simplefoc,
+            Format::SimplefocU16 => export::Format::SimplefocU16,
+        }
+    }
 }
 
 /// Export a correction table (from any method) in a form a controller loads.
 ///
-/// Every output starts with a comment stating the sign convention (correction = −error, applied
-/// as reading + correction(reading)), the grid (entry i at reading i·360/N degrees), the units
-/// and, for integer look-up tables, the scale. Integer formats refuse to saturate: a scale too
-/// small for the table is an error naming the smallest that fits.
+/// Every output starts with a header stating calib's sign convention (correction = −error,
+/// applied as reading + correction(reading)), the grid (entry i at reading i·360/N degrees), the
+/// units and, for integer tables, the scale; then what the controller does with the numbers. The
+/// controllers differ: moteus adds its table (it holds the correction, in revolutions), SimpleFOC
+/// subtracts its table (it holds the error, in radians). Integer formats refuse to saturate: a
+/// scale too small for the table is an error naming the smallest that fits.
+///
+/// moteus: 256 int8 entries (the firmware's fixed size) and compensation_scale, the largest
+/// |correction| so no entry saturates; entry i at i/256 of a revolution of the source's reading
+/// after its offset and sign (offset_value), interpolated linearly, added to the reading
+/// (mjbots/moteus fw/motor_position.h, commit 06a3d52). Not established from the source: whether
+/// the firmware parses exponent notation, so the scale is written in plain decimals.
+///
+/// SimpleFOC: CalibratedSensor(sensor, N, lut) subtracts lut(raw), interpolated linearly between
+/// entries at raw angle i·2π/N of the wrapped sensor's getMechanicalAngle()
+/// (simplefoc/Arduino-FOC-drivers src/encoders/calibrated/CalibratedSensor.cpp, commit 011c612).
+/// No uint16 table was found in the driver: simplefoc-u16 is calib's compact storage, decoded
+/// into the float table the driver takes.
+///
+/// --harmonics N / --orders LIST keep only those orders of the table's Fourier series and
+/// evaluate them exactly at the output grid points (smoothing before resampling, so dropped
+/// orders cannot alias); the header says which orders were kept and what the dropped ones amount
+/// to (peak to peak and RMS). Controller formats, and any export with chosen orders, end their
+/// header with the fit: how close the table, decoded and interpolated as the controller does, is
+/// to the source table at its points.
+///
+/// A range table (a joint that never turns a whole revolution, from calib reference) exports as
+/// a look-up table (lut-*, c-array, csv) whose header names the range: entry i at reading
+/// LO + i·(HI − LO)/(N − 1), both ends included, readings outside left uncorrected. The formats a
+/// controller interpolates periodically (moteus, simplefoc, harmonic) and chosen orders need a
+/// whole turn and refuse it.
+///
+/// Example: `calib export calib-out/a.csv --format moteus --source 0 -o a.moteus`
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
     /// The correction table (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
     pub table: PathBuf,
-    /// The output form.
+    /// The output form (see --help for where each is loaded).
     #[arg(long, value_enum)]
     pub format: Format,
-    /// Points of the output grid (default: the table's); resampled by periodic linear
-    /// interpolation.
+    /// Points of the output grid (default: the table's; moteus: 256, the only size it takes);
+    /// resampled by periodic linear interpolation, or resynthesized from the chosen orders.
     #[arg(long)]
     pub points: Option<usize>,
-    /// Arcseconds per LSB of integer formats (default: the smallest that fits the table).
+    /// Arcseconds per LSB of integer formats (lut-i8/i16/u16, moteus, simplefoc-u16; default:
+    /// the smallest that holds the table).
     #[arg(long)]
     pub scale: Option<f64>,
-    /// `harmonic`: keep the K largest orders (default: all of at least --min-amplitude).
-    #[arg(long)]
-    pub orders: Option<usize>,
-    /// `harmonic`: smallest amplitude kept, arcseconds.
+    /// Keep the N orders of largest amplitude (among those the output grid holds); with
+    /// --format harmonic, list those N.
+    #[arg(long, value_name = "N", conflicts_with = "orders")]
+    pub harmonics: Option<usize>,
+    /// Keep these orders, e.g. `1,2,72` or `1-8,72,144`.
+    #[arg(long, value_name = "LIST", value_parser = parse_orders)]
+    pub orders: Option<Orders>,
+    /// `harmonic` without --harmonics or --orders: smallest amplitude listed, arcseconds.
     #[arg(long, default_value_t = 0.01)]
     pub min_amplitude: f64,
+    /// moteus: the motor_position source the table is for (0, 1 or 2).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..3))]
+    pub source: u8,
     /// Output file (default: standard output).
     #[arg(short, long = "output")]
     pub output: Option<PathBuf>,
+}
+
+/// A list of harmonic orders (`--orders`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Orders(pub Vec<usize>);
+
+/// Largest order a range in `--orders` may reach (the largest order of a 3,600,000-point table).
+const MAX_ORDER: usize = calib_io::limits::MAX_TABLE_POINTS / 2;
+
+/// Parses `1,2,72` or `1-8,72,144`.
+fn parse_orders(text: &str) -> Result<Orders, String> {
+    let bad = |part: &str| {
+        format!("`{part}` is not an order or a range of orders; write e.g. 1,2,72 or 1-8,72,144")
+    };
+    let order = |s: &str| -> Result<usize, String> {
+        match s.trim().parse::<usize>() {
+            Ok(h) if (1..=MAX_ORDER).contains(&h) => Ok(h),
+            _ => Err(bad(s.trim())),
+        }
+    };
+    let mut orders = Vec::new();
+    for part in text.split(',') {
+        match part.split_once('-') {
+            Some((a, b)) => {
+                let (a, b) = (order(a)?, order(b)?);
+                if a > b {
+                    return Err(bad(part.trim()));
+                }
+                orders.extend(a..=b);
+            }
+            None => orders.push(order(part)?),
+        }
+    }
+    Ok(Orders(orders))
+}
+
+/// An export error as an exit status: each is a choice of options this table cannot be written
+/// with (a scale that saturates, a size or orders the format does not take, a periodic format for
+/// a range table), so a usage error (exit 2).
+fn classify(err: ExportError) -> anyhow::Error {
+    Usage(err.to_string()).into()
 }
 
 /// Runs `calib export`.
@@ -65,8 +174,8 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         return Err(Usage("--scale must be a positive number of arcseconds per LSB".into()).into());
     }
     crate::input::check_non_negative("--min-amplitude", args.min_amplitude, "arcseconds")?;
-    if args.orders == Some(0) {
-        return Err(Usage("--orders 0 is outside its range: at least 1".into()).into());
+    if args.harmonics == Some(0) {
+        return Err(Usage("--harmonics 0 is outside its range: at least 1".into()).into());
     }
     if !args.table.exists() {
         return Err(Usage(format!(
@@ -75,158 +184,80 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    let table = calib_io::table::read_table(&args.table)
+    let table = calib_io::table::read_any_table(&args.table)
         .with_context(|| format!("cannot read {}", args.table.display()))?;
-    let map = match args.points {
-        Some(n) if n != table.map.len() => table.map.resample_linear(n),
-        _ => table.map,
+    let (map, span) = match table {
+        AnyTable::Turn(t) => (t.map, Span::WHOLE),
+        AnyTable::Range(t) => (
+            ErrorMap::new(t.map.values().to_vec()),
+            Span {
+                start_deg: t.map.start().to_degrees(),
+                end_deg: t.map.end().to_degrees(),
+            },
+        ),
     };
-    let text = render(args, &map).with_context(|| format!("{}", args.table.display()))?;
+    let mut opts = ExportOptions::new(
+        args.format.to_io(),
+        format!(
+            "calib {} export of {}",
+            env!("CARGO_PKG_VERSION"),
+            args.table.display()
+        ),
+    );
+    opts.points = args.points;
+    opts.scale_arcsec = args.scale;
+    opts.keep = match (&args.harmonics, &args.orders) {
+        (Some(n), _) => Keep::Largest(*n),
+        (None, Some(Orders(list))) => Keep::Orders(list.clone()),
+        (None, None) => Keep::All,
+    };
+    opts.min_amplitude_arcsec = args.min_amplitude;
+    opts.moteus_source = args.source;
+    // A range table is refused by every format that needs a whole turn.
+    opts.span = span;
+    let out = export::export(&map, &opts)
+        .map_err(classify)
+        .with_context(|| format!("{}", args.table.display()))?;
+    // moteus's `conf set` lines cannot carry comments: their header goes to the terminal.
+    let uncommented = opts.format == export::Format::Moteus;
     match &args.output {
         Some(path) => {
-            calib_io::atomic::write_atomic(path, text.as_bytes())?;
-            Ok(format!("wrote {}\n", path.display()))
-        }
-        None => Ok(text),
-    }
-}
-
-/// The correction at each grid point, arcseconds.
-fn corrections(map: &ErrorMap) -> Vec<f64> {
-    map.values().iter().map(|e| -e * ARCSEC_PER_RAD).collect()
-}
-
-/// The export as text (pure).
-fn render(args: &Args, map: &ErrorMap) -> anyhow::Result<String> {
-    let n = map.len();
-    let c = corrections(map);
-    let comment = if args.format == Format::CArray {
-        "//"
-    } else {
-        "#"
-    };
-    let mut o = String::new();
-    let mut head = |line: String| {
-        let _ = writeln!(o, "{comment} {line}");
-    };
-    head(format!(
-        "calib {} export of {}",
-        env!("CARGO_PKG_VERSION"),
-        args.table.display()
-    ));
-    head(
-        "sign: correction = -error (error = reading - true angle); corrected = reading + correction(reading)"
-            .into(),
-    );
-    head(format!(
-        "grid: entry i at reading i*360/{n} deg (i = 0..{}), 0 at reading 0, step {} deg, periodic; interpolate linearly",
-        n - 1,
-        360.0 / n as f64
-    ));
-    let codes = |max_code: i64, offset: i64| -> anyhow::Result<(f64, Vec<i64>)> {
-        let largest = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        // The smallest scale that fits: the largest |correction| on the largest code.
-        let fits = largest / max_code as f64;
-        let scale = args.scale.unwrap_or(if fits > 0.0 { fits } else { 1.0 });
-        if largest / scale > max_code as f64 + 0.5 {
-            return Err(Usage(format!(
-                "the largest |correction| is {largest:.6}″, which at --scale {scale} ″/LSB needs code {:.0}, beyond ±{max_code}; \
-                 use --scale {fits:.6e} or larger",
-                largest / scale
-            ))
-            .into());
-        }
-        Ok((
-            scale,
-            c.iter()
-                .map(|v| (v / scale).round() as i64 + offset)
-                .collect(),
-        ))
-    };
-    let mut body = String::new();
-    match args.format {
-        Format::LutF32Rad => {
-            head(format!("units: radians (f32), one per line, {n} lines"));
-            for v in &c {
-                let _ = writeln!(body, "{:e}", (v / ARCSEC_PER_RAD) as f32);
-            }
-        }
-        Format::LutI16 | Format::LutU16 | Format::LutI8 => {
-            let (max_code, offset, kind) = match args.format {
-                Format::LutI16 => (i64::from(i16::MAX), 0, "int16"),
-                Format::LutU16 => (i64::from(i16::MAX), 32768, "uint16 offset binary"),
-                _ => (i64::from(i8::MAX), 0, "int8"),
-            };
-            let (scale, codes) = codes(max_code, offset)?;
-            head(format!("units: {kind} codes, one per line, {n} lines"));
-            if offset == 0 {
-                head(format!("scale: correction_arcsec = code * {scale:e}"));
-            } else {
-                head(format!(
-                    "scale: correction_arcsec = (code - {offset}) * {scale:e}"
-                ));
-            }
-            for k in codes {
-                let _ = writeln!(body, "{k}");
-            }
-        }
-        Format::CArray => {
-            head("units: arcseconds (float)".into());
-            let _ = writeln!(body, "#define CALIB_CORRECTION_POINTS {n}");
-            let _ = writeln!(
-                body,
-                "#define CALIB_CORRECTION_STEP_DEG {:e}",
-                360.0 / n as f64
-            );
-            let _ = writeln!(
-                body,
-                "static const float calib_correction_arcsec[CALIB_CORRECTION_POINTS] = {{"
-            );
-            for chunk in c.chunks(8) {
-                let row: Vec<String> = chunk.iter().map(|v| format!("{v:.6}f")).collect();
-                let _ = writeln!(body, "    {},", row.join(", "));
-            }
-            let _ = writeln!(body, "}};");
-        }
-        Format::Csv => {
-            head("units: degrees, arcseconds".into());
-            let _ = writeln!(body, "angle_deg,correction_arcsec");
-            for (i, v) in c.iter().enumerate() {
-                let _ = writeln!(body, "{:.6},{v:.6}", 360.0 * i as f64 / n as f64);
-            }
-        }
-        Format::Harmonic => {
-            // The correction is −error: same amplitudes, phases turned by 180°.
-            let mut hs: Vec<(usize, f64, f64)> = map
-                .series()
-                .harmonics()
+            calib_io::atomic::write_atomic(path, out.text.as_bytes())?;
+            let mut o = format!("wrote {}\n", path.display());
+            let shown = out
+                .header
                 .iter()
-                .map(|h| {
-                    let phase = (h.phase + PI).rem_euclid(2.0 * PI);
-                    let phase = if phase > PI { phase - 2.0 * PI } else { phase };
-                    (h.order, h.amplitude * ARCSEC_PER_RAD, phase * DEG_PER_RAD)
-                })
-                .collect();
-            hs.sort_by(|a, b| b.1.total_cmp(&a.1));
-            let keep = match args.orders {
-                Some(k) => k.min(hs.len()),
-                None => hs.iter().filter(|h| h.1 >= args.min_amplitude).count(),
-            };
-            let total_ms = c.iter().map(|v| v * v).sum::<f64>() / n as f64;
-            let kept_ms = hs[..keep].iter().map(|h| h.1 * h.1 / 2.0).sum::<f64>();
-            head("units: amplitude arcseconds, phase degrees; correction(θ) = Σ amplitude·cos(order·θ + phase), θ the reading".into());
-            head(format!(
-                "kept: {keep} of {} orders, largest first; dropped: {} orders, RMS {:.6} arcsec",
-                hs.len(),
-                hs.len() - keep,
-                (total_ms - kept_ms).max(0.0).sqrt()
-            ));
-            let _ = writeln!(body, "order,amplitude_arcsec,phase_deg");
-            for (order, a, p) in &hs[..keep] {
-                let _ = writeln!(body, "{order},{a:.6},{p:.6}");
+                .skip(1)
+                .filter(|l| uncommented || l.starts_with("fit: "));
+            for line in shown {
+                o.push_str(&format!("  {line}\n"));
             }
+            Ok(o)
+        }
+        None => {
+            if uncommented {
+                for line in &out.header {
+                    eprintln!("# {line}");
+                }
+            }
+            Ok(out.text)
         }
     }
-    o.push_str(&body);
-    Ok(o)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn orders_parse_as_lists_and_ranges() {
+        assert_eq!(parse_orders("1,2,72"), Ok(Orders(vec![1, 2, 72])));
+        assert_eq!(
+            parse_orders("1-4, 72,144"),
+            Ok(Orders(vec![1, 2, 3, 4, 72, 144]))
+        );
+        for bad in ["", "0", "3-1", "a", "1,,2", "-3", "2-"] {
+            assert!(parse_orders(bad).is_err(), "{bad}");
+        }
+    }
 }

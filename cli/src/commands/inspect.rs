@@ -1,11 +1,12 @@
 //! `calib inspect`: what a log holds.
 
-use crate::input::{channel, open_log_with, parse_unit};
+use crate::input::{LogArgs, alignment_text, channel, open_log_with, parse_unit};
 use anyhow::Context;
 use calib_core::AngleUnit;
 use calib_core::inspect::{Inspection, Inspector};
 use calib_core::segment::{SegmentKind, SegmentOptions};
 use calib_io::ReadOptions;
+use calib_io::mcap_log::TopicInfo;
 use std::fmt::Write;
 use std::path::PathBuf;
 
@@ -14,7 +15,14 @@ use std::path::PathBuf;
 /// Lists the channels (unit, range, revolutions), the exact sample count, duration, sample rate
 /// and its jitter, gaps and time stamps that go backwards, the segments of the log for a pair of
 /// channels — stationary, rotating together (CSRR sessions, with the relative angle between the
-/// two), turning — and the speed variation over a revolution in cycles per revolution.
+/// two), turning — and the speed variation over a revolution in cycles per revolution. For an
+/// MCAP log it lists every topic first: message type, encoding, message count, rate, and its
+/// channels by the names the other commands accept.
+///
+/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
+/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder). Channels on separate topics are aligned on the stamps of
+/// the pair's first channel (or the log's first channel), as the methods do.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
     /// The log (.csv or .mcap).
@@ -31,17 +39,20 @@ pub struct Args {
     /// Print the findings as JSON instead of tables.
     #[arg(long)]
     pub json: bool,
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
+    #[command(flatten)]
+    pub input: LogArgs,
 }
 
 /// Runs `calib inspect`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
+    let (opts, align) = args.input.options(args.unit)?;
     let opts = ReadOptions {
-        unit: args.unit,
         allow_unordered_time: true,
-        skip_damaged: crate::ui::skip_damaged(),
+        ..opts
     };
     let mut reader = open_log_with(&args.log, opts)?;
-    let names: Vec<String> = reader.channels().iter().map(|c| c.name.clone()).collect();
+    let names: Vec<String> = reader.names().iter().map(|n| n.display.clone()).collect();
     let pick =
         |given: &Option<String>, default: &str, fallback: usize| -> anyhow::Result<Option<usize>> {
             match given {
@@ -58,6 +69,14 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         (Some(a), Some(b)) if a != b => Some((a, b)),
         _ => None,
     };
+    // Every channel, the pair's first (or the log's first) leading: it sets the clock.
+    let clock = pair.map_or(0, |(a, _)| a);
+    let order: Vec<usize> = std::iter::once(clock)
+        .chain((0..names.len()).filter(|&i| i != clock))
+        .collect();
+    reader.select(&order, align);
+    let at = |raw: usize| order.iter().position(|&i| i == raw).unwrap_or(0);
+    let pair = pair.map(|(a, b)| (at(a), at(b)));
     let marks = reader.has_session_marks();
     let mut inspector = Inspector::new(
         reader.channels(),
@@ -77,12 +96,74 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     }
     let mut warnings = reader.warnings(&args.log);
     warnings.extend(reader.notes());
+    let topics = reader.topics();
+    let alignment = reader.alignment();
     if args.json {
-        let value =
-            serde_json::json!({ "log": args.log, "inspection": result, "warnings": warnings });
+        let value = serde_json::json!({
+            "log": args.log,
+            "topics": topics,
+            "alignment": alignment,
+            "inspection": result,
+            "warnings": warnings,
+        });
         return Ok(calib_io::report::render_json(&value)?);
     }
-    Ok(render(&args.log, &result, &warnings))
+    Ok(render_topics(&topics)
+        + &render(&args.log, &result, &warnings)
+        + &alignment_text(alignment.as_ref()))
+}
+
+/// Width the channel lists of the topic table are wrapped at.
+const LINE_WIDTH: usize = 100;
+
+/// The topic table: one line per topic (type, encoding, messages, rate), its channels wrapped
+/// below it; empty for a log without topics (CSV).
+fn render_topics(topics: &[TopicInfo]) -> String {
+    let mut o = String::new();
+    if topics.is_empty() {
+        return o;
+    }
+    let read = topics.iter().filter(|t| !t.channels.is_empty()).count();
+    let _ = writeln!(o, "topics: {read} read, {} not read", topics.len() - read);
+    let width = topics.iter().map(|t| t.topic.len()).max().unwrap_or(0);
+    let type_width = topics.iter().map(|t| t.schema.len()).max().unwrap_or(0);
+    for t in topics {
+        let rate = t
+            .rate_hz
+            .map_or_else(|| "—".to_string(), |r| format!("{r:.2} Hz"));
+        let _ = writeln!(
+            o,
+            "  {:<width$}  {:<type_width$}  {:<5} {:>9} msg {:>12}{}",
+            t.topic,
+            t.schema,
+            t.message_encoding,
+            t.messages,
+            rate,
+            if t.channels.is_empty() {
+                "  (not read)"
+            } else {
+                ""
+            }
+        );
+        let mut line = String::from("     ");
+        for (i, c) in t.channels.iter().enumerate() {
+            let item = if i + 1 < t.channels.len() {
+                format!(" {c},")
+            } else {
+                format!(" {c}")
+            };
+            if line.len() + item.len() > LINE_WIDTH && line.len() > 5 {
+                let _ = writeln!(o, "{line}");
+                line = String::from("     ");
+            }
+            line.push_str(&item);
+        }
+        if line.len() > 5 {
+            let _ = writeln!(o, "{line}");
+        }
+    }
+    let _ = writeln!(o);
+    o
 }
 
 /// The human report.

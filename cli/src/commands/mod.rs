@@ -2,6 +2,7 @@
 
 pub mod apply;
 pub mod compare;
+pub mod compose;
 pub mod csrr;
 pub mod export;
 pub mod inspect;
@@ -29,5 +30,6 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Export(args) => export::run(&args),
         Command::Tdr(args) => tdr::run(&args),
         Command::Apply(args) => apply::run(&args),
+        Command::Compose(args) => compose::run(&args),
     }
 }

@@ -2,7 +2,7 @@
 
 use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{channel, open_log, parse_unit};
+use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
 use crate::output::{table_name, write_tables_and_report};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -46,6 +46,12 @@ pub enum MethodArg {
 /// summary. With several logs, each log's files go to DIR/<log stem>/ and DIR/summary.json holds
 /// every log's verdict.
 ///
+/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
+/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table
+/// is named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned
+/// on the stamps of the first head (see --time, --max-gap).
+///
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
@@ -88,6 +94,9 @@ pub struct Args {
     /// Pipelines and gates.
     #[command(flatten)]
     pub batch: BatchArgs,
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
+    #[command(flatten)]
+    pub input: LogArgs,
 }
 
 /// One `NAME@DEG` of `--heads`.
@@ -212,20 +221,31 @@ fn calibrate(
     out: &Path,
 ) -> anyhow::Result<Outcome> {
     let mut mh = Multihead::new(heads.to_vec(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
-    let mut reader = open_log(log, args.unit)?;
-    let columns = heads
-        .iter()
-        .map(|h| channel(&reader, log, &h.name))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let names: Vec<&str> = heads.iter().map(|h| h.name.as_str()).collect();
+    let mut reader = open_selected(log, args.unit, &args.input, &names)?;
+    let columns: Vec<usize> = (0..names.len()).collect();
     let mut readings = vec![0.0; columns.len()];
+    let mut travel = crate::input::Travel::default();
     for sample in reader.by_ref() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         for (r, &c) in readings.iter_mut().zip(&columns) {
             *r = s.values[c];
         }
+        travel.push(readings[0]);
         mh.push(&readings);
     }
-    let cal = mh.finish().with_context(|| {
+    let cal = mh.finish().map_err(|e| {
+        let hint = travel.no_whole_turn(
+            log,
+            &heads[0].name,
+            "multi-head self-calibration needs the scale to turn whole revolutions past the heads",
+        );
+        match hint {
+            Some(hint) => anyhow::Error::new(e).context(hint),
+            None => anyhow::Error::new(e),
+        }
+    });
+    let cal = cal.with_context(|| {
         format!(
             "{}: heads {}",
             log.display(),
@@ -240,7 +260,10 @@ fn calibrate(
     warnings.extend(cal.warnings.iter().cloned());
 
     let first = &heads[0].name;
-    let report = build_report(log, heads, &cal, warnings);
+    let mut report = build_report(log, heads, &cal, warnings);
+    if let Some(a) = alignment_detail(&reader) {
+        report.details.insert("alignment".to_string(), a);
+    }
     let json = calib_io::report::render_json(&report)?;
     let files = write_tables_and_report(
         out,
@@ -251,7 +274,8 @@ fn calibrate(
     let text = if args.json {
         json
     } else {
-        render_summary(args, out, heads, &cal, &report)
+        alignment_text(reader.alignment().as_ref())
+            + &render_summary(args, out, heads, &cal, &report)
     };
     Ok(Outcome {
         text,

@@ -82,12 +82,27 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         writer.write(&sample)?;
     }
     let truths = scenario.truth(args.points)?;
+    // A swept joint's truth covers the readings it swept (a range table), where that is less
+    // than a whole turn.
+    let ranges = scenario.range_truth(args.points)?;
     let dir = truth_dir(&args.output);
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut written = Vec::new();
-    for (name, map) in &truths {
+    let mut peaks = Vec::new();
+    for (k, (name, map)) in truths.iter().enumerate() {
         let path = dir.join(table_name(name));
-        calib_io::table::write_table(&path, map, None)?;
+        match ranges.as_ref().and_then(|r| r[k].1.as_ref()) {
+            Some(range) => {
+                let text = calib_io::table::render_range_table(range, None)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                calib_io::atomic::write_atomic(&path, text.as_bytes())?;
+                peaks.push((range.peak_to_peak(), " (range table)"));
+            }
+            None => {
+                calib_io::table::write_table(&path, map, None)?;
+                peaks.push((map.peak_to_peak(), ""));
+            }
+        }
         written.push(path);
     }
     writer.finish()?;
@@ -100,12 +115,12 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         count,
         channels.len()
     );
-    for ((name, map), path) in truths.iter().zip(&written) {
+    for (((name, _), path), (pp, kind)) in truths.iter().zip(&written).zip(&peaks) {
         let _ = writeln!(
             out,
-            "  truth of {:<12} peak-to-peak {:>10.3}″ → {}",
+            "  truth of {:<12} peak-to-peak {:>10.3}″ → {}{kind}",
             name,
-            map.peak_to_peak() * calib_core::angle::ARCSEC_PER_RAD,
+            pp * calib_core::angle::ARCSEC_PER_RAD,
             path.display()
         );
     }

@@ -2,11 +2,15 @@
 
 use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{channel, command_line, open_log, parse_unit};
+use crate::input::{
+    LogArgs, alignment_detail, alignment_text, command_line, open_selected, parse_unit,
+};
 use crate::output::{table_name, write_tables_and_report};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
+use calib_core::tdr::{
+    FALSE_ORDER_PROBABILITY, Tdr, TdrCalibration, TdrOptions, significance_threshold,
+};
 use calib_core::{AngleUnit, ChannelReport, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -15,6 +19,9 @@ use std::path::{Path, PathBuf};
 
 /// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
 const MAX_ORDER: usize = 1000;
+/// Largest `--max-drag-order` accepted: a drag's imprint falls as 1/h², and each order costs
+/// two columns of the dense fit.
+const MAX_DRAG_ORDER: usize = 100;
 /// Largest `--motion-degree` accepted (Chebyshev series of higher degree can follow the error).
 const MAX_DEGREE: usize = 60;
 
@@ -27,16 +34,27 @@ const MAX_DEGREE: usize = 60;
 /// in time) and the map (a Fourier series of the reading) are fitted together by least squares.
 /// A driven plateau before the release and the slow end of the coast are left out.
 ///
-/// It cannot tell encoder error from an angle-dependent drag (rolling bearings, motor cogging,
-/// unbalance): a drag deceleration a_h at order h appears in the map as a_h/h²·⟨ω⁻²⟩. Use an air
-/// bearing with the motor uncoupled, and read the warnings: the fit checks whether the map
-/// changes with speed the way drag would make it. With --ref, the map is also checked against a
-/// reference encoder on the same shaft.
+/// The orders come from the data: every order the coast resolves is tested (by default up to
+/// 0.4 × the samples per revolution at its slowest end) and those standing above the noise are
+/// kept; periodic structure left in the residual above the highest order is warned about.
+///
+/// An angle-dependent drag (rolling bearings, motor cogging, unbalance) shakes the shaft by
+/// a_h/(h·ω)² at order h. Its imprint grows as 1/ω² while the encoder's error does not change
+/// with speed, so over a coast whose speed falls enough (1/ω² varying by ≥ 10 % RMS) the drag is
+/// fitted jointly and separated from the map, and reported. Over a narrower coast it cannot be,
+/// and the warnings say how far the shaft must coast down. With --ref, the map is also checked
+/// against a reference encoder on the same shaft.
 ///
 /// Writes DIR/<channel>.csv (angle_deg, error_arcsec, correction_arcsec; error = reading − true
 /// angle, correction = −error, a function of the encoder's own reading, zero mean) and
 /// DIR/report.json and DIR/report.html, and prints a summary. With several logs, each log's files
 /// go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
+///
+/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
+/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table
+/// is named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned
+/// on the stamps of --channel (see --time, --max-gap).
 ///
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
@@ -54,10 +72,13 @@ pub struct Args {
     /// Output folder.
     #[arg(short, long = "output", default_value = "calib-out")]
     pub output: PathBuf,
-    /// Highest harmonic order of the map. Keep it below half the samples per revolution at the
-    /// highest speed.
-    #[arg(long, default_value_t = 32)]
-    pub max_order: usize,
+    /// Highest harmonic order tested. Default: 0.4 × the samples per revolution where the coast
+    /// is slowest (at most 500). Only orders that stand above the noise are kept in the map.
+    #[arg(long)]
+    pub max_order: Option<usize>,
+    /// Highest order of angle-dependent drag fitted and separated from the map (0: none).
+    #[arg(long, default_value_t = 16)]
+    pub max_drag_order: usize,
     /// Degree of the motion's polynomial (Chebyshev series in time); default: chosen by the
     /// Bayesian information criterion, at most 30 and at most half the revolutions.
     #[arg(long)]
@@ -77,6 +98,9 @@ pub struct Args {
     /// Pipelines and gates.
     #[command(flatten)]
     pub batch: BatchArgs,
+    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
+    #[command(flatten)]
+    pub input: LogArgs,
 }
 
 /// Runs `calib tdr`.
@@ -89,8 +113,17 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     crate::input::check_points(Some(args.points))?;
-    if !(1..=MAX_ORDER).contains(&args.max_order) {
+    if args
+        .max_order
+        .is_some_and(|h| !(1..=MAX_ORDER).contains(&h))
+    {
         return Err(Usage(format!("--max-order must be between 1 and {MAX_ORDER}")).into());
+    }
+    if args.max_drag_order > MAX_DRAG_ORDER {
+        return Err(Usage(format!(
+            "--max-drag-order must be between 0 and {MAX_DRAG_ORDER}"
+        ))
+        .into());
     }
     if args
         .motion_degree
@@ -116,45 +149,59 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
-    let mut reader = open_log(log, args.unit)?;
-    let ic = channel(&reader, log, &args.channel)?;
-    let ir = args
-        .reference
-        .as_ref()
-        .map(|r| channel(&reader, log, r))
-        .transpose()?;
+    let mut names = vec![args.channel.as_str()];
+    names.extend(args.reference.as_deref());
+    let mut reader = open_selected(log, args.unit, &args.input, &names)?;
+    let ic = 0;
+    let ir = args.reference.as_ref().map(|_| 1);
     let mut tdr = Tdr::new(TdrOptions {
         max_order: args.max_order,
+        max_drag_order: args.max_drag_order,
         motion_degree: args.motion_degree,
         points: args.points,
         min_revolutions: args.min_revolutions,
         ..TdrOptions::default()
     });
+    let mut travel = crate::input::Travel::default();
     for sample in reader.by_ref() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
+        travel.push(s.values[ic]);
         match ir {
             Some(ir) => tdr.push_with_reference(s.t, s.values[ic], s.values[ir]),
             None => tdr.push(s.t, s.values[ic]),
         }
     }
-    let cal = tdr
-        .finish()
-        .with_context(|| format!("{}: channel `{}`", log.display(), args.channel))?;
+    let cal = tdr.finish().map_err(|e| {
+        let hint = travel.no_whole_turn(
+            log,
+            &args.channel,
+            "TDR needs a free coast of at least one whole turn (better many) to tell the encoder's error, periodic in \
+             angle, from the motion; a coast over part of a turn cannot separate them",
+        );
+        match hint {
+            Some(hint) => anyhow::Error::new(e).context(hint),
+            None => anyhow::Error::new(e),
+        }
+    });
+    let cal = cal.with_context(|| format!("{}: channel `{}`", log.display(), args.channel))?;
     let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());
 
-    let report = build_report(args, log, &cal, warnings);
+    let mut report = build_report(args, log, &cal, warnings);
+    if let Some(a) = alignment_detail(&reader) {
+        report.details.insert("alignment".to_string(), a);
+    }
     let json = calib_io::report::render_json(&report)?;
     let files = write_tables_and_report(
         out,
-        &[(&args.channel, &cal.map, None)],
+        &[(&args.channel, &cal.map, Some(&cal.uncertainty.u))],
         &json,
         &crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, &report),
     )?;
     let text = if args.json {
         json
     } else {
-        render_summary(args, out, &cal, &report)
+        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
     };
     // After correction: what the reference still sees of the corrected encoder.
     let after = cal
@@ -204,7 +251,29 @@ fn build_report(args: &Args, log: &Path, cal: &TdrCalibration, warnings: Vec<Str
     );
     details.insert("revolutions".to_string(), json!(cal.revolutions));
     details.insert("samples_used".to_string(), json!(cal.samples_used));
-    details.insert("max_order".to_string(), json!(args.max_order));
+    details.insert("max_order".to_string(), json!(cal.max_order));
+    details.insert(
+        "orders".to_string(),
+        json!({
+            "max_order_tested": cal.max_order,
+            "samples_per_revolution_densest": cal.samples_per_revolution_densest,
+            "kept": cal.orders,
+            "rule": format!(
+                "an order is kept when its coefficients' chi-square against their covariance exceeds 2·ln(M/α) = {:.2} (M = {} orders tested, α = {})",
+                significance_threshold(cal.max_order),
+                cal.max_order,
+                FALSE_ORDER_PROBABILITY
+            ),
+            "residual_structure": cal.unresolved.iter().map(|h| {
+                let h = h.to_report();
+                json!({"order": h.order, "amplitude_arcsec": h.amplitude_arcsec, "phase_deg": h.phase_deg})
+            }).collect::<Vec<_>>(),
+        }),
+    );
+    details.insert(
+        "uncertainty".to_string(),
+        json!({ args.channel.clone(): crate::document::uncertainty_json(&cal.uncertainty) }),
+    );
     details.insert(
         "residual_rms_arcsec".to_string(),
         json!(cal.residual_rms * ARCSEC_PER_RAD),
@@ -222,10 +291,30 @@ fn build_report(args: &Args, log: &Path, cal: &TdrCalibration, warnings: Vec<Str
             })
         })
         .collect();
+    let separated: Vec<_> = cal
+        .drag
+        .iter()
+        .map(|d| {
+            let h = d.deceleration.to_report();
+            json!({
+                "order": h.order,
+                "deceleration_rad_s2": d.deceleration.amplitude,
+                "phase_deg": h.phase_deg,
+                "imprint_arcsec": d.imprint * ARCSEC_PER_RAD,
+                "u_imprint_arcsec": d.u_imprint * ARCSEC_PER_RAD,
+            })
+        })
+        .collect();
+    let sep = &cal.drag_separation;
     details.insert(
         "drag".to_string(),
         json!({
             "ambiguity": cal.ambiguity,
+            "separated": sep.separated,
+            "inverse_square_speed_variation": sep.variation,
+            "separation_noise_gain": sep.noise_gain,
+            "max_drag_order": args.max_drag_order,
+            "terms": separated,
             "mean_inverse_square_speed_s2": cal.drag_gain,
             "map_shift_arcsec_per_rad_s2_over_order_squared": cal.drag_gain * ARCSEC_PER_RAD,
             "speed_dependent_orders": dependence,
@@ -288,6 +377,12 @@ fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report
         top.join(", "),
         out.join(&ch.table).display()
     );
+    let _ = writeln!(
+        o,
+        "standard uncertainty u of the table: max {:.4}″, rms {:.4}″ (budget in report.json)",
+        cal.uncertainty.max() * ARCSEC_PER_RAD,
+        cal.uncertainty.rms() * ARCSEC_PER_RAD
+    );
     if let (Some(name), Some(r)) = (&args.reference, &cal.reference) {
         let _ = writeln!(
             o,
@@ -297,10 +392,53 @@ fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report
     }
     let _ = writeln!(
         o,
-        "\ndrag: an angle-dependent deceleration of 1 rad/s² at order h would add {:.3}″/h² to the map's order h (⟨ω⁻²⟩ = {:.3e} s²); TDR cannot tell it from encoder error",
-        cal.drag_gain * ARCSEC_PER_RAD,
-        cal.drag_gain
+        "orders: {} kept of 1–{} tested (those above the noise){}",
+        cal.orders.len(),
+        cal.max_order,
+        if cal.unresolved.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; residual structure above them at {} orders",
+                cal.unresolved.len()
+            )
+        }
     );
+    let sep = &cal.drag_separation;
+    if sep.separated && !cal.drag.is_empty() {
+        let list: Vec<String> = cal
+            .drag
+            .iter()
+            .map(|d| {
+                format!(
+                    "order {}: {:.4} rad/s² ({:.3}″ ± {:.3}″ at the mean 1/ω²)",
+                    d.deceleration.order,
+                    d.deceleration.amplitude,
+                    d.imprint * ARCSEC_PER_RAD,
+                    d.u_imprint * ARCSEC_PER_RAD
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            o,
+            "\ndrag separated from the map (1/ω² varies by {:.0} % over the coast): {}",
+            100.0 * sep.variation,
+            list.join(", ")
+        );
+    } else if sep.separated {
+        let _ = writeln!(
+            o,
+            "\ndrag: none found above the noise (1/ω² varies by {:.0} % over the coast, enough to separate it)",
+            100.0 * sep.variation
+        );
+    } else {
+        let _ = writeln!(
+            o,
+            "\ndrag: not separable on this coast; a deceleration of 1 rad/s² at order h would add {:.3}″/h² to the map's order h (⟨ω⁻²⟩ = {:.3e} s²)",
+            cal.drag_gain * ARCSEC_PER_RAD,
+            cal.drag_gain
+        );
+    }
     o += &crate::summary::ending(
         &report.warnings,
         out,
@@ -308,7 +446,7 @@ fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report
             report.channels[&args.channel].table.clone(),
             "report.json".to_string(),
         ],
-        "the map, its spectrum with the speed-dependent orders marked, the coast",
+        "the map, its spectrum with the drag orders marked, the drag, the coast",
     );
     o
 }

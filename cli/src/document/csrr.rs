@@ -84,6 +84,14 @@ pub fn document(
     doc.push(sessions(names, cal, trace));
     for (name, map, a) in [(na, &cal.a, true), (nb, &cal.b, false)] {
         let mut layers = MapLayers::of(map);
+        let u = cal
+            .uncertainty
+            .as_ref()
+            .map(|(ua, ub)| if a { ua } else { ub });
+        if let Some(u) = u {
+            let (band_name, band) = super::uncertainty_band(map, u);
+            layers = layers.with_band(&band_name, band);
+        }
         if let Some((label, pts)) = comparison(cal, cmp, a) {
             layers = layers.compared_with(&label, pts);
         }
@@ -99,6 +107,9 @@ pub fn document(
         }
         if let Some(ch) = report.channels.get(name) {
             s = s.table(harmonics_table(name, ch));
+        }
+        if let Some(u) = u {
+            s = s.table(super::uncertainty_table(name, u));
         }
         doc.push(s);
     }

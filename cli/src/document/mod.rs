@@ -45,3 +45,66 @@ pub fn harmonics_table(name: &str, ch: &ChannelReport) -> Table {
         },
     )
 }
+
+/// The band `±2u` around a map (angle °, half-width ″), and its name.
+pub fn uncertainty_band(
+    map: &calib_core::ErrorMap,
+    u: &calib_core::uncertainty::MapUncertainty,
+) -> (String, Vec<(f64, f64)>) {
+    let band = (0..map.len())
+        .map(|i| {
+            (
+                map.grid_angle(i).to_degrees(),
+                2.0 * u.u[i] * calib_core::angle::ARCSEC_PER_RAD,
+            )
+        })
+        .collect();
+    ("±2u (standard uncertainty u, k = 2)".to_string(), band)
+}
+
+/// The uncertainty budget of a channel's map, GUM style: each component's type and its size
+/// over the table (RMS and largest), then the combined standard uncertainty.
+pub fn uncertainty_table(name: &str, u: &calib_core::uncertainty::MapUncertainty) -> Table {
+    let arcsec = calib_core::angle::ARCSEC_PER_RAD;
+    let t = u.components.iter().fold(
+        Table::new(
+            &format!("Uncertainty budget of {name}'s map (standard uncertainties)"),
+            &["component", "type", "RMS over the table (″)", "largest (″)"],
+        ),
+        |t, c| {
+            let largest = c.u.iter().copied().fold(0.0, f64::max);
+            t.row([
+                c.name.clone(),
+                match c.evaluation {
+                    calib_core::uncertainty::Evaluation::TypeA => "A".to_string(),
+                    calib_core::uncertainty::Evaluation::TypeB => "B".to_string(),
+                },
+                num(c.rms() * arcsec, 4),
+                num(largest * arcsec, 4),
+            ])
+        },
+    );
+    t.row([
+        "combined standard uncertainty u".to_string(),
+        String::new(),
+        num(u.rms() * arcsec, 4),
+        num(u.max() * arcsec, 4),
+    ])
+}
+
+/// `report.json`'s view of a map's uncertainty: summary figures and the budget (arcsec).
+pub fn uncertainty_json(u: &calib_core::uncertainty::MapUncertainty) -> serde_json::Value {
+    let arcsec = calib_core::angle::ARCSEC_PER_RAD;
+    serde_json::json!({
+        "u_max_arcsec": u.max() * arcsec,
+        "u_rms_arcsec": u.rms() * arcsec,
+        "u_median_arcsec": u.median() * arcsec,
+        "combination": "root sum of squares of independent components, unit sensitivities (GUM 5.1.2)",
+        "components": u.components.iter().map(|c| serde_json::json!({
+            "name": c.name,
+            "type": c.evaluation,
+            "u_rms_arcsec": c.rms() * arcsec,
+            "u_max_arcsec": c.u.iter().copied().fold(0.0, f64::max) * arcsec,
+        })).collect::<Vec<_>>(),
+    })
+}

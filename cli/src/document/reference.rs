@@ -3,7 +3,7 @@
 use super::{harmonics_table, num, provenance};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::ReferenceCalibration;
+use calib_core::reference_cal::{ReferenceCalibration, TableMap};
 use calib_report::plots::{self, MapLayers, OrderMarks};
 use calib_report::{Axis, Chart, Colour, Document, Figure, Mark, Section, Series, Table};
 
@@ -51,6 +51,26 @@ pub fn document(
         .row([
             "largest standard uncertainty u (″)".to_string(),
             num(u_max, 4),
+        ])
+        .row([
+            "map".to_string(),
+            match (cal.map.range(), cal.gap) {
+                (Some((lo, hi)), _) => format!(
+                    "range table, {}° to {}° of the DUT's reading",
+                    num(lo.to_degrees(), 3),
+                    num(hi.to_degrees(), 3)
+                ),
+                (None, Some(g)) => format!(
+                    "whole turn; {}° never reached from {}°, bridged by interpolation",
+                    num(g.size.to_degrees(), 3),
+                    num(g.from.to_degrees(), 3)
+                ),
+                (None, None) => "whole turn".to_string(),
+            },
+        ])
+        .row([
+            "ISO 230-2 target positions".to_string(),
+            cal.targets.len().to_string(),
         ]);
     let iso = cal.iso.arcsec().into_iter().fold(
         Table::new(
@@ -66,7 +86,18 @@ pub fn document(
     );
     doc.push(Section::new("Summary").table(facts).table(iso));
 
-    let points = plots::map_points(&cal.map);
+    let points: Vec<(f64, f64)> = (0..cal.map.len())
+        .map(|i| {
+            (
+                cal.map.grid_angle(i).to_degrees(),
+                cal.map.values()[i] * ARCSEC_PER_RAD,
+            )
+        })
+        .collect();
+    let span = cal
+        .map
+        .range()
+        .map(|(lo, hi)| (lo.to_degrees(), hi.to_degrees()));
     let band: Vec<(f64, f64)> = points
         .iter()
         .zip(&cal.u)
@@ -74,36 +105,55 @@ pub fn document(
         .collect();
     let layers = MapLayers::of_points(points.clone())
         .with_band(&format!("expanded uncertainty (k = {K})"), band);
-    let mut s = Section::new(&format!("Error map of {dut}"))
-        .text(&format!(
-            "Error = {dut} − {reference} (mean of both directions, zero mean), as a function of \
-             {dut}'s reading; the reference's own error is part of it."
-        ))
-        .figure(plots::error_map(&format!("map-{dut}"), dut, &layers));
-    if let Some(z) = plots::dominant_order(&cal.map)
-        .and_then(|h| plots::zoom(&format!("zoom-{dut}"), dut, &layers, h))
-    {
-        s = s.figure(z);
+    let mut s = Section::new(&format!("Error map of {dut}")).text(&format!(
+        "Error = {dut} − {reference} (mean of both directions, zero mean), as a function of \
+         {dut}'s reading; the reference's own error is part of it."
+    ));
+    match &cal.map {
+        TableMap::Turn(map) => {
+            s = s.figure(plots::error_map(&format!("map-{dut}"), dut, &layers));
+            if let Some(z) = plots::dominant_order(map)
+                .and_then(|h| plots::zoom(&format!("zoom-{dut}"), dut, &layers, h))
+            {
+                s = s.figure(z);
+            }
+        }
+        TableMap::Range(m) => {
+            s = s.figure(plots::range_error_map(
+                &format!("map-{dut}"),
+                dut,
+                &layers,
+                m.start().to_degrees(),
+                m.end().to_degrees(),
+            ));
+        }
     }
     if cal.min_passes.0 > 0 && cal.min_passes.1 > 0 {
-        s = s.figure(directions(dut, cal, &points));
+        s = s.figure(directions(dut, cal, &points, span));
     }
-    if let Some(ch) = report.channels.get(dut) {
+    if let (Some(ch), TableMap::Turn(_)) = (report.channels.get(dut), &cal.map) {
         s = s.table(harmonics_table(dut, ch));
     }
     doc.push(s);
-    let orders = (cal.map.len() / 2).saturating_sub(1).clamp(1, 200);
-    doc.push(Section::new("Harmonic spectrum").figure(plots::spectrum(
-        "spectrum",
-        &[(dut, plots::amplitudes(&cal.map, orders))],
-        &OrderMarks::default(),
-    )));
+    if let TableMap::Turn(map) = &cal.map {
+        let orders = (map.len() / 2).saturating_sub(1).clamp(1, 200);
+        doc.push(Section::new("Harmonic spectrum").figure(plots::spectrum(
+            "spectrum",
+            &[(dut, plots::amplitudes(map, orders))],
+            &OrderMarks::default(),
+        )));
+    }
     doc
 }
 
 /// Each direction's mean deviation minus the bidirectional map: the residual after correcting
 /// by the map, direction by direction (half the reversal, with opposite signs).
-fn directions(dut: &str, cal: &ReferenceCalibration, map: &[(f64, f64)]) -> Figure {
+fn directions(
+    dut: &str,
+    cal: &ReferenceCalibration,
+    map: &[(f64, f64)],
+    span: Option<(f64, f64)>,
+) -> Figure {
     let side = |stats: &[calib_core::reference_cal::PointStats]| {
         plots::decimate(
             &map.iter()
@@ -119,7 +169,10 @@ fn directions(dut: &str, cal: &ReferenceCalibration, map: &[(f64, f64)]) -> Figu
         "Mean deviation of the passes in each direction minus the bidirectional map: what is left \
          after correction when turning one way only (the reversal B is their difference).",
         Chart::new(
-            Axis::linear(&format!("reading of {dut} (°)")).with_range(0.0, 360.0),
+            {
+                let (lo, hi) = span.unwrap_or((0.0, 360.0));
+                Axis::linear(&format!("reading of {dut} (°)")).with_range(lo, hi)
+            },
             Axis::linear("deviation − map (″)"),
         )
         .with(Series::new(

@@ -34,7 +34,8 @@ pub fn document(
         ]);
     doc.push(Section::new("Summary").table(facts));
 
-    let mut layers = MapLayers::of(&cal.map);
+    let (band_name, band) = super::uncertainty_band(&cal.map, &cal.uncertainty);
+    let mut layers = MapLayers::of(&cal.map).with_band(&band_name, band);
     if let (Some(r), Some(name)) = (&cal.reference, reference) {
         layers = layers.compared_with(
             &format!("{channel} − {name} (reference)"),
@@ -45,7 +46,8 @@ pub fn document(
         .text(&format!(
             "Error = {channel}'s reading − the fitted free motion (zero mean), as a function of \
              its reading. An angle-dependent drag torque (rolling bearings, cogging) shakes the \
-             shaft periodically in angle and is indistinguishable from encoder error here."
+             shaft periodically in angle; its imprint grows as 1/ω², so where the coast's speed range \
+             allows it is fitted and separated from the map (see the drag table)."
         ))
         .figure(plots::error_map(
             &format!("map-{channel}"),
@@ -60,16 +62,57 @@ pub fn document(
     if let Some(ch) = report.channels.get(channel) {
         s = s.table(harmonics_table(channel, ch));
     }
+    s = s.table(super::uncertainty_table(channel, &cal.uncertainty));
     doc.push(s);
-    let marks = OrderMarks {
-        blind: Vec::new(),
-        ill_conditioned: cal
-            .speed_dependence
-            .iter()
-            .map(|d| d.harmonic.order)
-            .collect(),
-        ill_conditioned_name: "changes with speed like a drag".into(),
+    let marks = if cal.drag_separation.separated {
+        OrderMarks {
+            blind: Vec::new(),
+            ill_conditioned: cal.drag.iter().map(|d| d.deceleration.order).collect(),
+            ill_conditioned_name: "drag separated here".into(),
+        }
+    } else {
+        OrderMarks {
+            blind: Vec::new(),
+            ill_conditioned: cal
+                .speed_dependence
+                .iter()
+                .map(|d| d.harmonic.order)
+                .collect(),
+            ill_conditioned_name: "changes with speed like a drag".into(),
+        }
     };
+    if !cal.drag.is_empty() {
+        let mut table = Table::new(
+            "Angle-dependent drag separated from the map",
+            &[
+                "order",
+                "deceleration (rad/s²)",
+                "phase (°)",
+                "imprint at mean 1/ω² (″)",
+                "u (″)",
+            ],
+        );
+        for d in &cal.drag {
+            let h = d.deceleration.to_report();
+            table = table.row([
+                h.order.to_string(),
+                num(d.deceleration.amplitude, 5),
+                num(h.phase_deg, 1),
+                num(d.imprint * ARCSEC_PER_RAD, 4),
+                num(d.u_imprint * ARCSEC_PER_RAD, 4),
+            ]);
+        }
+        doc.push(
+            Section::new("Drag")
+                .text(&format!(
+                    "The shaft's deceleration a_h·cos(hθ + φ) shakes it by a_h/(h·ω)² at order h; \
+                     fitted jointly with the map over the coast's speed range (1/ω² varies by \
+                     {:.0} % RMS) and removed from it.",
+                    100.0 * cal.drag_separation.variation
+                ))
+                .table(table),
+        );
+    }
     let orders = cal.series.max_order().max(1);
     doc.push(Section::new("Harmonic spectrum").figure(plots::spectrum(
         "spectrum",

@@ -14,6 +14,12 @@
 //! 3600 points; 5·10⁻⁶″ for 20″ at order 8 on 36000 points). A finer table, not another
 //! interpolation, is the cure for a coarse one: `calib csrr --points N`.
 //!
+//! # Range maps
+//! A [`RangeMap`] (a joint that never turns a whole revolution) corrects only the readings inside
+//! its range, interpolated linearly there; a reading outside it is returned unchanged, bit for
+//! bit, and counted ([`Correction::outside`]) so the caller can say how many were left alone.
+//! Nothing is extrapolated.
+//!
 //! # Units and wrapping
 //! [`Correction::apply`] takes and returns readings in the log's own unit, and subtracts the
 //! error converted to that unit rather than converting the reading to radians and back, so a
@@ -22,8 +28,9 @@
 //! across it (359.9999° + 0.5″ → 0.0001°), and the corrected value is wrapped back into the
 //! channel's range; accumulated readings are never wrapped.
 
-use crate::ErrorMap;
 use crate::angle::AngleUnit;
+use crate::{ErrorMap, RangeMap};
+use std::cell::Cell;
 
 /// How a channel's readings are wrapped, in revolutions of its unit (360 for degrees, 2π for
 /// radians, N for `counts:N`).
@@ -94,29 +101,64 @@ fn revolution(unit: AngleUnit) -> f64 {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct Correction {
-    map: ErrorMap,
+    map: Lookup,
+    /// Readings outside a range map's range, left unchanged.
+    outside: Cell<u64>,
     unit: AngleUnit,
     /// One revolution in `unit`.
     rev: f64,
     wrapping: Wrapping,
 }
 
+/// The map a [`Correction`] looks the error up in.
+#[derive(Debug, Clone, PartialEq)]
+enum Lookup {
+    Turn(ErrorMap),
+    Range(RangeMap),
+}
+
 impl Correction {
     /// Corrects readings in `unit`, wrapped as `wrapping` says, with `map`.
     pub fn new(map: ErrorMap, unit: AngleUnit, wrapping: Wrapping) -> Self {
         Correction {
-            map,
+            map: Lookup::Turn(map),
+            outside: Cell::new(0),
             unit,
             rev: revolution(unit),
             wrapping,
         }
     }
 
+    /// Corrects readings in `unit` inside the range of `map`, leaving the others unchanged (see
+    /// [Range maps](self#range-maps)).
+    pub fn with_range(map: RangeMap, unit: AngleUnit, wrapping: Wrapping) -> Self {
+        Correction {
+            map: Lookup::Range(map),
+            ..Correction::new(ErrorMap::new(vec![0.0]), unit, wrapping)
+        }
+    }
+
     /// The corrected reading `x − e(x)` (see the [module docs](self)), in the reading's unit,
-    /// wrapped as the channel is.
+    /// wrapped as the channel is; a reading outside a range map's range comes back unchanged.
     pub fn apply(&self, x: f64) -> f64 {
-        let e = self.map.eval_linear(self.unit.to_rad(x));
+        let theta = self.unit.to_rad(x);
+        let e = match &self.map {
+            Lookup::Turn(m) => m.eval_linear(theta),
+            Lookup::Range(m) => match m.eval_linear(theta) {
+                Some(e) => e,
+                None => {
+                    self.outside.set(self.outside.get() + 1);
+                    return x;
+                }
+            },
+        };
         self.wrapping.wrap(x - self.unit.from_rad(e), self.rev)
+    }
+
+    /// How many readings [`Correction::apply`] left unchanged because they lay outside a range
+    /// map's range (always 0 for a whole-turn map).
+    pub fn outside(&self) -> u64 {
+        self.outside.get()
     }
 }
 
@@ -213,6 +255,25 @@ mod tests {
             worst > bound * 0.5,
             "the test should probe the bound: {worst}″"
         );
+    }
+
+    #[test]
+    fn a_range_map_corrects_inside_and_counts_the_rest() {
+        // 10″ over 90°…180°, linear from +10″ to −10″.
+        let map = RangeMap::new(
+            PI / 2.0,
+            PI / 2.0,
+            vec![10.0 / ARCSEC_PER_RAD, -10.0 / ARCSEC_PER_RAD],
+        )
+        .unwrap();
+        let fix = Correction::with_range(map, AngleUnit::Deg, Wrapping::Positive);
+        assert!(((fix.apply(90.0) - 90.0) * 3600.0 + 10.0).abs() < 1e-9);
+        assert!(((fix.apply(135.0) - 135.0) * 3600.0).abs() < 1e-9);
+        assert_eq!(fix.outside(), 0);
+        for x in [0.0, 89.99, 180.01, 359.0] {
+            assert_eq!(fix.apply(x), x);
+        }
+        assert_eq!(fix.outside(), 4);
     }
 
     #[test]

@@ -92,12 +92,7 @@ impl ErrorMap {
 
     /// Periodic linear interpolation at `theta` (radians, any revolution).
     pub fn eval_linear(&self, theta: f64) -> f64 {
-        let n = self.values.len();
-        let u = wrap_2pi(theta) / TAU * n as f64;
-        let i = (u.floor() as usize).min(n - 1);
-        let f = u - i as f64;
-        let j = (i + 1) % n;
-        self.values[i] * (1.0 - f) + self.values[j] * f
+        interpolate_periodic(&self.values, theta)
     }
 
     /// Band-limited (trigonometric) interpolation at `theta`: the unique Fourier series of order
@@ -165,6 +160,21 @@ impl ErrorMap {
     pub fn max_abs_arcsec(&self) -> f64 {
         self.values.iter().fold(0.0f64, |m, v| m.max(v.abs())) * ARCSEC_PER_RAD
     }
+}
+
+/// Periodic linear interpolation at `theta` (radians, any revolution) of `values` on the uniform
+/// grid `i·2π/N` — [`ErrorMap::eval_linear`] for values that are not a zero-mean map, such as
+/// standard uncertainties or a table decoded from a controller's format.
+///
+/// # Panics
+/// If `values` is empty.
+pub fn interpolate_periodic(values: &[f64], theta: f64) -> f64 {
+    let n = values.len();
+    let u = wrap_2pi(theta) / TAU * n as f64;
+    let i = (u.floor() as usize).min(n - 1);
+    let f = u - i as f64;
+    let j = (i + 1) % n;
+    values[i] * (1.0 - f) + values[j] * f
 }
 
 #[cfg(test)]

@@ -99,6 +99,29 @@ impl FourierSeries {
         }
         s
     }
+    /// The series with only `orders` kept and every other coefficient zero; orders of 0 or above
+    /// [`max_order`](Self::max_order) hold nothing and are ignored.
+    pub fn only(&self, orders: &[usize]) -> FourierSeries {
+        let mut s = Self::zeros(self.max_order());
+        for &h in orders
+            .iter()
+            .filter(|&&h| (1..=self.max_order()).contains(&h))
+        {
+            s.cos[h - 1] = self.cos[h - 1];
+            s.sin[h - 1] = self.sin[h - 1];
+        }
+        s
+    }
+    /// The `n` orders of largest amplitude, largest first (equal amplitudes: the lower order
+    /// first), at most [`max_order`](Self::max_order) of them.
+    pub fn largest_orders(&self, n: usize) -> Vec<usize> {
+        let mut orders: Vec<usize> = (1..=self.max_order()).collect();
+        let amplitude = |h: usize| self.cos[h - 1].hypot(self.sin[h - 1]);
+        // A stable sort keeps equal amplitudes in order of increasing order.
+        orders.sort_by(|&a, &b| amplitude(b).total_cmp(&amplitude(a)));
+        orders.truncate(n);
+        orders
+    }
     /// Highest order held.
     pub fn max_order(&self) -> usize {
         self.cos.len()
@@ -139,5 +162,26 @@ mod tests {
         let back = s.harmonics()[2].to_report();
         assert!((back.amplitude_arcsec - 10.0).abs() < 1e-9);
         assert!((back.phase_deg - 30.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn selection_keeps_the_named_or_largest_orders() {
+        let s = FourierSeries::from_harmonics(
+            &[
+                Harmonic::from_arcsec_deg(1, 2.0, 0.0),
+                Harmonic::from_arcsec_deg(3, 10.0, 30.0),
+                Harmonic::from_arcsec_deg(5, 2.0, 90.0),
+            ],
+            6,
+        );
+        assert_eq!(s.largest_orders(2), vec![3, 1]);
+        assert_eq!(s.largest_orders(10), vec![3, 1, 5, 2, 4, 6]);
+        let kept = s.only(&[3, 5, 0, 9]);
+        let three = Harmonic::from_arcsec_deg(3, 10.0, 30.0);
+        let five = Harmonic::from_arcsec_deg(5, 2.0, 90.0);
+        for k in 0..20 {
+            let th = k as f64 * 0.31;
+            assert!((kept.eval(th) - three.eval(th) - five.eval(th)).abs() < 1e-15);
+        }
     }
 }

@@ -14,7 +14,8 @@
 //! - [`uncertainty`]: GUM budgets — combined and expanded uncertainty, Welch–Satterthwaite.
 //! - [`reference_cal`]: cross-calibration against a better reference encoder, with ISO 230-2 figures.
 //! - [`compare`]: two calibrations of one sensor compared point by point with the En number.
-//! - [`correction`]: readings corrected with a map, as `calib apply` does.
+//! - [`correction`]: readings corrected with a map, as `calib apply` does; [`compose`]: one map
+//!   for a map already in use followed by the residual calibrated through it.
 //! - [`csrr`]: CSRR self-calibration of two coaxial sensors (joint least squares, or the seed
 //!   paper's method); [`segment`] finds its sessions; [`inspect`] summarizes a log.
 //! - [`multihead`]: self-calibration of one scale read by several heads (joint least squares,
@@ -69,12 +70,14 @@
 
 pub mod angle;
 pub mod compare;
+pub mod compose;
 pub mod correction;
 pub mod csrr;
 pub mod error_map;
 pub mod harmonics;
 pub mod inspect;
 pub mod multihead;
+pub mod range_map;
 pub mod reference_cal;
 pub mod report;
 pub mod sample;
@@ -87,5 +90,6 @@ pub mod uncertainty;
 pub use angle::{Angle, AngleUnit, Unwrapper};
 pub use error_map::ErrorMap;
 pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
+pub use range_map::RangeMap;
 pub use report::{ChannelReport, Report, SessionReport};
 pub use sample::{Channel, Sample};

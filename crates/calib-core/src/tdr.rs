@@ -34,7 +34,23 @@
 //! `p ≪ k·revolutions`. Hence the floor of 10 revolutions and the degree cap of
 //! `revolutions/2` (order 1 then makes ≥ 2 oscillations per polynomial degree).
 //!
-//! # What it cannot separate: angle-dependent drag
+//! # Which orders: chosen from the data
+//! The highest order tested defaults to [`ORDERS_PER_SAMPLE`] of the samples per revolution
+//! where the coast is slowest (its densest sampling): the slow end resolves orders far above the
+//! fast start's, and since the speed sweeps, the sample positions do not repeat from revolution
+//! to revolution, so an order above one speed's Nyquist limit is still determined by the whole
+//! coast. Every order up to it is fitted (with the motion at its highest degree), and an order
+//! is kept when its coefficients `x = (a_k, b_k)` stand above the noise by the **significance
+//! rule** `xᵀC⁻¹x > 2·ln(M/α)`, `C = σ²·[(AᵀA)⁻¹]_kk` their covariance from the fit, `M` the
+//! orders tested and `α` = [`FALSE_ORDER_PROBABILITY`]: for noise alone the chance that any
+//! order passes is below `α`. The map holds only the kept orders, so asking for many orders
+//! costs computing time (the Fourier–Fourier block of `AᵀA` is built from the `2H` moments
+//! `Σ e^{imr_n}` in `O(N·H)`), not accuracy. After the final fit, the residual is projected on
+//! the orders above the highest tested (to half the densest samples per revolution, at least
+//! `2H`): orders there that pass the same rule are reported in
+//! [`TdrCalibration::unresolved`] and warned about with their amplitude.
+//!
+//! # Angle-dependent drag, and its separation
 //! If a torque that depends on the angle acts on the coasting shaft — rolling-element bearings,
 //! motor cogging, an unbalanced rotor — its motion is no longer smooth in time. With the
 //! deceleration `ω̇ = −F(ω) − Σ a_h cos(hθ + φ_h)` and `θ = θ₀ + δ`, `θ₀` the smooth coast,
@@ -44,39 +60,65 @@
 //!
 //! — periodic in angle like an encoder error, added to it in (1). A least-squares fit with
 //! constant coefficients takes its mean over the samples (uniform in time): the map's order `h`
-//! is off by `a_h/h² · ⟨ω⁻²⟩` ([`TdrCalibration::drag_gain`] `= ⟨ω⁻²⟩`). This is why the CSRR
-//! paper finds TDR inaccurate on rolling bearings (its Table IV: > 56″ off). As a diagnostic the
-//! fit is repeated with each order also allowed an amplitude proportional to
-//! `ω(t)⁻²/⟨ω⁻²⟩ − 1` (the signature of (2)); a significant amplitude there is reported per order
-//! in [`TdrCalibration::speed_dependence`] and warned about. It is only a diagnostic: the map is
-//! not corrected, since real bearing drag is not strictly periodic in shaft angle (balls and
-//! cage turn at non-integer orders), so (2) does not hold term by term.
+//! would be off by `a_h/h² · ⟨ω⁻²⟩` ([`TdrCalibration::drag_gain`] `= ⟨ω⁻²⟩`). This is why the
+//! CSRR paper finds TDR inaccurate on rolling bearings (its Table IV: > 56″ off).
+//!
+//! What separates them is speed: the encoder's error is the same at every speed, the drag's
+//! imprint scales as `ω⁻²`, and a coast sweeps `ω`. Writing `δ = Re[f(t)·e^{i(hθ₀+φ_h)}]` in
+//! `δ̈ = −a_h cos(hθ₀ + φ_h)` and expanding `f` in `ω̇/(hω²)` gives the next term of (2):
+//!
+//! `δ = Re[D_h·(w − i·v/h)·e^{ihθ}]`,  `w = ω⁻²/⟨ω⁻²⟩`,  `v = 3ω̇/(ω⁴⟨ω⁻²⟩)`,
+//! `D_h = a_h e^{iφ_h}/h² · ⟨ω⁻²⟩`                                                          (3)
+//!
+//! (`ω`, `ω̇` signed, from the screening fit's motion). With `D_h = p − iq` this is linear in
+//! `(p, q)`: two more columns per drag order, `w·cos hr + (v/h)·sin hr` and
+//! `w·sin hr − (v/h)·cos hr` (`r` for `θ`: the difference is `h·e·δ`, below 1e-3 of `δ`). Drag
+//! orders `1..=`[`TdrOptions::max_drag_order`] are fitted jointly with the map's kept orders,
+//! the significant ones (same rule, and an imprint `|D_h|` ≥ [`MATERIAL_ARCSEC`]) kept in the
+//! final fit and reported in [`TdrCalibration::drag`] with `a_h = |D_h|·h²/⟨ω⁻²⟩`. What (3)
+//! neglects is `O(F′(ω)/(hω))` of the imprint (0.2 % at 120 r/min for air shear) and
+//! `O((ω̇/(hω²))²)`.
+//!
+//! The separation costs noise: at a drag order the map's coefficients are uncertain by
+//! `√(1 + 1/cv²)` times more, `cv` the relative RMS variation of `1/ω²` over the coast
+//! ([`DragSeparation`]). Above a factor 10 ([`MAX_DRAG_VARIANCE_INFLATION`]) the coast is
+//! taken as inseparable: the map keeps the drag (eq. 2), a warning says how far the shaft must
+//! coast down, and the drag fit serves as a diagnostic: orders with a significant imprint are
+//! reported in [`TdrCalibration::speed_dependence`] and warned about. Real bearing drag is not
+//! strictly periodic in shaft angle (balls and cage turn at non-integer orders): what (3) cannot
+//! fit stays in the residual, whose periodic structure is checked as above.
 //!
 //! # Other limits
-//! No absolute offset (the gauge); orders above [`TdrOptions::max_order`] are not modelled and
-//! orders near or above half the samples per revolution at the peak speed are poorly determined
-//! (a warning says so). The motion must be free: a driven constant-speed plateau is skipped, and
-//! a log without falling speed is refused ([`TdrError`]).
+//! No absolute offset (the gauge); orders above [`TdrCalibration::max_order`] are not modelled
+//! (the residual check names them). The motion must be free: a driven constant-speed plateau is
+//! skipped, and a log without falling speed is refused ([`TdrError`]).
 //!
 //! # Streaming
 //! [`Tdr::push`] keeps of each sample only its time and unwrapped reading (16 bytes; 24 with a
 //! reference channel): the log itself is not kept, and the fit reads these pairs a few times
-//! (normal equations for all candidate degrees in one pass, then one pass per candidate).
+//! (normal equations in blocks of rows, residual passes for refinement and checks).
 
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper};
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
+use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation_uncertainty};
 use nalgebra::{DMatrix, DVector};
 use std::f64::consts::TAU;
 
 /// The statement of what a spin-down calibration cannot separate, for reports.
-pub const DRAG_AMBIGUITY: &str = "TDR cannot tell encoder error from an angle-dependent drag torque (rolling-element bearings, motor cogging, unbalance): a deceleration a_h·cos(hθ+φ) shakes the coasting shaft by a_h/(h·ω)² at order h, periodic in angle like the encoder's error, and the map's order h absorbs a_h/h²·⟨ω⁻²⟩. Trust the map only on an air or fluid bearing with no motor coupled, or check it against a reference (--ref).";
+pub const DRAG_AMBIGUITY: &str = "An angle-dependent drag torque (rolling-element bearings, motor cogging, unbalance) decelerating the shaft by a_h·cos(hθ+φ) shakes it by a_h/(h·ω)² at order h, periodic in angle like the encoder's error. TDR separates the two by their speed dependence (the drag's imprint grows as 1/ω², the encoder's error does not) when the coast sweeps the speed widely enough (1/ω² varying by ≥ 10 % RMS); otherwise the map's order h absorbs a_h/h²·⟨ω⁻²⟩. Drag not periodic in shaft angle (ball and cage orders) is not separated: check the map against a reference (--ref) on rolling bearings.";
 
 /// Settings of a spin-down calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TdrOptions {
-    /// Highest order of the error map (default 32).
-    pub max_order: usize,
+    /// Highest order of the error map tested; `None` (default): what the coast resolves,
+    /// [`ORDERS_PER_SAMPLE`] of the samples per revolution at its slowest (densest) end, at most
+    /// [`MAX_DEFAULT_ORDER`]. Only the orders that pass the significance rule (module docs) are
+    /// kept, so a high limit costs computing time, not accuracy.
+    pub max_order: Option<usize>,
+    /// Highest order of angle-dependent drag tested for (default 16; 0 turns the separation
+    /// off). The drag's imprint falls as `1/h²`, so high orders rarely matter.
+    pub max_drag_order: usize,
     /// Degree of the motion's Chebyshev series; `None` (default) chooses it by BIC.
     pub motion_degree: Option<usize>,
     /// Grid points of the map (default 3600).
@@ -91,13 +133,45 @@ pub struct TdrOptions {
 impl Default for TdrOptions {
     fn default() -> Self {
         TdrOptions {
-            max_order: 32,
+            max_order: None,
+            max_drag_order: 16,
             motion_degree: None,
             points: 3600,
             min_revolutions: 10.0,
             min_speed_fraction: 0.1,
         }
     }
+}
+
+/// The default highest order is this fraction of the samples per revolution where the coast is
+/// slowest: below the 1/2 of uniform sampling, since the fit needs some room to tell an order
+/// from the motion and from its neighbours (the same fraction as CSRR's).
+pub const ORDERS_PER_SAMPLE: f64 = 0.4;
+
+/// Cap of the default highest order: the fit's cost grows as the orders squared (a dense
+/// Cholesky factor), 500 orders take about a second.
+pub const MAX_DEFAULT_ORDER: usize = 500;
+
+/// The significance rule's family-wise false-alarm probability: an order (or drag order, or a
+/// residual order) is kept when its two coefficients' chi-square `xᵀC⁻¹x` (`C` their covariance
+/// from the fit) exceeds `2·ln(M/α)`, `M` the number of orders tested and `α` this value. For
+/// pure noise the chi-square of one order has the tail `exp(−χ²/2)`, so the chance that any of
+/// the `M` orders passes is at most `α` (Bonferroni).
+pub const FALSE_ORDER_PROBABILITY: f64 = 0.01;
+
+/// Separating drag from encoder error costs noise: the map's orders where drag is fitted get
+/// their noise multiplied by `√VIF`, the variance inflation `VIF = 1 + 1/cv²` (`cv` the relative
+/// RMS variation of `1/ω²` over the coast). Above this `VIF` (10× the noise) the coast is taken
+/// as inseparable: a `cv` of at least 0.1 is needed, a coast that slows by ≈ 17 %.
+pub const MAX_DRAG_VARIANCE_INFLATION: f64 = 100.0;
+
+/// Drag imprints and residual structure smaller than this (arcseconds) are not warned about
+/// however significant: they are below what a table of this kind is used for.
+pub const MATERIAL_ARCSEC: f64 = 0.01;
+
+/// The chi-square threshold of the significance rule for `tested` orders.
+pub fn significance_threshold(tested: usize) -> f64 {
+    2.0 * (tested.max(1) as f64 / FALSE_ORDER_PROBABILITY).ln()
 }
 
 /// Why a log gives no spin-down calibration. Each says what to record instead.
@@ -198,6 +272,31 @@ pub struct SpeedDependence {
     pub u: f64,
 }
 
+/// An angle-dependent drag separated from the encoder's error (module docs, eq. 3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DragTerm {
+    /// The deceleration `a_h·cos(hθ + φ_h)`: order, amplitude `a_h` (rad/s²) and phase (rad).
+    pub deceleration: Harmonic,
+    /// Its imprint at the coast's mean `⟨ω⁻²⟩`, `a_h/h²·⟨ω⁻²⟩` (radians): what a fit that ignored
+    /// the drag would have put into the map's order `h`.
+    pub imprint: f64,
+    /// Standard uncertainty of `imprint`, radians.
+    pub u_imprint: f64,
+}
+
+/// How well the coast's speed range separates drag from encoder error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DragSeparation {
+    /// Relative RMS variation of `1/ω²` over the samples used (std/mean).
+    pub variation: f64,
+    /// Factor by which separating drag multiplies the noise of the map's orders it is fitted
+    /// at, `√(1 + 1/variation²)`.
+    pub noise_gain: f64,
+    /// Whether drag was fitted jointly with the map (`noise_gain² ≤`
+    /// [`MAX_DRAG_VARIANCE_INFLATION`] and drag order ≥ 1 asked for).
+    pub separated: bool,
+}
+
 /// A spin-down calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TdrCalibration {
@@ -205,6 +304,13 @@ pub struct TdrCalibration {
     pub map: ErrorMap,
     /// The map as a Fourier series.
     pub series: FourierSeries,
+    /// Highest order tested ([`TdrOptions::max_order`] or the default from the data).
+    pub max_order: usize,
+    /// The orders kept by the significance rule (ascending): the map holds these only.
+    pub orders: Vec<usize>,
+    /// Periodic structure left in the fit's residual above [`TdrCalibration::max_order`]
+    /// (orders that pass the significance rule), largest first.
+    pub unresolved: Vec<Harmonic>,
     /// The fitted motion.
     pub motion: TdrMotion,
     /// RMS of the fit's residuals, radians (noise and resolution; more means an unmodelled
@@ -218,16 +324,25 @@ pub struct TdrCalibration {
     pub speed_start: f64,
     /// Speed at the end of the coast used, rad/s.
     pub speed_end: f64,
+    /// Samples per revolution where the coast is slowest (densest).
+    pub samples_per_revolution_densest: f64,
     /// `+1` for increasing readings, `−1` for decreasing.
     pub direction: f64,
     /// `⟨ω⁻²⟩` over the samples used, s²: a drag deceleration `a_h` (rad/s²) at order `h` shifts
-    /// the map's order `h` by `a_h·drag_gain/h²` radians (module docs, eq. 2).
+    /// the map's order `h` by `a_h·drag_gain/h²` radians unless separated (module docs, eq. 2).
     pub drag_gain: f64,
-    /// Orders whose amplitude changes with speed as angle-dependent drag would make it, with
-    /// uncertainty; only those significant (> 4 u and > 0.01″).
+    /// Whether the coast's speed range separates drag from encoder error.
+    pub drag_separation: DragSeparation,
+    /// The drag found and separated from the map (significant orders only).
+    pub drag: Vec<DragTerm>,
+    /// Where drag could not be separated: orders whose amplitude changes with speed as
+    /// angle-dependent drag would make it (significant and > 0.01″), left in the map.
     pub speed_dependence: Vec<SpeedDependence>,
     /// The check against a reference channel, when one was pushed.
     pub reference: Option<ReferenceCheck>,
+    /// The standard uncertainty of the map at every table point, with its budget (module docs,
+    /// "Uncertainty").
+    pub uncertainty: MapUncertainty,
     /// What the user should know.
     pub warnings: Vec<String>,
     /// What the method cannot separate ([`DRAG_AMBIGUITY`]), for reports.
@@ -290,13 +405,13 @@ impl Tdr {
         ok
     }
 
-    /// Finds the coast, fits motion and map, and checks them.
+    /// Finds the coast, chooses the orders, separates drag where the speed range allows, fits
+    /// motion and map, and checks them.
     pub fn finish(self) -> Result<TdrCalibration, TdrError> {
         let coast = find_coast(&self.t, &self.r, &self.opts)?;
         let (i0, i1) = (coast.first, coast.end);
         let t = &self.t[i0..i1];
         let r = &self.r[i0..i1];
-        let h = self.opts.max_order;
         let mut warnings = Vec::new();
         if self.skipped > 0 {
             warnings.push(format!(
@@ -310,12 +425,8 @@ impl Tdr {
                 coast.plateau_s
             ));
         }
-        let per_rev_at_peak = TAU / (coast.peak_speed * median_step(t));
-        if (h as f64) > 0.5 * per_rev_at_peak {
-            warnings.push(format!(
-                "--max-order {h} is above half the {per_rev_at_peak:.0} samples per revolution at the peak speed: the highest orders are poorly determined; sample faster or lower --max-order"
-            ));
-        }
+        let step = median_step(t);
+        let densest = TAU / (coast.slowest_speed * step);
 
         let max_degree = match self.opts.motion_degree {
             Some(p) => {
@@ -329,12 +440,19 @@ impl Tdr {
             }
             None => ((coast.revolutions / 2.0).floor() as usize).clamp(2, 30),
         };
-        let basis = Basis {
-            t0: t[0],
-            t1: t[t.len() - 1],
-            degree: max_degree,
-            max_order: h,
-            weight: None,
+        // At most a quarter as many unknowns as samples.
+        let room = (t.len() / 4).saturating_sub(max_degree + 1) / 2;
+        let h = match self.opts.max_order {
+            Some(h) => {
+                if (h as f64) > 0.5 * densest {
+                    warnings.push(format!(
+                        "--max-order {h} is above half the {densest:.0} samples per revolution where the coast is slowest: the highest orders are poorly determined; sample faster or lower --max-order"
+                    ));
+                }
+                h
+            }
+            None => ((ORDERS_PER_SAMPLE * densest) as usize)
+                .clamp(1, MAX_DEFAULT_ORDER.min(room.max(1))),
         };
         let unknowns = max_degree + 1 + 2 * h;
         if 4 * unknowns > t.len() {
@@ -345,58 +463,87 @@ impl Tdr {
         }
         let y0 = r[0];
         let y: Vec<f64> = r.iter().map(|v| v - y0).collect();
-        let normal = basis.normal_equations(t, r, &y);
-        let fourier: Vec<usize> = (max_degree + 1..unknowns).collect();
-        let columns = |p: usize| -> Vec<usize> { (0..=p).chain(fourier.iter().copied()).collect() };
-        let degree = match self.opts.motion_degree {
-            Some(p) => p,
-            None => {
-                let n = t.len() as f64;
-                let mut best: Option<(f64, usize)> = None;
-                for p in 2..=max_degree {
-                    let cols = columns(p);
-                    let Some(beta) = normal.solve(&cols, None) else {
+        let span = (t[0], t[t.len() - 1]);
+
+        // 1. Which orders the data hold: every order to h, the motion at its highest degree.
+        let mut screen = screen_orders(t, r, &y, span, max_degree, h, None).ok_or(
+            TdrError::Underdetermined {
+                unknowns,
+                samples: t.len(),
+            },
+        )?;
+        let screen_motion = TdrMotion {
+            degree: max_degree,
+            t_start: span.0,
+            t_end: span.1,
+            angle_origin: y0,
+            coefficients: screen.motion,
+        };
+        let speed = |m: &TdrMotion, t: f64| m.eval(t).1.abs();
+        let drag_gain = t
+            .iter()
+            .map(|&ti| speed(&screen_motion, ti).powi(-2))
+            .sum::<f64>()
+            / t.len() as f64;
+        let mean_w2 = t
+            .iter()
+            .map(|&ti| speed(&screen_motion, ti).powi(-4))
+            .sum::<f64>()
+            / t.len() as f64;
+        let variation = (mean_w2 / (drag_gain * drag_gain) - 1.0).max(0.0).sqrt();
+        let noise_gain = (1.0 + 1.0 / (variation * variation).max(1e-300)).sqrt();
+
+        // 2. Drag: the orders to max_drag_order fitted jointly with the map (eq. 3).
+        let hd = self.opts.max_drag_order.min(h);
+        let separable = noise_gain * noise_gain <= MAX_DRAG_VARIANCE_INFLATION && hd >= 1;
+        let mut drag_orders = Vec::new();
+        let mut speed_dependence = Vec::new();
+        let mut drag = Vec::new();
+        if hd >= 1 {
+            let tested: Vec<usize> = (1..=hd).collect();
+            let basis = Basis {
+                t0: span.0,
+                t1: span.1,
+                degree: max_degree,
+                orders: union(&screen.kept, &tested),
+                drag: Some(DragWeights {
+                    orders: tested.clone(),
+                    motion: screen_motion.clone(),
+                    gain: drag_gain,
+                }),
+            };
+            if let Some(fit) = Fit::new(&basis, t, r, &y) {
+                let threshold = significance_threshold(hd);
+                let first = basis.drag_column(0);
+                for (i, &k) in tested.iter().enumerate() {
+                    let (c, s) = (first + 2 * i, first + 2 * i + 1);
+                    let (p, q) = (fit.beta[c], fit.beta[s]);
+                    let chi2 = fit.chi_square(c, s);
+                    let imprint = Harmonic::from_coefficients(k, p, q);
+                    if chi2 < threshold || imprint.amplitude * ARCSEC_PER_RAD < MATERIAL_ARCSEC {
                         continue;
-                    };
-                    let rss = basis.rss(t, r, &y, &cols, &beta);
-                    let bic = n * (rss / n).max(1e-300).ln() + cols.len() as f64 * n.ln();
-                    if best.is_none_or(|(b, _)| bic < b) {
-                        best = Some((bic, p));
+                    }
+                    let u =
+                        fit.sigma * (0.5 * (fit.covariance(c, c) + fit.covariance(s, s))).sqrt();
+                    if separable {
+                        drag_orders.push(k);
+                    } else {
+                        speed_dependence.push(SpeedDependence {
+                            harmonic: imprint,
+                            u,
+                        });
                     }
                 }
-                best.map_or(max_degree, |(_, p)| p)
             }
-        };
-        let cols = columns(degree);
-        let beta = normal
-            .solve(&cols, None)
-            .map(|b| basis.refine(t, r, &y, &cols, &normal, b))
-            .ok_or(TdrError::Underdetermined {
-                unknowns: cols.len(),
-                samples: t.len(),
-            })?;
-        let rss = basis.rss(t, r, &y, &cols, &beta);
-        let residual_rms = (rss / t.len() as f64).sqrt();
-
-        let mut series = FourierSeries::zeros(h);
-        for k in 0..h {
-            series.cos[k] = beta[degree + 1 + 2 * k];
-            series.sin[k] = beta[degree + 2 + 2 * k];
         }
-        let map = ErrorMap::from_series(&series, self.opts.points);
-        let motion = TdrMotion {
-            degree,
-            t_start: basis.t0,
-            t_end: basis.t1,
-            angle_origin: y0,
-            coefficients: beta[..=degree].to_vec(),
-        };
-        let speed = |t: f64| (motion.eval(t).1).abs();
-        let drag_gain = t.iter().map(|&ti| speed(ti).powi(-2)).sum::<f64>() / t.len() as f64;
-        let (speed_start, speed_end) = (speed(basis.t0), speed(basis.t1));
-
-        let speed_dependence =
-            speed_dependence(t, r, &y, &basis, degree, drag_gain, &motion, residual_rms);
+        if !separable && hd >= 1 {
+            let start = 60.0 / TAU * coast.peak_speed;
+            warnings.push(format!(
+                "the coast's speed range is too narrow to separate angle-dependent drag from encoder error: 1/ω² varies by {:.1} % (RMS) over it, at least 10 % is needed (the separation would multiply the noise by {noise_gain:.0}); let the shaft coast down to about {:.0} r/min or below (17 % under its {start:.0} r/min start), or trust the map only on an air bearing",
+                100.0 * variation,
+                0.83 * start
+            ));
+        }
         if !speed_dependence.is_empty() {
             let list: Vec<String> = speed_dependence
                 .iter()
@@ -415,6 +562,134 @@ impl Tdr {
             ));
         }
 
+        // 2b. Unseparated drag inflates the screening's noise estimate and hides small orders:
+        // screen again with the drag found.
+        if !drag_orders.is_empty() {
+            let weights = DragWeights {
+                orders: drag_orders.clone(),
+                motion: screen_motion.clone(),
+                gain: drag_gain,
+            };
+            if let Some(again) = screen_orders(t, r, &y, span, max_degree, h, Some(weights)) {
+                screen.kept = again.kept;
+                screen.dropped = again.dropped;
+            }
+        }
+
+        // 3. The final fit: the kept orders (and the drag's), the motion's degree by BIC.
+        let orders = union(&screen.kept, &drag_orders);
+        let mut basis = Basis {
+            t0: span.0,
+            t1: span.1,
+            degree: max_degree,
+            orders: orders.clone(),
+            drag: (!drag_orders.is_empty()).then(|| DragWeights {
+                orders: drag_orders.clone(),
+                motion: screen_motion.clone(),
+                gain: drag_gain,
+            }),
+        };
+        let normal = basis.normal_equations(t, r, &y);
+        let tail: Vec<usize> = (max_degree + 1..basis.len()).collect();
+        let columns = |p: usize| -> Vec<usize> { (0..=p).chain(tail.iter().copied()).collect() };
+        let degree = match self.opts.motion_degree {
+            Some(p) => p,
+            None => {
+                // Nested fits: the residual sum of squares of degree p is that of the highest
+                // degree plus ‖A(β_max − β_p)‖² = δᵀ(AᵀA)δ, with no pass over the samples.
+                let all = columns(max_degree);
+                let n = t.len() as f64;
+                let mut best: Option<(f64, usize)> = None;
+                if let Some(full) = normal.solve(&all) {
+                    let rss_full = basis.rss(t, r, &y, &all, &full);
+                    for p in 2..=max_degree {
+                        let cols = columns(p);
+                        let Some(beta) = normal.solve(&cols) else {
+                            continue;
+                        };
+                        let mut delta = DVector::from_column_slice(&full);
+                        for (k, &c) in cols.iter().enumerate() {
+                            delta[c] -= beta[k];
+                        }
+                        let rss = rss_full + (delta.transpose() * &normal.g * &delta)[0].max(0.0);
+                        let bic = n * (rss / n).max(1e-300).ln() + cols.len() as f64 * n.ln();
+                        if best.is_none_or(|(b, _)| bic < b) {
+                            best = Some((bic, p));
+                        }
+                    }
+                }
+                best.map_or(max_degree, |(_, p)| p)
+            }
+        };
+        basis.degree = degree;
+        let fit = Fit::new(&basis, t, r, &y).ok_or(TdrError::Underdetermined {
+            unknowns: basis.len(),
+            samples: t.len(),
+        })?;
+        let residual_rms = (fit.rss / t.len() as f64).sqrt();
+
+        let mut series = FourierSeries::zeros(h);
+        for (i, &k) in orders.iter().enumerate() {
+            series.cos[k - 1] = fit.beta[degree + 1 + 2 * i];
+            series.sin[k - 1] = fit.beta[degree + 2 + 2 * i];
+        }
+        let map = ErrorMap::from_series(&series, self.opts.points);
+        let motion = TdrMotion {
+            degree,
+            t_start: span.0,
+            t_end: span.1,
+            angle_origin: y0,
+            coefficients: fit.beta[..=degree].to_vec(),
+        };
+        let (speed_start, speed_end) = (speed(&motion, span.0), speed(&motion, span.1));
+        if let Some(weights) = &basis.drag {
+            let first = basis.drag_column(0);
+            for (i, &k) in weights.orders.iter().enumerate() {
+                let (c, s) = (first + 2 * i, first + 2 * i + 1);
+                let imprint = Harmonic::from_coefficients(k, fit.beta[c], fit.beta[s]);
+                let hh = (k * k) as f64;
+                drag.push(DragTerm {
+                    deceleration: Harmonic {
+                        amplitude: imprint.amplitude * hh / drag_gain,
+                        ..imprint
+                    },
+                    imprint: imprint.amplitude,
+                    u_imprint: fit.sigma
+                        * (0.5 * (fit.covariance(c, c) + fit.covariance(s, s))).sqrt(),
+                });
+            }
+        }
+
+        // 4. What the model leaves: periodic structure in the residual above the orders fitted.
+        let top = ((0.5 * densest) as usize).max(2 * h).min(4 * h.max(8));
+        let unresolved = residual_orders(&basis, t, r, &y, &fit, h + 1..=top);
+        let material: Vec<&Harmonic> = unresolved
+            .iter()
+            .filter(|u| u.amplitude * ARCSEC_PER_RAD >= MATERIAL_ARCSEC)
+            .collect();
+        if !material.is_empty() {
+            let list: Vec<String> = material
+                .iter()
+                .take(6)
+                .map(|u| format!("order {} {:.3}″", u.order, u.amplitude * ARCSEC_PER_RAD))
+                .collect();
+            warnings.push(format!(
+                "the fit's residual still holds periodic structure above the highest order fitted ({h}): {}{} — the map leaves these out; raise --max-order to at least {}",
+                list.join(", "),
+                if material.len() > 6 { ", …" } else { "" },
+                material.iter().map(|u| u.order).max().unwrap_or(h)
+            ));
+        }
+
+        let uncertainty = map_uncertainty(
+            &basis,
+            &fit,
+            &series,
+            &unresolved,
+            screen.dropped,
+            self.opts.points,
+        );
+
         let mixed = !self.reference.is_empty() && self.reference.len() != self.r.len();
         if mixed {
             warnings.push(
@@ -423,22 +698,34 @@ impl Tdr {
         }
         let reference = (!self.reference.is_empty() && !mixed).then(|| {
             let d: Vec<f64> = (i0..i1).map(|i| self.r[i] - self.reference[i]).collect();
-            reference_check(r, &d, h, &map)
+            let seen: Vec<usize> = unresolved.iter().map(|u| u.order).collect();
+            reference_check(t, r, &d, &union(&orders, &seen), &map)
         });
 
         Ok(TdrCalibration {
             map,
             series,
+            max_order: h,
+            orders,
+            unresolved,
             motion,
             residual_rms,
             samples_used: t.len(),
             revolutions: coast.revolutions,
             speed_start,
             speed_end,
+            samples_per_revolution_densest: densest,
             direction: coast.direction,
             drag_gain,
+            drag_separation: DragSeparation {
+                variation,
+                noise_gain,
+                separated: separable,
+            },
+            drag,
             speed_dependence,
             reference,
+            uncertainty,
             warnings,
             ambiguity: DRAG_AMBIGUITY,
         })
@@ -451,6 +738,8 @@ struct Coast {
     first: usize,
     end: usize,
     peak_speed: f64,
+    /// The lowest window speed of the coast, rad/s.
+    slowest_speed: f64,
     direction: f64,
     revolutions: f64,
     plateau_s: f64,
@@ -533,6 +822,7 @@ fn find_coast(t: &[f64], r: &[f64], opts: &TdrOptions) -> Result<Coast, TdrError
         first,
         end: last + 1,
         peak_speed: peak,
+        slowest_speed: lowest,
         direction,
         revolutions,
         plateau_s: if start > k0 {
@@ -573,24 +863,44 @@ fn chebyshev_with_derivatives(c: &[f64], tau: f64) -> (f64, f64, f64) {
     out
 }
 
-/// The columns of the fit (1): `T_0..T_p(τ)`, then `cos kr, sin kr` for `k = 1..H`, then (for
-/// the speed-dependence diagnostic) `w(t)·cos kr, w(t)·sin kr` with `w = ω⁻²/⟨ω⁻²⟩ − 1`.
+/// The columns of the fit (1): `T_0..T_p(τ)`, then `cos kr, sin kr` for the map's orders `k`,
+/// then for each drag order `h` the pair of eq. (3),
+/// `w·cos hr + (v/h)·sin hr` and `w·sin hr − (v/h)·cos hr`, with `w = ω⁻²/⟨ω⁻²⟩` and
+/// `v = 3ω̇/(ω⁴⟨ω⁻²⟩)` from a previously fitted motion.
 #[derive(Debug, Clone)]
 struct Basis {
     t0: f64,
     t1: f64,
     degree: usize,
-    max_order: usize,
-    /// The motion and `⟨ω⁻²⟩` defining `w(t)`.
-    weight: Option<(TdrMotion, f64)>,
+    /// The map's orders, ascending.
+    orders: Vec<usize>,
+    drag: Option<DragWeights>,
+}
+
+/// The drag orders and what defines their columns' weights.
+#[derive(Debug, Clone)]
+struct DragWeights {
+    orders: Vec<usize>,
+    motion: TdrMotion,
+    /// `⟨ω⁻²⟩`.
+    gain: f64,
 }
 
 impl Basis {
     fn len(&self) -> usize {
-        self.degree + 1 + if self.weight.is_some() { 4 } else { 2 } * self.max_order
+        self.degree
+            + 1
+            + 2 * self.orders.len()
+            + self.drag.as_ref().map_or(0, |d| 2 * d.orders.len())
     }
 
-    fn row(&self, t: f64, r: f64, out: &mut [f64]) {
+    /// Index of the first column of drag order number `i`.
+    fn drag_column(&self, i: usize) -> usize {
+        self.degree + 1 + 2 * self.orders.len() + 2 * i
+    }
+
+    /// One row; `trig` is scratch for `(cos kr, sin kr)`, `k = 1..`.
+    fn row(&self, t: f64, r: f64, out: &mut [f64], trig: &mut Vec<(f64, f64)>) {
         let tau = (2.0 * t - self.t0 - self.t1) / (self.t1 - self.t0);
         out[0] = 1.0;
         if self.degree >= 1 {
@@ -599,19 +909,33 @@ impl Basis {
         for j in 2..=self.degree {
             out[j] = 2.0 * tau * out[j - 1] - out[j - 2];
         }
-        let f = self.degree + 1;
+        let top = self.orders.last().copied().unwrap_or(0).max(
+            self.drag
+                .as_ref()
+                .and_then(|d| d.orders.last().copied())
+                .unwrap_or(0),
+        );
+        trig.clear();
         let (s1, c1) = r.sin_cos();
         let (mut s, mut c) = (0.0, 1.0);
-        for k in 0..self.max_order {
+        for _ in 0..top {
             (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
-            out[f + 2 * k] = c;
-            out[f + 2 * k + 1] = s;
+            trig.push((c, s));
         }
-        if let Some((motion, gain)) = &self.weight {
-            let w = motion.eval(t).1.powi(-2) / gain - 1.0;
-            let g = f + 2 * self.max_order;
-            for k in 0..2 * self.max_order {
-                out[g + k] = w * out[f + k];
+        let f = self.degree + 1;
+        for (i, &k) in self.orders.iter().enumerate() {
+            (out[f + 2 * i], out[f + 2 * i + 1]) = trig[k - 1];
+        }
+        if let Some(d) = &self.drag {
+            let (_, w1, w2) = d.motion.eval(t);
+            let w = 1.0 / (w1 * w1 * d.gain);
+            let v = 3.0 * w2 / (w1.powi(4) * d.gain);
+            let g = self.drag_column(0);
+            for (i, &k) in d.orders.iter().enumerate() {
+                let (c, s) = trig[k - 1];
+                let vk = v / k as f64;
+                out[g + 2 * i] = w * c + vk * s;
+                out[g + 2 * i + 1] = w * s - vk * c;
             }
         }
     }
@@ -622,8 +946,9 @@ impl Basis {
         let mut g = vec![0.0; n * n];
         let mut rhs = vec![0.0; n];
         let mut row = vec![0.0; n];
+        let mut trig = Vec::new();
         for i in 0..t.len() {
-            self.row(t[i], r[i], &mut row);
+            self.row(t[i], r[i], &mut row, &mut trig);
             for a in 0..n {
                 let ra = row[a];
                 rhs[a] += ra * y[i];
@@ -655,8 +980,9 @@ impl Basis {
         mut each: impl FnMut(&[f64], f64),
     ) {
         let mut row = vec![0.0; self.len()];
+        let mut trig = Vec::new();
         for i in 0..t.len() {
-            self.row(t[i], r[i], &mut row);
+            self.row(t[i], r[i], &mut row, &mut trig);
             let fit: f64 = cols.iter().zip(beta).map(|(&c, b)| row[c] * b).sum();
             each(&row, y[i] - fit);
         }
@@ -667,29 +993,6 @@ impl Basis {
         let mut sum = 0.0;
         self.residuals(t, r, y, cols, beta, |_, e| sum += e * e);
         sum
-    }
-
-    /// One step of iterative refinement: solves for the correction from the exact residuals,
-    /// which removes the rounding the normal equations add for readings of many revolutions.
-    fn refine(
-        &self,
-        t: &[f64],
-        r: &[f64],
-        y: &[f64],
-        cols: &[usize],
-        normal: &Normal,
-        beta: Vec<f64>,
-    ) -> Vec<f64> {
-        let mut rhs = vec![0.0; cols.len()];
-        self.residuals(t, r, y, cols, &beta, |row, e| {
-            for (k, &c) in cols.iter().enumerate() {
-                rhs[k] += row[c] * e;
-            }
-        });
-        match normal.solve(cols, Some(&rhs)) {
-            Some(d) => beta.iter().zip(&d).map(|(b, d)| b + d).collect(),
-            None => beta,
-        }
     }
 }
 
@@ -705,14 +1008,10 @@ impl Normal {
         DMatrix::from_fn(cols.len(), cols.len(), |a, b| self.g[(cols[a], cols[b])])
     }
 
-    /// The least-squares coefficients of columns `cols` (in that order), for the stored
-    /// right-hand side or for `rhs` (already restricted to `cols`). `None` if singular.
-    fn solve(&self, cols: &[usize], rhs: Option<&[f64]>) -> Option<Vec<f64>> {
+    /// The least-squares coefficients of columns `cols` (in that order). `None` if singular.
+    fn solve(&self, cols: &[usize]) -> Option<Vec<f64>> {
         let chol = self.sub(cols).cholesky()?;
-        let b = match rhs {
-            Some(v) => DVector::from_column_slice(v),
-            None => DVector::from_fn(cols.len(), |a, _| self.rhs[cols[a]]),
-        };
+        let b = DVector::from_fn(cols.len(), |a, _| self.rhs[cols[a]]);
         let x = chol.solve(&b);
         x.iter()
             .all(|v| v.is_finite())
@@ -720,67 +1019,411 @@ impl Normal {
     }
 }
 
-/// The speed-dependence diagnostic (module docs): refit with the columns `w(t)·{cos, sin} kr`
-/// added and keep the orders whose amplitude there is significant.
-#[allow(clippy::too_many_arguments)]
-fn speed_dependence(
+/// A least-squares fit with all columns of its basis: coefficients, residual sum of squares,
+/// the noise `σ` per sample estimated from it, and the inverse `L⁻¹` of the Cholesky factor of
+/// `AᵀA = LLᵀ`, from which `(AᵀA)⁻¹ = L⁻ᵀL⁻¹` (the coefficients' covariance over `σ²`) is read
+/// entry by entry.
+#[derive(Debug, Clone)]
+struct Fit {
+    beta: Vec<f64>,
+    rss: f64,
+    sigma: f64,
+    l_inv: DMatrix<f64>,
+}
+
+impl Fit {
+    fn new(basis: &Basis, t: &[f64], r: &[f64], y: &[f64]) -> Option<Fit> {
+        Fit::with_normal(basis, t, r, y, &basis.normal_equations(t, r, y))
+    }
+
+    /// Solves with one Cholesky factor, refines once from the exact residuals, and inverts the
+    /// factor.
+    fn with_normal(basis: &Basis, t: &[f64], r: &[f64], y: &[f64], normal: &Normal) -> Option<Fit> {
+        let n = basis.len();
+        let chol = normal.g.clone().cholesky()?;
+        let first = chol.solve(&normal.rhs);
+        if !first.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let cols: Vec<usize> = (0..n).collect();
+        let mut correction = DVector::<f64>::zeros(n);
+        basis.residuals(t, r, y, &cols, first.as_slice(), |row, e| {
+            for (c, v) in correction.iter_mut().zip(row) {
+                *c += v * e;
+            }
+        });
+        let beta: Vec<f64> = (first + chol.solve(&correction)).iter().copied().collect();
+        let rss = basis.rss(t, r, y, &cols, &beta);
+        let l_inv = lower_triangular_inverse(&chol.l());
+        let dof = t.len().saturating_sub(n).max(1) as f64;
+        Some(Fit {
+            beta,
+            rss,
+            sigma: (rss / dof).sqrt(),
+            l_inv,
+        })
+    }
+
+    /// `(AᵀA)⁻¹` at `(a, b)`: the dot product of columns `a` and `b` of `L⁻¹`.
+    fn covariance(&self, a: usize, b: usize) -> f64 {
+        let from = a.max(b);
+        let (ca, cb) = (self.l_inv.column(a), self.l_inv.column(b));
+        (from..ca.len()).map(|k| ca[k] * cb[k]).sum()
+    }
+
+    /// `xᵀC⁻¹x` of the coefficient pair in columns `(c, s)`, `C = σ²·(AᵀA)⁻¹` restricted to it.
+    fn chi_square(&self, c: usize, s: usize) -> f64 {
+        let (a, b) = (self.beta[c], self.beta[s]);
+        let (p, q, o) = (
+            self.covariance(c, c),
+            self.covariance(s, s),
+            self.covariance(c, s),
+        );
+        let det = p * q - o * o;
+        if det <= 0.0 || self.sigma <= 0.0 {
+            return f64::INFINITY;
+        }
+        (a * a * q - 2.0 * a * b * o + b * b * p) / det / (self.sigma * self.sigma)
+    }
+}
+
+/// `L⁻¹` of a lower-triangular `L`, column by column (`n³/6` multiply-adds, on contiguous
+/// columns of `L`).
+fn lower_triangular_inverse(l: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = l.nrows();
+    let mut x = DMatrix::<f64>::zeros(n, n);
+    for j in 0..n {
+        let mut col = vec![0.0; n];
+        col[j] = 1.0;
+        for k in j..n {
+            let v = col[k] / l[(k, k)];
+            col[k] = v;
+            if v != 0.0 {
+                let lk = l.column(k);
+                for i in k + 1..n {
+                    col[i] -= v * lk[i];
+                }
+            }
+        }
+        x.column_mut(j).copy_from_slice(&col);
+    }
+    x
+}
+
+/// The map's budget. The fit's noise: the map at `x` is `c(x)ᵀβ_E`, `c(x)` the `cos kx, sin kx`
+/// of the kept orders, so `u_fit(x)² = σ²·c(x)ᵀ[(AᵀA)⁻¹]_EE·c(x) = σ²·‖L⁻¹·c(x)‖²` (with the
+/// motion's and the drag's columns in the fit: their correlation with the map is included).
+/// Periodic structure the residual still holds above the fitted orders is missing from the map:
+/// each such order of amplitude `A` errs by `A·cos(kx + φ)`, RMS `A/√2`, taken as a uniform
+/// component. The orders the significance rule dropped hold, on average over the circle, what
+/// their coefficients hold beyond their noise ([`Screen::dropped`]). And the table's linear
+/// interpolation.
+fn map_uncertainty(
+    basis: &Basis,
+    fit: &Fit,
+    series: &FourierSeries,
+    unresolved: &[Harmonic],
+    dropped: f64,
+    points: usize,
+) -> MapUncertainty {
+    let f = basis.degree + 1;
+    let n = basis.len();
+    let cols: Vec<usize> = (f..f + 2 * basis.orders.len()).collect();
+    // B = L⁻¹ restricted to the map's columns.
+    let b = DMatrix::from_fn(n, cols.len(), |i, j| fit.l_inv[(i, cols[j])]);
+    let mut c = DVector::<f64>::zeros(cols.len());
+    let u_fit: Vec<f64> = (0..points)
+        .map(|i| {
+            let x = TAU * i as f64 / points as f64;
+            for (j, &k) in basis.orders.iter().enumerate() {
+                let (sn, cs) = (k as f64 * x).sin_cos();
+                c[2 * j] = cs;
+                c[2 * j + 1] = sn;
+            }
+            fit.sigma * (&b * &c).norm()
+        })
+        .collect();
+    let missing = (unresolved
+        .iter()
+        .map(|h| h.amplitude.powi(2) / 2.0)
+        .sum::<f64>())
+    .sqrt();
+    let mut components = vec![MapComponent {
+        name: "noise of the readings propagated through the fit".into(),
+        evaluation: Evaluation::TypeA,
+        u: u_fit,
+    }];
+    if dropped > 0.0 {
+        components.push(MapComponent {
+            name: "orders below the significance threshold, left out of the map".into(),
+            evaluation: Evaluation::TypeA,
+            u: vec![dropped],
+        });
+    }
+    if missing > 0.0 {
+        components.push(MapComponent {
+            name: "periodic structure in the residual above the orders fitted".into(),
+            evaluation: Evaluation::TypeA,
+            u: vec![missing],
+        });
+    }
+    components.push(MapComponent {
+        name: "linear interpolation between table points".into(),
+        evaluation: Evaluation::TypeB,
+        u: vec![interpolation_uncertainty(&series.harmonics(), points)],
+    });
+    MapUncertainty::combine(points, components)
+}
+
+/// The ascending union of two ascending order lists.
+fn union(a: &[usize], b: &[usize]) -> Vec<usize> {
+    let mut u: Vec<usize> = a.iter().chain(b).copied().collect();
+    u.sort_unstable();
+    u.dedup();
+    u
+}
+
+/// The screening fit: motion of degree `degree` and every order `1..=h`, then the significance
+/// rule on each order's pair of coefficients.
+#[derive(Debug, Clone)]
+struct Screen {
+    /// Orders kept.
+    kept: Vec<usize>,
+    /// The motion's Chebyshev coefficients.
+    motion: Vec<f64>,
+    /// The RMS over the circle of what the dropped orders hold: `sqrt(½·(P + s_P))` with
+    /// `P = Σ_dropped (a_k² + b_k² − var a_k − var b_k)` the unbiased estimate of their power and
+    /// `s_P` its standard deviation (`var |x|² = 4v² + 4v|μ|²` per order), rad. The estimate
+    /// alone is as noisy as it is large when many orders hold little; one standard deviation
+    /// above it makes it a one-sided 84 % bound that does not vanish with the noise.
+    dropped: f64,
+}
+
+fn screen_orders(
     t: &[f64],
     r: &[f64],
     y: &[f64],
-    basis: &Basis,
+    span: (f64, f64),
     degree: usize,
-    drag_gain: f64,
-    motion: &TdrMotion,
-    sigma: f64,
-) -> Vec<SpeedDependence> {
-    let ext = Basis {
+    h: usize,
+    drag: Option<DragWeights>,
+) -> Option<Screen> {
+    let basis = Basis {
+        t0: span.0,
+        t1: span.1,
         degree,
-        weight: Some((motion.clone(), drag_gain)),
-        ..basis.clone()
+        orders: (1..=h).collect(),
+        drag,
     };
-    let n = ext.len();
-    let normal = ext.normal_equations(t, r, y);
-    let cols: Vec<usize> = (0..n).collect();
-    let Some(beta) = normal.solve(&cols, None) else {
-        return Vec::new();
-    };
-    let Some(inverse) = normal.g.clone().cholesky().map(|c| c.inverse()) else {
-        return Vec::new();
-    };
-    let g = degree + 1 + 2 * basis.max_order;
-    (0..basis.max_order)
-        .filter_map(|k| {
-            let (a, b) = (beta[g + 2 * k], beta[g + 2 * k + 1]);
-            let var =
-                0.5 * (inverse[(g + 2 * k, g + 2 * k)] + inverse[(g + 2 * k + 1, g + 2 * k + 1)]);
-            let u = sigma * var.sqrt();
-            let harmonic = Harmonic::from_coefficients(k + 1, a, b);
-            (harmonic.amplitude > 4.0 * u && harmonic.amplitude * ARCSEC_PER_RAD > 0.01)
-                .then_some(SpeedDependence { harmonic, u })
-        })
-        .collect()
+    let normal = fourier_normal_equations(&basis, t, r, y, h);
+    let fit = Fit::with_normal(&basis, t, r, y, &normal)?;
+    let threshold = significance_threshold(h);
+    let f = degree + 1;
+    let mut kept = Vec::new();
+    let (mut power, mut power_var) = (0.0, 0.0);
+    for k in 1..=h {
+        let (c, s) = (f + 2 * (k - 1), f + 2 * k - 1);
+        if fit.chi_square(c, s) > threshold {
+            kept.push(k);
+        } else {
+            let noise = fit.sigma.powi(2) * (fit.covariance(c, c) + fit.covariance(s, s));
+            let excess = fit.beta[c].powi(2) + fit.beta[s].powi(2) - noise;
+            power += excess;
+            // var |x|² = 4v² + 4v|μ|² for a pair of variance v each and mean μ.
+            let v = 0.5 * noise;
+            power_var += 4.0 * v * v + 4.0 * v * excess.max(0.0);
+        }
+    }
+    Some(Screen {
+        kept,
+        motion: fit.beta[..=degree].to_vec(),
+        dropped: ((power + power_var.sqrt()).max(0.0) / 2.0).sqrt(),
+    })
 }
 
-/// Fits `d = c + Σ a_k cos kr + b_k sin kr` (DUT − reference against the DUT's reading) and
-/// compares the map with the TDR map.
-fn reference_check(r: &[f64], d: &[f64], max_order: usize, tdr: &ErrorMap) -> ReferenceCheck {
-    let basis = Basis {
-        t0: -1.0,
-        t1: 1.0,
-        degree: 0,
-        max_order,
-        weight: None,
+/// Rows per block of [`fourier_normal_equations`].
+const BLOCK: usize = 1024;
+
+/// The normal equations of a basis of the motion, every order `1..=h` and a few drag columns, built in
+/// `O(N·(p + h)·p)` rather than `O(N·h²)`: the Fourier–Fourier block comes from the moments
+/// `C_m + iS_m = Σ_n e^{imr_n}`, `m = 0..2h`, by `cos jr·cos kr = ½(cos(j−k)r + cos(j+k)r)`,
+/// `sin jr·sin kr = ½(cos(j−k)r − cos(j+k)r)`, `cos jr·sin kr = ½(sin(j+k)r − sin(j−k)r)`; the
+/// motion's blocks and `Aᵀy` by matrix products over blocks of rows; the drag's columns, if
+/// any, in one more pass.
+fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: &[f64], h: usize) -> Normal {
+    let p1 = basis.degree + 1;
+    let n = p1 + 2 * h;
+    let mut cm = vec![0.0; 2 * h + 1];
+    let mut sm = vec![0.0; 2 * h + 1];
+    let mut mm = DMatrix::<f64>::zeros(p1, p1);
+    let mut mf = DMatrix::<f64>::zeros(p1, 2 * h);
+    let mut rhs = DVector::<f64>::zeros(n);
+    for start in (0..t.len()).step_by(BLOCK) {
+        let len = BLOCK.min(t.len() - start);
+        let mut a = DMatrix::<f64>::zeros(len, p1);
+        // One column per sample, so that filling it is contiguous.
+        let mut f = DMatrix::<f64>::zeros(2 * h, len);
+        let yv = DVector::from_column_slice(&y[start..start + len]);
+        for i in 0..len {
+            let (ti, ri) = (t[start + i], r[start + i]);
+            let tau = (2.0 * ti - basis.t0 - basis.t1) / (basis.t1 - basis.t0);
+            let (mut t0, mut t1) = (1.0, tau);
+            a[(i, 0)] = 1.0;
+            for j in 1..p1 {
+                a[(i, j)] = t1;
+                (t0, t1) = (t1, 2.0 * tau * t1 - t0);
+            }
+            let (s1, c1) = ri.sin_cos();
+            let (mut s, mut c) = (0.0, 1.0);
+            cm[0] += 1.0;
+            for m in 1..=2 * h {
+                (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
+                cm[m] += c;
+                sm[m] += s;
+                if m <= h {
+                    f[(2 * m - 2, i)] = c;
+                    f[(2 * m - 1, i)] = s;
+                }
+            }
+        }
+        let at = a.transpose();
+        mm += &at * &a;
+        mf += (&f * &a).transpose();
+        let ry = at * &yv;
+        let fy = &f * &yv;
+        for j in 0..p1 {
+            rhs[j] += ry[j];
+        }
+        for j in 0..2 * h {
+            rhs[p1 + j] += fy[j];
+        }
+    }
+    let mut g = DMatrix::<f64>::zeros(n, n);
+    g.view_mut((0, 0), (p1, p1)).copy_from(&mm);
+    g.view_mut((0, p1), (p1, 2 * h)).copy_from(&mf);
+    g.view_mut((p1, 0), (2 * h, p1)).copy_from(&mf.transpose());
+    let sin = |m: isize| {
+        if m >= 0 {
+            sm[m as usize]
+        } else {
+            -sm[(-m) as usize]
+        }
     };
+    for j in 1..=h {
+        for k in 1..=h {
+            let (d, s) = (j.abs_diff(k), j + k);
+            let (cj, sj, ck, sk) = (
+                p1 + 2 * j - 2,
+                p1 + 2 * j - 1,
+                p1 + 2 * k - 2,
+                p1 + 2 * k - 1,
+            );
+            g[(cj, ck)] = 0.5 * (cm[d] + cm[s]);
+            g[(sj, sk)] = 0.5 * (cm[d] - cm[s]);
+            g[(cj, sk)] = 0.5 * (sm[s] - sin(j as isize - k as isize));
+            g[(sk, cj)] = g[(cj, sk)];
+        }
+    }
+    if basis.drag.is_some() {
+        // The drag's few columns against all: one pass with full rows.
+        let total = basis.len();
+        let mut big = DMatrix::<f64>::zeros(total, total);
+        big.view_mut((0, 0), (n, n)).copy_from(&g);
+        let mut rhs_big = DVector::<f64>::zeros(total);
+        rhs_big.rows_mut(0, n).copy_from(&rhs);
+        let mut row = vec![0.0; total];
+        let mut trig = Vec::new();
+        for i in 0..t.len() {
+            basis.row(t[i], r[i], &mut row, &mut trig);
+            for d in n..total {
+                let rd = row[d];
+                rhs_big[d] += rd * y[i];
+                for (b, &rb) in row.iter().enumerate().take(d + 1) {
+                    big[(d, b)] += rd * rb;
+                }
+            }
+        }
+        for d in n..total {
+            for b in 0..d {
+                big[(b, d)] = big[(d, b)];
+            }
+        }
+        return Normal {
+            g: big,
+            rhs: rhs_big,
+        };
+    }
+    Normal { g, rhs }
+}
+
+/// Periodic structure in the residual of `fit` at `orders`: each order's residual projected on
+/// `e^{−ikr}` over the samples, `z_k = Σ e_n e^{−ikr_n}`, amplitude `2|z_k|/N`; under white noise
+/// `2|z_k|²/(Nσ²)` is a chi-square of 2 degrees of freedom, and the orders that pass the
+/// significance rule are returned, largest first.
+fn residual_orders(
+    basis: &Basis,
+    t: &[f64],
+    r: &[f64],
+    y: &[f64],
+    fit: &Fit,
+    orders: std::ops::RangeInclusive<usize>,
+) -> Vec<Harmonic> {
+    let (lo, hi) = (*orders.start(), *orders.end());
+    if hi < lo || fit.sigma <= 0.0 {
+        return Vec::new();
+    }
+    let m = hi - lo + 1;
+    let mut z = vec![(0.0, 0.0); m];
+    let cols: Vec<usize> = (0..basis.len()).collect();
+    let mut i = 0;
+    basis.residuals(t, r, y, &cols, &fit.beta, |_, e| {
+        let (s1, c1) = r[i].sin_cos();
+        let (sl, cl) = (lo as f64 * r[i]).sin_cos();
+        let (mut s, mut c) = (sl, cl);
+        for zk in z.iter_mut() {
+            zk.0 += e * c;
+            zk.1 -= e * s;
+            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
+        }
+        i += 1;
+    });
+    let n = t.len() as f64;
+    let sigma2 = fit.rss / n;
+    let threshold = significance_threshold(m);
+    let mut found: Vec<Harmonic> = z
+        .iter()
+        .enumerate()
+        .filter(|(_, (a, b))| 2.0 * (a * a + b * b) / (n * sigma2) > threshold)
+        .map(|(j, &(a, b))| Harmonic::from_coefficients(lo + j, 2.0 * a / n, -2.0 * b / n))
+        .collect();
+    found.sort_by(|a, b| b.amplitude.total_cmp(&a.amplitude));
+    found
+}
+
+/// Fits `d = c + Σ a_k cos kr + b_k sin kr` (DUT − reference against the DUT's reading) at
+/// `orders` — the map's and those the residual showed beyond it — and compares the map with the
+/// TDR map.
+fn reference_check(
+    t: &[f64],
+    r: &[f64],
+    d: &[f64],
+    orders: &[usize],
+    tdr: &ErrorMap,
+) -> ReferenceCheck {
     let d0 = d[0];
     let y: Vec<f64> = d.iter().map(|v| v - d0).collect();
-    let zeros = vec![0.0; r.len()];
-    let normal = basis.normal_equations(&zeros, r, &y);
-    let cols: Vec<usize> = (0..basis.len()).collect();
-    let mut series = FourierSeries::zeros(max_order);
-    if let Some(beta) = normal.solve(&cols, None) {
-        for k in 0..max_order {
-            series.cos[k] = beta[1 + 2 * k];
-            series.sin[k] = beta[2 + 2 * k];
+    let basis = Basis {
+        t0: t[0],
+        t1: t[t.len() - 1],
+        degree: 0,
+        orders: orders.to_vec(),
+        drag: None,
+    };
+    let mut series = FourierSeries::zeros(orders.last().copied().unwrap_or(1));
+    if let Some(fit) = Fit::new(&basis, t, r, &y) {
+        for (i, &k) in orders.iter().enumerate() {
+            series.cos[k - 1] = fit.beta[1 + 2 * i];
+            series.sin[k - 1] = fit.beta[2 + 2 * i];
         }
     }
     let map = ErrorMap::from_series(&series, tdr.len());

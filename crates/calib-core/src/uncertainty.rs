@@ -256,6 +256,106 @@ pub fn evaluate(budget: &Budget) -> Result<BudgetResult, UncertaintyError> {
     })
 }
 
+/// How a component of a map's uncertainty was evaluated (GUM 4.2 and 4.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Evaluation {
+    /// Type A: from the statistics of the data (the fit's residual).
+    #[serde(rename = "A")]
+    TypeA,
+    /// Type B: from a model of what the data cannot show directly.
+    #[serde(rename = "B")]
+    TypeB,
+}
+
+/// One component of a map's uncertainty budget: a standard uncertainty at every table point
+/// (one value when it is the same everywhere), radians.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapComponent {
+    /// What it is, in the GUM's words.
+    pub name: String,
+    /// Type A or B.
+    pub evaluation: Evaluation,
+    /// Standard uncertainty per table point, or one value for all, radians.
+    pub u: Vec<f64>,
+}
+
+impl MapComponent {
+    /// The component at table point `i`.
+    pub fn at(&self, i: usize) -> f64 {
+        if self.u.len() == 1 {
+            self.u[0]
+        } else {
+            self.u[i]
+        }
+    }
+
+    /// RMS over the table's points, radians.
+    pub fn rms(&self) -> f64 {
+        (self.u.iter().map(|v| v * v).sum::<f64>() / self.u.len().max(1) as f64).sqrt()
+    }
+}
+
+/// The standard uncertainty of an error map at each of its table points, with its budget: the
+/// components are independent and combine in quadrature (GUM 5.1.2 with unit sensitivities),
+/// `u(θ_i) = sqrt(Σ_j u_j(θ_i)²)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapUncertainty {
+    /// Combined standard uncertainty per table point, radians.
+    pub u: Vec<f64>,
+    /// The components.
+    pub components: Vec<MapComponent>,
+}
+
+impl MapUncertainty {
+    /// Combines `components` over a table of `points` points.
+    pub fn combine(points: usize, components: Vec<MapComponent>) -> Self {
+        let u = (0..points)
+            .map(|i| {
+                components
+                    .iter()
+                    .map(|c| c.at(i).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .collect();
+        MapUncertainty { u, components }
+    }
+
+    /// Largest `u`, radians.
+    pub fn max(&self) -> f64 {
+        self.u.iter().copied().fold(0.0, f64::max)
+    }
+
+    /// RMS of `u` over the points, radians.
+    pub fn rms(&self) -> f64 {
+        (self.u.iter().map(|v| v * v).sum::<f64>() / self.u.len().max(1) as f64).sqrt()
+    }
+
+    /// Median of `u`, radians.
+    pub fn median(&self) -> f64 {
+        let mut v = self.u.clone();
+        if v.is_empty() {
+            return 0.0;
+        }
+        let mid = v.len() / 2;
+        v.select_nth_unstable_by(mid, f64::total_cmp);
+        v[mid]
+    }
+}
+
+/// The standard uncertainty that linear interpolation between the table's points adds, for a
+/// map with these harmonics (radians) on `points` points: `A·(hδ)²/8` bounds the error of
+/// interpolating `A·cos hθ` over a step `δ = 2π/points`; summed over the orders as a half-width
+/// with a rectangular distribution (`/√3`). Zero at the table points themselves.
+pub fn interpolation_uncertainty(harmonics: &[crate::Harmonic], points: usize) -> f64 {
+    let step = std::f64::consts::TAU / points.max(1) as f64;
+    let bound: f64 = harmonics
+        .iter()
+        .map(|h| h.amplitude * (h.order as f64 * step).powi(2) / 8.0)
+        .sum();
+    bound / 3f64.sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,7 +2,9 @@
 //! ISO 230-2 figures, the uncertainty, and the refusals.
 
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{ReferenceCal, ReferenceError, ReferenceOptions};
+use calib_core::reference_cal::{
+    ReferenceCal, ReferenceError, ReferenceOptions, TableMap, Targets,
+};
 use calib_core::{FourierSeries, Harmonic};
 use std::f64::consts::TAU;
 
@@ -55,7 +57,11 @@ fn run(
     noise: f64,
     ref_of: impl Fn(f64) -> f64,
 ) -> ReferenceCal {
-    let mut cal = ReferenceCal::new(ReferenceOptions::default());
+    // ISO 230-2 at every grid point (the default is 20 targets), so M is the map's p-p.
+    let mut cal = ReferenceCal::new(ReferenceOptions {
+        targets: Targets::Count(3600),
+        ..ReferenceOptions::default()
+    });
     let (e, mut rng) = (dut_error(), Noise(7));
     let mut t = 0.0;
     let mut push = |cal: &mut ReferenceCal, th: f64, sign: f64| {
@@ -88,7 +94,7 @@ fn with_ref_error(th: f64) -> f64 {
 /// at the grid angle as a true angle; the map is a function of the DUT's reading, which differs
 /// from the true angle by e (≤ 29″), moving the truth by at most e·|de/dθ| ≈ 29″ · 232″/rad ≈
 /// 0.03″.
-fn max_error(map: &calib_core::ErrorMap) -> f64 {
+fn max_error(map: &TableMap) -> f64 {
     let (e, r) = (dut_error(), ref_error());
     let truth: Vec<f64> = (0..map.len())
         .map(|i| e.eval(map.grid_angle(i)) - r.eval(map.grid_angle(i)))
@@ -208,6 +214,12 @@ fn a_still_reference_is_refused() {
 fn a_reference_turning_the_other_way_is_refused() {
     let r = run(3.0, 0.0, 0.0, 0.05, |th| -th).finish();
     assert!(
+        matches!(r, Err(ReferenceError::NotRepeating { .. })),
+        "{r:?}"
+    );
+    // Less than a turn one way: no reading crossed twice, so the change over the run decides.
+    let r = run(0.8, 0.0, 0.0, 0.05, |th| -th).finish();
+    assert!(
         matches!(r, Err(ReferenceError::NotFollowing { .. })),
         "{r:?}"
     );
@@ -218,21 +230,34 @@ fn a_reference_on_a_slightly_faster_shaft_is_refused() {
     // 1 % faster: 3.6° per revolution, 18° over 5 revolutions.
     let r = run(5.0, 0.0, 0.0, 0.05, |th| 1.01 * th).finish();
     assert!(
-        matches!(r, Err(ReferenceError::NotFollowing { .. })),
+        matches!(r, Err(ReferenceError::NotRepeating { spread_deg, .. }) if spread_deg > 10.0),
         "{r:?}"
     );
 }
 
 #[test]
-fn less_than_a_revolution_is_refused() {
-    let r = run(0.8, 0.0, 0.0, 0.05, with_ref_error).finish();
+fn less_than_a_revolution_gives_a_range_map() {
+    // 0.8 revolution one way from 0.3 rad: the range from the end of the 1° approach to the last
+    // grid point crossed, matching the truth there.
+    let cal = run(0.8, 0.0, 0.0, 0.05, with_ref_error).finish().unwrap();
+    let TableMap::Range(m) = &cal.map else {
+        panic!("{:?}", cal.map.range())
+    };
+    let (lo, hi) = (0.3 + 1f64.to_radians(), 0.3 + 0.8 * TAU);
     assert!(
-        matches!(r, Err(ReferenceError::TooLittleMotion { revolutions }) if (revolutions - 0.8).abs() < 0.01),
-        "{r:?}"
+        (m.start() - lo).abs() <= 0.1f64.to_radians(),
+        "{}",
+        m.start()
     );
-    // Half a revolution up and half down: one revolution of travel, half the circle covered.
-    let r = run(0.5, 0.5, 0.0, 0.05, with_ref_error).finish();
-    assert!(matches!(r, Err(ReferenceError::NotCovered { .. })), "{r:?}");
+    assert!((m.end() - hi).abs() <= 0.1f64.to_radians(), "{}", m.end());
+    // One pass: σ ≈ 0.05·√2″ ≈ 0.07″ per point, the worst of ~2900 ≈ 4σ.
+    let err = max_error(&cal.map);
+    println!("0.8 revolution: max |map − truth| = {err:.4}″");
+    assert!(err < 0.4, "{err}″");
+    // Half a revolution up and half down: half the circle, both directions.
+    let cal = run(0.5, 0.5, 0.0, 0.05, with_ref_error).finish().unwrap();
+    assert!(cal.map.range().is_some());
+    assert_eq!((cal.min_passes.0, cal.min_passes.1), (1, 1));
 }
 
 #[test]

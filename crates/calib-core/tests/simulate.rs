@@ -4,7 +4,7 @@ use calib_core::angle::{ARCSEC_PER_RAD, wrap_pi};
 use calib_core::simulate::{Mount, Scenario, ScenarioError};
 use std::f64::consts::TAU;
 
-const SCENARIOS: [(&str, &str); 7] = [
+const SCENARIOS: [(&str, &str); 8] = [
     (
         "csrr72",
         include_str!("../../../testdata/scenarios/csrr72.toml"),
@@ -32,6 +32,10 @@ const SCENARIOS: [(&str, &str); 7] = [
     (
         "spindown-bearing",
         include_str!("../../../testdata/scenarios/spindown-bearing.toml"),
+    ),
+    (
+        "joint",
+        include_str!("../../../testdata/scenarios/joint.toml"),
     ),
 ];
 
@@ -493,4 +497,55 @@ fn spin_down_follows_the_friction_law_and_replaces_the_procedure() {
             .to_string()
             .contains("spin_down.friction.viscous")
     );
+}
+
+/// A `[sweep]` run: the noise-free readings stay inside each channel's range truth, reach both of
+/// its ends (the strokes end at rest there), and equal the true angle plus the truth at the
+/// reading; `[sweep]` with `[procedure]` and an empty stroke are refused.
+#[test]
+fn a_sweep_stays_in_its_range_truth() {
+    let s = noiseless(scenario("joint"));
+    let ranges = s.range_truth(3600).unwrap().expect("a sweep");
+    let truths = s.sensor_truths().unwrap();
+    let (mut lo, mut hi) = (vec![f64::INFINITY; 2], vec![f64::NEG_INFINITY; 2]);
+    for st in s.samples().unwrap().with_truth() {
+        for k in 0..2 {
+            let r = st.sample.values[k];
+            lo[k] = lo[k].min(r);
+            hi[k] = hi[k].max(r);
+            let e = truths[k].error_at_reading(r);
+            assert!(arcsec(wrap_pi(r - e - st.true_angles[k])).abs() < 1e-6);
+        }
+    }
+    for k in 0..2 {
+        let map = ranges[k].1.as_ref().expect("less than a turn");
+        // The grid's ends are the readings at the strokes' ends (1e-9 rad: rounding).
+        assert!(
+            (map.start() - lo[k]).abs() < 1e-9,
+            "{k}: {} vs {}",
+            map.start(),
+            lo[k]
+        );
+        assert!(
+            (map.end() - hi[k]).abs() < 1e-9,
+            "{k}: {} vs {}",
+            map.end(),
+            hi[k]
+        );
+        assert!(map.step() <= TAU / 3600.0 + 1e-15);
+    }
+    let mut bad = s.clone();
+    bad.procedure.relative_deg = vec![0.0, 10.0];
+    assert!(matches!(
+        bad.validate(),
+        Err(ScenarioError::SweepConflict { table: "procedure" })
+    ));
+    let mut bad = s.clone();
+    if let Some(sw) = bad.sweep.as_mut() {
+        sw.to_deg = sw.from_deg;
+    }
+    assert!(matches!(
+        bad.validate(),
+        Err(ScenarioError::InvalidValue { .. })
+    ));
 }

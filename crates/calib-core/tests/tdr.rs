@@ -5,7 +5,7 @@
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::simulate::Scenario;
 use calib_core::tdr::{Tdr, TdrCalibration, TdrError, TdrOptions};
-use calib_core::{ErrorMap, FourierSeries, Harmonic};
+use calib_core::{ErrorMap, Harmonic};
 use std::f64::consts::TAU;
 
 fn scenario(file: &str) -> Scenario {
@@ -89,81 +89,259 @@ fn air_bearing_coast_recovers_the_encoder_map() {
         cal.speed_dependence
     );
     assert!(cal.warnings.is_empty(), "{:?}", cal.warnings);
+    let (covered, median_u) = coverage(&s, &cal);
+    println!(
+        "air bearing: max |map − truth| {diff:.4}″; ≤ 2u at {:.1} %, median u {median_u:.4}″",
+        100.0 * covered
+    );
+    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 96–99 %).
+    assert!((0.90..=0.999).contains(&covered), "{covered}");
+    assert!(median_u < 0.01, "{median_u}″");
     // The reference's own error is 0.05″ at order 3, so the check sees ≈ 0.05″.
     let check = cal.reference.as_ref().unwrap();
     assert!(check.max_abs_diff_arcsec < 0.07, "{check:?}");
 }
 
-#[test]
-fn rolling_bearing_drag_appears_as_encoder_error_by_the_predicted_amount() {
-    let s = scenario("spindown-bearing.toml");
-    let (cal, speeds) = run(&s);
-    let inv_omega2 = mean_inverse_square_speed(&speeds, &cal);
+/// Runs TDR with `opts` on channel `enc` (and `ref` as reference).
+fn run_with(s: &Scenario, opts: TdrOptions) -> TdrCalibration {
+    let mut tdr = Tdr::new(opts);
+    for st in s.samples().unwrap() {
+        tdr.push_with_reference(st.t, st.values[0], st.values[1]);
+    }
+    tdr.finish().unwrap()
+}
+
+/// Max |map − truth| in arcseconds.
+fn max_error(s: &Scenario, cal: &TdrCalibration) -> f64 {
+    let truth = &s.truth(cal.map.len()).unwrap()[0].1;
+    cal.map.minus(truth).max_abs_arcsec()
+}
+
+/// The fraction of table points with |map − truth| ≤ 2u, and the median u (arcsec).
+fn coverage(s: &Scenario, cal: &TdrCalibration) -> (f64, f64) {
     let truth = &s.truth(cal.map.len()).unwrap()[0].1;
     let diff = cal.map.minus(truth);
-    // Eq. (2) of the tdr module: a drag a_h·cos(hθ + φ) shakes the shaft by a_h/(hω)²·cos(hθ + φ),
-    // which the constant-coefficient fit averages over the samples: the map's order h is off by
-    // (a_h/h²)·⟨ω⁻²⟩ at phase φ. Corrections to (2) are O(ω̇/(hω²)) ≈ 2e-4 and O(F′(ω)/(hω))
-    // ≈ 1e-4; the spread of 1/ω² over the coast (×3.5) is what the mean absorbs. Hence 2 %.
-    let sd = s.spin_down.as_ref().unwrap();
-    let predicted: Vec<Harmonic> = sd
-        .drag_harmonics
+    let u = &cal.uncertainty;
+    let inside = diff
+        .values()
         .iter()
-        .map(|d| {
-            let h = f64::from(d.order);
-            Harmonic {
-                order: d.order as usize,
-                amplitude: d.amplitude / (h * h) * inv_omega2,
-                phase: d.phase_deg.to_radians(),
-            }
-        })
-        .collect();
-    let got = diff.series();
-    for p in &predicted {
-        let (a, b) = p.coefficients();
-        let (ga, gb) = (got.cos[p.order - 1], got.sin[p.order - 1]);
-        let off = arcsec((ga - a).hypot(gb - b));
-        let want = arcsec(p.amplitude);
+        .zip(&u.u)
+        .filter(|(d, u)| d.abs() <= 2.0 * **u)
+        .count();
+    (
+        inside as f64 / diff.len() as f64,
+        u.median() * ARCSEC_PER_RAD,
+    )
+}
+
+#[test]
+fn orders_come_from_the_data_and_order_128_is_kept() {
+    // 600 → 120 r/min at 2 kHz: 200 samples per revolution at the start, 1000 at the end, so
+    // the default tests orders to 0.4·1000 ≈ 400 and keeps those that stand above the noise.
+    let s = scenario("spindown-wide.toml");
+    let cal = run_with(&s, TdrOptions::default());
+    let diff = max_error(&s, &cal);
+    // σ ≈ 0.057″ per sample over 89 000 samples: each kept order's amplitude is uncertain by
+    // σ·√(2/N) ≈ 3e-4″; ~15 orders kept give a map rms ≈ 1.5e-3″, its maximum a few times that.
+    // Dropped orders are below the significance threshold (≈ 5σ per coefficient, 1.6e-3″).
+    // Measured: 0.0085″. Bar of the issue: 0.05″.
+    let (covered, median_u) = coverage(&s, &cal);
+    println!(
+        "wide coast, defaults: max |map − truth| {diff:.4}″, orders {:?} of {}; ≤ 2u at {:.1} %, median u {median_u:.4}″",
+        cal.orders,
+        cal.max_order,
+        100.0 * covered
+    );
+    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 96–99 %).
+    assert!((0.90..=0.999).contains(&covered), "{covered}");
+    assert!(median_u < 0.01, "{median_u}″");
+    assert!(diff < 0.03, "max |map − truth| = {diff}″");
+    assert!((350..=420).contains(&cal.max_order), "{}", cal.max_order);
+    for k in [1, 2, 3, 16, 32, 128] {
         assert!(
-            off < 0.02 * want,
-            "order {}: off {off}″ of {want}″",
+            cal.orders.contains(&k),
+            "order {k} missing: {:?}",
+            cal.orders
+        );
+    }
+    // The map as a function of the reading also holds the small intermodulation terms of e(θ)
+    // (sidebands such as 128 ± 2 of ½·128·0.2″·25″/206265″ ≈ 1.5e-3″), not noise: far fewer
+    // orders than tested are kept.
+    assert!(cal.orders.len() < 30, "{:?}", cal.orders);
+    assert!(
+        cal.unresolved
+            .iter()
+            .all(|u| u.amplitude * ARCSEC_PER_RAD < 0.01),
+        "{:?}",
+        cal.unresolved
+    );
+    assert!(cal.warnings.is_empty(), "{:?}", cal.warnings);
+    assert!(cal.drag.is_empty(), "{:?}", cal.drag);
+    assert!(cal.drag_separation.separated);
+    let check = cal.reference.as_ref().unwrap();
+    assert!(check.max_abs_diff_arcsec < 0.08, "{check:?}");
+}
+
+#[test]
+fn a_low_max_order_leaves_order_128_in_the_residual_and_says_so() {
+    let s = scenario("spindown-wide.toml");
+    let cal = run_with(
+        &s,
+        TdrOptions {
+            max_order: Some(32),
+            ..TdrOptions::default()
+        },
+    );
+    // The 0.2″ of order 128 is not in the map…
+    let diff = max_error(&s, &cal);
+    assert!(diff > 0.15, "{diff}″");
+    // …but the residual's projection on order 128 finds it: amplitude within its noise
+    // (σ·√(2/N) ≈ 3e-4″) plus the leak of the non-uniform sampling into the projection (≈ 1 %).
+    let top = cal.unresolved.first().expect("structure found");
+    assert_eq!(top.order, 128, "{:?}", cal.unresolved);
+    assert!(
+        (top.amplitude * ARCSEC_PER_RAD - 0.2).abs() < 0.01,
+        "{top:?}"
+    );
+    let w = cal
+        .warnings
+        .iter()
+        .find(|w| w.contains("periodic structure"))
+        .expect("warned");
+    assert!(
+        w.contains("order 128 0.2") && w.contains("--max-order to at least 1"),
+        "{w}"
+    );
+}
+
+#[test]
+fn drag_is_separated_from_the_encoder_error_over_a_wide_coast() {
+    // The same coast with drag at orders 1 and 2 (6.5″ each at the slow end): fitted jointly as
+    // an imprint ∝ 1/ω² (module docs, eq. 3).
+    let s = scenario("spindown-drag.toml");
+    let cal = run_with(&s, TdrOptions::default());
+    let diff = max_error(&s, &cal);
+    // What eq. (3) leaves out: the friction's slope, F′/(hω) ≤ 0.025/12.6 = 0.2 % of the 6.5″
+    // imprint at the slow end (0.013″), and the noise of orders 1 and 2 amplified by the
+    // separation (×1.5). Measured: 0.0075″. Bar of the issue: 0.3″ (aim 0.15″).
+    let (covered, median_u) = coverage(&s, &cal);
+    println!(
+        "drag coast, defaults: max |map − truth| {diff:.4}″, drag {:?}; ≤ 2u at {:.1} %, median u {median_u:.4}″",
+        cal.drag,
+        100.0 * covered
+    );
+    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 96–99 %).
+    assert!((0.90..=0.999).contains(&covered), "{covered}");
+    assert!(median_u < 0.01, "{median_u}″");
+    assert!(diff < 0.06, "max |map − truth| = {diff}″");
+    let sd = s.spin_down.as_ref().unwrap();
+    let found: Vec<usize> = cal.drag.iter().map(|d| d.deceleration.order).collect();
+    assert_eq!(found, [1, 2]);
+    for (d, truth) in cal.drag.iter().zip(&sd.drag_harmonics) {
+        // The deceleration amplitude and phase within 0.5 % and 0.01 rad: its imprint is
+        // thousands of times its noise; the same 0.2 % model error as above remains.
+        assert!(
+            (d.deceleration.amplitude / truth.amplitude - 1.0).abs() < 0.005,
+            "{d:?}"
+        );
+        assert!(
+            (d.deceleration.phase - truth.phase_deg.to_radians()).abs() < 0.01,
+            "{d:?}"
+        );
+        let h2 = (d.deceleration.order * d.deceleration.order) as f64;
+        assert!((d.imprint - d.deceleration.amplitude / h2 * cal.drag_gain).abs() < 1e-12);
+    }
+    assert!(cal.speed_dependence.is_empty());
+    assert!(cal.warnings.is_empty(), "{:?}", cal.warnings);
+}
+
+#[test]
+fn rolling_bearing_drag_is_separated_over_a_coast_that_slows_by_half() {
+    // 600 → 322 r/min: 1/ω² varies by 35 % RMS, the separation costs ×3 noise at the drag orders.
+    let s = scenario("spindown-bearing.toml");
+    let cal = run_with(&s, TdrOptions::default());
+    let diff = max_error(&s, &cal);
+    // Noise 3e-4″ per order ×3 at orders 2 and 4; the model error of eq. (3), F′/(hω) ≈ 0.03 %
+    // of 3.9″. Measured: 0.0083″ (the unseparated fit was off by 5.3″).
+    assert!(diff < 0.05, "max |map − truth| = {diff}″");
+    let (covered, median_u) = coverage(&s, &cal);
+    println!(
+        "bearing coast: max |map − truth| {diff:.4}″; ≤ 2u at {:.1} %, median u {median_u:.4}″",
+        100.0 * covered
+    );
+    // The budget is honest: |map − truth| ≤ 2u at 90–99.9 % of the points (measured 96–99 %).
+    assert!((0.90..=0.999).contains(&covered), "{covered}");
+    assert!(median_u < 0.01, "{median_u}″");
+    let found: Vec<usize> = cal.drag.iter().map(|d| d.deceleration.order).collect();
+    assert_eq!(found, [2, 4]);
+    let sd = s.spin_down.as_ref().unwrap();
+    for (d, truth) in cal.drag.iter().zip(&sd.drag_harmonics) {
+        assert!(
+            (d.deceleration.amplitude / truth.amplitude - 1.0).abs() < 0.005,
+            "{d:?}"
+        );
+    }
+    assert!((cal.drag_separation.noise_gain - 3.0).abs() < 0.3);
+}
+
+#[test]
+fn a_narrow_coast_cannot_separate_drag_and_says_what_is_missing() {
+    // Only the first 3 s of the rolling-bearing coast: 600 → 560 r/min, 1/ω² varies by ≈ 4 %.
+    let mut s = scenario("spindown-bearing.toml");
+    s.spin_down.as_mut().unwrap().duration_s = 3.0;
+    let mut tdr = Tdr::new(TdrOptions::default());
+    let mut prev: Option<(f64, f64)> = None;
+    let mut speeds = Vec::new();
+    for st in s.samples().unwrap().with_truth() {
+        tdr.push(st.sample.t, st.sample.values[0]);
+        let th = st.true_angles[0];
+        if let Some((t0, th0)) = prev {
+            speeds.push((t0, (th - th0) / (st.sample.t - t0)));
+        }
+        prev = Some((st.sample.t, th));
+    }
+    let cal = tdr.finish().unwrap();
+    assert!(!cal.drag_separation.separated);
+    assert!(cal.drag.is_empty());
+    let w = cal
+        .warnings
+        .iter()
+        .find(|w| w.contains("too narrow"))
+        .expect("warned");
+    assert!(w.contains("at least 10 %") && w.contains("r/min"), "{w}");
+    // The drag stays in the map by what eq. (2) predicts, (a_h/h²)·⟨ω⁻²⟩ at phase φ_h:
+    // corrections to (2) are O(ω̇/(hω²)) ≈ 2e-4 and O(F′(ω)/(hω)) ≈ 1e-4. Hence 2 %.
+    let inv_omega2 = mean_inverse_square_speed(&speeds, &cal);
+    assert!((cal.drag_gain / inv_omega2 - 1.0).abs() < 1e-3);
+    let truth = &s.truth(cal.map.len()).unwrap()[0].1;
+    let got = cal.map.minus(truth).series();
+    for d in &s.spin_down.as_ref().unwrap().drag_harmonics {
+        let h = f64::from(d.order);
+        let p = Harmonic {
+            order: d.order as usize,
+            amplitude: d.amplitude / (h * h) * inv_omega2,
+            phase: d.phase_deg.to_radians(),
+        };
+        let (a, b) = p.coefficients();
+        let off = arcsec((got.cos[p.order - 1] - a).hypot(got.sin[p.order - 1] - b));
+        assert!(
+            off < 0.02 * arcsec(p.amplitude),
+            "order {}: off {off}″",
             p.order
         );
     }
-    // 3.94″ at order 2 and 1.97″ at order 4: the map is off by up to their sum's peak.
-    let predicted_map =
-        ErrorMap::from_series(&FourierSeries::from_harmonics(&predicted, 8), cal.map.len());
-    let (worst, expected) = (diff.max_abs_arcsec(), predicted_map.max_abs_arcsec());
-    assert!(expected > 4.0, "{expected}");
-    assert!(
-        (worst - expected).abs() < 0.03 * expected,
-        "max |map − truth| {worst}″, predicted {expected}″"
-    );
-    // Other orders are untouched (within the air-bearing case's accuracy plus the leak of the
-    // varying amplitude into neighbouring chirps).
-    for k in (1..=32).filter(|k| ![2, 4].contains(k)) {
-        let off = arcsec(got.cos[k - 1].hypot(got.sin[k - 1]));
-        assert!(off < 0.05, "order {k}: {off}″");
-    }
-    // The fit's drag gain is the samples' ⟨ω⁻²⟩ from the fitted motion.
-    assert!((cal.drag_gain / inv_omega2 - 1.0).abs() < 1e-3);
-    // The diagnostic sees exactly these two orders, with the predicted amplitude (its
-    // ω⁻²-shaped part has the same amplitude as the mean the map absorbed).
+    // And the diagnostic still names the speed-dependent orders.
     let orders: Vec<usize> = cal
         .speed_dependence
         .iter()
         .map(|s| s.harmonic.order)
         .collect();
     assert_eq!(orders, [2, 4]);
-    for (s, p) in cal.speed_dependence.iter().zip(&predicted) {
-        assert!(
-            (s.harmonic.amplitude / p.amplitude - 1.0).abs() < 0.03,
-            "{s:?}"
-        );
-    }
-    assert!(cal.warnings.iter().any(|w| w.contains("drag")));
-    // The reference check exposes it.
-    assert!(cal.reference.as_ref().unwrap().max_abs_diff_arcsec > 4.0);
+    assert!(
+        cal.warnings
+            .iter()
+            .any(|w| w.contains("angle-dependent drag would"))
+    );
 }
 
 /// `e(θ)` of the synthetic tests: 5″ at order 3 and 2″ at order 7.

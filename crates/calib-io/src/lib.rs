@@ -2,9 +2,12 @@
 //! reports.
 //!
 //! - [`csv_log`]: CSV logs (`t`, one column per channel, optional `session`).
-//! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` (CDR) or JSON messages,
-//!   channels joined across topics on equal time stamps.
+//! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` (CDR) or JSON messages.
+//! - [`naming`]: channels addressed by joint name or `TOPIC/JOINT`.
+//! - [`align`]: channels on different clocks interpolated onto the first one's stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
+//! - [`export`]: correction tables in the forms controllers load (look-up tables, moteus
+//!   `conf set` lines, SimpleFOC `CalibratedSensor` tables, harmonics).
 //! - [`atomic`]: output files that appear only when complete.
 //! - [`apply`]: a log rewritten with one channel corrected by an error map.
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
@@ -33,15 +36,19 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod align;
 pub mod apply;
 pub mod atomic;
 pub mod budget;
 pub mod csv_log;
 pub mod error;
+pub mod export;
 pub mod limits;
 pub mod log;
 pub mod mcap_log;
+pub mod naming;
 pub mod points;
+pub mod prefetch;
 pub mod readings;
 pub mod report;
 pub mod table;
@@ -63,14 +70,28 @@ pub struct ReadOptions {
     /// MCAP: leave out chunks that do not match their CRC (or cannot be decoded), listing them in
     /// [`ReadDiagnostics::damaged_chunks`], instead of failing on the first.
     pub skip_damaged: bool,
+    /// Which time stamps MCAP messages are read at.
+    pub time: TimeSource,
+    /// The time column of a CSV log (default: `t`, `time` or `timestamp`, with or without a
+    /// unit suffix).
+    pub time_column: Option<String>,
+    /// The unit of a CSV log's time column (default: its name's suffix, else seconds).
+    pub time_unit: Option<csv_log::dialect::TimeUnit>,
+}
+
+/// The time of a message: the stamp its publisher wrote, or when the recorder logged it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum TimeSource {
+    /// `header.stamp` (the log time where a message has no header or a zero stamp).
+    #[default]
+    Header,
+    /// The log time the recorder wrote beside every message.
+    Log,
 }
 
 /// What a reader noticed while reading, for `inspect` and for warnings.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct ReadDiagnostics {
-    /// Messages whose channels could not be joined with the other topics' on an equal time stamp
-    /// (MCAP only), and were dropped.
-    pub unjoined_messages: u64,
     /// Where the log ended early (a crashed recording): the byte offset of the break and the
     /// number of messages read before it.
     pub truncated: Option<Truncation>,

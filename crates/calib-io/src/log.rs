@@ -1,7 +1,9 @@
 //! Any log calib reads, behind one interface: [`LogReader`] and [`LogWriter`].
 
+use crate::align::{AlignOptions, Alignment};
 use crate::csv_log::{CsvReader, CsvWriter};
-use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter};
+use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
+use crate::naming::{self, ChannelLookup, ChannelName};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use std::io::Read;
@@ -157,47 +159,118 @@ fn extension(path: &Path) -> Option<String> {
 }
 
 /// A streaming reader of any supported log.
-pub enum LogReader {
-    /// A CSV log.
+///
+/// It opens with every channel of the log selected; [`select`](Self::select) narrows the samples
+/// to the channels a method needs, in its order, aligned on the first one's clock (see
+/// [`crate::align`]). Channels are found by name with [`resolve`](Self::resolve) (see
+/// [`crate::naming`]).
+pub struct LogReader {
+    inner: Inner,
+    names: Vec<ChannelName>,
+    /// CSV: the selected columns and their channels (MCAP selects itself).
+    selection: Option<(Vec<usize>, Vec<Channel>)>,
+}
+
+enum Inner {
     Csv(CsvReader),
-    /// An MCAP log.
     Mcap(McapReader),
 }
 
 impl LogReader {
     /// Opens a log, choosing the reader by [`LogFormat::detect`].
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
-        Ok(match LogFormat::detect(path)? {
-            LogFormat::Csv => LogReader::Csv(CsvReader::open(path, opts)?),
-            LogFormat::Mcap => LogReader::Mcap(McapReader::open(path, opts)?),
+        let inner = match LogFormat::detect(path)? {
+            LogFormat::Csv => Inner::Csv(CsvReader::open(path, opts)?),
+            LogFormat::Mcap => Inner::Mcap(McapReader::open(path, opts)?),
+        };
+        let names = match &inner {
+            Inner::Csv(r) => r
+                .channels()
+                .iter()
+                .map(|c| ChannelName::plain(&c.name))
+                .collect(),
+            Inner::Mcap(r) => r.names().to_vec(),
+        };
+        Ok(LogReader {
+            inner,
+            names,
+            selection: None,
         })
     }
-    /// The log's channels, in the order of each sample's values.
-    pub fn channels(&self) -> &[Channel] {
-        match self {
-            LogReader::Csv(r) => r.channels(),
-            LogReader::Mcap(r) => r.channels(),
+
+    /// The names of every channel of the log, selected or not: the indices
+    /// [`select`](Self::select) takes.
+    pub fn names(&self) -> &[ChannelName] {
+        &self.names
+    }
+
+    /// The index of the channel `name` names (a qualified name, or a short one no other channel
+    /// shares).
+    pub fn resolve(&self, name: &str) -> Result<usize, ChannelLookup> {
+        naming::resolve(&self.names, name)
+    }
+
+    /// Reads only `channels` (indices into [`names`](Self::names)), in this order, aligned on the
+    /// first one's stamps. Call it before reading any sample.
+    pub fn select(&mut self, channels: &[usize], opts: AlignOptions) {
+        match &mut self.inner {
+            Inner::Csv(r) => {
+                let all = r.channels();
+                let chosen = channels.iter().map(|&i| all[i].clone()).collect();
+                self.selection = Some((channels.to_vec(), chosen));
+            }
+            Inner::Mcap(r) => r.select(channels, opts),
         }
     }
+
+    /// The channels of each sample, in the order of its values.
+    pub fn channels(&self) -> &[Channel] {
+        match (&self.inner, &self.selection) {
+            (_, Some((_, chosen))) => chosen,
+            (Inner::Csv(r), None) => r.channels(),
+            (Inner::Mcap(r), None) => r.channels(),
+        }
+    }
+
     /// Whether the log marks CSRR sessions (a CSV `session` column).
     pub fn has_session_marks(&self) -> bool {
-        match self {
-            LogReader::Csv(r) => r.has_session_column(),
-            LogReader::Mcap(_) => false,
+        match &self.inner {
+            Inner::Csv(r) => r.has_session_column(),
+            Inner::Mcap(_) => false,
         }
     }
+
     /// What the reader noticed so far (complete once the iterator is exhausted).
     pub fn diagnostics(&self) -> &ReadDiagnostics {
-        match self {
-            LogReader::Csv(r) => r.diagnostics(),
-            LogReader::Mcap(r) => r.diagnostics(),
+        match &self.inner {
+            Inner::Csv(r) => r.diagnostics(),
+            Inner::Mcap(r) => r.diagnostics(),
         }
     }
+
+    /// How the channels were aligned on the first one's clock (complete once the iterator is
+    /// exhausted); `None` for a CSV log, whose rows hold every channel at one stamp.
+    pub fn alignment(&self) -> Option<Alignment> {
+        match &self.inner {
+            Inner::Csv(_) => None,
+            Inner::Mcap(r) => Some(r.alignment()),
+        }
+    }
+
+    /// The log's topics with their type, encoding, message count, rate and channels (those
+    /// skipped too); empty for a CSV log.
+    pub fn topics(&self) -> Vec<TopicInfo> {
+        match &self.inner {
+            Inner::Csv(_) => Vec::new(),
+            Inner::Mcap(r) => r.topics(),
+        }
+    }
+
     /// Notes for the user about parts of the log that were not read (topics of other schemas).
     pub fn notes(&self) -> Vec<String> {
-        match self {
-            LogReader::Csv(_) => Vec::new(),
-            LogReader::Mcap(r) => r
+        match &self.inner {
+            Inner::Csv(_) => Vec::new(),
+            Inner::Mcap(r) => r
                 .ignored_topics()
                 .iter()
                 .map(|t| {
@@ -209,8 +282,9 @@ impl LogReader {
                 .collect(),
         }
     }
-    /// Warnings the user must see once the log has been read: truncation, damaged chunks skipped
-    /// and unjoined messages.
+
+    /// Warnings the user must see once the log has been read: truncation, damaged chunks skipped,
+    /// and samples dropped because a channel could not be aligned on the clock.
     pub fn warnings(&self, path: &Path) -> Vec<String> {
         let d = self.diagnostics();
         let mut w = Vec::new();
@@ -231,12 +305,28 @@ impl LogReader {
                 list.join("; ")
             ));
         }
-        if d.unjoined_messages > 0 {
-            w.push(format!(
-                "{}: {} message(s) had no partner with an equal time stamp on the other topics and were dropped",
-                path.display(),
-                d.unjoined_messages
-            ));
+        if let Some(a) = self.alignment() {
+            for c in &a.channels {
+                if c.dropped > 0 {
+                    w.push(format!(
+                        "{}: {} of {} sample(s) of the clock `{}` were dropped because channel `{}` could not be aligned there (no sample of it within --max-gap {:.6} s on both sides, or before its first or after its last sample)",
+                        path.display(),
+                        c.dropped,
+                        a.clock_samples,
+                        a.clock,
+                        c.channel,
+                        c.max_gap_s
+                    ));
+                }
+                if c.out_of_order > 0 {
+                    w.push(format!(
+                        "{}: {} sample(s) of channel `{}` were not used because their stamp did not increase",
+                        path.display(),
+                        c.out_of_order,
+                        c.channel
+                    ));
+                }
+            }
         }
         w
     }
@@ -245,9 +335,18 @@ impl LogReader {
 impl Iterator for LogReader {
     type Item = Result<Sample, Error>;
     fn next(&mut self) -> Option<Self::Item> {
-        match self {
-            LogReader::Csv(r) => r.next(),
-            LogReader::Mcap(r) => r.next(),
+        match &mut self.inner {
+            Inner::Csv(r) => {
+                let sample = r.next()?;
+                Some(match (sample, &self.selection) {
+                    (Ok(mut s), Some((columns, _))) => {
+                        s.values = columns.iter().map(|&i| s.values[i]).collect();
+                        Ok(s)
+                    }
+                    (other, _) => other,
+                })
+            }
+            Inner::Mcap(r) => r.next(),
         }
     }
 }

@@ -4,7 +4,8 @@
 //! uncertainty) and `expanded_uncertainty_arcsec`; other columns (`correction_arcsec`, …) are
 //! ignored. calib's correction tables, `encoder.csv` of the shift-angle method and hand-made
 //! tables all qualify. Angles need not be uniform or sorted; an empty uncertainty field means
-//! "not given" for that row.
+//! "not given" for that row. Lines starting with `#` are skipped; a range table's
+//! `# range_deg: LO to HI` line ([`crate::table`]) gives the table's [`PointTable::range`].
 
 use crate::Error;
 use std::path::Path;
@@ -27,6 +28,8 @@ pub struct Point {
 pub struct PointTable {
     /// The rows.
     pub points: Vec<Point>,
+    /// A range table's range `(lo, hi)`, degrees; `None` for a table over the whole turn.
+    pub range: Option<(f64, f64)>,
 }
 
 /// Reads a point table from `path`.
@@ -39,11 +42,45 @@ pub fn read_points(path: &Path) -> Result<PointTable, Error> {
 }
 
 /// [`read_points`] from any reader; `path` names it in errors.
-pub fn parse_points(input: impl std::io::Read, path: &Path) -> Result<PointTable, Error> {
+pub fn parse_points(mut input: impl std::io::Read, path: &Path) -> Result<PointTable, Error> {
     let csv_err = |line: u64, column: Option<&str>, message: String| {
         crate::error::csv_error(path, line, column, message)
     };
-    let (mut reader, headers) = crate::error::csv_with_headers(input, path)?;
+    let mut bytes = Vec::new();
+    input.read_to_end(&mut bytes).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let first = String::from_utf8_lossy(bytes.split(|&b| b == b'\n').next().unwrap_or_default())
+        .trim()
+        .to_string();
+    let range = match first.strip_prefix("# range_deg:") {
+        Some(rest) => {
+            let w: Vec<&str> = rest.split_whitespace().collect();
+            match w.as_slice() {
+                [lo, "to", hi, ..] => lo.parse::<f64>().ok().zip(hi.parse::<f64>().ok()),
+                _ => None,
+            }
+            .filter(|(lo, hi)| lo.is_finite() && hi > lo)
+            .map(Some)
+            .ok_or_else(|| {
+                csv_err(
+                    1,
+                    None,
+                    format!("`{first}` is not a range line; a range table starts with `# range_deg: LO to HI`"),
+                )
+            })?
+        }
+        None => None,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(bytes.as_slice());
+    let headers = reader
+        .headers()
+        .map_err(|e| csv_err(1, None, e.to_string()))?
+        .clone();
     let find = |name: &str| headers.iter().position(|h| h == name);
     let (Some(angle), Some(error)) = (find("angle_deg"), find("error_arcsec")) else {
         return Err(csv_err(
@@ -99,7 +136,7 @@ pub fn parse_points(input: impl std::io::Read, path: &Path) -> Result<PointTable
             path: path.to_path_buf(),
         });
     }
-    Ok(PointTable { points })
+    Ok(PointTable { points, range })
 }
 
 #[cfg(test)]

@@ -24,14 +24,34 @@
 //! # Mean
 //! Maps are zero-mean ([`ErrorMap`]); [`read_table`] removes the mean of a table that has one
 //! (e.g. written by another tool), since no self-calibration observes an absolute offset.
+//!
+//! # Range tables
+//! A joint that never turns a whole revolution has a **range table**: the same columns, on the
+//! uniform grid `angle_deg = lo + i·(hi − lo)/(N−1)`, `i = 0..N−1`, both ends included, over a
+//! range `hi − lo` shorter than 360°, and a first line naming the range:
+//!
+//! ```text
+//! # range_deg: 15.000000 to 135.000000 (a range table: it holds the error between these readings only)
+//! angle_deg,error_arcsec,correction_arcsec,u_arcsec
+//! 15.000000,…
+//! ```
+//!
+//! The `# range_deg:` line is what makes a table a range table ([`read_any_table`]); a table
+//! without it is a whole-turn table and must follow the whole-turn grid above, so a whole-turn
+//! table with rows missing is still an error, never mistaken for a range. `lo` lies in
+//! `[0, 360)`; `hi` may exceed 360 for a range across the reading 0 (330° to 390° for a joint
+//! swept from −30° to +30°). Its mean is zero over the range ([`RangeMap`]). Read it with a
+//! CSV reader that skips `#` lines (pandas: `read_csv(path, comment="#")`). Rows may lie up to
+//! [`RANGE_GRID_TOLERANCE_DEG`] from the grid, twice the whole-turn tolerance, since both ends
+//! of the grid are themselves written with 6 decimals.
 
 use crate::Error;
 use crate::atomic::AtomicFile;
 use crate::csv_log::{
     csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, wrong_width,
 };
-use calib_core::ErrorMap;
 use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::{ErrorMap, RangeMap};
 use csv::ByteRecord;
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -44,6 +64,31 @@ const U_COLUMN: &str = "u_arcsec";
 /// How far (degrees) a row's angle may be from its grid point: above the 5·10⁻⁷° of 6-decimal
 /// rounding, far below any grid spacing in use.
 pub const GRID_TOLERANCE_DEG: f64 = 1e-6;
+
+/// How far (degrees) a row of a range table may be from its grid point: the rounding of the row
+/// and of the two ends that define the grid.
+pub const RANGE_GRID_TOLERANCE_DEG: f64 = 2.0 * GRID_TOLERANCE_DEG;
+
+/// The marker line of a range table, before its numbers.
+const RANGE_MARKER: &str = "# range_deg:";
+
+/// A range table read back ([`read_any_table`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RangeTable {
+    /// The error map over the range (radians, zero mean over the range).
+    pub map: RangeMap,
+    /// One standard uncertainty per grid point (radians), if the table has a `u_arcsec` column.
+    pub u: Option<Vec<f64>>,
+}
+
+/// A correction table of either kind.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AnyTable {
+    /// A whole revolution.
+    Turn(CorrectionTable),
+    /// Part of a revolution.
+    Range(RangeTable),
+}
 
 /// A correction table read back: the error map and, where the table has them, the standard
 /// uncertainties of its points.
@@ -171,6 +216,50 @@ pub fn render_table(map: &ErrorMap, u: Option<&[f64]>) -> Result<String, RenderE
     Ok(out)
 }
 
+/// Renders a range table (see [Range tables](self#range-tables)): the `# range_deg:` line, then
+/// the rows of `map`'s grid as [`render_table`] writes them.
+pub fn render_range_table(map: &RangeMap, u: Option<&[f64]>) -> Result<String, RenderError> {
+    let n = map.len();
+    if let Some(u) = u {
+        if u.len() != n {
+            return Err(RenderError::UncertaintyCount {
+                points: n,
+                given: u.len(),
+            });
+        }
+        check_values(u, "uncertainty", true)?;
+    }
+    check_values(map.values(), "error", false)?;
+    let mut out = String::with_capacity(48 * (n + 2));
+    out.push_str(RANGE_MARKER);
+    out.push(' ');
+    push_fixed(&mut out, map.start().to_degrees());
+    out.push_str(" to ");
+    push_fixed(&mut out, map.end().to_degrees());
+    out.push_str(" (a range table: it holds the error between these readings only)\n");
+    out.push_str(HEADER);
+    if u.is_some() {
+        out.push(',');
+        out.push_str(U_COLUMN);
+    }
+    out.push('\n');
+    let (lo, hi) = (map.start().to_degrees(), map.end().to_degrees());
+    for (i, &e) in map.values().iter().enumerate() {
+        let e = e * ARCSEC_PER_RAD;
+        push_fixed(&mut out, lo + (hi - lo) * i as f64 / (n - 1) as f64);
+        out.push(',');
+        push_fixed(&mut out, e);
+        out.push(',');
+        push_fixed(&mut out, -e);
+        if let Some(u) = u {
+            out.push(',');
+            push_fixed(&mut out, u[i] * ARCSEC_PER_RAD);
+        }
+        out.push('\n');
+    }
+    Ok(out)
+}
+
 /// Writes a correction table atomically: the file appears complete or not at all.
 ///
 /// `u` as for [`render_table`]; a map or `u` it refuses is reported as [`Error::Write`] naming
@@ -198,11 +287,97 @@ pub fn write_table(path: &Path, map: &ErrorMap, u: Option<&[f64]>) -> Result<(),
 /// at 0 (within [`GRID_TOLERANCE_DEG`]). A grid that is off says how: not starting at 0°, 360°
 /// repeating 0°, uneven steps, or an even step that does not make up one revolution.
 pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
+    match read_any_table(path)? {
+        AnyTable::Turn(t) => Ok(t),
+        AnyTable::Range(t) => Err(Error::Csv {
+            path: path.to_path_buf(),
+            line: 1,
+            channel: None,
+            message: format!(
+                "this is a range table ({:.6}° to {:.6}°, from a joint that never turned a whole revolution); this \
+                 use needs a whole-turn table: calibrate over whole revolutions",
+                t.map.start().to_degrees(),
+                t.map.end().to_degrees()
+            ),
+        }),
+    }
+}
+
+/// The `(lo, hi)` of a `# range_deg: LO to HI` line among the `#` lines before the header, with
+/// its 1-based line; `None` if there is none.
+fn range_marker(path: &Path) -> Result<Option<(f64, f64, u64)>, Error> {
+    use std::io::BufRead;
     let file = std::fs::File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let mut reader = csv_reader(file);
+    for (k, line) in std::io::BufReader::new(file).split(b'\n').enumerate() {
+        let line = line.map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let text = String::from_utf8_lossy(&line);
+        let text = text.trim_start_matches('\u{feff}').trim();
+        if text.is_empty() {
+            continue;
+        }
+        let Some(rest) = text.strip_prefix(RANGE_MARKER) else {
+            if text.starts_with('#') {
+                continue;
+            }
+            return Ok(None);
+        };
+        let line_no = k as u64 + 1;
+        let words: Vec<&str> = rest.split_whitespace().collect();
+        let parsed = match words.as_slice() {
+            [lo, "to", hi, ..] => lo.parse::<f64>().ok().zip(hi.parse::<f64>().ok()),
+            _ => None,
+        };
+        let Some((lo, hi)) = parsed.filter(|(lo, hi)| lo.is_finite() && hi.is_finite()) else {
+            return Err(Error::Csv {
+                path: path.to_path_buf(),
+                line: line_no,
+                channel: None,
+                message: format!(
+                    "`{text}` is not a range line; a range table starts with `{RANGE_MARKER} LO to HI` (degrees)"
+                ),
+            });
+        };
+        if !((0.0..360.0).contains(&lo) && hi > lo && hi - lo < 360.0) {
+            return Err(Error::Csv {
+                path: path.to_path_buf(),
+                line: line_no,
+                channel: None,
+                message: format!(
+                    "the range {lo}° to {hi}° is not a range table's: LO must lie in [0, 360) and HI above LO by less \
+                     than 360° (a whole turn is a whole-turn table, without the range line)"
+                ),
+            });
+        }
+        return Ok(Some((lo, hi, line_no)));
+    }
+    Ok(None)
+}
+
+/// Reads and validates a correction table of either kind: a range table if it has the
+/// `# range_deg:` line (see [Range tables](self#range-tables)), else a whole-turn table, checked
+/// as [`read_table`] says. A range table's rows must be its grid from `lo` to `hi` (both
+/// included, within [`RANGE_GRID_TOLERANCE_DEG`]); the other checks are the same.
+pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
+    let marker = range_marker(path)?;
+    let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut reader = if marker.is_some() {
+        csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .comment(Some(b'#'))
+            .from_reader(crate::limits::LineLimit::new(file))
+    } else {
+        csv_reader(file)
+    };
     let mut record = ByteRecord::new();
     let err = |line: u64, column: Option<&str>, message: String| Error::Csv {
         path: path.to_path_buf(),
@@ -350,6 +525,38 @@ pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
             ),
         ));
     }
+    if let Some((lo, hi, marker_line)) = marker {
+        let at = |i: usize| lo + (hi - lo) * i as f64 / (n - 1) as f64;
+        if let Some(i) = (0..n).find(|&i| (angles[i] - at(i)).abs() > RANGE_GRID_TOLERANCE_DEG) {
+            let message = if i == 0 || i == n - 1 {
+                format!(
+                    "the {} row is at {}° but the range line (line {marker_line}) puts that end at {}°: rows are \
+                     missing or the range line is wrong; a range table has one row per grid point \
+                     angle_deg = LO + i·(HI − LO)/(N−1), i = 0..N−1, both ends included",
+                    if i == 0 { "first" } else { "last" },
+                    angles[i],
+                    at(i)
+                )
+            } else {
+                format!(
+                    "angle {}° is off the range table's uniform grid: row {} of {n} must be at {}° within \
+                     {RANGE_GRID_TOLERANCE_DEG}° (the grid from {lo}° to {hi}°, both ends included)",
+                    angles[i],
+                    i + 1,
+                    at(i)
+                )
+            };
+            return Err(err(
+                line_at(path, &positions[i]),
+                Some("angle_deg"),
+                message,
+            ));
+        }
+        let step = (hi - lo) / (n - 1) as f64;
+        let map = RangeMap::new(lo.to_radians(), step.to_radians(), errors)
+            .map_err(|e| err(marker_line, None, e.to_string()))?;
+        return Ok(AnyTable::Range(RangeTable { map, u }));
+    }
     if let Some(i) = (0..n).find(|&i| (angles[i] - grid_deg(i, n)).abs() > GRID_TOLERANCE_DEG) {
         let (row, message) = off_grid(&angles, i);
         return Err(err(
@@ -358,10 +565,10 @@ pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
             message,
         ));
     }
-    Ok(CorrectionTable {
+    Ok(AnyTable::Turn(CorrectionTable {
         map: ErrorMap::new(errors),
         u,
-    })
+    }))
 }
 
 /// Why `angles` are not the grid `i·360/N`, given that row `first` is the first off it: the
@@ -371,7 +578,8 @@ pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
 fn off_grid(angles: &[f64], first: usize) -> (usize, String) {
     let n = angles.len();
     let rule = "a correction table has one row per grid point angle_deg = i·360/N, i = 0..N−1, \
-                in order: uniform, from 0° up to but not including 360°";
+                in order: uniform, from 0° up to but not including 360° (a range table, for a joint that \
+                never turns a whole revolution, starts with a line `# range_deg: LO to HI`)";
     if angles[0].abs() > GRID_TOLERANCE_DEG {
         return (
             0,

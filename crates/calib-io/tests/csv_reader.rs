@@ -161,8 +161,9 @@ fn empty_files_and_bad_headers() {
     assert!(m.contains("empty"), "{m}");
     let m = error_of("t,a\n", 2, None);
     assert!(m.contains("no data rows"), "{m}");
-    let m = error_of("time,a\n0,1\n", 1, None);
-    assert!(m.contains("no `t` column (it has: time, a)"), "{m}");
+    let m = error_of("clock,a\n0,1\n", 1, None);
+    assert!(m.contains("no time column (it has: clock, a)"), "{m}");
+    assert!(m.contains("--time-column"), "{m}");
     let m = error_of("t,session\n0,1\n", 1, None);
     assert!(m.contains("no channel columns"), "{m}");
     let m = error_of("t,a,b,a\n0,1,2,3\n", 1, Some("a"));
@@ -321,4 +322,43 @@ fn finite_readings_that_overflow_in_radians_are_errors() {
     let text = err.to_string();
     assert!(text.contains("revolutions from zero"), "{text}");
     assert!(text.contains("line 2"), "{text}");
+}
+
+#[test]
+fn lab_dialects_semicolons_metadata_and_time_units() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two metadata lines and a blank one, `;` separators, the time in milliseconds.
+    let path = write_tmp(
+        &dir,
+        b"Instrument;Scope 3000\nRate;1 kHz\n\nTime [ms];a;b\n0;1;2\n1.5;3;4\n",
+    );
+    let r = CsvReader::open(&path, &ReadOptions::default()).unwrap();
+    let names: Vec<&str> = r.channels().iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["a", "b"]);
+    let s: Vec<_> = r.collect::<Result<_, _>>().unwrap();
+    assert!((s[1].t - 1.5e-3).abs() < 1e-18);
+    assert!(close(s[1].values[1], 4.0_f64.to_radians()));
+    // Tabs, a `timestamp` column in microseconds by --time-unit.
+    let path = write_tmp(&dir, b"a\ttimestamp\n1\t10\n2\t20\n");
+    let opts = ReadOptions {
+        time_unit: Some(calib_io::csv_log::dialect::TimeUnit::Us),
+        ..ReadOptions::default()
+    };
+    let s: Vec<_> = CsvReader::open(&path, &opts)
+        .unwrap()
+        .collect::<Result<_, _>>()
+        .unwrap();
+    assert!((s[1].t - 20e-6).abs() < 1e-20);
+    // A column named by --time-column; errors name the file's own line (metadata counted).
+    let path = write_tmp(&dir, b"# exported\nstamp;a\n0;1\n1;x\n");
+    let opts = ReadOptions {
+        time_column: Some("stamp".into()),
+        ..ReadOptions::default()
+    };
+    let err = CsvReader::open(&path, &opts)
+        .unwrap()
+        .collect::<Result<Vec<_>, _>>()
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("line 4, column `a`"), "{err}");
 }

@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 
 use byteorder::{BigEndian, LittleEndian};
 use calib_core::{AngleUnit, Sample};
-use calib_io::mcap_log::{IgnoredTopic, JOIN_QUEUE, JOINT_STATE_MSGDEF, McapReader};
+use calib_io::align::ALIGN_QUEUE;
+use calib_io::mcap_log::{IgnoredTopic, JOINT_STATE_MSGDEF, McapReader, PEEK_WINDOW};
 use calib_io::{Error, ReadOptions};
 use mcap::records::MessageHeader;
 use mcap::{Compression, WriteOptions};
@@ -43,7 +44,20 @@ fn python_fixture_joins_joint_states_with_json_reference() {
     assert_eq!(units, [AngleUnit::Rad, AngleUnit::Rad, AngleUnit::Deg]);
     // See make_fixture.py: 300 JointStates, JSON missing for i = 100..=104, two stray JSONs.
     assert_eq!(samples.len(), 295);
-    assert_eq!(reader.diagnostics().unjoined_messages, 7);
+    // Aligned on a's clock: b shares its messages, ref is exact where it has a message at a's
+    // stamp and missing (a gap of 6 intervals, beyond 2.5) for i = 100..=104; the two stray
+    // messages are nodes only.
+    let alignment = reader.alignment();
+    assert_eq!(
+        (alignment.clock.as_str(), alignment.clock_samples),
+        ("a", 300)
+    );
+    let counts: Vec<_> = alignment
+        .channels
+        .iter()
+        .map(|c| (c.channel.as_str(), c.exact, c.interpolated, c.dropped))
+        .collect();
+    assert_eq!(counts, [("b", 295, 0, 0), ("ref", 295, 0, 5)]);
     assert_eq!(reader.diagnostics().truncated, None);
     assert_eq!(
         reader.ignored_topics(),
@@ -219,7 +233,7 @@ fn check_joint_state_log(path: &Path, n: u64) {
         assert_eq!(s.t, secs(T0 + i * 1_000_000));
         assert_eq!(s.values, [i as f64 * 1e-3, -(i as f64)]);
     }
-    assert_eq!(reader.diagnostics().unjoined_messages, 0);
+    assert!(reader.alignment().is_exact());
     assert_eq!(reader.diagnostics().truncated, None);
 }
 
@@ -351,6 +365,31 @@ fn log_with_bad_message(path: &Path, bad: &[u8]) {
 }
 
 #[test]
+fn a_joint_first_seen_after_the_peek_window_is_an_error() {
+    let dir = temp();
+    let path = dir.path().join("late.mcap");
+    let mut b = Builder::new(&path, Some(Compression::Zstd), true);
+    let ch = b.joint_state_topic("/joint_states");
+    let n = PEEK_WINDOW + 10;
+    for i in 0..n {
+        let msg = joint_state(T0 + i, &["a", "b"], &[0.0, 1.0]);
+        b.put(ch, i, &cdr(&msg, false));
+    }
+    b.put(
+        ch,
+        n,
+        &cdr(&joint_state(T0 + n, &["a", "c"], &[0.0, 1.0]), false),
+    );
+    b.finish();
+    let (read, err) = first_error(&path);
+    assert_eq!(read as u64, n);
+    let (index, channel, message) = mcap_error(err);
+    assert_eq!(index, Some(n));
+    assert_eq!(channel.as_deref(), Some("/joint_states"));
+    assert!(message.contains("joint `c` is new"), "{message}");
+}
+
+#[test]
 fn bad_messages_are_errors_naming_file_message_and_topic() {
     let dir = temp();
     let good = cdr(&joint_state(T0, &["a", "b"], &[0.0, 1.0]), false);
@@ -365,11 +404,6 @@ fn bad_messages_are_errors_naming_file_message_and_topic() {
         ),
         ("cut", good[..good.len() - 9].to_vec(), "truncated"),
         ("huge", huge_count, "claims 4294967295"),
-        (
-            "renamed",
-            cdr(&joint_state(T0, &["a", "c"], &[0.0, 1.0]), false),
-            "changed from [a, b] to [a, c]",
-        ),
         (
             "xcdr2",
             [&[0u8, 7, 0, 0][..], &good[4..]].concat(),
@@ -561,7 +595,7 @@ fn empty_foreign_and_corrupt_files_are_clear_errors() {
 }
 
 #[test]
-fn unjoinable_stamps_are_counted_not_invented() {
+fn stamps_off_the_clock_are_interpolated_never_extrapolated() {
     let dir = temp();
     let path = dir.path().join("disjoint.mcap");
     let mut b = Builder::new(&path, Some(Compression::Zstd), true);
@@ -570,25 +604,72 @@ fn unjoinable_stamps_are_counted_not_invented() {
     for i in 0..100u64 {
         let ns = T0 + i * 1_000_000;
         b.put(a, ns, &cdr(&joint_state(ns, &["a"], &[1.0]), false));
-        // Half a millisecond off: never equal.
-        b.put(r, ns + 500_000, br#"{"ref": 1}"#);
+        // Half a millisecond off: never equal. ref turns at 1°/ms.
+        b.put(
+            r,
+            ns + 500_000,
+            format!(r#"{{"ref": {}}}"#, i as f64 + 0.5).as_bytes(),
+        );
     }
     b.finish();
     let (reader, samples) = read_all(&path, &ReadOptions::default());
     assert_eq!(names(&reader), ["a", "ref"]);
-    assert!(samples.is_empty());
-    assert_eq!(reader.diagnostics().unjoined_messages, 200);
+    // The first stamp of a precedes ref's first sample: dropped, not extrapolated.
+    assert_eq!(samples.len(), 99);
+    for (s, i) in samples.iter().zip(1..) {
+        // A straight line is interpolated exactly (to rounding).
+        assert!(
+            (s.values[1].to_degrees() - i as f64).abs() < 1e-9,
+            "{i}: {:?}",
+            s.values
+        );
+    }
+    let c = &reader.alignment().channels[0];
+    assert_eq!((c.interpolated, c.exact, c.dropped), (99, 0, 1));
+    assert_eq!(c.median_offset_s.map(f64::abs), Some(0.5e-3));
 }
 
 #[test]
-fn join_queues_stay_bounded_when_a_topic_lags() {
+fn joints_published_in_separate_messages_are_separate_series() {
+    // Two publishers share /joint_states: [a, b] on the even milliseconds, [c] on the odd.
+    let dir = temp();
+    let path = dir.path().join("subsets.mcap");
+    let mut b = Builder::new(&path, Some(Compression::Zstd), true);
+    let js = b.joint_state_topic("/joint_states");
+    for i in 0..200u64 {
+        let ns = T0 + i * 1_000_000;
+        let x = i as f64 * 1e-3;
+        let msg = if i % 2 == 0 {
+            joint_state(ns, &["a", "b"], &[x, -x])
+        } else {
+            joint_state(ns, &["c"], &[2.0 * x])
+        };
+        b.put(js, ns, &cdr(&msg, false));
+    }
+    b.finish();
+    let (reader, samples) = read_all(&path, &ReadOptions::default());
+    assert_eq!(names(&reader), ["a", "b", "c"]);
+    // a's 100 stamps; c has no sample before the first.
+    assert_eq!(samples.len(), 99);
+    for s in &samples {
+        assert!(
+            (s.values[2] - 2.0 * s.values[0]).abs() < 1e-12,
+            "{:?}",
+            s.values
+        );
+        assert_eq!(s.values[1], -s.values[0]);
+    }
+}
+
+#[test]
+fn alignment_queues_stay_bounded_when_a_topic_lags() {
     let dir = temp();
     let path = dir.path().join("lag.mcap");
     let mut b = Builder::new(&path, Some(Compression::Zstd), true);
     let a = b.joint_state_topic("/a");
     let r = b.json_topic("/ref");
-    let n = 3 * JOIN_QUEUE as u64;
-    // All of /a first, then all of /ref: only the last JOIN_QUEUE of /a are still queued.
+    let n = 2 * ALIGN_QUEUE as u64;
+    // All of /a first, then all of /ref: only the last ALIGN_QUEUE of /a are still queued.
     for i in 0..n {
         let ns = T0 + i;
         b.put(a, ns, &cdr(&joint_state(ns, &["a"], &[i as f64]), false));
@@ -598,20 +679,20 @@ fn join_queues_stay_bounded_when_a_topic_lags() {
     }
     b.finish();
     let (reader, samples) = read_all(&path, &ReadOptions::default());
-    assert_eq!(samples.len(), JOIN_QUEUE);
-    let first = n - JOIN_QUEUE as u64;
+    assert_eq!(samples.len(), ALIGN_QUEUE);
+    let first = n - ALIGN_QUEUE as u64;
     assert_eq!(
         samples[0].values,
         [first as f64, (first as f64).to_radians()]
     );
     assert_eq!(
-        reader.diagnostics().unjoined_messages,
-        2 * (n - JOIN_QUEUE as u64)
+        reader.alignment().channels[0].dropped,
+        n - ALIGN_QUEUE as u64
     );
 }
 
 #[test]
-fn files_without_usable_topics_or_with_clashing_names_are_errors() {
+fn files_without_usable_topics_or_with_repeated_joints_are_errors() {
     let dir = temp();
     let path = dir.path().join("none.mcap");
     let mut b = Builder::new(&path, None, true);
@@ -628,20 +709,45 @@ fn files_without_usable_topics_or_with_clashing_names_are_errors() {
         Err(Error::Empty { .. })
     ));
 
-    let path = dir.path().join("clash.mcap");
+    let path = dir.path().join("twice.mcap");
     let mut b = Builder::new(&path, None, true);
     let one = b.joint_state_topic("/one");
-    let two = b.json_topic("/two");
     b.put(
         one,
         1,
-        &cdr(&joint_state(1, &["a", "b"], &[0.0, 0.0]), false),
+        &cdr(&joint_state(1, &["a", "a"], &[0.0, 0.0]), false),
     );
-    b.put(two, 1, br#"{"b": 1}"#);
     b.finish();
     let (_, channel, m) = open_error(&path);
-    assert_eq!(channel.as_deref(), Some("b"));
-    assert!(m.contains("`/one` and `/two`"), "{m}");
+    assert_eq!(channel.as_deref(), Some("/one"));
+    assert!(m.contains("joint `a` appears twice in one message"), "{m}");
+}
+
+#[test]
+fn names_shared_between_topics_are_qualified() {
+    let dir = temp();
+    let path = dir.path().join("shared.mcap");
+    let mut b = Builder::new(&path, None, true);
+    let one = b.joint_state_topic("/one");
+    let two = b.json_topic("/two");
+    for i in 1..=3 {
+        b.put(
+            one,
+            i,
+            &cdr(&joint_state(i, &["a", "b"], &[0.0, 0.0]), false),
+        );
+        b.put(two, i, br#"{"b": 1}"#);
+    }
+    b.finish();
+    let (reader, samples) = read_all(&path, &ReadOptions::default());
+    assert_eq!(names(&reader), ["a", "/one/b", "/two/b"]);
+    assert_eq!(samples.len(), 3);
+    let topics: Vec<(String, u64)> = reader
+        .topics()
+        .into_iter()
+        .map(|t| (t.topic, t.messages))
+        .collect();
+    assert_eq!(topics, [("/one".to_string(), 3), ("/two".to_string(), 3)]);
 }
 
 #[test]

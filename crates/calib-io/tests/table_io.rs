@@ -322,3 +322,66 @@ fn absurd_values_are_refused_in_both_directions() {
     );
     assert!(m.contains("beyond half a revolution"), "{m}");
 }
+
+#[test]
+fn range_tables_round_trip_and_are_checked() {
+    use calib_io::table::{AnyTable, read_any_table, render_range_table};
+    let dir = tempfile::tempdir().unwrap();
+    // 330°…390° (across 0), 61 points 1° apart.
+    let values: Vec<f64> = (0..61).map(|i| f64::from(i) / ARCSEC_PER_RAD).collect();
+    let map = calib_core::RangeMap::new((-30f64).to_radians(), 1f64.to_radians(), values).unwrap();
+    let text = render_range_table(&map, None).unwrap();
+    assert!(
+        text.starts_with("# range_deg: 330.000000 to 390.000000 "),
+        "{text}"
+    );
+    let path = write_tmp(&dir, &text);
+    let AnyTable::Range(back) = read_any_table(&path).unwrap() else {
+        panic!("not read as a range table")
+    };
+    assert_eq!(back.map.len(), 61);
+    assert!((back.map.start() - map.start()).abs() < 1e-9);
+    assert!(
+        back.map
+            .values()
+            .iter()
+            .zip(map.values())
+            .all(|(a, b)| (a - b).abs() * ARCSEC_PER_RAD < 1e-6)
+    );
+    // Whole-turn readers refuse it, saying what it is.
+    let err = read_table(&path).unwrap_err().to_string();
+    assert!(
+        err.contains("range table") && err.contains("whole-turn"),
+        "{err}"
+    );
+
+    // A range table with its last rows missing: the last row is blamed (line 3 = row 2).
+    let m = error_of(
+        &format!("# range_deg: 10 to 30\n{H}10,1,-1\n20,-1,1\n"),
+        4,
+        Some("angle_deg"),
+    );
+    assert!(
+        m.contains("the last row is at 20° but the range line (line 1) puts that end at 30°"),
+        "{m}"
+    );
+    // A range line that is not one.
+    let m = error_of(
+        &format!("# range_deg: 10 30\n{H}10,1,-1\n30,-1,1\n"),
+        1,
+        None,
+    );
+    assert!(m.contains("not a range line"), "{m}");
+    let m = error_of(
+        &format!("# range_deg: 10 to 400\n{H}10,1,-1\n400,-1,1\n"),
+        1,
+        None,
+    );
+    assert!(m.contains("less than 360°"), "{m}");
+    // Without the range line, a half revolution is still a broken whole-turn table.
+    let m = error_of(&format!("{H}0,1,-1\n90,-1,1\n"), 3, Some("angle_deg"));
+    assert!(
+        m.contains("does not cover a full revolution") && m.contains("# range_deg"),
+        "{m}"
+    );
+}

@@ -131,10 +131,15 @@ impl MapLayers {
     }
 }
 
-/// `f(x)` from points sorted by x, linearly, periodic over 360°.
+/// `f(x)` from points sorted by x, linearly, periodic over 360° (a range map's points may pass
+/// 360°: an `x` within the points' own span is used as it is).
 fn interpolate(points: &[(f64, f64)], x: f64) -> Option<f64> {
     let (first, last) = (points.first()?, points.last()?);
-    let x = x.rem_euclid(360.0);
+    let x = if x >= first.0 && x <= last.0 {
+        x
+    } else {
+        x.rem_euclid(360.0)
+    };
     let i = points.partition_point(|p| p.0 <= x);
     let (a, b) = match i {
         0 => ((last.0 - 360.0, last.1), *first),
@@ -175,6 +180,21 @@ pub fn error_map(id: &str, channel: &str, layers: &MapLayers) -> Figure {
         );
     }
     Figure::stacked(id, &format!("Error map of {channel}"), &caption, panels)
+}
+
+/// The error map of `channel` over the range `lo`–`hi`° its readings covered (a joint that never
+/// turned a whole revolution), with the comparison and band of `layers`.
+pub fn range_error_map(id: &str, channel: &str, layers: &MapLayers, lo: f64, hi: f64) -> Figure {
+    Figure::stacked(
+        id,
+        &format!("Error map of {channel}"),
+        &format!(
+            "Error of {channel} (reading − true angle, zero mean over the range) over the range {lo:.3}°–{hi:.3}° \
+             of its own reading that the run covered; outside it the table says nothing. The correction table is its \
+             negative."
+        ),
+        vec![layers.chart(channel, Some((lo, hi)))],
+    )
 }
 
 /// A zoom of the error map on one period of harmonic order `order` (from 0° to 360°/order), the

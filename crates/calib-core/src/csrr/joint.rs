@@ -112,6 +112,12 @@ pub(crate) struct JointSolution {
     pub excluded: Vec<ExcludedOrder>,
     /// RMS of the per-sample residual of the joint equation, rad.
     pub residual_rms: f64,
+    /// The noise per sample estimated from the bins' residuals alone,
+    /// `σ² = Σ_j n_j·r_j² / (M − P)` (`r_j` the residual of bin `j`'s mean, which has the
+    /// variance `σ²/n_j`; `M` bins, `P` unknowns), rad. Unlike [`JointSolution::residual_rms`] it
+    /// leaves out the spread inside the bins, which for steep errors is mostly the errors'
+    /// own change across a bin, not noise.
+    pub noise_rms: f64,
     /// Conjugate-gradient iterations taken, over all steps.
     pub iterations: usize,
     /// Gauss–Newton steps taken.
@@ -478,6 +484,7 @@ pub(crate) fn solve(
         })
         .sum();
     let residual_rms = ((between + within) / total).sqrt();
+    let noise_rms = (between / m.saturating_sub(4 * l + k_count).max(1) as f64).sqrt();
     if !residual_rms.is_finite() {
         return Err(CsrrError::NotFinite);
     }
@@ -496,6 +503,7 @@ pub(crate) fn solve(
         deltas,
         excluded,
         residual_rms,
+        noise_rms,
         iterations,
         steps,
         converged,

@@ -34,6 +34,7 @@ use crate::angle::ARCSEC_PER_RAD;
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
 use crate::segment::{SegmentOptions, Segmentation, Segmenter, SessionSink};
+use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation_uncertainty};
 use bins::{Bin, SessionBinner};
 use joint::{ExcludedOrder, JointOptions};
 use paper::{PaperAccumulator, PaperPoint};
@@ -232,6 +233,9 @@ pub struct Calibration {
     pub paper_points: Vec<PaperPoint>,
     /// Checks against the reference encoder, when one was given.
     pub reference: Option<ReferenceCheck>,
+    /// The standard uncertainty of A's and B's maps at every table point, with their budgets
+    /// (joint method; see [`map_uncertainty`]).
+    pub uncertainty: Option<(MapUncertainty, MapUncertainty)>,
     /// Things the user should know.
     pub warnings: Vec<String>,
 }
@@ -464,10 +468,20 @@ fn finish_joint(
         .unwrap_or_else(|| table_points(&sol.a).max(table_points(&sol.b)));
     let a = joint::reading_map(&sol.a, points);
     let b = joint::reading_map(&sol.b, points);
+    let a_series = a.series();
+    let b_series = b.series();
+    let fitted: Vec<usize> = (1..=max_order)
+        .filter(|h| sol.excluded.iter().all(|e| e.order != *h))
+        .collect();
+    let u_fit = fit_noise(&fitted, &centred, &weights, sol.noise_rms);
+    let uncertainty = Some((
+        map_uncertainty(u_fit, &a_series, points),
+        map_uncertainty(u_fit, &b_series, points),
+    ));
     Ok(Calibration {
         method: Method::Joint,
-        a_series: a.series(),
-        b_series: b.series(),
+        a_series,
+        b_series,
         true_angle_series: Some((sol.a, sol.b)),
         a,
         b,
@@ -480,8 +494,61 @@ fn finish_joint(
         iterations: sol.iterations,
         paper_points: Vec::new(),
         reference: None,
+        uncertainty,
         warnings,
     })
+}
+
+/// The standard uncertainty, at any angle, that the noise of the readings leaves in either
+/// sensor's map, propagated through the joint fit by its per-order block structure (the
+/// preconditioner of [`joint`]): for uniformly spread readings the normal matrix of order `h`'s
+/// four coefficients is `½[[W·I, −R_h], [−R_hᵀ, W·I]]`, whose inverse has `2W/(W² − |Z_h|²)` on
+/// its diagonal, `Z_h = Σ_k W_k e^{ihΔ_k}` and `W = Σ_k W_k` (samples per session). With `σ` the
+/// residual per sample, each coefficient of order `h` has the variance `σ²·2W/(W² − |Z_h|²)`, the
+/// cosine and sine are uncorrelated within a sensor, so the map's variance at any angle is
+/// (`σ` from the bins' residuals, [`joint::JointSolution::noise_rms`])
+///
+/// `u_fit² = Σ_h 2σ²W/(W² − |Z_h|²)`,
+///
+/// the same at every angle. Poorly observable orders (small `1 − |Z_h|/W`) weigh more; excluded
+/// (blind) orders are not in the maps and not in the sum — they are warnings, not uncertainty.
+fn fit_noise(orders: &[usize], deltas: &[f64], weights: &[f64], sigma: f64) -> f64 {
+    let w: f64 = weights.iter().sum();
+    let var: f64 = orders
+        .iter()
+        .map(|&h| {
+            let (mut c, mut s) = (0.0, 0.0);
+            for (&d, &wk) in deltas.iter().zip(weights) {
+                let (sn, cs) = (h as f64 * d).sin_cos();
+                c += wk * cs;
+                s += wk * sn;
+            }
+            2.0 * w / (w * w - c * c - s * s)
+        })
+        .sum();
+    sigma * var.sqrt()
+}
+
+/// The budget of one CSRR map of `points` points: the fit's noise `u_fit` (Type A, propagated
+/// through the joint fit's per-order blocks: see `docs/uncertainty.md`) and
+/// the linear interpolation of the table between its points
+/// ([`interpolation_uncertainty`], Type B).
+pub fn map_uncertainty(u_fit: f64, series: &FourierSeries, points: usize) -> MapUncertainty {
+    MapUncertainty::combine(
+        points,
+        vec![
+            MapComponent {
+                name: "noise of the readings propagated through the joint fit".into(),
+                evaluation: Evaluation::TypeA,
+                u: vec![u_fit],
+            },
+            MapComponent {
+                name: "linear interpolation between table points".into(),
+                evaluation: Evaluation::TypeB,
+                u: vec![interpolation_uncertainty(&series.harmonics(), points)],
+            },
+        ],
+    )
 }
 
 fn finish_paper(
@@ -554,6 +621,7 @@ fn finish_paper(
         iterations: 0,
         paper_points: points,
         reference: None,
+        uncertainty: None,
         warnings,
     })
 }

@@ -32,6 +32,10 @@
 //!   friction = { coulomb = 0.0, viscous = 0.02, quadratic = 1e-4 }  # rad/s², 1/s, 1/rad
 //!   drag_harmonics = [{ order = 2, amplitude = 0.05, phase_deg = 30.0 }]  # rad/s²
 //!   ```
+//! - **Sweep** (`[sweep]`, replacing `[procedure]`, for a joint that never turns a whole
+//!   revolution): strokes `from_deg → to_deg → from_deg …` at a list of speeds with
+//!   raised-cosine ramps and pauses ([`Sweep`]); [`Scenario::range_truth`] gives each channel's
+//!   truth over the readings it swept.
 //! - **Heads on a shared scale**: a head at nominal `α` with angle error `δ` reads
 //!   `s + e_s(s) − α` at scale position `s = θ + α + δ` ([`Sensor`]).
 //!
@@ -128,21 +132,24 @@ mod rng;
 mod scenario;
 mod sensor;
 mod spindown;
+mod sweep;
 
 pub use scenario::{
     DragHarmonic, Friction, HarmonicSpec, Mount, Procedure, Scale, Scenario, ScenarioError, Sensor,
-    SessionSpec, Speed, SpinDown,
+    SessionSpec, Speed, SpinDown, Sweep,
 };
 pub use sensor::SensorTruth;
 
 use crate::angle::{ARCSEC_PER_RAD, AngleUnit, DEG_PER_RAD, wrap_2pi};
 use crate::error_map::ErrorMap;
+use crate::range_map::RangeMap;
 use crate::sample::{Channel, Sample};
 use motion::{SessionPlan, State, Timeline, Timing};
 use rng::Rng;
 use sensor::{ErrorModel, FastSeries, Powers, Term};
 use spindown::Coast;
 use std::f64::consts::TAU;
+use sweep::SweepTimeline;
 
 fn terms(harmonics: &[HarmonicSpec]) -> Vec<Term> {
     harmonics
@@ -200,9 +207,10 @@ impl Scenario {
     /// procedure ends (at rest). Nothing is buffered; the iterator knows its exact length.
     pub fn samples(&self) -> Result<Samples, ScenarioError> {
         self.validate()?;
-        let (motion, windows) = match &self.spin_down {
-            Some(sd) => (Motion::Coast(self.coast(sd)), Vec::new()),
-            None => {
+        let (motion, windows) = match (&self.sweep, &self.spin_down) {
+            (Some(sw), _) => (Motion::Sweep(self.sweep_timeline(sw)), Vec::new()),
+            (None, Some(sd)) => (Motion::Coast(self.coast(sd)), Vec::new()),
+            (None, None) => {
                 let timeline = self.timeline();
                 // Sessions are marked by sample index: sample n belongs to a window [t0, t1)
                 // when t0 ≤ n/rate < t1. A boundary within 1e-6 of a sample period of a sample
@@ -268,14 +276,7 @@ impl Scenario {
                 revolutions,
             })
             .collect();
-        let mut modulation = terms(&self.speed.harmonics);
-        if self.speed.variation_percent > 0.0 {
-            modulation.push(Term {
-                order: 1.0,
-                amplitude: self.speed.variation_percent / 100.0,
-                phase: 0.0,
-            });
-        }
+        let modulation = self.modulation();
         let p = &self.procedure;
         let timing = Timing {
             omega: self.speed_rpm * TAU / 60.0,
@@ -284,6 +285,84 @@ impl Scenario {
             turn_s: p.turn_s,
         };
         Timeline::new(&sessions, timing, modulation)
+    }
+
+    /// The modulation of eq. (9): `[speed]`'s harmonics and its once-per-revolution ripple.
+    fn modulation(&self) -> Vec<Term> {
+        let mut modulation = terms(&self.speed.harmonics);
+        if self.speed.variation_percent > 0.0 {
+            modulation.push(Term {
+                order: 1.0,
+                amplitude: self.speed.variation_percent / 100.0,
+                phase: 0.0,
+            });
+        }
+        modulation
+    }
+
+    /// The sweep's timeline.
+    fn sweep_timeline(&self, sw: &Sweep) -> SweepTimeline {
+        let speeds: Vec<f64> = if sw.speeds_deg_s.is_empty() {
+            vec![self.speed_rpm * TAU / 60.0]
+        } else {
+            sw.speeds_deg_s.iter().map(|v| v / DEG_PER_RAD).collect()
+        };
+        SweepTimeline::new(
+            sw.from_deg / DEG_PER_RAD,
+            sw.to_deg / DEG_PER_RAD,
+            sw.cycles,
+            &speeds,
+            sw.ramp_s,
+            sw.pause_s,
+            &self.modulation(),
+        )
+    }
+
+    /// For a `[sweep]` shorter than a revolution: every channel's true error over the readings
+    /// it swept, as a range map on a grid of step at most `2π/points` from its lowest to its
+    /// highest reading (mean removed over the range), `(channel name, map)` in channel order.
+    /// `None` for other procedures, and for a channel whose readings cover a whole revolution
+    /// (its truth is then [`Scenario::truth`]'s).
+    ///
+    /// The shaft's true angle `θ = φ + ε_θ(φ)` and every reading `θ + e(θ)` increase with the
+    /// nominal angle `φ` (validation bounds both slopes), so the swept readings run from the
+    /// reading at the stroke's lower end to the reading at its upper end.
+    pub fn range_truth(&self, points: usize) -> Result<Option<Vec<RangeTruth>>, ScenarioError> {
+        let truths = self.sensor_truths()?;
+        let Some(sw) = &self.sweep else {
+            return Ok(None);
+        };
+        let (lo, hi) = (
+            sw.from_deg.min(sw.to_deg) / DEG_PER_RAD,
+            sw.from_deg.max(sw.to_deg) / DEG_PER_RAD,
+        );
+        let modulation = FastSeries::new(&self.modulation());
+        let mut buf = Powers::default();
+        let true_angle = |phi: f64, buf: &mut Powers| phi + modulation.eval(phi, buf);
+        let (t_lo, t_hi) = (true_angle(lo, &mut buf), true_angle(hi, &mut buf));
+        if t_hi - t_lo >= TAU {
+            return Ok(None);
+        }
+        let step = TAU / points.max(2) as f64;
+        Ok(Some(
+            truths
+                .into_iter()
+                .map(|t| {
+                    let r_lo = t_lo + t.error_at_true(t_lo);
+                    let r_hi = t_hi + t.error_at_true(t_hi);
+                    let span = r_hi - r_lo;
+                    let map = (span < TAU - step).then(|| {
+                        let m = ((span / step).ceil() as usize).max(1);
+                        let values = (0..=m)
+                            .map(|i| t.error_at_reading(r_lo + span * i as f64 / m as f64))
+                            .collect();
+                        RangeMap::new(r_lo, span / m as f64, values)
+                            .expect("a span below a revolution on at least 2 points")
+                    });
+                    (t.name, map)
+                })
+                .collect(),
+        ))
     }
 
     /// The coast-down's integrator.
@@ -360,6 +439,10 @@ impl Scenario {
     }
 }
 
+/// One channel's truth over a sweep ([`Scenario::range_truth`]): its name and its range map
+/// (`None` where its readings cover a whole revolution).
+pub type RangeTruth = (String, Option<RangeMap>);
+
 /// How many binary powers of `e^{iθ}` the channels on `mount` need.
 fn channel_powers_needed(channels: &[ChannelSim], mount: Mount) -> usize {
     channels
@@ -408,6 +491,7 @@ struct ChannelSim {
 enum Motion {
     Procedure(Timeline),
     Coast(Coast),
+    Sweep(SweepTimeline),
 }
 
 impl Motion {
@@ -415,6 +499,7 @@ impl Motion {
         match self {
             Motion::Procedure(tl) => tl.duration(),
             Motion::Coast(c) => c.duration(),
+            Motion::Sweep(s) => s.duration(),
         }
     }
 
@@ -423,6 +508,10 @@ impl Motion {
             Motion::Procedure(tl) => tl.state(t),
             Motion::Coast(c) => State {
                 theta_b: c.theta(t),
+                delta: 0.0,
+            },
+            Motion::Sweep(s) => State {
+                theta_b: s.theta(t),
                 delta: 0.0,
             },
         }

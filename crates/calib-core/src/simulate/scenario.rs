@@ -41,6 +41,10 @@ pub struct Scenario {
     /// A free coast-down instead of the CSRR procedure (`[spin_down]`, for `calib tdr`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub spin_down: Option<SpinDown>,
+    /// A joint swept back and forth over part of a revolution instead of the CSRR procedure
+    /// (`[sweep]`, for `calib reference` over a range).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sweep: Option<Sweep>,
 }
 
 impl Default for Scenario {
@@ -57,6 +61,7 @@ impl Default for Scenario {
             sensors: Vec::new(),
             procedure: Procedure::default(),
             spin_down: None,
+            sweep: None,
         }
     }
 }
@@ -222,6 +227,53 @@ pub struct SpinDown {
     pub drag_harmonics: Vec<DragHarmonic>,
 }
 
+/// A joint swept back and forth over part of a revolution: at rest at `from_deg` for `pause_s`,
+/// then `cycles` times `from_deg → to_deg → from_deg`, each stroke with raised-cosine ramps of
+/// `ramp_s` at both ends and followed by a pause of `pause_s`. Stroke `k` (from 0) runs at
+/// `speeds_deg_s[k mod len]`, so a list of speeds gives a run at varying speed. Rotor A, if
+/// used, turns with the shaft (`Δ = 0`); `[speed]` modulates the position as for the CSRR
+/// procedure. The `[procedure]` table must be absent. For example:
+/// ```toml
+/// [sweep]
+/// from_deg = 15.0
+/// to_deg = 135.0
+/// cycles = 4
+/// speeds_deg_s = [10.0, 25.0, 15.0, 40.0]
+/// ramp_s = 0.5
+/// pause_s = 1.0
+/// ```
+/// The truth tables of a swept run are range tables over each channel's swept readings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sweep {
+    /// Start and end of each there-and-back cycle, degrees of the shaft's nominal angle.
+    pub from_deg: f64,
+    /// The other end of the stroke, degrees (≠ `from_deg`; may be more than a revolution away).
+    pub to_deg: f64,
+    /// There-and-back cycles (≥ 1, default 1).
+    #[serde(default = "one")]
+    pub cycles: u32,
+    /// Cruise speed of each stroke in turn, degrees per second (> 0; default: `speed_rpm`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub speeds_deg_s: Vec<f64>,
+    /// Duration of the speed ramp at each end of a stroke, seconds (default 0.5).
+    #[serde(default = "half")]
+    pub ramp_s: f64,
+    /// Rest before the first stroke and after each, seconds (default 1).
+    #[serde(default = "one_s")]
+    pub pause_s: f64,
+}
+
+fn one() -> u32 {
+    1
+}
+fn half() -> f64 {
+    0.5
+}
+fn one_s() -> f64 {
+    1.0
+}
+
 /// The smooth part of the deceleration `c₀ + c₁·ω + c₂·ω²` (all ≥ 0; default 0).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -324,6 +376,14 @@ pub enum ScenarioError {
         sensor: String,
         /// What is wrong and what to do.
         problem: &'static str,
+    },
+    /// `[sweep]` together with a table it replaces.
+    #[error(
+        "[sweep] replaces [{table}]: remove [{table}] (a swept joint has no CSRR sessions and does not coast)"
+    )]
+    SweepConflict {
+        /// `procedure` or `spin_down`.
+        table: &'static str,
     },
     /// `[spin_down]` together with a table it replaces.
     #[error(
@@ -527,6 +587,9 @@ impl Scenario {
             }
         }
 
+        if let Some(sw) = &self.sweep {
+            return validate_sweep(self, sw);
+        }
         if let Some(sd) = &self.spin_down {
             return validate_spin_down(self, sd);
         }
@@ -582,6 +645,39 @@ impl Scenario {
         }
         Ok(())
     }
+}
+
+fn validate_sweep(scenario: &Scenario, sw: &Sweep) -> Result<(), ScenarioError> {
+    if scenario.procedure != Procedure::default() {
+        return Err(ScenarioError::SweepConflict { table: "procedure" });
+    }
+    if scenario.spin_down.is_some() {
+        return Err(ScenarioError::SweepConflict { table: "spin_down" });
+    }
+    check(|| "sweep.from_deg".into(), sw.from_deg, true, "finite")?;
+    check(
+        || "sweep.to_deg".into(),
+        sw.to_deg,
+        sw.to_deg != sw.from_deg,
+        "finite and different from from_deg",
+    )?;
+    check(
+        || "sweep.cycles".into(),
+        f64::from(sw.cycles),
+        sw.cycles >= 1,
+        "≥ 1",
+    )?;
+    for (i, &v) in sw.speeds_deg_s.iter().enumerate() {
+        check(|| format!("sweep.speeds_deg_s[{i}]"), v, v > 0.0, "> 0")?;
+    }
+    check(|| "sweep.ramp_s".into(), sw.ramp_s, sw.ramp_s >= 0.0, "≥ 0")?;
+    check(
+        || "sweep.pause_s".into(),
+        sw.pause_s,
+        sw.pause_s >= 0.0,
+        "≥ 0",
+    )?;
+    Ok(())
 }
 
 fn validate_spin_down(scenario: &Scenario, sd: &SpinDown) -> Result<(), ScenarioError> {

@@ -32,7 +32,7 @@ mod mcap;
 use crate::log::LogFormat;
 use crate::{DamagedChunk, Error, Truncation};
 use calib_core::correction::{Correction, Wrapping};
-use calib_core::{AngleUnit, ErrorMap};
+use calib_core::{AngleUnit, ErrorMap, RangeMap};
 use std::path::Path;
 
 /// What to correct and how.
@@ -72,6 +72,17 @@ pub struct Applied {
     /// MCAP chunks left out of the output because they were damaged (with
     /// [`ApplyOptions::skip_damaged`]).
     pub damaged_chunks: Vec<DamagedChunk>,
+    /// Readings outside a range table's range, copied unchanged (0 for a whole-turn table).
+    pub outside: u64,
+}
+
+/// The map [`apply_map`] corrects with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MapRef<'a> {
+    /// A whole-turn map: every reading is corrected.
+    Turn(&'a ErrorMap),
+    /// A range map: readings inside its range are corrected, the others copied unchanged.
+    Range(&'a RangeMap),
 }
 
 /// The readings of a channel seen by a pass over a log.
@@ -114,6 +125,17 @@ pub fn apply(
     map: &ErrorMap,
     opts: &ApplyOptions,
 ) -> Result<Applied, Error> {
+    apply_map(input, output, MapRef::Turn(map), opts)
+}
+
+/// [`apply`] with a whole-turn or a range map; with a range map the readings outside its range
+/// are copied unchanged and counted in [`Applied::outside`].
+pub fn apply_map(
+    input: &Path,
+    output: &Path,
+    map: MapRef<'_>,
+    opts: &ApplyOptions,
+) -> Result<Applied, Error> {
     let format = LogFormat::detect(input)?;
     let out_format = LogFormat::for_output(output)?;
     if out_format != format {
@@ -144,24 +166,33 @@ pub fn apply(
     let wrapping = opts
         .wrapping
         .unwrap_or_else(|| Wrapping::detect(range.min, range.max, range.unit));
-    let fix = |unit| Correction::new(map.clone(), unit, wrapping);
-    let (readings, copied, truncated, damaged_chunks) = match format {
-        LogFormat::Csv => (
-            csv::rewrite(input, output, &opts.channel, &fix(unit))?,
-            0,
-            None,
-            Vec::new(),
-        ),
+    let fix = |unit| match map {
+        MapRef::Turn(m) => Correction::new(m.clone(), unit, wrapping),
+        MapRef::Range(m) => Correction::with_range(m.clone(), unit, wrapping),
+    };
+    let (readings, copied, truncated, outside, damaged_chunks) = match format {
+        LogFormat::Csv => {
+            let f = fix(unit);
+            let n = csv::rewrite(input, output, &opts.channel, &f)?;
+            (n, 0, None, f.outside(), Vec::new())
+        }
         LogFormat::Mcap => {
+            let (joint, json) = (fix(AngleUnit::Rad), fix(unit));
             let done = mcap::rewrite(
                 input,
                 output,
                 &opts.channel,
-                &fix(AngleUnit::Rad),
-                &fix(unit),
+                &joint,
+                &json,
                 opts.skip_damaged,
             )?;
-            (done.readings, done.copied, done.truncated, done.damaged)
+            (
+                done.readings,
+                done.copied,
+                done.truncated,
+                joint.outside() + json.outside(),
+                done.damaged,
+            )
         }
     };
     Ok(Applied {
@@ -173,5 +204,6 @@ pub fn apply(
         copied,
         truncated,
         damaged_chunks,
+        outside,
     })
 }

@@ -16,7 +16,13 @@ const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
 /// and how many fields, rather than csv's generic message. No header handling: the caller reads the
 /// header as the first record, so that it can strip a BOM and number lines itself.
 pub(crate) fn csv_reader(file: File) -> csv::Reader<LineLimit<File>> {
+    csv_reader_with(file, b',')
+}
+
+/// [`csv_reader`] with another field separator.
+pub(crate) fn csv_reader_with(file: File, separator: u8) -> csv::Reader<LineLimit<File>> {
     csv::ReaderBuilder::new()
+        .delimiter(separator)
         .has_headers(false)
         .flexible(true)
         // Bigger than csv's 8 KiB default: fewer read calls, measurably faster on large logs.

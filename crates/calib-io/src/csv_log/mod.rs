@@ -18,9 +18,15 @@
 //!   revolution or accumulated, as the sensor gives them.
 //!
 //! Fields may carry surrounding spaces or tabs, the file may start with a UTF-8 byte order mark,
-//! and blank lines are skipped. Comma is the only separator; a field holding commas or quotes
-//! must be quoted as CSV (RFC 4180) quotes it.
+//! and blank lines are skipped. A field holding the separator or quotes must be quoted as CSV
+//! (RFC 4180) quotes it.
+//!
+//! # Dialects
+//! Lab exports are read too ([`dialect`]): `;` or tab separators, metadata lines before the
+//! header, and a time column named `time`, `timestamp`, `Time [s]`, `t_ms`, … (or any name given
+//! as [`ReadOptions::time_column`](crate::ReadOptions::time_column)) in s, ms, us or ns.
 
+pub mod dialect;
 mod fields;
 mod reader;
 mod writer;

@@ -1,18 +1,22 @@
 //! Streaming reader of CSV logs.
 
+use super::dialect::{self, SNIFF_BYTES};
 use super::fields::{self, line_of, parse_f64};
 use crate::limits::LineLimit;
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use csv::ByteRecord;
 use std::fs::File;
+use std::io::{Read, Seek};
 use std::iter::FusedIterator;
 use std::path::{Path, PathBuf};
 
 /// Reads a CSV log as a stream of [`Sample`]s, one row at a time.
 ///
-/// The header names the columns: `t` (seconds, required), `session` (integer, optional; negative
-/// means "no session") and one column per channel, in any order. Readings are converted from
+/// The header names the columns: the time (`t` in seconds, or as [`super::dialect`] finds it;
+/// required), `session` (integer, optional; negative means "no session") and one column per
+/// channel, in any order. The separator and any lines before the header are found by
+/// [`dialect::sniff`]. Readings are converted from
 /// [`ReadOptions::unit`] (degrees if `None`) to radians and otherwise passed through: wrapped and
 /// accumulated readings alike, since unwrapping is the core's job.
 ///
@@ -46,6 +50,8 @@ pub struct CsvReader {
     names: Vec<String>,
     channels: Vec<Channel>,
     t_col: usize,
+    /// Seconds per unit of the time column.
+    t_scale: f64,
     session_col: Option<usize>,
     /// The column of each channel, in the order of `channels`.
     value_cols: Vec<usize>,
@@ -64,13 +70,24 @@ impl CsvReader {
     /// without `t` or without any channel column, duplicate or empty column names, a header
     /// without data rows. The rows' contents are checked as the iterator reaches them.
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
-        let file = File::open(path).map_err(|source| Error::Io {
+        let io = |source| Error::Io {
             path: path.to_path_buf(),
             source,
-        })?;
-        let mut reader = fields::csv_reader(file);
+        };
+        let mut file = File::open(path).map_err(io)?;
+        let mut head = Vec::with_capacity(SNIFF_BYTES);
+        (&mut file)
+            .take(SNIFF_BYTES as u64)
+            .read_to_end(&mut head)
+            .map_err(io)?;
+        let dialect = dialect::sniff(&head);
+        file.rewind().map_err(io)?;
+        let mut reader = fields::csv_reader_with(file, dialect.separator);
         let mut record = ByteRecord::new();
         let csv_err = |e| fields::from_csv(path, e);
+        for _ in 0..dialect.skip {
+            reader.read_byte_record(&mut record).map_err(csv_err)?;
+        }
         let err = |line, channel: Option<&str>, message: String| Error::Csv {
             path: path.to_path_buf(),
             line,
@@ -89,34 +106,44 @@ impl CsvReader {
         let names = fields::header_names(path, &record)?;
         let header_line = line_of(path, &record);
         let unit = opts.unit.unwrap_or(AngleUnit::Deg);
-        let mut t_col = None;
+        let Some((t_col, t_unit)) =
+            dialect::time_column(&names, opts.time_column.as_deref(), opts.time_unit)
+        else {
+            return Err(err(
+                header_line,
+                None,
+                match &opts.time_column {
+                    Some(wanted) => format!(
+                        "the header has no column `{wanted}` (it has: {}); give --time-column \
+                         one of those names",
+                        names.join(", ")
+                    ),
+                    None => format!(
+                        "the header has no time column (it has: {}); name it `t` (seconds), \
+                         `time` or `timestamp` (with a unit such as ` [ms]`), or name it with \
+                         --time-column",
+                        names.join(", ")
+                    ),
+                },
+            ));
+        };
         let mut session_col = None;
         let mut channels = Vec::new();
         let mut value_cols = Vec::new();
         for (i, name) in names.iter().enumerate() {
-            match name.as_str() {
-                "t" => t_col = Some(i),
-                "session" => session_col = Some(i),
-                _ => {
-                    channels.push(Channel {
-                        name: name.clone(),
-                        unit,
-                    });
-                    value_cols.push(i);
-                }
+            if i == t_col {
+                continue;
+            }
+            if name == "session" {
+                session_col = Some(i);
+            } else {
+                channels.push(Channel {
+                    name: name.clone(),
+                    unit,
+                });
+                value_cols.push(i);
             }
         }
-        let Some(t_col) = t_col else {
-            return Err(err(
-                header_line,
-                None,
-                format!(
-                    "the header has no `t` column (it has: {}); name the time column `t`, in \
-                     seconds",
-                    names.join(", ")
-                ),
-            ));
-        };
         if channels.is_empty() {
             return Err(err(
                 header_line,
@@ -144,6 +171,7 @@ impl CsvReader {
             names,
             channels,
             t_col,
+            t_scale: t_unit.seconds(),
             session_col,
             value_cols,
             rad_per_unit: unit.radians_per_unit(),
@@ -187,7 +215,7 @@ impl CsvReader {
         let field = |c: usize| record.get(c).unwrap_or_default();
 
         let raw_t = field(self.t_col);
-        let t = parse_f64(raw_t).ok_or_else(|| {
+        let t = parse_f64(raw_t).map(|t| t * self.t_scale).ok_or_else(|| {
             self.error(
                 Some(self.t_col),
                 fields::not_a_number(raw_t, "the time (seconds)"),

@@ -16,16 +16,18 @@
 //!   [`McapReader::ignored_topics`]: a recording usually carries much more than the encoders, and
 //!   that is no reason to refuse it. Only a file without any usable topic is an error.
 //!
-//! A topic's channel set is fixed by its first message; a later message with other names is an
-//! error, since a joint that silently changes meaning would corrupt a calibration.
+//! A topic's channel set is gathered from its first messages (see [`McapReader::open`]); a
+//! JointState message may carry any subset of it (several publishers sharing `/joint_states`),
+//! and each joint is then its own time series. A later message naming a joint never seen before
+//! is an error, since a channel list that changes under a calibration would corrupt it. JSON
+//! messages must give every field of the topic's first message.
 //!
-//! # Joining topics
-//! Channels carried on several topics are joined on equal time stamps (exact nanoseconds): a
-//! sample is emitted once every topic has a message at that stamp. A message that finds no
-//! partner is dropped and counted in
-//! [`ReadDiagnostics::unjoined_messages`](crate::ReadDiagnostics::unjoined_messages), never
-//! interpolated. Each topic queues at most [`JOIN_QUEUE`] messages waiting for partners, so memory
-//! stays bounded even when one topic falls silent.
+//! # Channels on several topics
+//! Channels are named as [`crate::naming`] says (the joint name where unique, else
+//! `TOPIC/JOINT`). Channels on several topics, or joints published in separate messages, are
+//! aligned on the first selected channel's stamps by [`crate::align`]: an exact stamp is kept,
+//! any other interpolated (quintic) from the channel's own samples, never across a gap and never
+//! extrapolated; what cannot be aligned is counted in [`McapReader::alignment`].
 //!
 //! # Damaged files
 //! A file that ends early (a crashed recording) yields every message before the break; the break
@@ -44,7 +46,7 @@ pub(crate) mod read;
 pub(crate) mod records;
 mod write;
 
-pub use read::{IgnoredTopic, JOIN_QUEUE, McapReader};
+pub use read::{IgnoredTopic, McapReader, PEEK_WINDOW, TopicInfo};
 pub use write::{DEFAULT_TOPIC, McapWriter};
 
 /// The ROS 2 type name of joint states.

@@ -6,12 +6,23 @@
 //! 1. The **summary** (if the file has an intact one) lists every channel record: the reader keeps
 //!    the topics whose messages it can read and that hold at least one message.
 //! 2. A **peek pass** reads messages from the start until each of those topics has shown its first
-//!    message, which gives the joint names (JointState) or numeric fields (JSON). Topics usually
-//!    all appear in the first chunk, so this costs one chunk. Without a summary (a truncated file,
-//!    or a writer that wrote none) the set of topics is unknown, so the peek pass reads the whole
-//!    file once.
+//!    message, which gives the joint names (JointState) or numeric fields (JSON), and then
+//!    [`PEEK_WINDOW`] messages more, which gather the joints of topics whose messages carry
+//!    subsets of them (several publishers sharing `/joint_states`). Topics usually all appear in
+//!    the first chunk, so this costs a chunk or two. Where a topic's messages do carry different
+//!    joint sets, the peek pass reads on to the end of the file, so that no joint is missed.
+//!    Without a summary (a truncated file, or a writer that wrote none) the set of topics is
+//!    unknown, so the peek pass reads the whole file once.
 //!
-//! Topics are ordered by their first message in the file, channels by their order within it.
+//! Topics are ordered by their first message in the file, channels by their first appearance
+//! within a topic. Channels are named as [`crate::naming`] says: the joint name where unique in
+//! the file, else `TOPIC/JOINT`.
+//!
+//! # Several topics, several clocks
+//! Every message goes to an [`Aligner`]: the first selected channel sets the clock, every other
+//! channel is interpolated at its stamps ([`crate::align`]); a channel at exactly the clock's
+//! stamp is taken as it is. A log of one topic whose messages all carry every joint needs none
+//! of this and is read straight through, message by message, as fast as before.
 //!
 //! # Streaming
 //! The summary is read by seeking to the footer; the data section is then read front to back
@@ -27,7 +38,6 @@
 //! larger of the first incomplete top-level record's start and the bytes handed to the stream
 //! when it gave its last message (which lies inside a chunk cut short).
 
-use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{self, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -42,12 +52,58 @@ use super::JOINT_STATE_SCHEMA;
 use super::cdr::JointState;
 use super::json;
 use super::records::{self, StreamError};
-use crate::{Error, ReadDiagnostics, ReadOptions, Truncation};
+use crate::align::{AlignOptions, Aligner, Alignment};
+use crate::naming::{ChannelName, names_of};
+use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource, Truncation};
 
-/// Messages each topic may hold while waiting for the other topics' messages at the same stamp.
-/// Beyond it the oldest is dropped and counted as unjoined. 1024 messages cover a second of lag
-/// at 1 kHz, more than a recorder buffers between topics.
-pub const JOIN_QUEUE: usize = 1024;
+/// Messages the peek pass reads on after every topic has shown itself, gathering the joints of
+/// topics whose messages carry subsets of them: several hundred messages of each of a few
+/// publishers.
+pub const PEEK_WINDOW: u64 = 4096;
+
+/// Joint sets per topic whose channel positions are remembered (beyond it they are looked up
+/// name by name): more publishers than any robot shares one topic between.
+const LAYOUT_CACHE: usize = 64;
+
+/// A topic of the file, as `calib inspect` lists it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TopicInfo {
+    /// The topic.
+    pub topic: String,
+    /// Its message type (schema name; empty if it has none).
+    pub schema: String,
+    /// Its message encoding (`cdr`, `json`, …).
+    pub message_encoding: String,
+    /// Messages read (every message of the file once iteration has ended).
+    pub messages: u64,
+    /// Messages per second of log time, from the first to the last; `None` below two messages.
+    pub rate_hz: Option<f64>,
+    /// Its channels by the names the commands accept; empty for a topic calib does not read.
+    pub channels: Vec<String>,
+}
+
+/// Messages and log-time span of one topic.
+#[derive(Debug, Clone, Copy, Default)]
+struct TopicStats {
+    messages: u64,
+    first: u64,
+    last: u64,
+}
+
+impl TopicStats {
+    fn note(&mut self, log_time: u64) {
+        if self.messages == 0 {
+            self.first = log_time;
+        }
+        self.messages += 1;
+        self.last = log_time;
+    }
+
+    fn rate_hz(&self) -> Option<f64> {
+        (self.messages > 1 && self.last > self.first)
+            .then(|| (self.messages - 1) as f64 / ((self.last - self.first) as f64 * 1e-9))
+    }
+}
 
 /// A topic the reader skipped because its messages are neither JointState (CDR) nor JSON.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -89,13 +145,27 @@ pub struct McapReader {
     /// The file's length when opened.
     len: u64,
     registry: Registry,
+    /// Every channel of the file, in raw order (topics, then joints).
+    all_channels: Vec<Channel>,
+    names: Vec<ChannelName>,
+    /// The selected channels, in the order of each sample's values.
     channels: Vec<Channel>,
+    time: TimeSource,
+    aligner: Aligner,
+    /// One topic whose messages carry every joint, all channels selected in order: every
+    /// message is a sample, and the aligner is bypassed.
+    fast: bool,
+    /// Samples emitted by the fast path (every channel exact).
+    fast_samples: u64,
+    /// One reading per raw channel of the current message, NaN where it carries none.
+    raw: Vec<f64>,
     /// Messages taken from the stream so far (all topics).
     index: u64,
     diagnostics: ReadDiagnostics,
-    /// Value buffers of joined messages, recycled to keep allocation off the join path.
-    pool: Vec<Vec<f64>>,
+    /// The stream has ended (or failed): what the aligner holds is all that is left.
     done: bool,
+    /// An error was yielded: the iteration is over.
+    failed: bool,
 }
 
 /// Read buffer of the stream: large enough that reading costs few system calls, small against
@@ -190,22 +260,30 @@ impl Encoding {
 
 struct Topic {
     name: String,
+    schema: String,
+    message_encoding: String,
     encoding: Encoding,
     /// JointState: the `name` block of the first message, compared byte for byte with later ones.
     name_block: Vec<u8>,
     /// The channel names: joint names or JSON fields.
     names: Vec<String>,
+    /// Index of the topic's first channel among the file's.
+    offset: usize,
+    /// JointState: whether messages carry different joint sets.
+    subset: bool,
+    /// JointState: name blocks other than the first message's, with the channel of each name.
+    layouts: Vec<(Vec<u8>, Vec<usize>)>,
     /// Radians per unit of a JSON value.
     scale: f64,
     /// JSON: which channels a message has given, reused between messages.
     seen: Vec<bool>,
-    queue: VecDeque<(i64, Vec<f64>)>,
+    stats: TopicStats,
 }
 
 #[derive(Debug, Clone, Copy)]
 enum Slot {
     Unknown,
-    Ignored,
+    Ignored(usize),
     Topic(usize),
 }
 
@@ -215,11 +293,13 @@ struct Registry {
     slots: Vec<Slot>,
     topics: Vec<Topic>,
     ignored: Vec<IgnoredTopic>,
+    ignored_stats: Vec<TopicStats>,
 }
 
 /// What a channel ID resolves to when first seen.
 enum Resolved {
-    Known(Option<usize>),
+    Topic(usize),
+    Ignored(usize),
     NewTopic(Encoding),
 }
 
@@ -228,8 +308,8 @@ impl Registry {
         let id = usize::from(channel.id);
         if let Some(slot) = self.slots.get(id) {
             match slot {
-                Slot::Topic(k) => return Ok(Resolved::Known(Some(*k))),
-                Slot::Ignored => return Ok(Resolved::Known(None)),
+                Slot::Topic(k) => return Ok(Resolved::Topic(*k)),
+                Slot::Ignored(k) => return Ok(Resolved::Ignored(*k)),
                 Slot::Unknown => {}
             }
         }
@@ -237,14 +317,14 @@ impl Registry {
             self.slots.resize(id + 1, Slot::Unknown);
         }
         let Some(encoding) = Encoding::of(channel) else {
-            self.slots[id] = Slot::Ignored;
-            self.ignore(channel);
-            return Ok(Resolved::Known(None));
+            let k = self.ignore(channel);
+            self.slots[id] = Slot::Ignored(k);
+            return Ok(Resolved::Ignored(k));
         };
         match self.topics.iter().position(|t| t.name == channel.topic) {
             Some(k) if self.topics[k].encoding == encoding => {
                 self.slots[id] = Slot::Topic(k);
-                Ok(Resolved::Known(Some(k)))
+                Ok(Resolved::Topic(k))
             }
             Some(_) => Err(format!(
                 "topic `{}` carries both JointState and JSON messages; calib cannot tell which \
@@ -255,18 +335,26 @@ impl Registry {
         }
     }
 
-    fn ignore(&mut self, channel: &mcap::Channel) {
-        if !self.ignored.iter().any(|t| t.topic == channel.topic) {
-            self.ignored.push(IgnoredTopic {
-                topic: channel.topic.clone(),
-                schema: channel
-                    .schema
-                    .as_ref()
-                    .map_or_else(String::new, |s| s.name.clone()),
-                message_encoding: channel.message_encoding.clone(),
-            });
+    /// Lists a topic calib does not read; its index in the list.
+    fn ignore(&mut self, channel: &mcap::Channel) -> usize {
+        if let Some(k) = self.ignored.iter().position(|t| t.topic == channel.topic) {
+            return k;
         }
+        self.ignored.push(IgnoredTopic {
+            topic: channel.topic.clone(),
+            schema: schema_name(channel),
+            message_encoding: channel.message_encoding.clone(),
+        });
+        self.ignored_stats.push(TopicStats::default());
+        self.ignored.len() - 1
     }
+}
+
+fn schema_name(channel: &mcap::Channel) -> String {
+    channel
+        .schema
+        .as_ref()
+        .map_or_else(String::new, |s| s.name.clone())
 }
 
 fn mcap_error(path: &Path, index: Option<u64>, channel: Option<&str>, message: String) -> Error {
@@ -366,6 +454,7 @@ impl McapReader {
             slots: Vec::new(),
             topics: Vec::new(),
             ignored: Vec::new(),
+            ignored_stats: Vec::new(),
         };
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
         let expected = records::read_summary(&mut file, len)
@@ -376,6 +465,8 @@ impl McapReader {
         let mut skipped = Vec::new();
         if expected.as_ref().is_none_or(|e| !e.is_empty()) {
             let (mut peek, _) = stream(file, len, opts.skip_damaged).map_err(io)?;
+            // Messages since every expected topic showed itself.
+            let mut after_all: Option<u64> = None;
             for (index, message) in (&mut peek).enumerate() {
                 // Errors here are reported by the iteration, at the same message, unless no
                 // usable topic comes before them.
@@ -388,23 +479,31 @@ impl McapReader {
                 };
                 messages += 1;
                 let index = index as u64;
-                let resolved = registry
-                    .resolve(&message.channel)
-                    .map_err(|m| mcap_error(path, Some(index), Some(&message.channel.topic), m))?;
-                let Resolved::NewTopic(encoding) = resolved else {
-                    continue;
-                };
-                let topic = first_message(&message, encoding, scale)
-                    .map_err(|m| mcap_error(path, Some(index), Some(&message.channel.topic), m))?;
-                registry.topics.push(topic);
-                // Resolve again to record the channel ID's slot.
-                registry
-                    .resolve(&message.channel)
-                    .map_err(|m| mcap_error(path, Some(index), Some(&message.channel.topic), m))?;
-                if expected.as_ref().is_some_and(|e| {
+                let fail = |m| mcap_error(path, Some(index), Some(&message.channel.topic), m);
+                match registry.resolve(&message.channel).map_err(fail)? {
+                    Resolved::NewTopic(encoding) => {
+                        let topic = first_message(&message, encoding, scale).map_err(fail)?;
+                        registry.topics.push(topic);
+                        // Resolve again to record the channel ID's slot.
+                        registry.resolve(&message.channel).map_err(fail)?;
+                    }
+                    // A bad message is reported by the iteration, at the same message.
+                    Resolved::Topic(k) => {
+                        let _ = registry.topics[k].learn(&message);
+                    }
+                    Resolved::Ignored(_) => {}
+                }
+                if let Some(n) = &mut after_all {
+                    *n += 1;
+                } else if expected.as_ref().is_some_and(|e| {
                     e.iter()
                         .all(|t| registry.topics.iter().any(|k| &k.name == t))
                 }) {
+                    after_all = Some(0);
+                }
+                if after_all.is_some_and(|n| n >= PEEK_WINDOW)
+                    && !registry.topics.iter().any(|t| t.subset)
+                {
                     break;
                 }
             }
@@ -480,62 +579,131 @@ impl McapReader {
                 ),
             ));
         }
-        let mut channels: Vec<Channel> = Vec::new();
-        for (k, topic) in registry.topics.iter().enumerate() {
+        let mut offset = 0;
+        for topic in &mut registry.topics {
+            topic.offset = offset;
+            offset += topic.names.len();
+        }
+        let names = names_of(registry.topics.iter().flat_map(|t| {
+            t.names
+                .iter()
+                .map(move |n| (Some(t.name.as_str()), n.as_str()))
+        }));
+        let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
+        for topic in &registry.topics {
             let unit = match topic.encoding {
                 Encoding::JointState => AngleUnit::Rad,
                 Encoding::Json => opts.unit.unwrap_or(AngleUnit::Deg),
             };
-            for name in &topic.names {
-                if let Some(other) = registry.topics[..=k]
-                    .iter()
-                    .find(|t| t.names.contains(name) && (t.name != topic.name))
-                    .or_else(|| {
-                        // A name repeated within one message.
-                        (topic.names.iter().filter(|n| *n == name).count() > 1).then_some(topic)
-                    })
-                {
-                    return Err(mcap_error(
-                        path,
-                        None,
-                        Some(name),
-                        format!(
-                            "the channel appears twice (on topics `{}` and `{}`); a sample can \
-                             hold one reading per name: rename one of the joints",
-                            other.name, topic.name
-                        ),
-                    ));
-                }
-                channels.push(Channel {
-                    name: name.clone(),
+            for _ in &topic.names {
+                all_channels.push(Channel {
+                    name: names[all_channels.len()].display.clone(),
                     unit,
                 });
             }
         }
         let (stream, consumed) = stream(file, len, opts.skip_damaged).map_err(io)?;
-        Ok(McapReader {
+        let width = all_channels.len();
+        let mut reader = McapReader {
             path: path.to_path_buf(),
             stream: Box::new(stream),
             consumed,
             consumed_at_last: 0,
             len,
             registry,
-            channels,
+            channels: Vec::new(),
+            all_channels,
+            names,
+            time: opts.time,
+            aligner: Aligner::new(vec![0], AlignOptions::default()),
+            fast: false,
+            fast_samples: 0,
+            raw: vec![f64::NAN; width],
             index: 0,
             diagnostics: ReadDiagnostics::default(),
-            pool: Vec::new(),
             done: false,
-        })
+            failed: false,
+        };
+        let all: Vec<usize> = (0..width).collect();
+        reader.select(&all, AlignOptions::default());
+        Ok(reader)
     }
 
-    /// The channels, in the order of each sample's values: topics in the order of their first
-    /// message, then the names within a message.
+    /// The channels, in the order of each sample's values: those [selected](Self::select), by
+    /// default every channel of the file (topics in the order of their first message, then the
+    /// joints or fields within a topic).
     pub fn channels(&self) -> &[Channel] {
         &self.channels
     }
 
-    /// What the reader noticed so far: unjoined messages, and (once iteration has ended) where a
-    /// truncated file broke off.
+    /// The names of every channel of the file (not only the selected ones), in raw order: the
+    /// indices [`select`](Self::select) takes.
+    pub fn names(&self) -> &[ChannelName] {
+        &self.names
+    }
+
+    /// Reads only `channels` (indices into [`names`](Self::names)), in this order, aligned on the
+    /// first one's stamps as [`crate::align`] describes. Call it before reading any sample.
+    pub fn select(&mut self, channels: &[usize], opts: AlignOptions) {
+        let width = self.all_channels.len();
+        self.fast = self.registry.topics.len() == 1
+            && !self.registry.topics[0].subset
+            && channels.iter().copied().eq(0..width);
+        self.aligner = Aligner::new(channels.to_vec(), opts);
+        self.channels = channels
+            .iter()
+            .map(|&i| self.all_channels[i].clone())
+            .collect();
+    }
+
+    /// How the selected channels were aligned on the first one's clock (complete once iteration
+    /// has ended).
+    pub fn alignment(&self) -> Alignment {
+        let mut alignment = self.aligner.report(&self.all_names());
+        alignment.clock_samples += self.fast_samples;
+        alignment.samples += self.fast_samples;
+        for c in &mut alignment.channels {
+            c.exact += self.fast_samples;
+        }
+        alignment
+    }
+
+    fn all_names(&self) -> Vec<String> {
+        self.names.iter().map(|n| n.display.clone()).collect()
+    }
+
+    /// Every topic of the file: those read with their channels, then those skipped. Message counts
+    /// and rates are of the messages read so far (all of them once iteration has ended).
+    pub fn topics(&self) -> Vec<TopicInfo> {
+        let read = self.registry.topics.iter().map(|t| TopicInfo {
+            topic: t.name.clone(),
+            schema: t.schema.clone(),
+            message_encoding: t.message_encoding.clone(),
+            messages: t.stats.messages,
+            rate_hz: t.stats.rate_hz(),
+            channels: self.names[t.offset..t.offset + t.names.len()]
+                .iter()
+                .map(|n| n.display.clone())
+                .collect(),
+        });
+        let skipped = self
+            .registry
+            .ignored
+            .iter()
+            .zip(&self.registry.ignored_stats)
+            .map(|(t, stats)| TopicInfo {
+                topic: t.topic.clone(),
+                schema: t.schema.clone(),
+                message_encoding: t.message_encoding.clone(),
+                messages: stats.messages,
+                rate_hz: stats.rate_hz(),
+                channels: Vec::new(),
+            });
+        read.chain(skipped).collect()
+    }
+
+    /// What the reader noticed so far: where a truncated file broke off (once iteration has
+    /// ended).
     pub fn diagnostics(&self) -> &ReadDiagnostics {
         &self.diagnostics
     }
@@ -549,8 +717,11 @@ impl McapReader {
     fn step(&mut self, message: &mcap::Message, index: u64) -> Result<Option<Sample>, Error> {
         let fail = |channel: &str, m: String| mcap_error(&self.path, Some(index), Some(channel), m);
         let k = match self.registry.resolve(&message.channel) {
-            Ok(Resolved::Known(Some(k))) => k,
-            Ok(Resolved::Known(None)) => return Ok(None),
+            Ok(Resolved::Topic(k)) => k,
+            Ok(Resolved::Ignored(k)) => {
+                self.registry.ignored_stats[k].note(message.log_time);
+                return Ok(None);
+            }
             Ok(Resolved::NewTopic(_)) => {
                 return Err(fail(
                     &message.channel.topic,
@@ -561,70 +732,32 @@ impl McapReader {
             }
             Err(m) => return Err(fail(&message.channel.topic, m)),
         };
-        let single = self.registry.topics.len() == 1;
         let topic = &mut self.registry.topics[k];
-        let mut values = if single {
-            Vec::with_capacity(topic.names.len())
-        } else {
-            let mut v = self.pool.pop().unwrap_or_default();
-            v.clear();
-            v
-        };
-        let stamp = decode(topic, message, &mut values).map_err(|(c, m)| {
-            let c = c.unwrap_or_else(|| topic.name.clone());
-            fail(&c, m)
-        })?;
-        if single {
-            return Ok(Some(Sample {
-                t: seconds(stamp),
-                values,
-                session: None,
-            }));
-        }
-        if topic.queue.len() >= JOIN_QUEUE {
-            if let Some((_, old)) = topic.queue.pop_front() {
-                self.pool.push(old);
-                self.diagnostics.unjoined_messages += 1;
-            }
-        }
-        topic.queue.push_back((stamp, values));
-        Ok(self.join())
-    }
-
-    /// A sample from the queue fronts once every topic has a message at the same stamp; messages
-    /// older than another topic's front can never be joined and are dropped.
-    fn join(&mut self) -> Option<Sample> {
-        let topics = &mut self.registry.topics;
-        loop {
-            let mut newest = i64::MIN;
-            for topic in topics.iter() {
-                newest = newest.max(topic.queue.front()?.0);
-            }
-            let mut complete = true;
-            for topic in topics.iter_mut() {
-                while topic.queue.front().is_some_and(|(s, _)| *s < newest) {
-                    if let Some((_, old)) = topic.queue.pop_front() {
-                        self.pool.push(old);
-                        self.diagnostics.unjoined_messages += 1;
-                    }
-                }
-                complete &= topic.queue.front().is_some_and(|(s, _)| *s == newest);
-            }
-            if complete {
-                let mut values = Vec::with_capacity(self.channels.len());
-                for topic in topics.iter_mut() {
-                    if let Some((_, v)) = topic.queue.pop_front() {
-                        values.extend_from_slice(&v);
-                        self.pool.push(v);
-                    }
-                }
-                return Some(Sample {
-                    t: seconds(newest),
+        topic.stats.note(message.log_time);
+        if self.fast {
+            let mut values = vec![f64::NAN; topic.names.len()];
+            let (stamp, full) = decode(topic, message, self.time, &mut values)
+                .map_err(|(c, m)| fail(&c.unwrap_or_else(|| topic.name.clone()), m))?;
+            if full {
+                self.fast_samples += 1;
+                return Ok(Some(Sample {
+                    t: seconds(stamp),
                     values,
                     session: None,
-                });
+                }));
             }
+            // A message with a subset of the joints: from here on, through the aligner (which
+            // is empty, so the order of samples is kept).
+            self.fast = false;
+            self.aligner.push(stamp, seconds(stamp), &values, None);
+            return Ok(self.aligner.pop());
         }
+        let range = topic.offset..topic.offset + topic.names.len();
+        self.raw.fill(f64::NAN);
+        let (stamp, _) = decode(topic, message, self.time, &mut self.raw[range])
+            .map_err(|(c, m)| fail(&c.unwrap_or_else(|| topic.name.clone()), m))?;
+        self.aligner.push(stamp, seconds(stamp), &self.raw, None);
+        Ok(self.aligner.pop())
     }
 
     /// Records where reading stopped if the data section is cut short; whether it is.
@@ -641,15 +774,12 @@ impl McapReader {
         true
     }
 
-    /// Counts what is still waiting for a partner when the stream ends, and lists the damaged
-    /// chunks left out.
+    /// The stream has ended: what the aligner holds can now be decided, and the damaged chunks
+    /// left out are listed.
     fn finish(&mut self) {
         self.done = true;
         self.diagnostics.damaged_chunks = self.stream.damaged().to_vec();
-        for topic in &mut self.registry.topics {
-            self.diagnostics.unjoined_messages += topic.queue.len() as u64;
-            topic.queue.clear();
-        }
+        self.aligner.finish();
     }
 }
 
@@ -657,10 +787,16 @@ impl Iterator for McapReader {
     type Item = Result<Sample, Error>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.done {
+        if self.failed {
             return None;
         }
         loop {
+            if let Some(sample) = self.aligner.pop() {
+                return Some(Ok(sample));
+            }
+            if self.done {
+                return None;
+            }
             let message = match self.stream.next() {
                 Some(Ok(message)) => {
                     // Chunks are held until checked: where this message's bytes ended is where
@@ -676,29 +812,30 @@ impl Iterator for McapReader {
                     if self.consumed.load(Ordering::Relaxed) >= self.len {
                         self.note_truncation();
                     }
-                    return None;
+                    continue;
                 }
                 Some(Err(e)) => {
                     self.finish();
                     // Reading stopped at the first incomplete record, or inside it (a cut chunk)
                     // where the last message came out.
-                    return match e {
-                        StreamError::Mcap(McapError::UnexpectedEof) if self.note_truncation() => {
-                            None
-                        }
-                        StreamError::Damaged(_) | StreamError::DataCrc => {
-                            Some(Err(damaged_error(&self.path, self.index, &e)))
-                        }
-                        _ => Some(Err(mcap_error(
-                            &self.path,
-                            Some(self.index),
-                            None,
-                            format!(
-                                "the file is damaged here ({e}); the messages before it were \
-                                 read: recover the rest with `mcap recover`"
-                            ),
-                        ))),
-                    };
+                    if matches!(e, StreamError::Mcap(McapError::UnexpectedEof))
+                        && self.note_truncation()
+                    {
+                        continue;
+                    }
+                    self.failed = true;
+                    if matches!(e, StreamError::Damaged(_) | StreamError::DataCrc) {
+                        return Some(Err(damaged_error(&self.path, self.index, &e)));
+                    }
+                    return Some(Err(mcap_error(
+                        &self.path,
+                        Some(self.index),
+                        None,
+                        format!(
+                            "the file is damaged here ({e}); the messages before it were \
+                             read: recover the rest with `mcap recover`"
+                        ),
+                    )));
                 }
             };
             let index = self.index;
@@ -707,7 +844,7 @@ impl Iterator for McapReader {
                 Ok(Some(sample)) => return Some(Ok(sample)),
                 Ok(None) => {}
                 Err(e) => {
-                    self.done = true;
+                    self.failed = true;
                     return Some(Err(e));
                 }
             }
@@ -727,7 +864,6 @@ fn damaged_error(path: &Path, index: u64, e: &StreamError) -> Error {
     mcap_error(path, Some(index), None, format!("{e}; {what}"))
 }
 
-/// The usable topics the summary lists with at least one message; ignored ones go to `registry`.
 fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<String> {
     let mut channels: Vec<_> = summary.channels.values().collect();
     channels.sort_by_key(|c| c.id);
@@ -754,20 +890,27 @@ fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<S
 fn first_message(message: &mcap::Message, encoding: Encoding, scale: f64) -> Result<Topic, String> {
     let mut topic = Topic {
         name: message.channel.topic.clone(),
+        schema: schema_name(&message.channel),
+        message_encoding: message.channel.message_encoding.clone(),
         encoding,
         name_block: Vec::new(),
         names: Vec::new(),
+        offset: 0,
+        subset: false,
+        layouts: Vec::new(),
         scale,
         seen: Vec::new(),
-        queue: VecDeque::new(),
+        stats: TopicStats::default(),
     };
     match encoding {
         Encoding::JointState => {
             let js = JointState::parse(&message.data).map_err(|e| e.to_string())?;
             for name in js.names() {
-                topic
-                    .names
-                    .push(name.map_err(|e| e.to_string())?.to_string());
+                let name = name.map_err(|e| e.to_string())?;
+                if topic.names.iter().any(|n| n == name) {
+                    return Err(repeated_joint(name));
+                }
+                topic.names.push(name.to_string());
             }
             topic.name_block = js.name_block.to_vec();
         }
@@ -794,13 +937,83 @@ fn first_message(message: &mcap::Message, encoding: Encoding, scale: f64) -> Res
     Ok(topic)
 }
 
-/// Decodes a message of `topic` into `out` (radians, in the topic's channel order) and returns its
-/// stamp in nanoseconds. Errors carry the channel concerned (if not the topic) and the message.
+fn repeated_joint(name: &str) -> String {
+    format!(
+        "joint `{name}` appears twice in one message; a message can hold one position per \
+         joint: fix the publisher"
+    )
+}
+
+impl Topic {
+    /// Adds the joints of a later message the topic's first did not name (peek pass).
+    fn learn(&mut self, message: &mcap::Message) -> Result<(), String> {
+        if self.encoding != Encoding::JointState {
+            return Ok(());
+        }
+        let js = JointState::parse(&message.data).map_err(|e| e.to_string())?;
+        if js.name_block == self.name_block.as_slice() {
+            return Ok(());
+        }
+        let mut names = Vec::with_capacity(js.name_count);
+        for name in js.names() {
+            let name = name.map_err(|e| e.to_string())?;
+            if names.contains(&name) {
+                return Err(repeated_joint(name));
+            }
+            names.push(name);
+        }
+        if names.len() == self.names.len() && names.iter().zip(&self.names).all(|(a, b)| a == b) {
+            // The same names, serialized with other padding.
+            return Ok(());
+        }
+        self.subset = true;
+        for name in names {
+            if !self.names.iter().any(|n| n == name) {
+                self.names.push(name.to_string());
+            }
+        }
+        Ok(())
+    }
+
+    /// The channel (within the topic) of each joint of `js`, whose name block differs from the
+    /// first message's.
+    fn layout(&mut self, js: &JointState) -> Result<Vec<usize>, String> {
+        if let Some((_, layout)) = self.layouts.iter().find(|(b, _)| b == js.name_block) {
+            return Ok(layout.clone());
+        }
+        let mut layout = Vec::with_capacity(js.name_count);
+        for name in js.names() {
+            let name = name.map_err(|e| e.to_string())?;
+            let Some(i) = self.names.iter().position(|n| n == name) else {
+                return Err(format!(
+                    "joint `{name}` is new: the topic's joints [{}] were gathered from its \
+                     first messages when the file was opened; calib needs every joint to \
+                     appear early: split the recording where the joint set changes",
+                    self.names.join(", ")
+                ));
+            };
+            if layout.contains(&i) {
+                return Err(repeated_joint(name));
+            }
+            layout.push(i);
+        }
+        if self.layouts.len() < LAYOUT_CACHE {
+            self.layouts.push((js.name_block.to_vec(), layout.clone()));
+        }
+        Ok(layout)
+    }
+}
+
+/// Decodes a message of `topic` into `out` (radians, one slot per channel of the topic, left
+/// as they are for channels the message does not carry) and returns its stamp in nanoseconds
+/// and whether it carried every channel in the topic's order. Errors carry the channel
+/// concerned (if not the topic) and the message.
 fn decode(
     topic: &mut Topic,
     message: &mcap::Message,
-    out: &mut Vec<f64>,
-) -> Result<i64, (Option<String>, String)> {
+    time: TimeSource,
+    out: &mut [f64],
+) -> Result<(i64, bool), (Option<String>, String)> {
     match topic.encoding {
         Encoding::JointState => {
             let js = JointState::parse(&message.data).map_err(|e| (None, e.to_string()))?;
@@ -815,31 +1028,35 @@ fn decode(
                     ),
                 ));
             }
-            // Fast path: the same names serialize to the same bytes. Padding bytes may differ
-            // between writers, so a mismatch is confirmed name by name.
-            if js.name_block != topic.name_block.as_slice() && !same_names(&js, &topic.names) {
-                let now: Vec<String> = js
-                    .names()
-                    .map(|n| n.unwrap_or("<not UTF-8>").to_string())
-                    .collect();
-                return Err((
-                    None,
-                    format!(
-                        "the joint names changed from [{}] to [{}]; calib needs one joint set \
-                         per topic: split the recording where the set changes",
-                        topic.names.join(", "),
-                        now.join(", ")
-                    ),
-                ));
-            }
-            let start = out.len();
-            out.extend(js.positions());
-            for (name, &rad) in topic.names.iter().zip(&out[start..]) {
-                let shown = crate::limits::readable(rad);
-                if let Some(problem) = crate::limits::reading_problem(shown, rad, rad) {
-                    return Err((Some(name.clone()), problem));
+            // Fast path: the same names serialize to the same bytes.
+            let layout = if js.name_block == topic.name_block.as_slice() {
+                None
+            } else {
+                Some(topic.layout(&js).map_err(|m| (None, m))?)
+            };
+            let names = &topic.names;
+            let mut put = |i: usize, rad: f64| match crate::limits::reading_problem(
+                crate::limits::readable(rad),
+                rad,
+                rad,
+            ) {
+                Some(problem) => Err((Some(names[i].clone()), problem)),
+                None => {
+                    out[i] = rad;
+                    Ok(())
                 }
-            }
+            };
+            let full = if let Some(layout) = layout {
+                for (&i, rad) in layout.iter().zip(js.positions()) {
+                    put(i, rad)?;
+                }
+                layout.len() == names.len() && layout.iter().copied().eq(0..layout.len())
+            } else {
+                for (i, rad) in js.positions().enumerate() {
+                    put(i, rad)?;
+                }
+                js.name_count == names.len()
+            };
             if js.nanosec >= 1_000_000_000 {
                 return Err((
                     None,
@@ -850,15 +1067,15 @@ fn decode(
                     ),
                 ));
             }
-            if js.sec == 0 && js.nanosec == 0 {
-                log_time_ns(message.log_time).map_err(|m| (None, m))
+            let stamp = if time == TimeSource::Log || (js.sec == 0 && js.nanosec == 0) {
+                log_time_ns(message.log_time).map_err(|m| (None, m))?
             } else {
-                Ok(i64::from(js.sec) * 1_000_000_000 + i64::from(js.nanosec))
-            }
+                i64::from(js.sec) * 1_000_000_000 + i64::from(js.nanosec)
+            };
+            Ok((stamp, full))
         }
         Encoding::Json => {
             let stamp = log_time_ns(message.log_time).map_err(|m| (None, m))?;
-            out.resize(topic.names.len(), 0.0);
             topic.seen.iter_mut().for_each(|s| *s = false);
             let (names, seen, scale) = (&topic.names, &mut topic.seen, topic.scale);
             // Fields usually come in the first message's order: try the next expected one first.
@@ -902,11 +1119,7 @@ fn decode(
                         .into(),
                 ));
             }
-            Ok(stamp)
+            Ok((stamp, true))
         }
     }
-}
-
-fn same_names(js: &JointState, names: &[String]) -> bool {
-    js.name_count == names.len() && js.names().zip(names).all(|(a, b)| a.is_ok_and(|a| a == b))
 }

@@ -38,10 +38,16 @@ pub struct McapWriter {
     writer: mcap::Writer<BufWriter<File>>,
     temp: TempPath,
     target: PathBuf,
+    schema_id: u16,
+    topics: Vec<TopicWriter>,
+    written: u64,
+}
+
+/// One JointState topic of the file.
+struct TopicWriter {
     channel_id: u16,
     encoder: JointStateEncoder,
     width: usize,
-    written: u64,
 }
 
 /// The topic `calib simulate` writes by default, as ROS 2 names joint states.
@@ -60,17 +66,7 @@ impl McapWriter {
             channel: None,
             message: m,
         };
-        if channels.is_empty() {
-            return Err(fail("no channels to write; give at least one".into()));
-        }
-        for (i, c) in channels.iter().enumerate() {
-            if channels[..i].iter().any(|d| d.name == c.name) {
-                return Err(fail(format!(
-                    "channel `{}` is named twice; JointState names must be unique",
-                    c.name
-                )));
-            }
-        }
+        check_names(channels).map_err(fail)?;
         let io = |source| Error::Io {
             path: path.to_path_buf(),
             source,
@@ -86,21 +82,41 @@ impl McapWriter {
         let mut writer = options
             .create(BufWriter::with_capacity(1 << 20, file))
             .map_err(mcap)?;
-        let schema = writer
+        let schema_id = writer
             .add_schema(JOINT_STATE_SCHEMA, "ros2msg", JOINT_STATE_MSGDEF.as_bytes())
             .map_err(mcap)?;
-        let channel_id = writer
-            .add_channel(schema, topic, "cdr", &BTreeMap::new())
-            .map_err(mcap)?;
-        Ok(McapWriter {
+        let mut this = McapWriter {
             writer,
             temp,
             target: path.to_path_buf(),
+            schema_id,
+            topics: Vec::new(),
+            written: 0,
+        };
+        this.add_topic(topic, channels)?;
+        Ok(this)
+    }
+
+    /// Adds another JointState topic naming `channels` (as a recording of sensors with a driver
+    /// node each has); returns its index for [`write_to`](Self::write_to). The topic of
+    /// [`create`](Self::create) is 0.
+    pub fn add_topic(&mut self, topic: &str, channels: &[Channel]) -> Result<usize, Error> {
+        check_names(channels).map_err(|m| Error::Mcap {
+            path: self.target.clone(),
+            message_index: None,
+            channel: Some(topic.to_string()),
+            message: m,
+        })?;
+        let channel_id = self
+            .writer
+            .add_channel(self.schema_id, topic, "cdr", &BTreeMap::new())
+            .map_err(|e| mcap_write_error(&self.target, None, e))?;
+        self.topics.push(TopicWriter {
             channel_id,
             encoder: JointStateEncoder::new(channels.iter().map(|c| c.name.as_str())),
             width: channels.len(),
-            written: 0,
-        })
+        });
+        Ok(self.topics.len() - 1)
     }
 
     /// Adds a metadata record (e.g. the simulation's parameters) to the file.
@@ -120,6 +136,12 @@ impl McapWriter {
     /// Writes one sample. Its time must be a non-negative number of seconds before 2038 (JointState
     /// stamps hold a 32-bit second), and it must have one value per channel.
     pub fn write(&mut self, sample: &Sample) -> Result<(), Error> {
+        self.write_to(0, sample)
+    }
+
+    /// Writes one sample of the channels of topic `topic` (an index from
+    /// [`add_topic`](Self::add_topic)), as [`write`](Self::write) does.
+    pub fn write_to(&mut self, topic: usize, sample: &Sample) -> Result<(), Error> {
         let index = self.written;
         let fail = |m: String| Error::Mcap {
             path: self.target.clone(),
@@ -127,11 +149,14 @@ impl McapWriter {
             channel: None,
             message: m,
         };
-        if sample.values.len() != self.width {
+        let Some(writer) = self.topics.get_mut(topic) else {
+            return Err(fail(format!("there is no topic {topic}")));
+        };
+        if sample.values.len() != writer.width {
             return Err(fail(format!(
                 "the sample has {} values for {} channels",
                 sample.values.len(),
-                self.width
+                writer.width
             )));
         }
         let (sec, nanosec) = stamp(sample.t).ok_or_else(|| {
@@ -142,13 +167,13 @@ impl McapWriter {
             ))
         })?;
         let header = MessageHeader {
-            channel_id: self.channel_id,
+            channel_id: writer.channel_id,
             // The sequence is a 32-bit counter; it wraps in logs of more than 4e9 messages.
             sequence: index as u32,
             log_time: sec as u64 * 1_000_000_000 + u64::from(nanosec),
             publish_time: sec as u64 * 1_000_000_000 + u64::from(nanosec),
         };
-        let data = self.encoder.encode(sec, nanosec, &sample.values);
+        let data = writer.encoder.encode(sec, nanosec, &sample.values);
         self.writer
             .write_to_known_channel(&header, data)
             .map_err(|e| mcap_write_error(&self.target, Some(index), e))?;
@@ -175,6 +200,22 @@ impl McapWriter {
         temp.persist(&target).map_err(|e| io(e.error))?;
         Ok(())
     }
+}
+
+/// Refuses an empty or repeated channel list.
+fn check_names(channels: &[Channel]) -> Result<(), String> {
+    if channels.is_empty() {
+        return Err("no channels to write; give at least one".into());
+    }
+    for (i, c) in channels.iter().enumerate() {
+        if channels[..i].iter().any(|d| d.name == c.name) {
+            return Err(format!(
+                "channel `{}` is named twice; JointState names must be unique",
+                c.name
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// `t` seconds as a JointState stamp (sec, nanosec), rounded to the nanosecond.

@@ -1,0 +1,123 @@
+//! Monte Carlo check of the standard uncertainties `u` of the self-calibration tables: for each
+//! bundled scenario and several seeds (new noise and quantization phase each time, the same
+//! errors), the fraction of table points with |map − truth| ≤ 2u (near 95 % for an honest
+//! standard uncertainty of a normal error) and ≤ u (near 68 %), and the median u.
+//!
+//! `#[ignore]`d (about two minutes): `cargo test -p calib-core --test coverage -- --ignored
+//! --nocapture` prints the table quoted in the README's accuracy section.
+
+use calib_core::ErrorMap;
+use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::csrr::{Csrr, CsrrOptions};
+use calib_core::simulate::Scenario;
+use calib_core::tdr::{Tdr, TdrOptions};
+use calib_core::uncertainty::MapUncertainty;
+
+const SEEDS: [u64; 5] = [1, 2, 3, 4, 5];
+
+fn scenario(file: &str, seed: u64) -> Scenario {
+    let path = format!(
+        "{}/../../testdata/scenarios/{file}",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let mut s: Scenario = toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    s.seed = seed;
+    s
+}
+
+fn truth(s: &Scenario, name: &str, points: usize) -> ErrorMap {
+    s.truth(points)
+        .unwrap()
+        .into_iter()
+        .find(|(n, _)| n == name)
+        .unwrap()
+        .1
+}
+
+/// Points within `u` and within `2u`, and the points counted; the u values for the median.
+#[derive(Default)]
+struct Tally {
+    within_u: usize,
+    within_2u: usize,
+    points: usize,
+    u: Vec<f64>,
+    worst: f64,
+}
+
+impl Tally {
+    fn add(&mut self, map: &ErrorMap, u: &MapUncertainty, truth: &ErrorMap) {
+        let diff = map.minus(truth);
+        for (d, u) in diff.values().iter().zip(&u.u) {
+            self.within_u += usize::from(d.abs() <= *u);
+            self.within_2u += usize::from(d.abs() <= 2.0 * u);
+        }
+        self.points += map.len();
+        self.u.push(u.median());
+        self.worst = self.worst.max(diff.max_abs_arcsec());
+    }
+
+    fn row(&mut self, name: &str) -> (f64, f64) {
+        self.u.sort_by(f64::total_cmp);
+        let median = self.u[self.u.len() / 2] * ARCSEC_PER_RAD;
+        let f2 = self.within_2u as f64 / self.points as f64;
+        println!(
+            "| {name} | {} | {:.1} % | {:.1} % | {median:.4}″ | {:.4}″ |",
+            SEEDS.len(),
+            100.0 * self.within_u as f64 / self.points as f64,
+            100.0 * f2,
+            self.worst
+        );
+        (f2, median)
+    }
+}
+
+#[test]
+#[ignore = "Monte Carlo over seeds, about two minutes"]
+fn coverage_of_u_over_seeds() {
+    println!("| scenario (map) | seeds | ≤ u | ≤ 2u | median u | max \\|map − truth\\| |");
+    println!("|---|---|---|---|---|---|");
+    let mut rows = Vec::new();
+    for file in ["csrr72.toml", "csrr84.toml", "csrr90.toml"] {
+        let (mut ta, mut tb) = (Tally::default(), Tally::default());
+        for seed in SEEDS {
+            let s = scenario(file, seed);
+            let channels = s.channels();
+            let ia = channels.iter().position(|c| c.name == "a").unwrap();
+            let ib = channels.iter().position(|c| c.name == "b").unwrap();
+            let mut csrr = Csrr::new(CsrrOptions::default());
+            for x in s.samples().unwrap() {
+                csrr.push(x.t, x.values[ia], x.values[ib], None);
+            }
+            let cal = csrr.finish().unwrap();
+            let (ua, ub) = cal.uncertainty.as_ref().unwrap();
+            ta.add(&cal.a, ua, &truth(&s, "a", cal.a.len()));
+            tb.add(&cal.b, ub, &truth(&s, "b", cal.b.len()));
+        }
+        rows.push(ta.row(&format!("csrr `{file}` (a)")));
+        rows.push(tb.row(&format!("csrr `{file}` (b)")));
+    }
+    for file in [
+        "spindown.toml",
+        "spindown-bearing.toml",
+        "spindown-wide.toml",
+        "spindown-drag.toml",
+    ] {
+        let mut t = Tally::default();
+        for seed in SEEDS {
+            let s = scenario(file, seed);
+            let mut tdr = Tdr::new(TdrOptions::default());
+            for x in s.samples().unwrap() {
+                tdr.push(x.t, x.values[0]);
+            }
+            let cal = tdr.finish().unwrap();
+            t.add(&cal.map, &cal.uncertainty, &truth(&s, "enc", cal.map.len()));
+        }
+        rows.push(t.row(&format!("tdr `{file}`")));
+    }
+    // Over all seeds, 2u covers 90–99.9 % of the points on every map (the range for one
+    // run; near 95 % is the target), and u stays small.
+    for (f2, median) in rows {
+        assert!((0.90..=0.999).contains(&f2), "{f2}");
+        assert!(median <= 0.1, "{median}″");
+    }
+}

@@ -1,0 +1,610 @@
+//! Correction tables in the forms controllers load: what `calib export` writes.
+//!
+//! One module per family of formats, each with round-trip tests that decode the output the way
+//! its consumer does:
+//! - [`lut`]: generic look-up tables (`lut-f32-rad`, `lut-i16`, `lut-u16`, `lut-i8`), a C array
+//!   and CSV;
+//! - [`harmonic`]: the harmonic listing, and the choice of orders ([`Keep`]) every format can be
+//!   resynthesized from;
+//! - [`moteus`]: the encoder compensation table of an mjbots moteus `motor_position` source, as
+//!   `conf set` lines;
+//! - [`simplefoc`]: the look-up table of SimpleFOC's `CalibratedSensor`, as C++.
+//!
+//! # Steps
+//! 1. The values on the output grid (`--points`, or the size a format requires): with
+//!    [`Keep::All`] the table resampled by periodic linear interpolation (the table itself when
+//!    the size is its own); with chosen orders, their Fourier series evaluated exactly at the
+//!    output grid points — smoothing *before* resampling, so the orders left out cannot alias.
+//! 2. The format quantizes them and writes them with a header: calib's sign convention and grid,
+//!    then what the consumer does with the numbers.
+//! 3. Where it matters (the controller formats, and whenever orders are chosen), the table as the
+//!    controller will use it — decoded and interpolated linearly — is compared with the source
+//!    table at the source table's points ([`Fit`]), and the header says how close it is.
+//!
+//! # Sign
+//! calib's tables hold `error = reading − true angle`; the correction is `−error`, applied as
+//! `reading + correction(reading)`. Each format says in its header which of the two it holds,
+//! because the controllers differ: moteus adds its table (it holds the correction), SimpleFOC
+//! subtracts its table (it holds the error).
+
+pub mod harmonic;
+pub mod lut;
+pub mod moteus;
+pub mod simplefoc;
+
+use calib_core::ErrorMap;
+use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::error_map::interpolate_periodic;
+use std::fmt::Write as _;
+
+pub use harmonic::Keep;
+
+/// An output format of `calib export`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// One f32 per line: the correction in radians.
+    LutF32Rad,
+    /// One signed 16-bit code per line: correction = code × scale.
+    LutI16,
+    /// One unsigned 16-bit code per line (offset binary): correction = (code − 32768) × scale.
+    LutU16,
+    /// One signed 8-bit code per line: correction = code × scale.
+    LutI8,
+    /// A C header with a `float` array of the correction in arcseconds.
+    CArray,
+    /// `angle_deg,correction_arcsec` rows.
+    Csv,
+    /// The correction's harmonics: `order,amplitude_arcsec,phase_deg` rows.
+    Harmonic,
+    /// moteus `conf set` lines (no comments: `moteus_tool --write-config` sends every line).
+    Moteus,
+    /// The same settings as `key value` lines with a `#` header, for `moteus_tool
+    /// --restore-config`.
+    MoteusConfig,
+    /// A C++ `float` table for SimpleFOC's `CalibratedSensor`.
+    Simplefoc,
+    /// The same table stored as `uint16_t` codes, decoded into the `float` table at start-up.
+    SimplefocU16,
+}
+
+impl Format {
+    /// The format's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::LutF32Rad => "lut-f32-rad",
+            Format::LutI16 => "lut-i16",
+            Format::LutU16 => "lut-u16",
+            Format::LutI8 => "lut-i8",
+            Format::CArray => "c-array",
+            Format::Csv => "csv",
+            Format::Harmonic => "harmonic",
+            Format::Moteus => "moteus",
+            Format::MoteusConfig => "moteus-config",
+            Format::Simplefoc => "simplefoc",
+            Format::SimplefocU16 => "simplefoc-u16",
+        }
+    }
+
+    /// The number of points the consumer requires, where it fixes one.
+    pub fn required_points(self) -> Option<usize> {
+        match self {
+            Format::Moteus | Format::MoteusConfig => Some(moteus::TABLE_SIZE),
+            _ => None,
+        }
+    }
+
+    /// Whether the consumer interpolates the table periodically over one whole revolution, so
+    /// that only a table over a whole revolution can be written in it.
+    pub fn periodic(self) -> bool {
+        matches!(
+            self,
+            Format::Harmonic
+                | Format::Moteus
+                | Format::MoteusConfig
+                | Format::Simplefoc
+                | Format::SimplefocU16
+        )
+    }
+
+    /// The line comment of the format, if it can carry comments.
+    fn comment(self) -> Option<&'static str> {
+        match self {
+            Format::Moteus => None,
+            Format::CArray | Format::Simplefoc | Format::SimplefocU16 => Some("//"),
+            _ => Some("#"),
+        }
+    }
+
+    /// Whether the header reports the [`Fit`] even when every order is kept.
+    fn always_fit(self) -> bool {
+        matches!(
+            self,
+            Format::Moteus | Format::MoteusConfig | Format::Simplefoc | Format::SimplefocU16
+        )
+    }
+}
+
+/// What to export and how.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportOptions {
+    /// The output format.
+    pub format: Format,
+    /// Points of the output grid; `None`: the size the format requires, else the table's own.
+    pub points: Option<usize>,
+    /// Arcseconds per LSB of integer formats; `None`: the smallest that holds the table.
+    pub scale_arcsec: Option<f64>,
+    /// Which orders to keep.
+    pub keep: Keep,
+    /// [`Format::Harmonic`] with [`Keep::All`]: the smallest amplitude listed, arcseconds.
+    pub min_amplitude_arcsec: f64,
+    /// [`Format::Moteus`] / [`Format::MoteusConfig`]: the `motor_position.sources.N` index.
+    pub moteus_source: u8,
+    /// The first header line, saying what wrote the file from what (e.g. `calib 0.1.0 export
+    /// of a.csv`).
+    pub title: String,
+    /// The part of a turn the table covers ([`Span::WHOLE`] unless it is a range table).
+    pub span: Span,
+}
+
+impl ExportOptions {
+    /// Options for `format` with every other choice at its default.
+    pub fn new(format: Format, title: impl Into<String>) -> Self {
+        ExportOptions {
+            format,
+            points: None,
+            scale_arcsec: None,
+            keep: Keep::All,
+            min_amplitude_arcsec: 0.01,
+            moteus_source: 0,
+            title: title.into(),
+            span: Span::WHOLE,
+        }
+    }
+}
+
+/// An exported table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Export {
+    /// The file's content.
+    pub text: String,
+    /// The header lines (without comment markers). Formats with comments also hold them in
+    /// `text`; [`Format::Moteus`] cannot, and its caller shows them to the user instead.
+    pub header: Vec<String>,
+    /// How close the table, as the controller will use it, is to the source table (where
+    /// measured; see the [module docs](self)).
+    pub fit: Option<Fit>,
+}
+
+/// Why a table cannot be exported as asked.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExportError {
+    /// An integer code would leave its range at the given scale.
+    #[error(
+        "the largest |correction| is {largest_arcsec:.6}″, which at --scale {scale_arcsec} ″/LSB \
+         needs code {code:.0}, beyond ±{max_code}; use --scale {fits:.6e} or larger"
+    )]
+    Saturated {
+        /// The largest magnitude to encode, arcseconds.
+        largest_arcsec: f64,
+        /// The scale asked for, arcseconds per LSB.
+        scale_arcsec: f64,
+        /// The code that would be needed.
+        code: f64,
+        /// The largest code the format holds.
+        max_code: i64,
+        /// The smallest scale that holds the table, arcseconds per LSB.
+        fits: f64,
+    },
+    /// The consumer takes a table of one size only.
+    #[error("--format {format} takes exactly {required} points ({why}); not {given}")]
+    Points {
+        /// The format's name.
+        format: &'static str,
+        /// The size it requires.
+        required: usize,
+        /// The size asked for.
+        given: usize,
+        /// Where the size comes from.
+        why: &'static str,
+    },
+    /// A chosen order is at or above the output grid's Nyquist order: it would alias.
+    #[error(
+        "order {order} cannot be held by a table of {points} points, which holds orders below \
+         {points}/2 (at most {max}); leave it out of --orders (or export more --points, where \
+         the format allows)"
+    )]
+    AboveNyquist {
+        /// The order.
+        order: usize,
+        /// Points of the output grid.
+        points: usize,
+        /// The highest order the grid holds.
+        max: usize,
+    },
+    /// A chosen order is not in the source table.
+    #[error(
+        "order {order} is not in the table: a table of {points} points holds orders 1 to \
+         {max}; choose --orders among them"
+    )]
+    NoSuchOrder {
+        /// The order.
+        order: usize,
+        /// Points of the source table.
+        points: usize,
+        /// Its highest order.
+        max: usize,
+    },
+    /// moteus has no such source.
+    #[error(
+        "moteus has sources 0 to {} (motor_position.sources.N); not {given}",
+        moteus::SOURCES - 1
+    )]
+    MoteusSource {
+        /// The source index asked for.
+        given: u8,
+    },
+    /// The table does not cover one whole revolution but its consumer interpolates over one.
+    #[error(
+        "{what} needs a table over one whole turn (it is interpolated periodically over \
+         0–360°), but this is a range table over {start_deg}° to {end_deg}° of the reading (a \
+         joint that never turned a whole revolution); export it as a look-up table (--format \
+         csv, lut-f32-rad, c-array, …) without choosing orders, or calibrate over whole turns"
+    )]
+    PartialTurn {
+        /// What needs it (a format or command).
+        what: String,
+        /// Where the table starts, degrees.
+        start_deg: f64,
+        /// Where it ends, degrees.
+        end_deg: f64,
+    },
+}
+
+/// The part of a revolution a table covers, in degrees of the reading. Tables read by
+/// [`crate::table::read_table`] cover [`Span::WHOLE`]; a table over part of a turn passes its
+/// own span to [`require_whole_revolution`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Span {
+    /// The first grid point, degrees.
+    pub start_deg: f64,
+    /// Where the grid ends (the last point plus a step, for a periodic grid; the last point, for
+    /// a range), degrees.
+    pub end_deg: f64,
+}
+
+impl Span {
+    /// One whole revolution, `[0°, 360°)`.
+    pub const WHOLE: Span = Span {
+        start_deg: 0.0,
+        end_deg: 360.0,
+    };
+
+    /// Whether this is one whole revolution from reading 0.
+    pub fn is_whole(self) -> bool {
+        // Spans come from 6-decimal table angles: a millionth of a degree is rounding.
+        self.start_deg.abs() < 1e-6 && (self.end_deg - self.start_deg - 360.0).abs() < 1e-6
+    }
+
+    /// Reading of entry `i` of `n`, degrees: `i·360/n` over a whole turn; over a range
+    /// `start + i·(end − start)/(n − 1)`, both ends included.
+    pub fn angle(self, i: usize, n: usize) -> f64 {
+        if self.is_whole() {
+            360.0 * i as f64 / n as f64
+        } else {
+            self.start_deg + (self.end_deg - self.start_deg) * i as f64 / (n - 1).max(1) as f64
+        }
+    }
+
+    /// Spacing of `n` entries, degrees.
+    pub fn step(self, n: usize) -> f64 {
+        if self.is_whole() {
+            360.0 / n as f64
+        } else {
+            (self.end_deg - self.start_deg) / (n - 1).max(1) as f64
+        }
+    }
+}
+
+/// Refuses a table over less (or more) than one whole revolution for `what` (a format or a
+/// command such as `compose`) that interpolates it periodically: the one place where such
+/// tables are turned away, with an error saying what to do.
+pub fn require_whole_revolution(what: &str, span: Span) -> Result<(), ExportError> {
+    if span.is_whole() {
+        Ok(())
+    } else {
+        Err(ExportError::PartialTurn {
+            what: what.to_string(),
+            start_deg: span.start_deg,
+            end_deg: span.end_deg,
+        })
+    }
+}
+
+/// Refuses a table that `opts` cannot be written from: formats interpolated periodically, and
+/// resynthesis from chosen orders (a Fourier series is periodic), need a whole revolution.
+pub fn check_span(opts: &ExportOptions, span: Span) -> Result<(), ExportError> {
+    if opts.format.periodic() {
+        require_whole_revolution(&format!("--format {}", opts.format.name()), span)
+    } else if opts.keep != Keep::All {
+        require_whole_revolution("choosing orders (--harmonics, --orders)", span)
+    } else {
+        Ok(())
+    }
+}
+
+/// How close a table, decoded and interpolated linearly as its consumer does, is to the source
+/// table at the source table's grid points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fit {
+    /// Largest difference, radians.
+    pub max: f64,
+    /// Root mean square difference, radians.
+    pub rms: f64,
+    /// Points of the source table compared.
+    pub points: usize,
+}
+
+impl Fit {
+    /// `decoded` (errors in radians on their own uniform grid, as the consumer holds them)
+    /// against `source`, at each of `source`'s grid points.
+    pub fn measure(decoded: &[f64], source: &ErrorMap) -> Fit {
+        let (mut max, mut sum) = (0.0f64, 0.0);
+        for (i, &e) in source.values().iter().enumerate() {
+            let d = interpolate_periodic(decoded, source.grid_angle(i)) - e;
+            max = max.max(d.abs());
+            sum += d * d;
+        }
+        Fit {
+            max,
+            rms: (sum / source.len() as f64).sqrt(),
+            points: source.len(),
+        }
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "fit: interpolated linearly as the controller does, this table is within {:.6} arcsec \
+             of the source table at its {} points (RMS {:.6} arcsec)",
+            self.max * ARCSEC_PER_RAD,
+            self.points,
+            self.rms * ARCSEC_PER_RAD
+        )
+    }
+}
+
+/// What a format writes for a table: its own header lines, the body, and the table as its
+/// consumer will hold it (errors in radians, on the output grid) for the [`Fit`].
+struct Rendered {
+    lines: Vec<String>,
+    body: String,
+    decoded: Vec<f64>,
+}
+
+/// Exports `map` (the source table's errors) as `opts` asks; the pure core of `calib export`.
+///
+/// ```
+/// use calib_core::{ErrorMap, angle::ARCSEC_PER_RAD};
+/// use calib_io::export::{ExportOptions, Format, export};
+///
+/// let map = ErrorMap::new((0..720).map(|i| (i as f64).to_radians().sin() / ARCSEC_PER_RAD).collect());
+/// let out = export(&map, &ExportOptions::new(Format::Moteus, "example"))?;
+/// assert!(out.text.starts_with("conf set motor_position.sources.0.compensation_scale 0\n"));
+/// assert_eq!(out.text.lines().count(), 256 + 3);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportError> {
+    check_span(opts, opts.span)?;
+    let format = opts.format;
+    let span = opts.span;
+    let points = match (format.required_points(), opts.points) {
+        (Some(required), Some(given)) if given != required => {
+            return Err(ExportError::Points {
+                format: format.name(),
+                required,
+                given,
+                why: moteus::SIZE_SOURCE,
+            });
+        }
+        (Some(required), _) => required,
+        (None, given) => given.unwrap_or(map.len()),
+    };
+    let resampled = || {
+        if points == map.len() {
+            map.clone()
+        } else if span.is_whole() {
+            map.resample_linear(points)
+        } else {
+            resample_range(map, points)
+        }
+    };
+    let mut header = vec![
+        opts.title.clone(),
+        "sign: correction = -error (error = reading - true angle); corrected = reading + \
+         correction(reading)"
+            .to_string(),
+    ];
+    if span.is_whole() {
+        header.push(format!(
+            "grid: entry i at reading i*360/{points} deg (i = 0..{}), 0 at reading 0, step {} deg, \
+             periodic; interpolate linearly",
+            points - 1,
+            360.0 / points as f64
+        ));
+    } else {
+        header.push(format!(
+            "range: {:.6} to {:.6} deg of the reading (a range table: a joint that never turns a \
+             whole revolution)",
+            span.start_deg, span.end_deg
+        ));
+        header.push(format!(
+            "grid: entry i at reading {:.6} + i*{}/{} deg (i = 0..{}), both ends included, step {} \
+             deg, not periodic; interpolate linearly inside the range, leave readings outside it \
+             uncorrected",
+            span.start_deg,
+            trimmed(span.end_deg - span.start_deg),
+            points - 1,
+            points - 1,
+            trimmed(span.step(points))
+        ));
+    }
+    if format == Format::Harmonic {
+        let (lines, body) = harmonic::listing(&resampled(), opts)?;
+        header.extend(lines);
+        return Ok(assemble(format, header, &body, None));
+    }
+    let chosen = harmonic::choose(map, &opts.keep, points)?;
+    let target = match &chosen {
+        Some(chosen) => ErrorMap::from_series(&chosen.series, points),
+        None => resampled(),
+    };
+    let rendered = match format {
+        Format::Moteus | Format::MoteusConfig => moteus::render(&target, opts)?,
+        Format::Simplefoc | Format::SimplefocU16 => simplefoc::render(&target, opts)?,
+        _ => lut::render(&target, opts)?,
+    };
+    header.extend(rendered.lines);
+    let fit =
+        (chosen.is_some() || format.always_fit()).then(|| Fit::measure(&rendered.decoded, map));
+    if let Some(chosen) = &chosen {
+        header.push(chosen.describe());
+    }
+    if let Some(fit) = &fit {
+        header.push(fit.describe());
+    }
+    Ok(assemble(format, header, &rendered.body, fit))
+}
+
+/// A range table's values resampled to `points` entries by linear interpolation over the range,
+/// both ends kept (no wrap: the two ends of a range are different readings).
+fn resample_range(map: &ErrorMap, points: usize) -> ErrorMap {
+    let v = map.values();
+    let last = v.len() - 1;
+    let values = (0..points)
+        .map(|i| {
+            let x = i as f64 * last as f64 / (points - 1).max(1) as f64;
+            let j = (x.floor() as usize).min(last.saturating_sub(1));
+            let f = x - j as f64;
+            if last == 0 {
+                v[0]
+            } else {
+                v[j] + f * (v[j + 1] - v[j])
+            }
+        })
+        .collect();
+    ErrorMap::new(values)
+}
+
+/// `x` with at most 9 decimals, trailing zeros dropped (`117.3`, `0.1`).
+fn trimmed(x: f64) -> String {
+    let s = format!("{x:.9}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+/// The file: the header as comments (where the format has them), then the body.
+fn assemble(format: Format, header: Vec<String>, body: &str, fit: Option<Fit>) -> Export {
+    let mut text = String::new();
+    if let Some(comment) = format.comment() {
+        for line in &header {
+            // Writing into a String cannot fail.
+            let _ = writeln!(text, "{comment} {line}");
+        }
+    }
+    text.push_str(body);
+    Export { text, header, fit }
+}
+
+/// Integer codes for `values` (arcseconds) of at most `max_code` in magnitude: the scale
+/// (arcseconds per LSB) given, or the smallest that holds the largest value, and
+/// `round(value / scale)` for each. A scale too small for the values is refused, never
+/// saturated.
+fn quantize(
+    values: &[f64],
+    max_code: i64,
+    scale: Option<f64>,
+) -> Result<(f64, Vec<i64>), ExportError> {
+    let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // The smallest scale that fits: the largest value on the largest code.
+    let fits = largest / max_code as f64;
+    let scale = scale.unwrap_or(if fits > 0.0 { fits } else { 1.0 });
+    // From half a code above the largest, rounding would reach the next code.
+    if largest / scale >= max_code as f64 + 0.5 {
+        return Err(ExportError::Saturated {
+            largest_arcsec: largest,
+            scale_arcsec: scale,
+            code: largest / scale,
+            max_code,
+            fits,
+        });
+    }
+    let codes = values.iter().map(|v| (v / scale).round() as i64).collect();
+    Ok((scale, codes))
+}
+
+/// The correction at each grid point, arcseconds.
+fn corrections(map: &ErrorMap) -> Vec<f64> {
+    map.values().iter().map(|e| -e * ARCSEC_PER_RAD).collect()
+}
+
+/// `x` in plain decimal notation (no exponent) with 9 significant digits, enough to give back
+/// the same `f32`: for consumers whose number parsers are not documented to take exponents.
+fn plain_decimal(x: f32) -> String {
+    if x == 0.0 {
+        return "0".into();
+    }
+    let magnitude = f64::from(x.abs()).log10().floor() as i32;
+    let decimals = (8 - magnitude).max(0) as usize;
+    let s = format!("{x:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn partial_turns_are_refused_where_the_format_is_periodic() {
+        assert!(require_whole_revolution("x", Span::WHOLE).is_ok());
+        let range = Span {
+            start_deg: 30.0,
+            end_deg: 90.0,
+        };
+        let err = require_whole_revolution("--format moteus", range).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("--format moteus") && text.contains("30° to 90°"),
+            "{text}"
+        );
+        let mut opts = ExportOptions::new(Format::Csv, "t");
+        assert!(check_span(&opts, range).is_ok());
+        opts.keep = Keep::Largest(2);
+        assert!(check_span(&opts, range).is_err());
+        for format in [Format::Harmonic, Format::Simplefoc, Format::MoteusConfig] {
+            assert!(check_span(&ExportOptions::new(format, "t"), range).is_err());
+        }
+    }
+
+    #[test]
+    fn quantization_refuses_to_saturate() {
+        let (scale, codes) = quantize(&[12.7, -6.35, 0.0], 127, None).unwrap();
+        assert!((scale - 0.1).abs() < 1e-15);
+        assert_eq!(codes, vec![127, -64, 0]);
+        // 127.5 codes would round to 128: refused, naming the scale that fits.
+        let err = quantize(&[12.75], 127, Some(0.1)).unwrap_err();
+        assert!(err.to_string().contains("1.003937e-1"), "{err}");
+        assert!(quantize(&[12.74], 127, Some(0.1)).is_ok());
+    }
+
+    #[test]
+    fn plain_decimals_give_back_the_same_f32() {
+        for x in [5.817764e-5f32, 1.0, 0.3, 123.456, 9.999999e-9, -2.5e-6] {
+            let s = plain_decimal(x);
+            assert!(!s.contains('e'), "{s}");
+            assert_eq!(s.parse::<f32>().unwrap(), x, "{s}");
+        }
+        assert_eq!(plain_decimal(0.0), "0");
+    }
+}
