@@ -433,7 +433,8 @@ fn dev_zero_and_endless_lines_fail_within_seconds() {
     assert!(stderr(&o).contains("device"), "{}", stderr(&o));
     assert!(started.elapsed() < Duration::from_secs(5));
 
-    // A named pipe that never ends a line: refused once the limit is read, naming the line.
+    // A named pipe that never ends a line: refused at once, without hanging or growing (the CSV
+    // dialect detection needs to seek, which a pipe cannot).
     let pipe = dir.path().join("pipe.csv");
     assert!(
         Command::new("mkfifo")
@@ -453,7 +454,7 @@ fn dev_zero_and_endless_lines_fail_within_seconds() {
     let started = Instant::now();
     let o = calib(&["csrr", s(&pipe), "-o", s(&dir.path().join("o3"))]);
     assert_eq!(code(&o), 1, "{}", stderr(&o));
-    common::assert_mentions(&stderr(&o), &["line 1", "longer than 1048576 bytes"]);
+    assert!(stderr(&o).contains("pipe.csv"), "{}", stderr(&o));
     assert!(started.elapsed() < Duration::from_secs(10));
     let _ = writer.kill();
     let _ = writer.wait();
