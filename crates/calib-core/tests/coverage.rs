@@ -3,7 +3,7 @@
 //! errors), the fraction of table points with |map − truth| ≤ 2u (near 95 % for an honest
 //! standard uncertainty of a normal error) and ≤ u (near 68 %), and the median u.
 //!
-//! `#[ignore]`d (about two minutes): `cargo test -p calib-core --test coverage -- --ignored
+//! `#[ignore]`d (about a minute): `cargo test -p calib-core --test coverage -- --ignored
 //! --nocapture` prints the table quoted in the README's accuracy section.
 
 use calib_core::ErrorMap;
@@ -73,7 +73,7 @@ impl Tally {
 }
 
 #[test]
-#[ignore = "Monte Carlo over seeds, about two minutes"]
+#[ignore = "Monte Carlo over seeds, about a minute"]
 fn coverage_of_u_over_seeds() {
     println!("| scenario (map) | seeds | ≤ u | ≤ 2u | median u | max \\|map − truth\\| |");
     println!("|---|---|---|---|---|---|");

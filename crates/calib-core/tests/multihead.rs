@@ -188,6 +188,9 @@ fn selfa_uncertainty_covers_the_truth() {
             .map(|c| c.name.as_str())
             .collect();
         assert_eq!(names.len(), 2, "{names:?}");
-        println!("{method:?}: {:.1} % within 2u, median u {median:.5}″", 100.0 * f2);
+        println!(
+            "{method:?}: {:.1} % within 2u, median u {median:.5}″",
+            100.0 * f2
+        );
     }
 }
