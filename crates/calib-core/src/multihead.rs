@@ -104,8 +104,10 @@
 //! # Uncertainty
 //! [`MultiheadCalibration::uncertainty`] gives the standard uncertainty of the map at every table
 //! point (both methods), GUM style: the noise of the differences propagated through the linear
-//! estimate of each order ([`fit_noise`], Type A, from the bins' residuals of the joint fit,
-//! keeping the correlation the first head's noise makes between the differences) and the linear
+//! estimate of each order, `s_h = Σ_j w_jh D_j(h)` (eq. 3's `w_jh = c̄_jh / Σ_k |c_kh|²`, or
+//! eq. 9's averages), `u_fit² = Σ_h 2 Σ_jk Re(w_jh w̄_kh) Ĝ_jk` with `Ĝ` the covariance of the
+//! coefficients' noise from the bins' residuals of the joint fit (Type A; it keeps the
+//! correlation the first head's noise makes between the differences), and the linear
 //! interpolation between table points (Type B). Blind and ill-conditioned orders are not in it:
 //! they are named warnings.
 //!
@@ -393,8 +395,8 @@ pub struct MultiheadCalibration {
     pub sets: Vec<SetEstimate>,
     /// RMS per sample of the joint fit's residual over all differences, radians (joint only).
     pub residual_rms: Option<f64>,
-    /// The standard uncertainty of the map at every table point, with its budget (see
-    /// [`fit_noise`] and the module doc's section on uncertainty).
+    /// The standard uncertainty of the map at every table point, with its budget (see the
+    /// module doc's section on uncertainty).
     pub uncertainty: MapUncertainty,
     /// Joint solves made (the EDA method makes them too, to bring the bins to their centres).
     pub iterations: usize,
