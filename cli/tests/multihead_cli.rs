@@ -89,9 +89,24 @@ fn selfa_joint_meets_the_bar_and_names_the_blind_orders() {
     let residual = d["residual_rms_arcsec"].as_f64().unwrap();
     assert!(residual < 0.02, "{residual}″");
     assert_eq!(report["warnings"].as_array().unwrap().len(), 0);
+    // Every point has its standard uncertainty, summarized in the report, the html and stdout.
+    let table = std::fs::read_to_string(out.join("h1.csv")).unwrap();
+    assert!(
+        table.starts_with("angle_deg,error_arcsec,correction_arcsec,u_arcsec"),
+        "{}",
+        &table[..80]
+    );
+    let u = &d["uncertainty"]["h1"];
+    let u_max = u["u_max_arcsec"].as_f64().unwrap();
+    // ≈ σ·sqrt(2K·(J+2)/(4J)/N): 0.0104″ per head, K = 506 orders, J = 12 heads, N = 8801
+    // samples gives 0.0019″ (see the core's `multihead` test for its coverage of the truth).
+    assert!((0.0005..0.01).contains(&u_max), "{u}");
+    assert_eq!(u["components"][0]["type"], "A");
+    assert!(html.contains("±2u"), "report.html lacks the band");
     assert_mentions(
         &stdout(&o),
         &[
+            "standard uncertainty u of the table",
             "read by 12 heads — joint least squares",
             "h5 ",
             "3.1004",

@@ -267,7 +267,7 @@ fn calibrate(
     let json = calib_io::report::render_json(&report)?;
     let files = write_tables_and_report(
         out,
-        &[(first, &cal.map, None)],
+        &[(first, &cal.map, Some(cal.uncertainty.u.as_slice()))],
         &json,
         &crate::document::multihead::document(first, &cal, &report),
     )?;
@@ -337,6 +337,10 @@ fn build_report(
         ),
     );
     details.insert("max_order".to_string(), json!(cal.max_order));
+    details.insert(
+        "uncertainty".to_string(),
+        json!({ heads[0].name.clone(): crate::document::uncertainty_json(&cal.uncertainty) }),
+    );
     details.insert("bins_per_revolution".to_string(), json!(cal.bins));
     details.insert(
         "blind_orders".to_string(),
@@ -479,6 +483,12 @@ fn render_summary(
         ch.rms_arcsec,
         top.join(", "),
         out.join(&ch.table).display()
+    );
+    let _ = writeln!(
+        o,
+        "  standard uncertainty u of the table: max {:.4}″, rms {:.4}″ (budget in report.json)",
+        cal.uncertainty.max() * ARCSEC_PER_RAD,
+        cal.uncertainty.rms() * ARCSEC_PER_RAD
     );
     let residual = cal.residual_rms.map_or(String::new(), |r| {
         format!(", residual RMS {:.4}″ per sample", r * ARCSEC_PER_RAD)

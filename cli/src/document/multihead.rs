@@ -67,7 +67,8 @@ pub fn document(first: &str, cal: &MultiheadCalibration, report: &Report) -> Doc
     );
     doc.push(Section::new("Summary").table(facts).table(heads));
 
-    let layers = MapLayers::of(&cal.map);
+    let (band_name, band) = super::uncertainty_band(&cal.map, &cal.uncertainty);
+    let layers = MapLayers::of(&cal.map).with_band(&band_name, band);
     let mut s = Section::new(&format!("Error map of the scale as `{first}` reads it"))
         .text(&format!(
             "Error = {first}'s reading − true angle (zero mean), as a function of {first}'s \
@@ -82,6 +83,7 @@ pub fn document(first: &str, cal: &MultiheadCalibration, report: &Report) -> Doc
     if let Some(ch) = report.channels.get(first) {
         s = s.table(harmonics_table(first, ch));
     }
+    s = s.table(super::uncertainty_table(first, &cal.uncertainty));
     doc.push(s);
     let marks = OrderMarks {
         blind: cal.blind.iter().map(|e| e.order).collect(),

@@ -101,6 +101,16 @@
 //! `k·360°/N`, `k = 1..N−1` (to [`MultiheadOptions::angle_tol`]), keeping only sets not contained
 //! in a larger one (the SelfA layout gives exactly its sets of 3, 4 and 7).
 //!
+//! # Uncertainty
+//! [`MultiheadCalibration::uncertainty`] gives the standard uncertainty of the map at every table
+//! point (both methods), GUM style: the noise of the differences propagated through the linear
+//! estimate of each order, `s_h = Σ_j w_jh D_j(h)` (eq. 3's `w_jh = c̄_jh / Σ_k |c_kh|²`, or
+//! eq. 9's averages), `u_fit² = Σ_h 2 Σ_jk Re(w_jh w̄_kh) Ĝ_jk` with `Ĝ` the covariance of the
+//! coefficients' noise from the bins' residuals of the joint fit (Type A; it keeps the
+//! correlation the first head's noise makes between the differences), and the linear
+//! interpolation between table points (Type B). Blind and ill-conditioned orders are not in it:
+//! they are named warnings.
+//!
 //! # What it cannot see
 //! An absolute offset (the map is zero-mean); the orders every head sees in phase (blind, named);
 //! orders above the fitted maximum. With EDA, the multiples of each set's `N` that no other set
@@ -110,6 +120,7 @@ use crate::angle::{DEG_PER_RAD, wrap_2pi, wrap_pi};
 use crate::csrr::nufft::{GridTransform, Stencils};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
+use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation_uncertainty};
 use realfft::num_complex::Complex;
 use std::f64::consts::{PI, TAU};
 
@@ -384,6 +395,9 @@ pub struct MultiheadCalibration {
     pub sets: Vec<SetEstimate>,
     /// RMS per sample of the joint fit's residual over all differences, radians (joint only).
     pub residual_rms: Option<f64>,
+    /// The standard uncertainty of the map at every table point, with its budget (see the
+    /// module doc's section on uncertainty).
+    pub uncertainty: MapUncertainty,
     /// Joint solves made (the EDA method makes them too, to bring the bins to their centres).
     pub iterations: usize,
     /// Samples used.
@@ -675,6 +689,11 @@ impl Multihead {
                 .iter()
                 .all(|&p| wrap_pi(h as f64 * p).abs() <= h as f64 * self.opts.angle_tol)
         };
+        let psi: Vec<f64> = rel_others
+            .iter()
+            .zip(&fit.delta)
+            .map(|(p, d)| p + d)
+            .collect();
         let (series, blind, ill_conditioned, set_estimates, residual_rms) = match self.opts.method {
             Method::Joint => {
                 let (blind, ill): (Vec<ExcludedOrder>, Vec<ExcludedOrder>) = fit
@@ -696,6 +715,19 @@ impl Multihead {
             .points
             .unwrap_or_else(|| crate::csrr::table_points(&series));
         let map = ErrorMap::from_series(&series, points);
+        let excluded: Vec<usize> = blind
+            .iter()
+            .chain(&ill_conditioned)
+            .map(|e| e.order)
+            .collect();
+        let fitted: Vec<usize> = (1..=max_order).filter(|h| !excluded.contains(h)).collect();
+        let weights = |h: usize| match self.opts.method {
+            Method::Joint => joint_weights(h, &psi),
+            Method::Eda => eda_weights(h, &self.sets, others),
+        };
+        let unknowns = 2 * fitted.len() + others;
+        let u_fit = fit_noise(&fit.bin_residuals, unknowns, &fitted, weights);
+        let uncertainty = map_uncertainty(self.opts.method, u_fit, &series, points);
         let heads: Vec<HeadEstimate> = self
             .heads
             .iter()
@@ -727,6 +759,7 @@ impl Multihead {
             ill_conditioned,
             sets: set_estimates,
             residual_rms,
+            uncertainty,
             iterations: fit.iterations,
             samples: self.samples,
             skipped: self.skipped,
@@ -831,6 +864,8 @@ struct JointFit {
     excluded: Vec<ExcludedOrder>,
     /// Per other head: residual sums (see [`Corrections`]).
     residuals: Vec<Residual>,
+    /// Per other head: each bin mean's residual from the linear model at the bin centres, rad.
+    bin_residuals: Vec<Vec<f64>>,
     iterations: usize,
     converged: bool,
 }
@@ -842,6 +877,8 @@ struct Corrections {
     /// Data at the centres with the nonlinear remainder removed: for the linear solve.
     linear: Vec<f64>,
     residual: Residual,
+    /// Each bin mean's residual, `linear − model`.
+    bin_residual: Vec<f64>,
 }
 
 /// One head's residual sums over the bins.
@@ -962,6 +999,7 @@ fn joint(
                 let mut centred = vec![0.0; b];
                 let mut linear = vec![0.0; b];
                 let mut residual = Residual::default();
+                let mut bin_residual = vec![0.0; b];
                 for i in 0..b {
                     let curvature = m2p[i] - m2_x[i];
                     let slope = m1p[i] - m1_x[i];
@@ -969,6 +1007,7 @@ fn joint(
                     centred[i] = data.y[j][i] - sampling;
                     linear[i] = centred[i] - (f_c[i] - lin_c[i]);
                     let r = linear[i] - lin_c[i];
+                    bin_residual[i] = r;
                     let within =
                         (data.scatter[j][i] - data.n[i] * slope * slope * data.var[i]).max(0.0);
                     residual.between += data.n[i] * r * r;
@@ -979,6 +1018,7 @@ fn joint(
                     centred,
                     linear,
                     residual,
+                    bin_residual,
                 }
             })
             .collect();
@@ -987,6 +1027,7 @@ fn joint(
                 s,
                 delta,
                 residuals: corrections.iter().map(|c| c.residual).collect(),
+                bin_residuals: corrections.iter().map(|c| c.bin_residual.clone()).collect(),
                 centred: corrections.into_iter().map(|c| c.centred).collect(),
                 excluded,
                 iterations,
@@ -1052,6 +1093,116 @@ fn joint(
         }
         converged = change <= TOLERANCE;
     }
+}
+
+/// The weights `w_j` of the joint solution's order `h` on the other heads' coefficients,
+/// `s_h = Σ_j w_j D_j(h)`: eq. 3's `w_j = c̄_jh / Σ_k |c_kh|²`, `c_jh = e^{ihψ_j} − 1`.
+fn joint_weights(h: usize, psi: &[f64]) -> Vec<Complex<f64>> {
+    let c: Vec<Complex<f64>> = psi.iter().map(|&p| unit(h, p) - 1.0).collect();
+    let q: f64 = c.iter().map(|c| c.norm_sqr()).sum();
+    c.iter().map(|c| c.conj() / q).collect()
+}
+
+/// The weights of the EDA estimate of order `h` (see [`eda`]): the mean over the `K` sets that
+/// see `h` of eq. 9's `−(1/N) Σ_{j∈set} D_j(h)`, so head `j` weighs `−(1/K) Σ_{sets∋j} 1/N`.
+fn eda_weights(h: usize, sets: &[Vec<usize>], others: usize) -> Vec<Complex<f64>> {
+    let seeing: Vec<&Vec<usize>> = sets.iter().filter(|s| h % s.len() != 0).collect();
+    let k = seeing.len().max(1) as f64;
+    let mut w = vec![Complex::new(0.0, 0.0); others];
+    for set in seeing {
+        let n = set.len() as f64;
+        for &j in set.iter().filter(|&&j| j > 0) {
+            w[j - 1] -= 1.0 / (k * n);
+        }
+    }
+    w
+}
+
+/// The standard uncertainty, at any angle, that the noise of the differences leaves in the map.
+///
+/// Every order's estimate is linear in the heads' Fourier coefficients, `s_h = Σ_j w_j D_j(h)`
+/// with `D_j(h) = (1/B) Σ_c y_jc e^{−ihx_c}` over the `B` bins ([`joint_weights`] for eq. 3,
+/// [`eda_weights`] for eq. 9). With the bins' mean errors independent from bin to bin, the
+/// coefficients' noise has the covariance `G_jk = E[δD_j δD̄_k] = (1/B²) Σ_c cov(y_jc, y_kc)` at
+/// every order, estimated from the bins' residuals `r_jc` of the joint fit,
+///
+/// `Ĝ_jk = Σ_c r_jc r_kc / (B·(B − P/(J−1)))`  (`P` unknowns over the `(J−1)·B` bin means),
+///
+/// which keeps the correlation between the differences: every `d_j = r_j − r_1` holds the first
+/// head's noise, so with `J` equally spaced heads of equal noise the first head's share of
+/// `var s_h` is `(J/2)`-fold the others' together. Cosine and sine of `δs_h` have the same
+/// variance and no correlation, so `m = Σ_h 2 Re(s_h e^{ihx})` has, at every angle,
+///
+/// `u_fit² = Σ_h 2 Σ_jk Re(w_j w̄_k) Ĝ_jk`
+///
+/// over the fitted orders: left-out (blind) orders are warnings, not uncertainty.
+fn fit_noise(
+    residuals: &[Vec<f64>],
+    unknowns: usize,
+    orders: &[usize],
+    weights: impl Fn(usize) -> Vec<Complex<f64>>,
+) -> f64 {
+    let others = residuals.len();
+    let b = residuals.first().map_or(0, Vec::len);
+    let data = (others * b) as f64;
+    let dof = data - unknowns as f64;
+    if b == 0 || dof <= 0.0 {
+        return 0.0;
+    }
+    let scale = data / dof / (b as f64 * b as f64);
+    let g: Vec<Vec<f64>> = residuals
+        .iter()
+        .map(|rj| {
+            residuals
+                .iter()
+                .map(|rk| scale * rj.iter().zip(rk).map(|(a, c)| a * c).sum::<f64>())
+                .collect()
+        })
+        .collect();
+    let var: f64 = orders
+        .iter()
+        .map(|&h| {
+            let w = weights(h);
+            let mut v = 0.0;
+            for j in 0..others {
+                for k in 0..others {
+                    v += (w[j] * w[k].conj()).re * g[j][k];
+                }
+            }
+            2.0 * v
+        })
+        .sum();
+    var.max(0.0).sqrt()
+}
+
+/// The budget of the map of `points` points: the fit's noise `u_fit` ([`fit_noise`], Type A)
+/// and the linear interpolation of the table between its points
+/// ([`interpolation_uncertainty`], Type B).
+fn map_uncertainty(
+    method: Method,
+    u_fit: f64,
+    series: &FourierSeries,
+    points: usize,
+) -> MapUncertainty {
+    let fit = match method {
+        Method::Joint => "the joint fit",
+        Method::Eda => "the equal-division average",
+    };
+    MapUncertainty::combine(
+        points,
+        vec![
+            MapComponent {
+                name: format!("noise of the readings propagated through {fit}"),
+                evaluation: Evaluation::TypeA,
+                u: vec![u_fit],
+            },
+            MapComponent {
+                name: "linear interpolation between table points".into(),
+                evaluation: Evaluation::TypeB,
+                u: vec![interpolation_uncertainty(&series.harmonics(), points)],
+            },
+        ],
+    )
 }
 
 /// Warnings for heads whose bin means depart from the joint fit by far more than their noise

@@ -3,12 +3,13 @@
 //! errors), the fraction of table points with |map − truth| ≤ 2u (near 95 % for an honest
 //! standard uncertainty of a normal error) and ≤ u (near 68 %), and the median u.
 //!
-//! `#[ignore]`d (about two minutes): `cargo test -p calib-core --test coverage -- --ignored
+//! `#[ignore]`d (about a minute): `cargo test -p calib-core --test coverage -- --ignored
 //! --nocapture` prints the table quoted in the README's accuracy section.
 
 use calib_core::ErrorMap;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::csrr::{Csrr, CsrrOptions};
+use calib_core::multihead::{Head, Method, Multihead, MultiheadOptions};
 use calib_core::simulate::Scenario;
 use calib_core::tdr::{Tdr, TdrOptions};
 use calib_core::uncertainty::MapUncertainty;
@@ -72,7 +73,7 @@ impl Tally {
 }
 
 #[test]
-#[ignore = "Monte Carlo over seeds, about two minutes"]
+#[ignore = "Monte Carlo over seeds, about a minute"]
 fn coverage_of_u_over_seeds() {
     println!("| scenario (map) | seeds | ≤ u | ≤ 2u | median u | max \\|map − truth\\| |");
     println!("|---|---|---|---|---|---|");
@@ -113,6 +114,32 @@ fn coverage_of_u_over_seeds() {
             t.add(&cal.map, &cal.uncertainty, &truth(&s, "enc", cal.map.len()));
         }
         rows.push(t.row(&format!("tdr `{file}`")));
+    }
+    for method in [Method::Joint, Method::Eda] {
+        let mut t = Tally::default();
+        for seed in SEEDS {
+            let s = scenario("multihead.toml", seed);
+            let heads = s
+                .sensors
+                .iter()
+                .map(|h| Head {
+                    name: h.name.clone(),
+                    nominal: h.head_deg.unwrap().to_radians(),
+                })
+                .collect();
+            let opts = MultiheadOptions {
+                method,
+                ..MultiheadOptions::default()
+            };
+            let mut mh = Multihead::new(heads, opts).unwrap();
+            for x in s.samples().unwrap() {
+                mh.push(&x.values);
+            }
+            let cal = mh.finish().unwrap();
+            let first = &s.sensors[0].name;
+            t.add(&cal.map, &cal.uncertainty, &truth(&s, first, cal.map.len()));
+        }
+        rows.push(t.row(&format!("multihead `multihead.toml` ({method:?})")));
     }
     // Over all seeds, 2u covers 90–99.9 % of the points on every map (the range for one
     // run; near 95 % is the target), and u stays small.

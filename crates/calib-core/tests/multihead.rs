@@ -147,3 +147,50 @@ fn selfa_eda_per_set_is_blind_to_multiples_of_its_head_count() {
     }
     assert!(truth.minus(&square.map).max_abs_arcsec() > 0.1);
 }
+
+/// Fraction of table points with |map − truth| ≤ 2u, and the median u (arcsec).
+fn coverage(sc: &Scenario, cal: &MultiheadCalibration) -> (f64, f64) {
+    let (_, truth) = sc.truth(cal.map.len()).expect("truth").swap_remove(0);
+    let diff = cal.map.minus(&truth);
+    let within = diff
+        .values()
+        .iter()
+        .zip(&cal.uncertainty.u)
+        .filter(|(d, u)| d.abs() <= 2.0 * **u)
+        .count();
+    (
+        within as f64 / cal.map.len() as f64,
+        cal.uncertainty.median() * ARCSEC_PER_RAD,
+    )
+}
+
+#[test]
+fn selfa_uncertainty_covers_the_truth() {
+    // The bar for one run: 90–99.9 % of the table points within 2u of the truth (a
+    // standard uncertainty of a normal error gives 95 %). The noise estimate comes from the
+    // bins' residuals and the truth is the simulator's, so the check is independent of the fit.
+    let sc = selfa();
+    for method in [Method::Joint, Method::Eda] {
+        let cal = run(
+            &sc,
+            MultiheadOptions {
+                method,
+                ..MultiheadOptions::default()
+            },
+        );
+        let (f2, median) = coverage(&sc, &cal);
+        assert!((0.90..=0.999).contains(&f2), "{method:?}: {f2}");
+        assert!(median <= 0.1, "{method:?}: {median}″");
+        let names: Vec<&str> = cal
+            .uncertainty
+            .components
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect();
+        assert_eq!(names.len(), 2, "{names:?}");
+        println!(
+            "{method:?}: {:.1} % within 2u, median u {median:.5}″",
+            100.0 * f2
+        );
+    }
+}
