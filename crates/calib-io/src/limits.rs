@@ -159,6 +159,17 @@ pub fn readable(x: f64) -> String {
     }
 }
 
+/// [`readable`] as a [`std::fmt::Display`], formatted only when shown: readings are checked on the
+/// hot path, and only a refused one is ever printed.
+#[derive(Debug, Clone, Copy)]
+pub struct Readable(pub f64);
+
+impl std::fmt::Display for Readable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&readable(self.0))
+    }
+}
+
 /// Why a time stamp of `t` seconds cannot be used, if it cannot.
 pub(crate) fn time_problem(t: f64) -> Option<String> {
     if t.abs() <= MAX_TIME_S {

@@ -92,6 +92,16 @@ pub(crate) fn show(field: &[u8]) -> String {
     }
 }
 
+/// [`show`] as a [`std::fmt::Display`], formatted only when shown (fields are checked for every
+/// row; only a refused one is printed).
+pub(crate) struct Shown<'a>(pub &'a [u8]);
+
+impl std::fmt::Display for Shown<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&show(self.0))
+    }
+}
+
 /// What is wrong with a field that should hold a number, as the tail of an error message.
 pub(crate) fn not_a_number(field: &[u8], what: &str) -> String {
     if field.trim_ascii().is_empty() {

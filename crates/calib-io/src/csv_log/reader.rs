@@ -260,7 +260,7 @@ impl CsvReader {
             let v = parse_f64(raw)
                 .ok_or_else(|| self.error(Some(c), fields::not_a_number(raw, "a reading")))?;
             let rad = v * self.rad_per_unit;
-            if let Some(problem) = crate::limits::reading_problem(fields::show(raw), v, rad) {
+            if let Some(problem) = crate::limits::reading_problem(fields::Shown(raw), v, rad) {
                 return Err(self.error(Some(c), problem));
             }
             values.push(rad);

@@ -1036,7 +1036,7 @@ fn decode(
             };
             let names = &topic.names;
             let mut put = |i: usize, rad: f64| match crate::limits::reading_problem(
-                crate::limits::readable(rad),
+                crate::limits::Readable(rad),
                 rad,
                 rad,
             ) {
