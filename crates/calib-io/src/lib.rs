@@ -3,6 +3,7 @@
 //!
 //! - [`csv_log`]: CSV logs (`t`, one column per channel, optional `session`).
 //! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` (CDR) or JSON messages.
+//! - [`rosbag`]: rosbag2 bags (a bag directory or a `.db3` file) with JointState topics.
 //! - [`naming`]: channels addressed by joint name or `TOPIC/JOINT`.
 //! - [`align`]: channels on different clocks interpolated onto the first one's stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
@@ -51,6 +52,7 @@ pub mod points;
 pub mod prefetch;
 pub mod readings;
 pub mod report;
+pub mod rosbag;
 pub mod table;
 
 pub use error::Error;

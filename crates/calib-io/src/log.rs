@@ -4,6 +4,7 @@ use crate::align::{AlignOptions, Alignment};
 use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
+use crate::rosbag::{self, BagReader, SQLITE_MAGIC, Storage};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use std::io::Read;
@@ -16,6 +17,9 @@ pub enum LogFormat {
     Csv,
     /// MCAP.
     Mcap,
+    /// A rosbag2 bag: a bag directory (`metadata.yaml`, `.db3` or `.mcap` splits) or a `.db3`
+    /// file. Read only.
+    Rosbag,
 }
 
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
@@ -26,6 +30,7 @@ impl LogFormat {
         match self {
             LogFormat::Csv => "csv",
             LogFormat::Mcap => "mcap",
+            LogFormat::Rosbag => "db3",
         }
     }
 
@@ -40,13 +45,27 @@ impl LogFormat {
         }
     }
 
-    /// The format of an existing file: its extension, or for an unknown extension its first bytes
-    /// (MCAP's magic number).
+    /// The format of an existing log: a bag directory ([`rosbag::is_bag_dir`]: it holds
+    /// `metadata.yaml` or `.db3` files), else the file's extension (`.csv`, `.mcap`, `.db3`), or
+    /// for an unknown extension its first bytes (MCAP's or SQLite's magic number). Any other
+    /// directory is [`Error::UnknownFormat`].
     pub fn detect(path: &Path) -> Result<Self, Error> {
+        if path.is_dir() {
+            return if rosbag::is_bag_dir(path) {
+                Ok(LogFormat::Rosbag)
+            } else {
+                Err(Error::UnknownFormat {
+                    path: path.to_path_buf(),
+                })
+            };
+        }
         if let Ok(format) = Self::for_output(path) {
             return Ok(format);
         }
-        let mut head = [0u8; 8];
+        if extension(path).as_deref() == Some("db3") {
+            return Ok(LogFormat::Rosbag);
+        }
+        let mut head = [0u8; 16];
         let mut file = std::fs::File::open(path).map_err(|source| Error::Io {
             path: path.to_path_buf(),
             source,
@@ -55,8 +74,10 @@ impl LogFormat {
             path: path.to_path_buf(),
             source,
         })?;
-        if &head[..n] == MCAP_MAGIC {
+        if head[..n].starts_with(MCAP_MAGIC) {
             Ok(LogFormat::Mcap)
+        } else if &head[..n] == SQLITE_MAGIC {
+            Ok(LogFormat::Rosbag)
         } else {
             Err(Error::UnknownFormat {
                 path: path.to_path_buf(),
@@ -82,19 +103,36 @@ pub struct LogReader {
     names: Vec<ChannelName>,
     /// CSV: the selected columns and their channels (MCAP selects itself).
     selection: Option<(Vec<usize>, Vec<Channel>)>,
+    /// A bag directory of MCAP storage without `metadata.yaml`: the warning to give.
+    bag_warnings: Vec<String>,
 }
 
 enum Inner {
     Csv(CsvReader),
     Mcap(McapReader),
+    Bag(BagReader),
 }
 
 impl LogReader {
     /// Opens a log, choosing the reader by [`LogFormat::detect`].
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
+        let mut bag_warnings = Vec::new();
         let inner = match LogFormat::detect(path)? {
             LogFormat::Csv => Inner::Csv(CsvReader::open(path, opts)?),
             LogFormat::Mcap => Inner::Mcap(McapReader::open(path, opts)?),
+            LogFormat::Rosbag => {
+                let found = rosbag::bag_files(path)?;
+                match found.storage {
+                    Storage::Sqlite3(files) => {
+                        Inner::Bag(BagReader::open(path, files, found.warnings, opts)?)
+                    }
+                    Storage::Mcap(file) => {
+                        let reader = McapReader::open(&file, opts)?;
+                        bag_warnings = found.warnings;
+                        Inner::Mcap(reader)
+                    }
+                }
+            }
         };
         let names = match &inner {
             Inner::Csv(r) => r
@@ -103,11 +141,13 @@ impl LogReader {
                 .map(|c| ChannelName::plain(&c.name))
                 .collect(),
             Inner::Mcap(r) => r.names().to_vec(),
+            Inner::Bag(r) => r.names().to_vec(),
         };
         Ok(LogReader {
             inner,
             names,
             selection: None,
+            bag_warnings,
         })
     }
 
@@ -133,6 +173,7 @@ impl LogReader {
                 self.selection = Some((channels.to_vec(), chosen));
             }
             Inner::Mcap(r) => r.select(channels, opts),
+            Inner::Bag(r) => r.select(channels, opts),
         }
     }
 
@@ -142,6 +183,7 @@ impl LogReader {
             (_, Some((_, chosen))) => chosen,
             (Inner::Csv(r), None) => r.channels(),
             (Inner::Mcap(r), None) => r.channels(),
+            (Inner::Bag(r), None) => r.channels(),
         }
     }
 
@@ -149,7 +191,7 @@ impl LogReader {
     pub fn has_session_marks(&self) -> bool {
         match &self.inner {
             Inner::Csv(r) => r.has_session_column(),
-            Inner::Mcap(_) => false,
+            Inner::Mcap(_) | Inner::Bag(_) => false,
         }
     }
 
@@ -158,6 +200,7 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(r) => r.diagnostics(),
             Inner::Mcap(r) => r.diagnostics(),
+            Inner::Bag(r) => r.diagnostics(),
         }
     }
 
@@ -167,6 +210,7 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(_) => None,
             Inner::Mcap(r) => Some(r.alignment()),
+            Inner::Bag(r) => Some(r.alignment()),
         }
     }
 
@@ -176,31 +220,36 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(_) => Vec::new(),
             Inner::Mcap(r) => r.topics(),
+            Inner::Bag(r) => r.topics(),
         }
     }
 
     /// Notes for the user about parts of the log that were not read (topics of other schemas).
     pub fn notes(&self) -> Vec<String> {
-        match &self.inner {
-            Inner::Csv(_) => Vec::new(),
-            Inner::Mcap(r) => r
-                .ignored_topics()
-                .iter()
-                .map(|t| {
-                    format!(
-                        "topic `{}` ({}, {}) is not JointState or JSON and was skipped",
-                        t.topic, t.schema, t.message_encoding
-                    )
-                })
-                .collect(),
-        }
+        let ignored = match &self.inner {
+            Inner::Csv(_) => return Vec::new(),
+            Inner::Mcap(r) => r.ignored_topics(),
+            Inner::Bag(r) => r.ignored_topics(),
+        };
+        ignored
+            .iter()
+            .map(|t| {
+                format!(
+                    "topic `{}` ({}, {}) is not JointState or JSON and was skipped",
+                    t.topic, t.schema, t.message_encoding
+                )
+            })
+            .collect()
     }
 
     /// Warnings the user must see once the log has been read: truncation, and samples dropped
     /// because a channel could not be aligned on the clock.
     pub fn warnings(&self, path: &Path) -> Vec<String> {
         let d = self.diagnostics();
-        let mut w = Vec::new();
+        let mut w = match &self.inner {
+            Inner::Bag(r) => r.warnings().to_vec(),
+            _ => self.bag_warnings.clone(),
+        };
         if let Some(t) = &d.truncated {
             w.push(format!(
                 "{}: the log ends early at byte {} (a crashed recording?): the {} messages before the break were used",
@@ -251,6 +300,7 @@ impl Iterator for LogReader {
                 })
             }
             Inner::Mcap(r) => r.next(),
+            Inner::Bag(r) => r.next(),
         }
     }
 }
@@ -275,6 +325,12 @@ impl LogWriter {
             )?),
             LogFormat::Mcap => {
                 LogWriter::Mcap(Box::new(McapWriter::create(path, channels, DEFAULT_TOPIC)?))
+            }
+            // `for_output` names no format calib cannot write.
+            LogFormat::Rosbag => {
+                return Err(Error::UnknownFormat {
+                    path: path.to_path_buf(),
+                });
             }
         })
     }

@@ -84,14 +84,14 @@ pub struct TopicInfo {
 
 /// Messages and log-time span of one topic.
 #[derive(Debug, Clone, Copy, Default)]
-struct TopicStats {
-    messages: u64,
-    first: u64,
-    last: u64,
+pub(crate) struct TopicStats {
+    pub(crate) messages: u64,
+    pub(crate) first: u64,
+    pub(crate) last: u64,
 }
 
 impl TopicStats {
-    fn note(&mut self, log_time: u64) {
+    pub(crate) fn note(&mut self, log_time: u64) {
         if self.messages == 0 {
             self.first = log_time;
         }
@@ -99,7 +99,7 @@ impl TopicStats {
         self.last = log_time;
     }
 
-    fn rate_hz(&self) -> Option<f64> {
+    pub(crate) fn rate_hz(&self) -> Option<f64> {
         (self.messages > 1 && self.last > self.first)
             .then(|| (self.messages - 1) as f64 / ((self.last - self.first) as f64 * 1e-9))
     }
@@ -237,7 +237,7 @@ pub(crate) enum Encoding {
 }
 
 impl Encoding {
-    fn of(channel: &mcap::Channel) -> Option<Self> {
+    pub(crate) fn of(channel: &mcap::Channel) -> Option<Self> {
         let schema = channel.schema.as_ref().map_or("", |s| s.name.as_str());
         Self::from_names(&channel.message_encoding, schema)
     }
@@ -255,26 +255,26 @@ impl Encoding {
     }
 }
 
-struct Topic {
-    name: String,
-    schema: String,
-    message_encoding: String,
-    encoding: Encoding,
+pub(crate) struct Topic {
+    pub(crate) name: String,
+    pub(crate) schema: String,
+    pub(crate) message_encoding: String,
+    pub(crate) encoding: Encoding,
     /// JointState: the `name` block of the first message, compared byte for byte with later ones.
     name_block: Vec<u8>,
     /// The channel names: joint names or JSON fields.
-    names: Vec<String>,
+    pub(crate) names: Vec<String>,
     /// Index of the topic's first channel among the file's.
-    offset: usize,
+    pub(crate) offset: usize,
     /// JointState: whether messages carry different joint sets.
-    subset: bool,
+    pub(crate) subset: bool,
     /// JointState: name blocks other than the first message's, with the channel of each name.
     layouts: Vec<(Vec<u8>, Vec<usize>)>,
     /// Radians per unit of a JSON value.
     scale: f64,
     /// JSON: which channels a message has given, reused between messages.
     seen: Vec<bool>,
-    stats: TopicStats,
+    pub(crate) stats: TopicStats,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -285,23 +285,24 @@ enum Slot {
 }
 
 /// Channel IDs resolved to topics.
-struct Registry {
+#[derive(Default)]
+pub(crate) struct Registry {
     /// Indexed by channel ID: a vector lookup per message instead of hashing the topic.
     slots: Vec<Slot>,
-    topics: Vec<Topic>,
-    ignored: Vec<IgnoredTopic>,
-    ignored_stats: Vec<TopicStats>,
+    pub(crate) topics: Vec<Topic>,
+    pub(crate) ignored: Vec<IgnoredTopic>,
+    pub(crate) ignored_stats: Vec<TopicStats>,
 }
 
 /// What a channel ID resolves to when first seen.
-enum Resolved {
+pub(crate) enum Resolved {
     Topic(usize),
     Ignored(usize),
     NewTopic(Encoding),
 }
 
 impl Registry {
-    fn resolve(&mut self, channel: &mcap::Channel) -> Result<Resolved, String> {
+    pub(crate) fn resolve(&mut self, channel: &mcap::Channel) -> Result<Resolved, String> {
         let id = usize::from(channel.id);
         if let Some(slot) = self.slots.get(id) {
             match slot {
@@ -364,7 +365,7 @@ fn mcap_error(path: &Path, index: Option<u64>, channel: Option<&str>, message: S
 }
 
 /// A stamp in nanoseconds as seconds, exact to the nanosecond for any time of this era.
-fn seconds(ns: i64) -> f64 {
+pub(crate) fn seconds(ns: i64) -> f64 {
     const NS: i64 = 1_000_000_000;
     ns.div_euclid(NS) as f64 + ns.rem_euclid(NS) as f64 * 1e-9
 }
@@ -833,7 +834,11 @@ fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<S
 }
 
 /// A topic's channels from its first message.
-fn first_message(message: &mcap::Message, encoding: Encoding, scale: f64) -> Result<Topic, String> {
+pub(crate) fn first_message(
+    message: &mcap::Message,
+    encoding: Encoding,
+    scale: f64,
+) -> Result<Topic, String> {
     let mut topic = Topic {
         name: message.channel.topic.clone(),
         schema: schema_name(&message.channel),
@@ -892,7 +897,7 @@ fn repeated_joint(name: &str) -> String {
 
 impl Topic {
     /// Adds the joints of a later message the topic's first did not name (peek pass).
-    fn learn(&mut self, message: &mcap::Message) -> Result<(), String> {
+    pub(crate) fn learn(&mut self, message: &mcap::Message) -> Result<(), String> {
         if self.encoding != Encoding::JointState {
             return Ok(());
         }
@@ -954,7 +959,7 @@ impl Topic {
 /// as they are for channels the message does not carry) and returns its stamp in nanoseconds
 /// and whether it carried every channel in the topic's order. Errors carry the channel
 /// concerned (if not the topic) and the message.
-fn decode(
+pub(crate) fn decode(
     topic: &mut Topic,
     message: &mcap::Message,
     time: TimeSource,
