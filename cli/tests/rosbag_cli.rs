@@ -466,3 +466,132 @@ fn make_fixture() {
     )
     .unwrap();
 }
+
+/// A `std_msgs/msg/Float64` message in little-endian CDR.
+fn float64(v: f64) -> Vec<u8> {
+    [&[0u8, 1, 0, 0][..], &v.to_le_bytes()].concat()
+}
+
+/// `quick.toml`'s run with A and B published as `std_msgs/msg/Float64` (radians) on
+/// `/enc_a/angle` and `/enc_b/angle`, once in an MCAP file (`ros2msg` schemas, `cdr`) and once in
+/// a `.db3` file; returns both and the MCAP of the same run that `calib simulate` writes.
+fn write_scalar_run(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let reference = simulate(&testdata("scenarios/quick.toml"), dir, "run.mcap");
+    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
+    let sc: Scenario = toml::from_str(&text).unwrap();
+    let samples: Vec<Sample> = sc.samples().unwrap().collect();
+    let topics = ["/enc_a/angle", "/enc_b/angle"];
+    let mcap_path = dir.join("scalars.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&mcap_path).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema("std_msgs/msg/Float64", "ros2msg", b"float64 data")
+        .unwrap();
+    let ids: Vec<u16> = topics
+        .iter()
+        .map(|t| {
+            writer
+                .add_channel(schema, t, "cdr", &Default::default())
+                .unwrap()
+        })
+        .collect();
+    let db3 = dir.join("scalars.db3");
+    let db = create_db3(
+        &db3,
+        &[
+            (topics[0], "std_msgs/msg/Float64"),
+            (topics[1], "std_msgs/msg/Float64"),
+        ],
+    );
+    db.execute_batch("BEGIN").unwrap();
+    for (n, s) in samples.iter().enumerate() {
+        let t = ns(s.t);
+        for (k, &id) in ids.iter().enumerate() {
+            let data = float64(s.values[k]);
+            let header = mcap::records::MessageHeader {
+                channel_id: id,
+                sequence: n as u32,
+                log_time: t as u64,
+                publish_time: t as u64,
+            };
+            writer.write_to_known_channel(&header, &data).unwrap();
+            insert(&db, k as i64 + 1, t, &data);
+        }
+    }
+    db.execute_batch("COMMIT").unwrap();
+    writer.finish().unwrap();
+    (mcap_path, db3, reference)
+}
+
+/// Scalar topics are channels named after the topic, in the unit `--unit` gives. The stamps
+/// (the log time, to the nanosecond) and values are those of `calib simulate`'s MCAP, so the maps
+/// agree to floating-point rounding (< 1e-6″).
+#[test]
+fn scalar_topics_in_mcap_and_bags_give_the_maps_of_the_same_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mcap, db3, reference) = write_scalar_run(dir.path());
+    let want = dir.path().join("want");
+    expect_exit(&calib(&["csrr", s(&reference), "-o", s(&want)]), 0);
+    for log in [&mcap, &db3] {
+        let o = calib(&["inspect", s(log)]);
+        expect_exit(&o, 0);
+        let out = stdout(&o);
+        assert!(out.starts_with("topics: 2 read, 0 not read\n"), "{out}");
+        assert_mentions(&out, &["std_msgs/msg/Float64", "      /enc_a/angle\n"]);
+        let out = dir.path().join(log.extension().unwrap());
+        let o = calib(&[
+            "csrr",
+            s(log),
+            "--a",
+            "/enc_a/angle",
+            "--b",
+            "/enc_b/angle",
+            "--unit",
+            "rad",
+            "-o",
+            s(&out),
+        ]);
+        expect_exit(&o, 0);
+        for (got, table) in [("enc_a_angle.csv", "a.csv"), ("enc_b_angle.csv", "b.csv")] {
+            let (want, got) = (read_table(&want.join(table)), read_table(&out.join(got)));
+            assert_eq!(want.len(), got.len());
+            let worst = want
+                .iter()
+                .zip(&got)
+                .map(|(w, g)| (w.1 - g.1).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst < 1e-6,
+                "{}: {table} differs by {worst}″",
+                log.display()
+            );
+        }
+    }
+}
+
+/// Raw counts: a `std_msgs/msg/UInt16` topic of a 4096-count encoder read with
+/// `--unit counts:4096` (one count = 360/4096°).
+#[test]
+fn scalar_counts_are_read_with_a_counts_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let db3 = dir.path().join("counts.db3");
+    let db = create_db3(&db3, &[("/encoder/count", "std_msgs/msg/UInt16")]);
+    for i in 0..100i64 {
+        let count = (i * 41 % 4096) as u16;
+        let data = [&[0u8, 1, 0, 0][..], &count.to_le_bytes()].concat();
+        insert(&db, 1, 1_000_000_000 + i * 10_000_000, &data);
+    }
+    drop(db);
+    let o = calib(&["inspect", s(&db3), "--unit", "counts:4096", "--json"]);
+    expect_exit(&o, 0);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["topics"][0]["channels"][0], "/encoder/count");
+    let text = stdout(&calib(&["inspect", s(&db3), "--unit", "counts:4096"]));
+    assert!(text.contains("  100 samples over "), "{text}");
+    // The counts run 0, 41, … 4059 (99 × 41): 4059/4096 of a revolution.
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("/encoder/count ") && l.contains("counts:"))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert_mentions(line, &["counts:4096", " 0.000000", "4059.000000", "0.991"]);
+}

@@ -235,7 +235,8 @@ impl LogReader {
             .iter()
             .map(|t| {
                 format!(
-                    "topic `{}` ({}, {}) is not JointState or JSON and was skipped",
+                    "topic `{}` ({}, {}) is not JointState, a std_msgs scalar or JSON and was \
+                     skipped",
                     t.topic, t.schema, t.message_encoding
                 )
             })

@@ -10,7 +10,8 @@
 //! offered_qos_profiles)` and `messages(id, topic_id, timestamp, data)`; `data` is the CDR
 //! payload with its 4-byte encapsulation header, `timestamp` the receive time in nanoseconds.
 //! Humble stores no message definitions, so a topic is recognised by its type name:
-//! `sensor_msgs/msg/JointState` is decoded as the MCAP reader decodes it (see
+//! `sensor_msgs/msg/JointState` and the `std_msgs` scalars (`Float64`, `Float32`, `Int64`,
+//! `Int32`, `UInt32`, `UInt16`) are decoded as the MCAP reader decodes them (see
 //! [`crate::mcap_log`]), and the same rules name and align its channels (the joint name where
 //! unique, else `TOPIC/JOINT`; channels on several topics aligned on the first selected one's
 //! stamps). Topics of other types are listed by [`BagReader::topics`] and skipped.
@@ -34,7 +35,7 @@ use rusqlite::{Connection, OpenFlags};
 
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::mcap_log::read::{
-    Encoding, Registry, Resolved, TopicStats, decode, first_message, seconds,
+    Encoding, Registry, Resolved, Topic, TopicStats, decode, first_message, seconds,
 };
 use crate::mcap_log::{IgnoredTopic, JOINT_STATE_SCHEMA, PEEK_WINDOW, TopicInfo};
 use crate::naming::{ChannelName, names_of};
@@ -588,8 +589,8 @@ impl BagReader {
                 None,
                 None,
                 format!(
-                    "no topic holds {JOINT_STATE_SCHEMA} messages (found: {}); record the \
-                     encoders as JointState",
+                    "no topic holds {JOINT_STATE_SCHEMA} or std_msgs scalar messages (found: \
+                     {}); record the encoders as JointState",
                     found.join(", ")
                 ),
             ));
@@ -599,16 +600,12 @@ impl BagReader {
             topic.offset = offset;
             offset += topic.names.len();
         }
-        let names = names_of(registry.topics.iter().flat_map(|t| {
-            t.names
-                .iter()
-                .map(move |n| (Some(t.name.as_str()), n.as_str()))
-        }));
+        let names = names_of(registry.topics.iter().flat_map(Topic::channel_names));
         let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
         for topic in &registry.topics {
             let unit = match topic.encoding {
                 Encoding::JointState => AngleUnit::Rad,
-                Encoding::Json => opts.unit.unwrap_or(AngleUnit::Deg),
+                Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
             };
             for _ in &topic.names {
                 all_channels.push(Channel {

@@ -49,7 +49,7 @@ use mcap::McapError;
 use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 
 use super::JOINT_STATE_SCHEMA;
-use super::cdr::JointState;
+use super::cdr::{JointState, Scalar};
 use super::json;
 use super::records::{self, StreamError};
 use crate::align::{AlignOptions, Aligner, Alignment};
@@ -234,6 +234,8 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
 pub(crate) enum Encoding {
     JointState,
     Json,
+    /// A `std_msgs` scalar (CDR): one channel, named after the topic.
+    Scalar(Scalar),
 }
 
 impl Encoding {
@@ -250,6 +252,7 @@ impl Encoding {
                 Some(Encoding::JointState)
             }
             "json" => Some(Encoding::Json),
+            "cdr" => Scalar::of_type(schema).map(Encoding::Scalar),
             _ => None,
         }
     }
@@ -535,8 +538,8 @@ impl McapReader {
                 None,
                 None,
                 format!(
-                    "no topic holds {JOINT_STATE_SCHEMA} (cdr) or JSON messages (found: {}); \
-                     record the encoders as JointState or JSON",
+                    "no topic holds {JOINT_STATE_SCHEMA} (cdr), std_msgs scalar (cdr) or JSON \
+                     messages (found: {}); record the encoders as JointState or JSON",
                     if found.is_empty() {
                         "no topics".to_string()
                     } else {
@@ -550,16 +553,12 @@ impl McapReader {
             topic.offset = offset;
             offset += topic.names.len();
         }
-        let names = names_of(registry.topics.iter().flat_map(|t| {
-            t.names
-                .iter()
-                .map(move |n| (Some(t.name.as_str()), n.as_str()))
-        }));
+        let names = names_of(registry.topics.iter().flat_map(Topic::channel_names));
         let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
         for topic in &registry.topics {
             let unit = match topic.encoding {
                 Encoding::JointState => AngleUnit::Rad,
-                Encoding::Json => opts.unit.unwrap_or(AngleUnit::Deg),
+                Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
             };
             for _ in &topic.names {
                 all_channels.push(Channel {
@@ -874,14 +873,19 @@ pub(crate) fn first_message(
             })?;
             topic.seen = vec![false; topic.names.len()];
         }
+        Encoding::Scalar(kind) => {
+            kind.decode(&message.data).map_err(|e| e.to_string())?;
+            topic.names.push(topic.name.clone());
+        }
     }
     if topic.names.is_empty() {
         return Err(match encoding {
             Encoding::JointState => "the topic's first JointState message names no joints; \
                                      publish the encoders' names and positions"
                 .into(),
-            Encoding::Json => "the topic's first JSON message has no numeric field; publish \
-                               one numeric field per encoder"
+            Encoding::Json | Encoding::Scalar(_) => "the topic's first JSON message has no \
+                                                     numeric field; publish one numeric field \
+                                                     per encoder"
                 .into(),
         });
     }
@@ -896,6 +900,16 @@ fn repeated_joint(name: &str) -> String {
 }
 
 impl Topic {
+    /// `(topic, name)` of each channel, as [`names_of`] takes them: a scalar topic's one
+    /// channel is the topic itself.
+    pub(crate) fn channel_names(&self) -> impl Iterator<Item = (Option<&str>, &str)> {
+        let topic = match self.encoding {
+            Encoding::Scalar(_) => None,
+            _ => Some(self.name.as_str()),
+        };
+        self.names.iter().map(move |n| (topic, n.as_str()))
+    }
+
     /// Adds the joints of a later message the topic's first did not name (peek pass).
     pub(crate) fn learn(&mut self, message: &mcap::Message) -> Result<(), String> {
         if self.encoding != Encoding::JointState {
@@ -1020,6 +1034,18 @@ pub(crate) fn decode(
                 i64::from(js.sec) * 1_000_000_000 + i64::from(js.nanosec)
             };
             Ok((stamp, full))
+        }
+        Encoding::Scalar(kind) => {
+            let stamp = log_time_ns(message.log_time).map_err(|m| (None, m))?;
+            let v = kind
+                .decode(&message.data)
+                .map_err(|e| (None, e.to_string()))?;
+            let rad = v * topic.scale;
+            if let Some(problem) = crate::limits::reading_problem(v, v, rad) {
+                return Err((None, problem));
+            }
+            out[0] = rad;
+            Ok((stamp, true))
         }
         Encoding::Json => {
             let stamp = log_time_ns(message.log_time).map_err(|m| (None, m))?;
