@@ -172,6 +172,10 @@ pub fn run<F>(
 where
     F: Fn(&Path, &Path) -> anyhow::Result<Outcome> + Sync,
 {
+    crate::output::prepare_folder(output)?;
+    if let Some(plots) = crate::ui::plots_dir() {
+        crate::output::prepare_folder(plots)?;
+    }
     if logs.len() == 1 && !opts.per_log {
         let result = calibrate(&logs[0], output);
         let judged = judge(&logs[0], ".", result.as_ref(), opts);

@@ -14,7 +14,7 @@ use clap::{Parser, Subcommand};
 /// 3 a gate failed (--max-pp, --max-residual, --fail-on-warning, En > 1 in compare; the outputs
 /// are written all the same).
 #[derive(Debug, Parser, PartialEq)]
-#[command(name = "calib", version, about, long_about)]
+#[command(name = "calib", version, about, long_about, after_help = calib_io::limits::help_text())]
 pub struct Cli {
     /// Options of every command.
     #[command(flatten)]

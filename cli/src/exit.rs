@@ -26,6 +26,74 @@ pub struct Failed {
     pub message: String,
 }
 
+/// An OS error's reason without the `(os error N)` suffix, for a message that names the path
+/// and what to do itself.
+pub fn os_reason(e: &std::io::Error) -> String {
+    let s = e.to_string();
+    match s.find(" (os error") {
+        Some(i) => s[..i].to_string(),
+        None => s,
+    }
+}
+
+/// The message of an error chain, as `calib: error: …` prints it: each cause once (a cause whose
+/// text an outer one already quotes is left out, so an OS error is not printed twice), the
+/// system's `(os error N)` dropped, what to do added for the common OS errors, and control
+/// characters escaped.
+pub fn render(err: &anyhow::Error) -> String {
+    let mut message = String::new();
+    let mut hint = None;
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if let Some(io) = cause.downcast_ref::<std::io::Error>() {
+            hint = hint.or_else(|| io_hint(io));
+        }
+        if message.contains(&text) {
+            continue;
+        }
+        if !message.is_empty() {
+            message.push_str(": ");
+        }
+        message.push_str(&text);
+    }
+    let mut message = strip_os_error(&message);
+    if let Some(hint) = hint {
+        message.push_str("; ");
+        message.push_str(hint);
+    }
+    crate::ui::escape_controls(&message)
+}
+
+/// `text` without the ` (os error N)` the system appends.
+fn strip_os_error(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(i) = rest.find(" (os error ") {
+        out.push_str(&rest[..i]);
+        rest = &rest[i..];
+        match rest.find(')') {
+            Some(j) => rest = &rest[j + 1..],
+            None => break,
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+/// What to do about an OS error, for the kinds a user can act on.
+fn io_hint(e: &std::io::Error) -> Option<&'static str> {
+    use std::io::ErrorKind as K;
+    Some(match e.kind() {
+        K::PermissionDenied => "check its permissions, or choose a path you can read or write",
+        K::StorageFull => "free some space on that disk, or write the outputs elsewhere",
+        K::ReadOnlyFilesystem => "that file system is read-only: write the outputs elsewhere",
+        K::IsADirectory => "that is a folder: name a file",
+        K::NotADirectory => "a part of the path is a file, not a folder: check the path",
+        K::AlreadyExists => "something is in the way at that path: remove it or choose another",
+        _ => return None,
+    })
+}
+
 /// The exit status for an error: a [`Failed`] run's own code; [`USAGE`] if any error in its
 /// chain is a [`Usage`] error or an unknown unit or channel name; else [`DATA`].
 pub fn code_of(err: &anyhow::Error) -> u8 {

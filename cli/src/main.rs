@@ -19,6 +19,7 @@ use std::io::Write;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    clean_up_on_signals();
     let cli = cli::Cli::parse();
     let (output, code) = match commands::run(cli) {
         Ok(output) => (output, 0),
@@ -29,7 +30,7 @@ fn main() -> ExitCode {
             (failed.stdout, failed.code)
         }
         Err(err) => {
-            eprintln!("calib: error: {err:#}");
+            eprintln!("calib: error: {}", exit::render(&err));
             return ExitCode::from(exit::code_of(&err));
         }
     };
@@ -46,4 +47,20 @@ fn main() -> ExitCode {
             ExitCode::from(exit::DATA)
         }
     }
+}
+
+/// On SIGINT or SIGTERM, removes this run's temporary files and folders and exits with
+/// 128 + the signal's number, as a shell reports a process killed by it. Outputs already renamed
+/// into place stay: each is complete.
+fn clean_up_on_signals() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            eprintln!("calib: interrupted; removing this run's temporary files");
+            calib_io::atomic::remove_live_and_exit(128 + signal);
+        }
+    });
 }

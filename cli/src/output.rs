@@ -1,11 +1,109 @@
 //! Writing a method's outputs: correction tables, `report.json` and `report.html` (and the
 //! `--plots` files), together or not at all.
 
+use crate::exit::Usage;
 use crate::input::file_stem;
 use anyhow::Context;
 use calib_core::ErrorMap;
 use calib_report::Document;
 use std::path::Path;
+
+/// Checks, before any reading, that `dir` can be an output folder (an existing folder, or one
+/// that can be created where an existing folder is writable), and removes the temporary files
+/// and folders that killed calib runs left in it and beside it, telling the user how many.
+pub fn prepare_folder(dir: &Path) -> anyhow::Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Usage(format!(
+            "-o {}: this is a file, not a folder; name a folder for the outputs (created if \
+             missing)",
+            dir.display()
+        ))
+        .into());
+    }
+    check_writable(dir, "-o")?;
+    report_stale(dir);
+    if let Some(parent) = std::fs::canonicalize(dir)
+        .ok()
+        .and_then(|d| d.parent().map(Path::to_path_buf))
+    {
+        report_stale(&parent);
+    }
+    Ok(())
+}
+
+/// Checks, before any reading, that a file can be written at `path` (its folder exists and is
+/// writable, and it is not a folder), and removes stale temporary files beside it.
+pub fn prepare_file(path: &Path, option: &str) -> anyhow::Result<()> {
+    if path.is_dir() {
+        return Err(Usage(format!(
+            "{option} {}: this is a folder; name a file to write",
+            path.display()
+        ))
+        .into());
+    }
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !parent.is_dir() {
+        return Err(Usage(format!(
+            "{option} {}: the folder {} does not exist; create it first or choose another path",
+            path.display(),
+            parent.display()
+        ))
+        .into());
+    }
+    check_writable(parent, option)?;
+    report_stale(parent);
+    Ok(())
+}
+
+/// Whether a file can be created in `dir` or, if it does not exist, in its nearest existing
+/// ancestor (where `create_dir_all` will make it): found by creating and removing one.
+fn check_writable(dir: &Path, option: &str) -> anyhow::Result<()> {
+    let mut at = dir;
+    while !at.exists() {
+        match at.parent() {
+            Some(p) if !p.as_os_str().is_empty() => at = p,
+            _ => {
+                at = Path::new(".");
+                break;
+            }
+        }
+    }
+    if !at.is_dir() {
+        return Err(Usage(format!(
+            "{option} {}: {} is a file, so no folder can be made there; choose another path",
+            dir.display(),
+            at.display()
+        ))
+        .into());
+    }
+    tempfile::Builder::new()
+        .prefix(".calib-probe")
+        .tempfile_in(at)
+        .map(drop)
+        .map_err(|e| {
+            Usage(format!(
+                "{option} {}: cannot write into {} ({}); choose a folder you can write to",
+                dir.display(),
+                at.display(),
+                crate::exit::os_reason(&e)
+            ))
+            .into()
+        })
+}
+
+/// Removes stale temporary files of calib's from `dir`, noting how many on standard error.
+fn report_stale(dir: &Path) {
+    let n = calib_io::atomic::remove_stale(dir);
+    if n > 0 {
+        eprintln!(
+            "calib: note: removed {n} temporary file(s) left in {} by a calib run that was killed",
+            dir.display()
+        );
+    }
+}
 
 /// The table file name of a channel: `<channel>.csv`, made safe as a file name.
 pub fn table_name(channel: &str) -> String {

@@ -20,6 +20,10 @@ pub struct Global {
     /// commands).
     #[arg(long, global = true, value_name = "DIR")]
     pub plots: Option<PathBuf>,
+    /// Leave out MCAP chunks whose checksum (CRC) does not match, warning and listing each in
+    /// the report. Without it a damaged chunk is an error (exit 1): its readings may be wrong.
+    #[arg(long, global = true)]
+    pub skip_damaged: bool,
 }
 
 static GLOBAL: OnceLock<Global> = OnceLock::new();
@@ -36,6 +40,33 @@ fn global() -> &'static Global {
 /// The `--plots` folder, if given.
 pub fn plots_dir() -> Option<&'static Path> {
     global().plots.as_deref()
+}
+
+/// A path as a message shows it: control characters (a NUL, an escape sequence, a line end in a
+/// file name) escaped, so that a message is one readable line that cannot drive the terminal.
+pub fn shown(path: &Path) -> String {
+    escape_controls(&path.display().to_string())
+}
+
+/// `text` with control characters escaped as Rust escapes them (`\0`, `\n`, `\u{1b}`).
+pub fn escape_controls(text: &str) -> String {
+    if !text.chars().any(char::is_control) {
+        return text.to_string();
+    }
+    text.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
+/// Whether `--skip-damaged` was given.
+pub fn skip_damaged() -> bool {
+    global().skip_damaged
 }
 
 /// Where every bar draws: one stack on standard error, so the bars of logs read in parallel

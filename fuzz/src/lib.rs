@@ -38,6 +38,7 @@ pub fn options(byte: u8) -> ReadOptions {
     ReadOptions {
         unit,
         allow_unordered_time: byte & 0x8 != 0,
+        skip_damaged: byte & 0x10 != 0,
     }
 }
 

@@ -84,13 +84,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             .map(|s| s.to_string_lossy().into_owned())
             .ok_or_else(|| Usage("name the channel to correct with --channel".into()))?,
     };
-    if !args.log.exists() {
-        return Err(Usage(format!(
-            "{}: no such file; check the path",
-            args.log.display()
-        ))
-        .into());
-    }
+    crate::input::check_log_path(&args.log)?;
     if same_file(&args.log, &args.output) {
         return Err(Usage(format!(
             "-o {} is the input log itself; write the corrected log to another file",
@@ -98,6 +92,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
+    crate::output::prepare_file(&args.output, "-o")?;
     let format = LogFormat::detect(&args.log)?;
     if format == LogFormat::Rosbag {
         return Err(Usage(format!(
@@ -141,6 +136,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             Wrap::Signed => Some(Wrapping::Signed),
             Wrap::None => Some(Wrapping::Unwrapped),
         },
+        skip_damaged: crate::ui::skip_damaged(),
     };
     let map = match &table {
         AnyTable::Turn(t) => MapRef::Turn(&t.map),
@@ -211,6 +207,17 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             args.log.display(),
             t.byte_offset,
             t.messages_read
+        );
+    }
+    if !done.damaged_chunks.is_empty() {
+        let list: Vec<String> = done.damaged_chunks.iter().map(|c| c.to_string()).collect();
+        let _ = writeln!(
+            o,
+            "\nwarning: {}: skipped {} damaged chunk(s) and their messages (--skip-damaged); the \
+             output leaves them out: {}",
+            args.log.display(),
+            done.damaged_chunks.len(),
+            list.join("; ")
         );
     }
     for w in warnings {

@@ -48,9 +48,6 @@ pub struct Args {
     pub points: Option<usize>,
 }
 
-/// Largest `--points` accepted (as for the method commands' tables).
-const MAX_POINTS: usize = 3_600_000;
-
 /// Runs `calib compose`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
     if !(args.factor.is_finite() && args.factor > 0.0 && args.factor <= 2.0) {
@@ -60,9 +57,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    if args.points.is_some_and(|p| !(2..=MAX_POINTS).contains(&p)) {
-        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
-    }
+    crate::input::check_points(args.points)?;
     let first = load(&args.first)?;
     let residual = load(&args.residual)?;
     let points = args

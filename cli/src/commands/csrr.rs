@@ -124,19 +124,33 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    if !(args.session_tol > 0.0
-        && args.min_speed > 0.0
-        && (0.0..1.0).contains(&args.min_observability))
+    if let Some(r) = args
+        .reference
+        .as_ref()
+        .filter(|r| **r == args.a || **r == args.b)
     {
-        return Err(Usage(
-            "--session-tol and --min-speed must be positive and --min-observability in [0, 1)"
-                .into(),
-        )
+        return Err(Usage(format!(
+            "--ref `{r}` is also a calibrated sensor's channel; the reference must be a third \
+             encoder on B's shaft (or leave --ref out)"
+        ))
         .into());
     }
-    if args.points.is_some_and(|p| p < 2) {
-        return Err(Usage("--points must be at least 2".into()).into());
+    crate::input::check_range("--session-tol", args.session_tol, 0.0, 180.0, "degrees")?;
+    crate::input::check_range(
+        "--min-speed",
+        args.min_speed,
+        0.0,
+        360_000.0,
+        "degrees per second",
+    )?;
+    if !(0.0..1.0).contains(&args.min_observability) {
+        return Err(Usage(format!(
+            "--min-observability {} is outside its range, 0 to 1 (excluded)",
+            calib_io::limits::readable(args.min_observability)
+        ))
+        .into());
     }
+    crate::input::check_points(args.points)?;
     if args.max_order == Some(0) {
         return Err(Usage("--max-order must be at least 1".into()).into());
     }
@@ -233,7 +247,17 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             }
             _ => pair,
         };
-        anyhow::Error::new(e).context(context)
+        let err = anyhow::Error::new(e).context(context);
+        match &reader.diagnostics().truncated {
+            // A cut file says so, whatever the method then lacks.
+            Some(t) => err.context(format!(
+                "{} is cut short at byte {} (only the {} messages before it were read)",
+                crate::ui::shown(log),
+                t.byte_offset,
+                t.messages_read
+            )),
+            None => err,
+        }
     })?;
     let mut warnings = reader.warnings(log);
     warnings.extend(cal.warnings.iter().cloned());

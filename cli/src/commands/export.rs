@@ -131,7 +131,7 @@ pub struct Args {
 pub struct Orders(pub Vec<usize>);
 
 /// Largest order a range in `--orders` may reach (the largest order of a 3,600,000-point table).
-const MAX_ORDER: usize = MAX_POINTS / 2;
+const MAX_ORDER: usize = calib_io::limits::MAX_TABLE_POINTS / 2;
 
 /// Parses `1,2,72` or `1-8,72,144`.
 fn parse_orders(text: &str) -> Result<Orders, String> {
@@ -160,9 +160,6 @@ fn parse_orders(text: &str) -> Result<Orders, String> {
     Ok(Orders(orders))
 }
 
-/// Largest `--points` accepted.
-const MAX_POINTS: usize = 3_600_000;
-
 /// An export error as an exit status: each is a choice of options this table cannot be written
 /// with (a scale that saturates, a size or orders the format does not take, a periodic format for
 /// a range table), so a usage error (exit 2).
@@ -172,16 +169,13 @@ fn classify(err: ExportError) -> anyhow::Error {
 
 /// Runs `calib export`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    if args.points.is_some_and(|p| !(2..=MAX_POINTS).contains(&p)) {
-        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
-    }
+    crate::input::check_points(args.points)?;
     if args.scale.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
         return Err(Usage("--scale must be a positive number of arcseconds per LSB".into()).into());
     }
-    if !(args.min_amplitude.is_finite() && args.min_amplitude >= 0.0) || args.harmonics == Some(0) {
-        return Err(
-            Usage("--min-amplitude must be at least 0 and --harmonics at least 1".into()).into(),
-        );
+    crate::input::check_non_negative("--min-amplitude", args.min_amplitude, "arcseconds")?;
+    if args.harmonics == Some(0) {
+        return Err(Usage("--harmonics 0 is outside its range: at least 1".into()).into());
     }
     if !args.table.exists() {
         return Err(Usage(format!(

@@ -15,9 +15,6 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// Largest `--points` accepted (a 0.0001° grid).
-const MAX_POINTS: usize = 3_600_000;
-
 /// The method, as chosen on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum MethodArg {
@@ -189,9 +186,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.max_order == Some(0) {
         return Err(Usage("--max-order must be at least 1".into()).into());
     }
-    if args.points.is_some_and(|p| !(2..=MAX_POINTS).contains(&p)) {
-        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
-    }
+    crate::input::check_points(args.points)?;
     if !(0.0..1.0).contains(&args.min_observability) {
         return Err(Usage("--min-observability must be in [0, 1)".into()).into());
     }

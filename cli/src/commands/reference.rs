@@ -16,9 +16,6 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
-const MAX_POINTS: usize = 3_600_000;
-
 /// Calibrate an encoder (the DUT) against a better reference encoder on the same shaft.
 ///
 /// Record both encoders turning together: whole revolutions, ideally 5 or more in each direction
@@ -138,24 +135,22 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    if !(2..=MAX_POINTS).contains(&args.points) {
-        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
-    }
-    let finite_nonneg = |v: f64| v.is_finite() && v >= 0.0;
-    if !(finite_nonneg(args.ref_u)
-        && finite_nonneg(args.approach)
-        && args.min_speed.is_finite()
-        && args.min_speed > 0.0
-        && args.follow_tol.is_finite()
-        && args.follow_tol > 0.0
-        && finite_nonneg(args.bridge_gap)
-        && args.bridge_gap < 360.0)
-    {
-        return Err(Usage(
-            "--min-speed and --follow-tol must be positive, --ref-u, --approach and --bridge-gap at least 0 \
-             (--bridge-gap below 360)"
-                .into(),
-        )
+    crate::input::check_points(Some(args.points))?;
+    crate::input::check_non_negative("--ref-u", args.ref_u, "arcseconds")?;
+    crate::input::check_non_negative("--approach", args.approach, "degrees")?;
+    crate::input::check_range(
+        "--min-speed",
+        args.min_speed,
+        0.0,
+        360_000.0,
+        "degrees per second",
+    )?;
+    crate::input::check_range("--follow-tol", args.follow_tol, 0.0, 180.0, "degrees")?;
+    if !(args.bridge_gap.is_finite() && (0.0..360.0).contains(&args.bridge_gap)) {
+        return Err(Usage(format!(
+            "--bridge-gap {} is outside its range: at least 0 and below 360 degrees",
+            calib_io::limits::readable(args.bridge_gap)
+        ))
         .into());
     }
     batch::run(

@@ -5,6 +5,7 @@ use crate::output::table_name;
 use anyhow::Context;
 use calib_core::simulate::Scenario;
 use calib_io::LogWriter;
+use calib_io::limits::MAX_SIMULATED_SAMPLES;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
@@ -29,6 +30,9 @@ pub struct Args {
     /// linearly to 0.02″ for errors of ±700″ at order 84).
     #[arg(long, default_value_t = 36000)]
     pub points: usize,
+    /// Write the run even when it has more samples than the limit (see Limits in `calib --help`).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Runs `calib simulate`.
@@ -52,14 +56,26 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     scenario
         .validate()
         .map_err(|e| Usage(format!("{}: {e}", args.scenario.display())))?;
-    if args.points < 2 {
-        return Err(Usage("--points must be at least 2".into()).into());
-    }
+    crate::input::check_points(Some(args.points))?;
     calib_io::LogFormat::for_output(&args.output).map_err(|e| Usage(e.to_string()))?;
 
     let channels = scenario.channels();
     let samples = scenario.samples()?;
     let count = samples.len();
+    // The sample count is exact from the scenario's timeline and rate: a mistyped rate or
+    // revolution count is refused before anything is written.
+    if count as u64 > MAX_SIMULATED_SAMPLES && !args.force {
+        let seconds = samples.duration_s();
+        return Err(Usage(format!(
+            "{}: the run would have {} samples ({} s at the scenario's rate), more than the \
+             {MAX_SIMULATED_SAMPLES} calib simulate writes without --force; check rate_hz and \
+             the revolutions, or add --force",
+            crate::ui::shown(&args.scenario),
+            calib_io::limits::readable(count as f64),
+            calib_io::limits::readable(seconds)
+        ))
+        .into());
+    }
     let mut writer = LogWriter::create(&args.output, &channels, scenario.mark_sessions)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     for sample in samples {

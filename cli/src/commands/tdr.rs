@@ -17,8 +17,6 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// Largest `--points` accepted (a 0.0001° grid; beyond it the tables are only memory).
-const MAX_POINTS: usize = 3_600_000;
 /// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
 const MAX_ORDER: usize = 1000;
 /// Largest `--max-drag-order` accepted: a drag's imprint falls as 1/h², and each order costs
@@ -115,9 +113,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    if !(2..=MAX_POINTS).contains(&args.points) {
-        return Err(Usage(format!("--points must be between 2 and {MAX_POINTS}")).into());
-    }
+    crate::input::check_points(Some(args.points))?;
     if args
         .max_order
         .is_some_and(|h| !(1..=MAX_ORDER).contains(&h))

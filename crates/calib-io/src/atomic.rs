@@ -1,15 +1,22 @@
-//! All-or-nothing output files.
+//! All-or-nothing output files and output folders.
 //!
 //! The interface promises that "a failed run leaves no half-written table behind". An
 //! [`AtomicFile`] writes into a temporary file in the target's own directory (so the final rename
 //! never crosses a file system) and only [`AtomicFile::commit`] puts it in place: flush, `fsync`,
 //! rename. Dropping it uncommitted — an error, a panic elsewhere, an early return — removes the
 //! temporary file and leaves whatever was at the target untouched.
+//!
+//! An [`OutputSet`] does the same for the files of a run that belong together (tables, reports,
+//! plots): see its docs for the guarantee. Temporary files and folders are named
+//! `.<name>.calib-<pid>.<random>.tmp`: [`remove_stale`] removes those of runs that are no longer
+//! alive, and [`remove_live_and_exit`] (called on SIGINT/SIGTERM) those of this run.
 
 use crate::Error;
 use std::fs::File;
 use std::io::{self, BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, OnceLock};
 use tempfile::NamedTempFile;
 
 /// A buffered file that appears at its path only when committed.
@@ -32,7 +39,10 @@ use tempfile::NamedTempFile;
 #[derive(Debug)]
 pub struct AtomicFile {
     target: PathBuf,
-    inner: BufWriter<NamedTempFile>,
+    /// The temporary file's path, registered in [`LIVE`] until committed or dropped.
+    temp: PathBuf,
+    /// `None` once committed.
+    inner: Option<BufWriter<NamedTempFile>>,
 }
 
 impl AtomicFile {
@@ -44,11 +54,14 @@ impl AtomicFile {
             path: target.to_path_buf(),
             source,
         };
-        let temp = temp_file_beside(target).map_err(io_err)?;
+        let file = temp_file_beside(target).map_err(io_err)?;
+        let temp = file.path().to_path_buf();
+        register(&temp);
         Ok(AtomicFile {
             target: target.to_path_buf(),
+            temp,
             // Large enough that writing a million-row log is not dominated by system calls.
-            inner: BufWriter::with_capacity(1 << 16, temp),
+            inner: Some(BufWriter::with_capacity(1 << 16, file)),
         })
     }
 
@@ -57,34 +70,52 @@ impl AtomicFile {
         &self.target
     }
 
+    fn writer(&mut self) -> io::Result<&mut BufWriter<NamedTempFile>> {
+        self.inner
+            .as_mut()
+            .ok_or_else(|| io::Error::other("the file was already committed"))
+    }
+
     /// Flushes, syncs to disk and renames the file into place, replacing any file there.
-    pub fn commit(self) -> Result<(), Error> {
-        let target = self.target;
+    pub fn commit(mut self) -> Result<(), Error> {
+        let target = self.target.clone();
         let io_err = |source| Error::Io {
             path: target.clone(),
             source,
         };
-        let temp = self
-            .inner
-            .into_inner()
-            .map_err(|e| io_err(e.into_error()))?;
+        let Some(inner) = self.inner.take() else {
+            return Ok(());
+        };
+        let temp = inner.into_inner().map_err(|e| io_err(e.into_error()))?;
         // Sync before the rename: otherwise a crash can leave the new name pointing at an empty
         // or partial file on file systems that reorder metadata and data writes.
         temp.as_file().sync_all().map_err(io_err)?;
-        temp.persist(&target).map_err(|e| io_err(e.error))?;
+        fault_point();
+        {
+            // Under the lock: a signal's clean-up either runs before the rename (and removes the
+            // temporary file) or after it (and finds it gone).
+            let mut live = lock_live();
+            temp.persist(&target).map_err(|e| io_err(e.error))?;
+            live.retain(|p| *p != self.temp);
+        }
         sync_parent_dir(&target);
         Ok(())
     }
 }
 
-/// Makes the rename itself durable. Best effort: some file systems refuse to sync a directory,
-/// and the output is complete and in place either way, so a failure here is not an error.
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if self.inner.take().is_some() {
+            // The `NamedTempFile` just dropped removed the file.
+            lock_live().retain(|p| *p != self.temp);
+        }
+    }
+}
+
+/// Makes a rename durable. Best effort: some file systems refuse to sync a directory, and the
+/// output is complete and in place either way, so a failure here is not an error.
 #[cfg(unix)]
-fn sync_parent_dir(target: &Path) {
-    let dir = match target.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+fn sync_dir(dir: &Path) {
     if let Ok(d) = File::open(dir) {
         let _ = d.sync_all();
     }
@@ -92,39 +123,55 @@ fn sync_parent_dir(target: &Path) {
 
 /// Directories cannot be opened as files on this platform; the rename is all there is.
 #[cfg(not(unix))]
-fn sync_parent_dir(_target: &Path) {}
+fn sync_dir(_dir: &Path) {}
+
+fn sync_parent_dir(target: &Path) {
+    sync_dir(parent_of(target));
+}
+
+/// The directory holding `path` (`.` for a bare name).
+fn parent_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
 
 impl Write for AtomicFile {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.inner.write(buf)
+        self.writer()?.write(buf)
     }
     fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
-        self.inner.write_all(buf)
+        self.writer()?.write_all(buf)
     }
     fn flush(&mut self) -> io::Result<()> {
-        self.inner.flush()
+        self.writer()?.flush()
     }
 }
 
 impl Seek for AtomicFile {
     fn seek(&mut self, pos: SeekFrom) -> io::Result<u64> {
-        self.inner.seek(pos)
+        self.writer()?.seek(pos)
     }
 }
 
-/// A hidden temporary file in `target`'s directory (`.name.XXXX.tmp`), readable as an ordinary
-/// output once renamed: a `NamedTempFile` is private (0600) by default, so ask for 0666 and let
-/// the user's umask decide, as for any other file they create.
+/// The infix of every temporary name calib makes: `.<name>.calib-<pid>.<random>.tmp`.
+const TEMP_INFIX: &str = ".calib-";
+
+/// The start of the temporary names for `name` made by this process.
+fn temp_prefix(name: &str) -> String {
+    format!(".{name}{TEMP_INFIX}{}.", std::process::id())
+}
+
+/// A hidden temporary file in `target`'s directory (`.name.calib-<pid>.XXXXXX.tmp`), readable as
+/// an ordinary output once renamed: a `NamedTempFile` is private (0600) by default, so ask for
+/// 0666 and let the user's umask decide, as for any other file they create.
 pub(crate) fn temp_file_beside(target: &Path) -> io::Result<NamedTempFile> {
-    let dir = match target.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
     let name = target
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let prefix = format!(".{name}.");
+    let prefix = temp_prefix(&name);
     let mut builder = tempfile::Builder::new();
     builder.prefix(&prefix).suffix(".tmp");
     #[cfg(unix)]
@@ -132,15 +179,148 @@ pub(crate) fn temp_file_beside(target: &Path) -> io::Result<NamedTempFile> {
         use std::os::unix::fs::PermissionsExt;
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
-    builder.tempfile_in(dir)
+    builder.tempfile_in(parent_of(target))
 }
 
-/// Several outputs that appear together or not at all: each is written in full to a temporary
-/// file first, and only when all are written are they renamed into place. A run that fails
-/// while writing (a full disk, a folder in the way) leaves none of them behind.
+/// The temporary files and folders of this run not yet renamed into place or removed.
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn lock_live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    // A panic while holding the lock leaves the list itself intact.
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn register(path: &Path) {
+    lock_live().push(path.to_path_buf());
+}
+
+/// Removes this run's temporary files and folders and exits with `code`, holding the lock so
+/// that no rename into place starts meanwhile: for a SIGINT/SIGTERM handler. A file being
+/// renamed when the signal came is either in place (complete) or removed.
+pub fn remove_live_and_exit(code: i32) -> ! {
+    let live = lock_live();
+    for path in live.iter() {
+        if path.is_dir() {
+            let _ = std::fs::remove_dir_all(path);
+        } else {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+    std::process::exit(code)
+}
+
+/// Removes, from `dir`, temporary files and folders of calib's naming whose run is no longer
+/// alive (killed before it could clean up); returns how many. Those of live runs (a concurrent
+/// run into the same folder) are kept.
+pub fn remove_stale(dir: &Path) -> usize {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = stale_owner(&name.to_string_lossy()) else {
+            continue;
+        };
+        if pid == std::process::id() || alive(pid) {
+            continue;
+        }
+        let path = entry.path();
+        let gone = match entry.file_type() {
+            Ok(t) if t.is_dir() => std::fs::remove_dir_all(&path),
+            _ => std::fs::remove_file(&path),
+        };
+        removed += usize::from(gone.is_ok());
+    }
+    removed
+}
+
+/// The process ID in a temporary name of calib's (`.<name>.calib-<pid>.<random>.tmp`).
+fn stale_owner(name: &str) -> Option<u32> {
+    if !name.starts_with('.') || !name.ends_with(".tmp") {
+        return None;
+    }
+    let at = name.rfind(TEMP_INFIX)?;
+    let rest = &name[at + TEMP_INFIX.len()..];
+    let (pid, random) = rest.split_once('.')?;
+    (random.len() > ".tmp".len()).then_some(())?;
+    pid.parse().ok()
+}
+
+/// Whether process `pid` exists.
+#[cfg(unix)]
+fn alive(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    // SAFETY: signal 0 only checks that the process exists and may be signalled.
+    let r = unsafe { libc::kill(pid, 0) };
+    r == 0 || io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+}
+
+/// Without a way to ask, every owner is taken to be alive: nothing is removed.
+#[cfg(not(unix))]
+fn alive(_pid: u32) -> bool {
+    true
+}
+
+/// The fault-injection hook of the tests: with `CALIB_TEST_KILL_AT=n` in the environment, the
+/// process exits at once (no clean-up, as after SIGKILL) at the `n`-th step of writing outputs
+/// (1-based), so that a test can stop a run at every step in turn instead of relying on timing.
+fn fault_point() {
+    static AT: OnceLock<Option<u64>> = OnceLock::new();
+    static STEP: AtomicU64 = AtomicU64::new(0);
+    let Some(at) = *AT.get_or_init(|| {
+        std::env::var("CALIB_TEST_KILL_AT")
+            .ok()
+            .and_then(|v| v.parse().ok())
+    }) else {
+        return;
+    };
+    if STEP.fetch_add(1, Ordering::SeqCst) + 1 == at {
+        std::process::exit(KILLED_EXIT);
+    }
+}
+
+/// The exit status of a run stopped by the fault-injection hook.
+pub const KILLED_EXIT: i32 = 86;
+
+/// The file listing the files of the run that wrote a folder, one name per line: written last.
+pub const MANIFEST: &str = ".calib-manifest";
+
+/// Several outputs that appear together or not at all.
+///
+/// The files are grouped by folder. Each folder's files are written in full into a staging
+/// folder beside it (`.<folder>.calib-<pid>.<random>.tmp`), with a [`MANIFEST`] listing them,
+/// and synced; then the staging folder takes the folder's place in one step:
+/// - a folder that does not exist yet is created by renaming the staging folder;
+/// - a folder that holds only a previous run's outputs (every entry listed in its manifest) or
+///   nothing is swapped with the staging folder by one `renameat2(RENAME_EXCHANGE)` on Linux,
+///   and the previous run's files are removed after the swap. Elsewhere (or on a file system
+///   without the exchange) the old folder is renamed aside and the new one renamed in: for an
+///   instant there is no folder, never a mixed one.
+///
+/// So after a run, killed or not, the folder holds exactly one run's files. A folder holding
+/// other files too (`-o .` beside the logs) cannot be swapped without moving them, nor can a
+/// folder whose parent is not writable or is another file system (a mount point), nor the
+/// working directory: there the files are staged inside it and renamed in one by one, then the previous run's files not written this time are
+/// removed, and the manifest is renamed in last, naming the set that is complete. With several
+/// folders (`--plots DIR`), they are replaced in the reverse order of their first file, so the
+/// folder of the first file (the output folder) is replaced last.
 #[derive(Debug, Default)]
 pub struct OutputSet {
-    files: Vec<AtomicFile>,
+    folders: Vec<Staged>,
+}
+
+/// One folder's files, staged.
+#[derive(Debug)]
+struct Staged {
+    target: PathBuf,
+    staging: PathBuf,
+    /// The staging folder is inside the target (its parent is not writable or is another file
+    /// system), so the files can only be renamed in one by one.
+    inside: bool,
+    files: Vec<String>,
 }
 
 impl OutputSet {
@@ -148,40 +328,263 @@ impl OutputSet {
     pub fn new() -> Self {
         Self::default()
     }
-    /// Writes `bytes` for `path` to a temporary file.
+
+    /// Writes `bytes` for `path` into its folder's staging folder. `path`'s folder must exist.
     pub fn add(&mut self, path: &Path, bytes: &[u8]) -> Result<(), Error> {
-        let mut file = AtomicFile::create(path)?;
-        file.write_all(bytes).map_err(|source| Error::Io {
+        let io_err = |source| Error::Io {
             path: path.to_path_buf(),
             source,
-        })?;
-        self.files.push(file);
+        };
+        let name = path
+            .file_name()
+            .ok_or_else(|| Error::Write {
+                path: path.to_path_buf(),
+                message: "the path names no file".into(),
+            })?
+            .to_string_lossy()
+            .into_owned();
+        let folder = std::fs::canonicalize(parent_of(path)).map_err(io_err)?;
+        let k = match self.folders.iter().position(|f| f.target == folder) {
+            Some(k) => k,
+            None => {
+                let (staging, inside) = staging_for(&folder).map_err(io_err)?;
+                self.folders.push(Staged {
+                    target: folder,
+                    staging,
+                    inside,
+                    files: Vec::new(),
+                });
+                self.folders.len() - 1
+            }
+        };
+        let staged = &mut self.folders[k];
+        let mut file = File::create(staged.staging.join(&name)).map_err(io_err)?;
+        file.write_all(bytes).map_err(io_err)?;
+        file.sync_all().map_err(io_err)?;
+        staged.files.retain(|f| *f != name);
+        staged.files.push(name);
+        fault_point();
         Ok(())
     }
-    /// Renames every file into place. A target that is a folder fails the whole set before any
-    /// rename; should a rename still fail, the files already renamed are removed again.
-    pub fn commit(self) -> Result<(), Error> {
-        if let Some(f) = self.files.iter().find(|f| f.target().is_dir()) {
+
+    /// Puts every folder's files in place (see the type's docs).
+    pub fn commit(mut self) -> Result<(), Error> {
+        while let Some(staged) = self.folders.pop() {
+            staged.commit()?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        for staged in &self.folders {
+            let _ = std::fs::remove_dir_all(&staged.staging);
+            lock_live().retain(|p| *p != staged.staging);
+        }
+    }
+}
+
+/// A new, registered staging folder for `folder` (an absolute path): beside it where its parent
+/// is writable and on the same file system (so that one rename can swap them), else inside it;
+/// and whether it is inside.
+fn staging_for(folder: &Path) -> io::Result<(PathBuf, bool)> {
+    let name = folder
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let make = |dir: &Path| {
+        tempfile::Builder::new()
+            .prefix(&temp_prefix(&name))
+            .suffix(".tmp")
+            .tempdir_in(dir)
+            .map(tempfile::TempDir::keep)
+    };
+    let parent = folder.parent().filter(|p| same_file_system(folder, p));
+    let (staging, inside) = match parent.map(make) {
+        Some(Ok(staging)) => (staging, false),
+        _ => (make(folder)?, true),
+    };
+    register(&staging);
+    Ok((staging, inside))
+}
+
+#[cfg(unix)]
+fn same_file_system(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev(),
+        _ => false,
+    }
+}
+
+/// Without device numbers, assume one file system: a failed swap is an error, nothing is lost.
+#[cfg(not(unix))]
+fn same_file_system(_a: &Path, _b: &Path) -> bool {
+    true
+}
+
+impl Staged {
+    fn commit(self) -> Result<(), Error> {
+        let io_err = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| Error::Io { path, source }
+        };
+        let mut listing: String = self.files.iter().map(|f| format!("{f}\n")).collect();
+        if listing.is_empty() {
+            listing.push('\n');
+        }
+        let manifest = self.staging.join(MANIFEST);
+        let mut file = File::create(&manifest).map_err(io_err(&self.target.join(MANIFEST)))?;
+        file.write_all(listing.as_bytes())
+            .and_then(|()| file.sync_all())
+            .map_err(io_err(&self.target.join(MANIFEST)))?;
+        sync_dir(&self.staging);
+        fault_point();
+        let swap = !self.inside && replaceable(&self.target);
+        if let Some(f) = self
+            .files
+            .iter()
+            .find(|f| self.target.join(f).is_dir() && !swap)
+        {
             return Err(Error::Write {
-                path: f.target().to_path_buf(),
+                path: self.target.join(f),
                 message:
                     "a folder of that name is in the way; remove it or choose another output folder"
                         .into(),
             });
         }
-        let mut done: Vec<PathBuf> = Vec::new();
-        for file in self.files {
-            let target = file.target().to_path_buf();
-            if let Err(e) = file.commit() {
-                for path in &done {
-                    let _ = std::fs::remove_file(path);
-                }
-                return Err(e);
-            }
-            done.push(target);
+        if swap {
+            self.swap().map_err(io_err(&self.target))
+        } else {
+            self.file_by_file()
         }
+    }
+
+    /// Swaps the staging folder in for the target folder and removes the old contents.
+    fn swap(&self) -> io::Result<()> {
+        #[cfg(unix)]
+        if let Ok(meta) = std::fs::metadata(&self.target) {
+            // The new folder keeps the old one's permissions (a group-shared results folder).
+            let _ = std::fs::set_permissions(&self.staging, meta.permissions());
+        }
+        {
+            let live = lock_live();
+            if !self.target.exists() {
+                std::fs::rename(&self.staging, &self.target)?;
+                drop(live);
+                lock_live().retain(|p| *p != self.staging);
+                sync_parent_dir(&self.target);
+                return Ok(());
+            }
+            if exchange(&self.staging, &self.target).is_err() {
+                // No atomic exchange here: move the old folder aside (under the staging name,
+                // so its clean-up is the same), then the new one in.
+                let aside = self.staging.with_extension("old.tmp");
+                std::fs::rename(&self.target, &aside)?;
+                fault_point();
+                std::fs::rename(&self.staging, &self.target)?;
+                std::fs::rename(&aside, &self.staging)?;
+            }
+            drop(live);
+        }
+        sync_parent_dir(&self.target);
+        fault_point();
+        // The staging name now holds the previous run's files.
+        let removed = std::fs::remove_dir_all(&self.staging);
+        lock_live().retain(|p| *p != self.staging);
+        removed
+    }
+
+    /// Renames the files in one by one, removes the previous run's other files, and renames the
+    /// manifest in last.
+    fn file_by_file(&self) -> Result<(), Error> {
+        let previous = read_manifest(&self.target);
+        let live = lock_live();
+        for f in &self.files {
+            let to = self.target.join(f);
+            std::fs::rename(self.staging.join(f), &to).map_err(|source| Error::Io {
+                path: to.clone(),
+                source,
+            })?;
+            fault_point();
+        }
+        for old in previous.iter().filter(|o| !self.files.contains(o)) {
+            let _ = std::fs::remove_file(self.target.join(old));
+        }
+        let to = self.target.join(MANIFEST);
+        std::fs::rename(self.staging.join(MANIFEST), &to)
+            .map_err(|source| Error::Io { path: to, source })?;
+        drop(live);
+        sync_dir(&self.target);
+        let _ = std::fs::remove_dir(&self.staging);
+        lock_live().retain(|p| *p != self.staging);
         Ok(())
     }
+}
+
+/// The file names listed in `folder`'s manifest (empty if it has none).
+fn read_manifest(folder: &Path) -> Vec<String> {
+    std::fs::read_to_string(folder.join(MANIFEST))
+        .map(|s| {
+            s.lines()
+                .filter(|l| !l.is_empty() && !l.contains('/') && *l != "." && *l != "..")
+                .map(str::to_string)
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Whether `folder` can be replaced as a whole: it does not exist, is empty, or holds only the
+/// files its manifest lists. A temporary file of a live run (a concurrent run into the same
+/// folder) is another run's business, so it keeps the folder from being replaced.
+fn replaceable(folder: &Path) -> bool {
+    // The working directory (or one holding it) is never swapped: the user's shell would be left
+    // in a removed folder.
+    if std::env::current_dir()
+        .and_then(std::fs::canonicalize)
+        .is_ok_and(|cwd| cwd.starts_with(folder))
+    {
+        return false;
+    }
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return !folder.exists();
+    };
+    let listed = read_manifest(folder);
+    entries.flatten().all(|e| {
+        let name = e.file_name().to_string_lossy().into_owned();
+        name == MANIFEST || (listed.contains(&name) && e.file_type().is_ok_and(|t| t.is_file()))
+    })
+}
+
+/// Exchanges two paths atomically (`renameat2(RENAME_EXCHANGE)`, Linux 3.15).
+#[cfg(target_os = "linux")]
+fn exchange(a: &Path, b: &Path) -> io::Result<()> {
+    use std::ffi::CString;
+    use std::os::unix::ffi::OsStrExt;
+    let a = CString::new(a.as_os_str().as_bytes())?;
+    let b = CString::new(b.as_os_str().as_bytes())?;
+    // SAFETY: both are NUL-terminated paths that outlive the call.
+    let r = unsafe {
+        libc::syscall(
+            libc::SYS_renameat2,
+            libc::AT_FDCWD,
+            a.as_ptr(),
+            libc::AT_FDCWD,
+            b.as_ptr(),
+            libc::RENAME_EXCHANGE,
+        )
+    };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn exchange(_a: &Path, _b: &Path) -> io::Result<()> {
+    Err(io::Error::from(io::ErrorKind::Unsupported))
 }
 
 /// Writes `bytes` to `path` atomically: the file appears only when complete.
@@ -235,6 +638,86 @@ mod tests {
         f.commit().unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "aXcdef");
         assert_eq!(entries(dir.path()), ["t.bin"]);
+    }
+
+    #[test]
+    fn temporary_names_carry_the_owner() {
+        assert_eq!(stale_owner(".a.csv.calib-123.AbC9x1.tmp"), Some(123));
+        assert_eq!(stale_owner(".out.calib-77.Xy12Zq.old.tmp"), Some(77));
+        assert_eq!(stale_owner("a.csv"), None);
+        assert_eq!(stale_owner(".a.csv.AbC9x1.tmp"), None);
+        assert_eq!(stale_owner(".calib-manifest"), None);
+        let dir = tempfile::tempdir().unwrap();
+        let f = temp_file_beside(&dir.path().join("t.csv")).unwrap();
+        let name = f.path().file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(stale_owner(&name), Some(std::process::id()), "{name}");
+    }
+
+    #[test]
+    fn an_output_set_replaces_its_folder_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a1").unwrap();
+        set.add(&out.join("b.csv"), b"b1").unwrap();
+        set.commit().unwrap();
+        assert_eq!(entries(&out), [MANIFEST, "a.csv", "b.csv"]);
+        // A second set without b.csv: the folder holds exactly it.
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a2").unwrap();
+        set.add(&out.join("c.csv"), b"c2").unwrap();
+        set.commit().unwrap();
+        assert_eq!(entries(&out), [MANIFEST, "a.csv", "c.csv"]);
+        assert_eq!(std::fs::read(out.join("a.csv")).unwrap(), b"a2");
+        assert_eq!(entries(dir.path()), ["out"]);
+        // Dropped uncommitted: nothing changes and nothing is left.
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a3").unwrap();
+        drop(set);
+        assert_eq!(std::fs::read(out.join("a.csv")).unwrap(), b"a2");
+        assert_eq!(entries(dir.path()), ["out"]);
+        // Other tests run alongside: only this folder's entries must be gone from the list.
+        assert!(!lock_live().iter().any(|p| p.starts_with(dir.path())));
+    }
+
+    #[test]
+    fn a_shared_folder_keeps_its_other_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        std::fs::write(out.join("run.csv"), "the user's log").unwrap();
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a1").unwrap();
+        set.add(&out.join("b.csv"), b"b1").unwrap();
+        set.commit().unwrap();
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a2").unwrap();
+        set.commit().unwrap();
+        assert_eq!(entries(&out), [MANIFEST, "a.csv", "run.csv"]);
+        assert_eq!(
+            std::fs::read_to_string(out.join(MANIFEST)).unwrap(),
+            "a.csv\n"
+        );
+        assert_eq!(entries(dir.path()), ["out"]);
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_runs_go_and_live_ones_stay() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        child.wait().unwrap();
+        let dead = format!(".a.csv.calib-{}.AbCdEf.tmp", child.id());
+        let mine = format!(".a.csv.calib-{}.AbCdEf.tmp", std::process::id());
+        std::fs::write(dir.path().join(&dead), "x").unwrap();
+        std::fs::create_dir(
+            dir.path()
+                .join(format!(".out.calib-{}.QwErTy.tmp", child.id())),
+        )
+        .unwrap();
+        std::fs::write(dir.path().join(&mine), "x").unwrap();
+        assert_eq!(remove_stale(dir.path()), 2);
+        assert_eq!(entries(dir.path()), [mine]);
     }
 
     #[test]

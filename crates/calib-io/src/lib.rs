@@ -69,6 +69,9 @@ pub struct ReadOptions {
     /// Pass CSV rows whose time stamp repeats or goes back instead of failing on them (for
     /// `calib inspect`, which reports them). Methods need increasing stamps and leave it off.
     pub allow_unordered_time: bool,
+    /// MCAP: leave out chunks that do not match their CRC (or cannot be decoded), listing them in
+    /// [`ReadDiagnostics::damaged_chunks`], instead of failing on the first.
+    pub skip_damaged: bool,
     /// Which time stamps MCAP messages are read at.
     pub time: TimeSource,
     /// The time column of a CSV log (default: `t`, `time` or `timestamp`, with or without a
@@ -94,6 +97,57 @@ pub struct ReadDiagnostics {
     /// Where the log ended early (a crashed recording): the byte offset of the break and the
     /// number of messages read before it.
     pub truncated: Option<Truncation>,
+    /// MCAP chunks left out because they were damaged (only with
+    /// [`ReadOptions::skip_damaged`]; otherwise the first is an error).
+    pub damaged_chunks: Vec<DamagedChunk>,
+}
+
+/// An MCAP chunk whose records do not match the CRC its header records, or cannot be decoded.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct DamagedChunk {
+    /// Byte offset of the chunk record in the file.
+    pub byte_offset: u64,
+    /// The log times its header gives for its first and last message, ns (`None` if the header
+    /// could not be read).
+    pub log_time_ns: Option<(u64, u64)>,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl DamagedChunk {
+    /// The chunk `span` (or, if its header was never read, the chunk at `position`) damaged by
+    /// `error`.
+    pub(crate) fn new(
+        span: Option<mcap::sans_io::ChunkSpan>,
+        position: u64,
+        error: &mcap::McapError,
+    ) -> Self {
+        let reason = match error {
+            mcap::McapError::BadChunkCrc { saved, calculated } => format!(
+                "its records do not match its CRC (recorded {saved:#010x}, computed \
+                 {calculated:#010x})"
+            ),
+            e => format!("its records cannot be decoded ({e})"),
+        };
+        DamagedChunk {
+            byte_offset: span.map_or(position, |s| s.offset),
+            log_time_ns: span
+                .filter(|s| s.message_start_time != 0 || s.message_end_time != 0)
+                .map(|s| (s.message_start_time, s.message_end_time)),
+            reason,
+        }
+    }
+}
+
+impl std::fmt::Display for DamagedChunk {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let seconds = |ns: u64| format!("{}.{:06}", ns / 1_000_000_000, ns % 1_000_000_000 / 1000);
+        write!(f, "the chunk at byte {}", self.byte_offset)?;
+        if let Some((a, b)) = self.log_time_ns {
+            write!(f, " (messages logged {} s to {} s)", seconds(a), seconds(b))?;
+        }
+        write!(f, " is damaged: {}", self.reason)
+    }
 }
 
 /// A log that ends before its end marker.

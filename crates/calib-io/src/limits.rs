@@ -1,8 +1,109 @@
-//! The range of values a reader accepts: beyond it a value cannot be a real reading or time stamp,
-//! or an `f64` can no longer hold it to the precision calibration needs, so a reader reports it
-//! (naming file, line or message, and channel) instead of passing on a wrong number.
+//! Every limit calib enforces, in one place.
+//!
+//! - The range of values a reader accepts ([`MAX_READING_REV`], [`MAX_TIME_S`]): beyond it a
+//!   value cannot be a real reading or time stamp, or an `f64` can no longer hold it to the
+//!   precision calibration needs, so a reader reports it (naming file, line or message, and
+//!   channel) instead of passing on a wrong number.
+//! - The size of the work a command is asked for ([`MAX_TABLE_POINTS`], [`MAX_SIMULATED_SAMPLES`],
+//!   [`MAX_CSV_LINE_BYTES`]): checked before any work starts, so that a mistyped option fails at
+//!   once instead of running for minutes into gigabytes of memory or disk.
 
 use std::f64::consts::TAU;
+use std::io::{self, Read};
+
+/// The most points an output table may have (every command's `--points`): 3.6 million points are
+/// 0.36″ steps, far finer than any map calib estimates (the interpolation error of a 0.01° grid is
+/// already below 0.01″), and a table of them is about 100 MB of CSV.
+pub const MAX_TABLE_POINTS: usize = 3_600_000;
+
+/// The most samples `calib simulate` writes without `--force`: 50 million (14 hours at 1 kHz;
+/// about 2.5 GB of CSV for two channels and as much time to write).
+pub const MAX_SIMULATED_SAMPLES: u64 = 50_000_000;
+
+/// The longest line a CSV reader accepts, bytes (1 MiB: a row of 40 000 channels in full
+/// precision). Longer is not a log row (a binary file, `/dev/zero`, a file without line ends), and
+/// reading it whole would take as much memory as it is long.
+pub const MAX_CSV_LINE_BYTES: usize = 1 << 20;
+
+/// The limits as the command line's `--help` lists them.
+pub fn help_text() -> String {
+    format!(
+        "Limits (checked before any work): --points at most {MAX_TABLE_POINTS} for every table; \
+         calib simulate writes at most {MAX_SIMULATED_SAMPLES} samples unless --force; CSV lines \
+         at most {MAX_CSV_LINE_BYTES} bytes; readings within ±{MAX_READING_REV:e} revolutions and \
+         time stamps within ±{MAX_TIME_S:e} s."
+    )
+}
+
+/// A CSV line longer than [`MAX_CSV_LINE_BYTES`], found by [`LineLimit`].
+#[derive(Debug)]
+pub(crate) struct LineTooLong {
+    /// The 1-based line.
+    pub line: u64,
+}
+
+impl std::fmt::Display for LineTooLong {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "line {} is longer than {MAX_CSV_LINE_BYTES} bytes, more than any log row; this is \
+             not a CSV log (a binary file, or one without line ends)",
+            self.line
+        )
+    }
+}
+
+impl std::error::Error for LineTooLong {}
+
+/// A reader that fails with [`LineTooLong`] as soon as a line exceeds [`MAX_CSV_LINE_BYTES`], so
+/// a CSV parser never buffers more than that for one record.
+#[derive(Debug)]
+pub(crate) struct LineLimit<R> {
+    inner: R,
+    /// Line ends passed so far.
+    newlines: u64,
+    /// Bytes since the last line end.
+    run: usize,
+}
+
+impl<R> LineLimit<R> {
+    pub(crate) fn new(inner: R) -> Self {
+        LineLimit {
+            inner,
+            newlines: 0,
+            run: 0,
+        }
+    }
+}
+
+impl<R: Read> Read for LineLimit<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        let got = &buf[..n];
+        match got.iter().rposition(|&b| b == b'\n') {
+            Some(last) => {
+                self.newlines += got.iter().filter(|&&b| b == b'\n').count() as u64;
+                self.run = n - last - 1;
+            }
+            None => self.run += n,
+        }
+        if self.run > MAX_CSV_LINE_BYTES {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                LineTooLong {
+                    line: self.newlines + 1,
+                },
+            ));
+        }
+        Ok(n)
+    }
+}
+
+/// The [`LineTooLong`] inside an I/O error, if it is one.
+pub(crate) fn line_too_long(e: &io::Error) -> Option<&LineTooLong> {
+    e.get_ref()
+        .and_then(|inner| inner.downcast_ref::<LineTooLong>())
+}
 
 /// The largest reading magnitude, in revolutions from zero (10 million: a shaft at 6000 rpm turns
 /// that far in 28 hours). At this magnitude an `f64` in radians resolves 7·10⁻⁹ rad (0.0015″);
@@ -38,11 +139,32 @@ pub(crate) fn reading_problem(
     ))
 }
 
+/// `x` as a message shows it: plain decimals between 10⁻⁴ and 10⁹ (at most 10 significant
+/// digits), scientific notation beyond, so that 1e300 is not printed as 301 digits.
+pub fn readable(x: f64) -> String {
+    let a = x.abs();
+    if !x.is_finite() || x == 0.0 {
+        return format!("{x}");
+    }
+    if !(1e-4..1e9).contains(&a) {
+        return format!("{x:.4e}");
+    }
+    // At most 10 significant digits, trailing zeros dropped.
+    let decimals = (9 - a.log10().floor() as i32).clamp(0, 13) as usize;
+    let s = format!("{x:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
 /// Why a time stamp of `t` seconds cannot be used, if it cannot.
 pub(crate) fn time_problem(t: f64) -> Option<String> {
     if t.abs() <= MAX_TIME_S {
         return None;
     }
+    let t = readable(t);
     Some(format!(
         "time stamp {t} s is beyond ±{MAX_TIME_S:e} s (the year 2286); time stamps must be in \
          seconds — convert milliseconds or nanoseconds"
@@ -54,6 +176,19 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_line_beyond_the_limit_fails_naming_it() {
+        let mut text = b"t,a\n0,1\n".to_vec();
+        text.extend(std::iter::repeat_n(b'9', MAX_CSV_LINE_BYTES + 1));
+        let mut out = Vec::new();
+        let err = LineLimit::new(text.as_slice())
+            .read_to_end(&mut out)
+            .unwrap_err();
+        assert_eq!(line_too_long(&err).expect("LineTooLong").line, 3);
+        let ok = vec![b'1'; MAX_CSV_LINE_BYTES];
+        assert!(LineLimit::new(ok.as_slice()).read_to_end(&mut out).is_ok());
+    }
+
+    #[test]
     fn readings_up_to_ten_million_revolutions_pass() {
         assert_eq!(reading_problem(360.0, 360.0, TAU), None);
         assert_eq!(reading_problem(-3.6e9, -3.6e9, -1e7 * TAU), None);
@@ -62,6 +197,17 @@ mod tests {
         assert!(reading_problem("nan", f64::NAN, f64::NAN).is_some());
         // A finite reading whose conversion overflows (1e308 revolutions).
         assert!(reading_problem("1e308", 1e308, f64::INFINITY).is_some());
+    }
+
+    #[test]
+    fn numbers_are_readable() {
+        assert_eq!(readable(1e300), "1.0000e300");
+        assert_eq!(readable(360.0), "360");
+        assert_eq!(readable(-0.5), "-0.5");
+        assert_eq!(readable(1.7e9), "1.7000e9");
+        assert_eq!(readable(0.001234), "0.001234");
+        assert_eq!(readable(1.0 / 3.0), "0.3333333333");
+        assert_eq!(readable(f64::NAN), "NaN");
     }
 
     #[test]

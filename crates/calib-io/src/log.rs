@@ -45,45 +45,124 @@ impl LogFormat {
         }
     }
 
-    /// The format of an existing log: a bag directory ([`rosbag::is_bag_dir`]: it holds
-    /// `metadata.yaml` or `.db3` files), else the file's extension (`.csv`, `.mcap`, `.db3`), or
-    /// for an unknown extension its first bytes (MCAP's or SQLite's magic number). Any other
-    /// directory is [`Error::UnknownFormat`].
+    /// The format of an existing log. A directory is a rosbag2 bag if [`rosbag::is_bag_dir`]
+    /// says so (it holds `metadata.yaml` or `.db3` files), else an error. A file is known by its
+    /// first bytes whatever its extension: MCAP's magic number, SQLite's (a rosbag2 `.db3`
+    /// file), or another known kind of file (compressed, an archive, a ROS 1 bag, UTF-16 or
+    /// binary data), which is an error saying what the file is and what to do. Other content is
+    /// a bag if the extension is `.db3` (for the bag reader to refuse with its reason), CSV if
+    /// the extension says so (or is unknown and the text looks like CSV).
+    /// Devices and sockets are refused: a log is a file (a named pipe, which can be read only
+    /// once, is taken by its extension).
     pub fn detect(path: &Path) -> Result<Self, Error> {
-        if path.is_dir() {
-            return if rosbag::is_bag_dir(path) {
-                Ok(LogFormat::Rosbag)
-            } else {
-                Err(Error::UnknownFormat {
-                    path: path.to_path_buf(),
-                })
-            };
-        }
-        if let Ok(format) = Self::for_output(path) {
-            return Ok(format);
-        }
-        if extension(path).as_deref() == Some("db3") {
+        let io = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let meta = std::fs::metadata(path).map_err(io)?;
+        if meta.is_dir() && rosbag::is_bag_dir(path) {
             return Ok(LogFormat::Rosbag);
         }
-        let mut head = [0u8; 16];
-        let mut file = std::fs::File::open(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        let n = file.read(&mut head).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        if head[..n].starts_with(MCAP_MAGIC) {
-            Ok(LogFormat::Mcap)
-        } else if &head[..n] == SQLITE_MAGIC {
-            Ok(LogFormat::Rosbag)
-        } else {
-            Err(Error::UnknownFormat {
+        if !meta.is_file() && !is_fifo(&meta) {
+            return Err(Error::Data {
                 path: path.to_path_buf(),
-            })
+                message: if meta.is_dir() {
+                    "this is a folder, not a log file nor a rosbag2 bag directory (which holds \
+                     metadata.yaml or .db3 files); name the .csv or .mcap file, or the bag \
+                     directory"
+                        .into()
+                } else {
+                    "this is a device or socket, not a log file; name a .csv or .mcap file".into()
+                },
+            });
+        }
+        if is_fifo(&meta) {
+            // A pipe can be read once: its first bytes cannot be looked at before the reader
+            // reads them. Its extension decides.
+            return Self::for_output(path);
+        }
+        let mut head = [0u8; 16];
+        let mut file = std::fs::File::open(path).map_err(io)?;
+        let n = (&mut file).take(16).read(&mut head).map_err(io)?;
+        let head = &head[..n];
+        if head.starts_with(MCAP_MAGIC) {
+            return Ok(LogFormat::Mcap);
+        }
+        if head == SQLITE_MAGIC {
+            return Ok(LogFormat::Rosbag);
+        }
+        if let Some((kind, todo)) = foreign_kind(head) {
+            return Err(Error::Data {
+                path: path.to_path_buf(),
+                message: format!("this is {kind}, not a CSV or MCAP log; {todo}"),
+            });
+        }
+        match extension(path).as_deref() {
+            Some("mcap") => Ok(LogFormat::Mcap),
+            Some("csv") => Ok(LogFormat::Csv),
+            Some("db3") => Ok(LogFormat::Rosbag),
+            _ => Err(Error::UnknownFormat {
+                path: path.to_path_buf(),
+            }),
         }
     }
+}
+
+#[cfg(unix)]
+fn is_fifo(meta: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    meta.file_type().is_fifo()
+}
+
+#[cfg(not(unix))]
+fn is_fifo(_meta: &std::fs::Metadata) -> bool {
+    false
+}
+
+/// What a file starting with `head` is, and what to do, if it is a known kind that is not a log.
+fn foreign_kind(head: &[u8]) -> Option<(&'static str, &'static str)> {
+    const KINDS: &[(&[u8], &str, &str)] = &[
+        (
+            b"\x1f\x8b",
+            "a gzip-compressed file",
+            "decompress it first (gunzip)",
+        ),
+        (
+            b"\x28\xb5\x2f\xfd",
+            "a zstd-compressed file",
+            "decompress it first (zstd -d)",
+        ),
+        (
+            b"BZh",
+            "a bzip2-compressed file",
+            "decompress it first (bunzip2)",
+        ),
+        (
+            b"\xfd7zXZ\x00",
+            "an xz-compressed file",
+            "decompress it first (unxz)",
+        ),
+        (
+            b"PK\x03\x04",
+            "a ZIP archive (or a spreadsheet)",
+            "extract the log, or export the sheet as CSV",
+        ),
+        (
+            b"#ROSBAG",
+            "a ROS 1 bag",
+            "convert it to MCAP (`mcap convert`)",
+        ),
+        (b"\x89PNG", "a PNG image", "name the log file"),
+        (b"%PDF", "a PDF document", "name the log file"),
+        (b"\xff\xfe", "UTF-16 text", "save it as UTF-8"),
+        (b"\xfe\xff", "UTF-16 text", "save it as UTF-8"),
+    ];
+    if let Some((_, kind, todo)) = KINDS.iter().find(|(magic, _, _)| head.starts_with(magic)) {
+        return Some((kind, todo));
+    }
+    // Text has no NUL bytes (UTF-16 aside, caught above).
+    head.contains(&0)
+        .then_some(("binary data", "name the log file (CSV text or MCAP)"))
 }
 
 fn extension(path: &Path) -> Option<String> {
@@ -243,8 +322,8 @@ impl LogReader {
             .collect()
     }
 
-    /// Warnings the user must see once the log has been read: truncation, and samples dropped
-    /// because a channel could not be aligned on the clock.
+    /// Warnings the user must see once the log has been read: truncation, damaged chunks skipped,
+    /// and samples dropped because a channel could not be aligned on the clock.
     pub fn warnings(&self, path: &Path) -> Vec<String> {
         let d = self.diagnostics();
         let mut w = match &self.inner {
@@ -257,6 +336,15 @@ impl LogReader {
                 path.display(),
                 t.byte_offset,
                 t.messages_read
+            ));
+        }
+        if !d.damaged_chunks.is_empty() {
+            let list: Vec<String> = d.damaged_chunks.iter().map(|c| c.to_string()).collect();
+            w.push(format!(
+                "{}: skipped {} damaged chunk(s) and their messages (--skip-damaged): {}",
+                path.display(),
+                d.damaged_chunks.len(),
+                list.join("; ")
             ));
         }
         if let Some(a) = self.alignment() {

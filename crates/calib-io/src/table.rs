@@ -374,7 +374,7 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
             .has_headers(false)
             .flexible(true)
             .comment(Some(b'#'))
-            .from_reader(file)
+            .from_reader(crate::limits::LineLimit::new(file))
     } else {
         csv_reader(file)
     };

@@ -44,6 +44,7 @@ fn opts(channel: &str) -> ApplyOptions {
         channel: channel.into(),
         unit: None,
         wrapping: None,
+        skip_damaged: false,
     }
 }
 

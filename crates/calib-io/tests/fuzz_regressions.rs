@@ -31,8 +31,12 @@ fn a_channel_topic_claiming_gigabytes_is_an_error_not_an_allocation() {
     let path = input("mcap-channel-topic-claims-2gb.mcap");
     let errors = mcap_errors(&path);
     assert_eq!(errors.len(), 1, "{errors:?}");
+    // The chunk holding the channel record is damaged beyond it too, and since chunks are
+    // checked whole before their records are used (issue 18), that is the error now reported;
+    // the channel record is never parsed. The record's own check is
+    // tested alone in `mcap_log::records`.
     assert!(
-        errors[0].contains("channel record's topic claims 2248146957 bytes"),
+        errors[0].contains("the chunk at byte 45") && errors[0].contains("cannot be decoded"),
         "{}",
         errors[0]
     );

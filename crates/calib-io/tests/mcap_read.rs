@@ -468,8 +468,10 @@ fn truncated_files_keep_every_message_before_the_break() {
         std::fs::write(&cut, &bytes[..keep]).expect("write");
         let result = McapReader::open(&cut, &ReadOptions::default());
         let Ok(mut reader) = result else {
-            // Nothing before the break: no sample at all.
-            assert!(matches!(result, Err(Error::Empty { .. })), "keep {keep}");
+            // Nothing before the break: an error saying the file is cut (issue 18: not "the
+            // log holds no samples").
+            let message = result.err().map(|e| e.to_string()).unwrap_or_default();
+            assert!(message.contains("cut short"), "keep {keep}: {message}");
             continue;
         };
         let samples: Vec<Sample> = (&mut reader).collect::<Result<_, _>>().expect("no error");
@@ -876,4 +878,117 @@ fn log_times_near_the_i64_limit_are_read_or_refused_never_wrapped() {
     let (index, _, message) = mcap_error(results.pop().expect("three").unwrap_err());
     assert_eq!(index, Some(2));
     assert!(message.contains("beyond the year 2262"), "{message}");
+}
+
+/// The offsets and lengths of the top-level chunk records (opcode 0x06) of MCAP `bytes`.
+fn chunk_records(bytes: &[u8]) -> Vec<(usize, usize)> {
+    let mut at = 8;
+    let mut found = Vec::new();
+    while at + 9 <= bytes.len() {
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+        match bytes[at] {
+            0x06 => found.push((at, 9 + len)),
+            0x0F => break,
+            _ => {}
+        }
+        at += 9 + len;
+    }
+    found
+}
+
+/// One flipped bit in an uncompressed chunk (a position's last byte: the record still parses, the
+/// reading changes) is caught by the chunk's CRC; with `skip_damaged` the chunk's messages are left
+/// out, every other message is read, and the chunk is listed.
+#[test]
+fn a_flipped_bit_in_an_uncompressed_chunk_fails_its_crc_or_is_skipped() {
+    let dir = temp();
+    let path = dir.path().join("plain.mcap");
+    joint_state_log(&path, 500, None, true, false);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let chunks = chunk_records(&bytes);
+    assert!(chunks.len() > 4, "{} chunks", chunks.len());
+    let (at, len) = chunks[2];
+    // The last byte of the chunk's last message is its last position's most significant byte.
+    bytes[at + len - 1] ^= 1;
+    let bad = dir.path().join("bad.mcap");
+    std::fs::write(&bad, &bytes).unwrap();
+
+    let (_, e) = first_error(&bad);
+    let (_, _, message) = mcap_error(e);
+    assert!(
+        message.contains(&format!("the chunk at byte {at}")),
+        "{message}"
+    );
+    assert!(message.contains("do not match its CRC"), "{message}");
+
+    let opts = ReadOptions {
+        skip_damaged: true,
+        ..ReadOptions::default()
+    };
+    let (reader, samples) = read_all(&bad, &opts);
+    let damaged = &reader.diagnostics().damaged_chunks;
+    assert_eq!(damaged.len(), 1);
+    assert_eq!(damaged[0].byte_offset, at as u64);
+    let (good_reader, good) = read_all(&path, &ReadOptions::default());
+    assert!(good_reader.diagnostics().damaged_chunks.is_empty());
+    let lost = good.len() - samples.len();
+    assert!(lost > 0 && lost < 100, "{lost} samples lost");
+    // Every sample kept is one of the undamaged file's, unchanged.
+    assert!(samples.iter().all(|s| good.contains(s)));
+
+    // A record length inside the chunk that overruns it: the chunk cannot be decoded, and is
+    // skipped by discarding the rest of it.
+    let mut bytes = std::fs::read(&path).unwrap();
+    // The chunk header of an uncompressed chunk is 40 bytes; then the first record's opcode and
+    // length.
+    let first_record = at + 9 + 40;
+    bytes[first_record + 5] = 0x7f;
+    std::fs::write(&bad, &bytes).unwrap();
+    let (_, e) = first_error(&bad);
+    let (_, _, message) = mcap_error(e);
+    assert!(
+        message.contains(&format!("the chunk at byte {at}")),
+        "{message}"
+    );
+    assert!(message.contains("cannot be decoded"), "{message}");
+    let (reader, samples) = read_all(&bad, &opts);
+    assert_eq!(reader.diagnostics().damaged_chunks.len(), 1);
+    assert_eq!(good.len() - samples.len(), lost);
+}
+
+/// In an unchunked file only the data section's CRC can catch a flipped bit: the read ends with
+/// an error, so no calibration uses the changed reading.
+#[test]
+fn a_flipped_bit_in_an_unchunked_file_fails_the_data_section_crc() {
+    let dir = temp();
+    let path = dir.path().join("flat.mcap");
+    joint_state_log(&path, 200, None, false, false);
+    let mut bytes = std::fs::read(&path).unwrap();
+    // The last message record before the data end: its last byte is the most significant byte
+    // of its last position, so the message still decodes, to another finite reading.
+    let mut at = 8;
+    let mut last_message = 0;
+    while bytes[at] != 0x0F {
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+        if bytes[at] == 0x05 {
+            last_message = at + 9 + len - 1;
+        }
+        at += 9 + len;
+    }
+    bytes[last_message] ^= 0x01;
+    let bad = dir.path().join("bad.mcap");
+    std::fs::write(&bad, &bytes).unwrap();
+    let reader = McapReader::open(&bad, &ReadOptions::default());
+    let error = match reader {
+        Err(e) => e.to_string(),
+        Ok(r) => r
+            .filter_map(Result::err)
+            .map(|e| e.to_string())
+            .next()
+            .expect("the flipped bit went unnoticed"),
+    };
+    assert!(
+        error.contains("CRC") || error.contains("damaged"),
+        "{error}"
+    );
 }

@@ -8,7 +8,7 @@ pub mod summary_reader;
 pub use indexed_reader::{
     IndexedReadEvent, IndexedReader, IndexedReaderOptions, LogTimeBounds, LowerBound, UpperBound,
 };
-pub use linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+pub use linear_reader::{ChunkSpan, LinearReadEvent, LinearReader, LinearReaderOptions};
 pub use message_reader::{MessageReadEvent, MessageReader};
 pub use summary_reader::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 

@@ -11,6 +11,7 @@ use crate::Error;
 use crate::atomic::AtomicFile;
 use crate::csv_log::parse_f64;
 use crate::error::csv_error;
+use crate::limits::{LineLimit, line_too_long};
 use calib_core::AngleUnit;
 use calib_core::correction::Correction;
 use std::borrow::Cow;
@@ -24,7 +25,7 @@ const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
 /// Records of a CSV file with their raw bytes and field spans.
 struct Records {
     path: PathBuf,
-    input: BufReader<File>,
+    input: BufReader<LineLimit<File>>,
     /// The current record's bytes, line end included.
     record: Vec<u8>,
     /// The raw span of each field in `record` (quotes and spaces included, line end excluded).
@@ -43,7 +44,7 @@ impl Records {
         })?;
         Ok(Records {
             path: path.to_path_buf(),
-            input: BufReader::with_capacity(1 << 16, file),
+            input: BufReader::with_capacity(1 << 16, LineLimit::new(file)),
             record: Vec::new(),
             fields: Vec::new(),
             line: 0,
@@ -61,9 +62,17 @@ impl Records {
             let n = self
                 .input
                 .read_until(b'\n', &mut self.record)
-                .map_err(|source| Error::Io {
-                    path: self.path.clone(),
-                    source,
+                .map_err(|source| match line_too_long(&source) {
+                    Some(long) => Error::Csv {
+                        path: self.path.clone(),
+                        line: long.line,
+                        channel: None,
+                        message: long.to_string(),
+                    },
+                    None => Error::Io {
+                        path: self.path.clone(),
+                        source,
+                    },
                 })?;
             if n == 0 {
                 break;

@@ -12,16 +12,17 @@ use crate::atomic::AtomicFile;
 use crate::mcap_log::cdr::JointState;
 use crate::mcap_log::json::field_spans;
 use crate::mcap_log::read::{Encoding, read_summary};
-use crate::{Error, Truncation};
+use crate::mcap_log::records::{Checked, StreamError};
+use crate::{DamagedChunk, Error, Truncation};
 use calib_core::AngleUnit;
 use calib_core::correction::Correction;
 use mcap::records::{Header, Record};
-use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use mcap::sans_io::LinearReaderOptions;
 use mcap::{Compression, McapError, WriteOptions, Writer};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::{self, BufReader, Read};
+use std::io::BufReader;
 use std::ops::Range as Span;
 use std::path::Path;
 
@@ -52,51 +53,59 @@ fn mcap_error(path: &Path, index: Option<u64>, channel: Option<&str>, message: S
     }
 }
 
-/// One pass over the log's records in file order. `each(record, index, hit)` gets every record;
-/// for a message, `index` is its 0-based position among the messages and `hit` says where it
-/// holds the channel's readings, if it does. Returns where the file breaks off, if it does.
+/// One pass over the log's records in file order, each chunk's records after its CRC matched
+/// (see the `records` module). `each(record, index, hit)` gets every record; for a message,
+/// `index` is its 0-based position among the messages and `hit` says where it holds the
+/// channel's readings, if it does. Returns where the file breaks off, if it does, and the damaged
+/// chunks left out (with `skip_damaged`; otherwise the first is an error).
 fn walk(
     path: &Path,
     channel: &str,
+    skip_damaged: bool,
     mut each: impl FnMut(&Record, u64, Option<Hit>) -> Result<(), Error>,
-) -> Result<Option<Truncation>, Error> {
+) -> Result<(Option<Truncation>, Vec<DamagedChunk>), Error> {
     let io = |source| Error::Io {
         path: path.to_path_buf(),
         source,
     };
     let file = File::open(path).map_err(io)?;
     let len = file.metadata().map_err(io)?.len();
-    let mut file = BufReader::with_capacity(256 * 1024, file);
-    let mut reader = LinearReader::new_with_options(
+    let file = BufReader::with_capacity(256 * 1024, file);
+    let mut records = Checked::new(
+        file,
         // No record can be longer than the file; a corrupt length must not drive an allocation.
         LinearReaderOptions::default()
             .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX)),
+        skip_damaged,
     );
     let mut schemas: HashMap<u16, String> = HashMap::new();
     let mut topics: HashMap<u16, Topic> = HashMap::new();
     // The topic carrying the channel, once met: a name on two topics is ambiguous.
     let mut carrier: Option<String> = None;
     let mut messages = 0u64;
-    let mut consumed = 0u64;
-    while let Some(event) = reader.next_event() {
-        let (opcode, data) = match event {
-            Ok(LinearReadEvent::ReadRequest(n)) => {
-                let read = loop {
-                    match file.read(reader.insert(n)) {
-                        Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                        other => break other.map_err(io)?,
-                    }
-                };
-                consumed += read as u64;
-                reader.notify_read(read);
-                continue;
+    while let Some(next) = records.next_record() {
+        let (opcode, data) = match next {
+            Ok(record) => record,
+            Err(StreamError::Mcap(McapError::UnexpectedEof)) => {
+                return Ok((
+                    Some(Truncation {
+                        byte_offset: records.consumed,
+                        messages_read: messages,
+                    }),
+                    records.damaged,
+                ));
             }
-            Ok(LinearReadEvent::Record { opcode, data }) => (opcode, data),
-            Err(McapError::UnexpectedEof) => {
-                return Ok(Some(Truncation {
-                    byte_offset: consumed,
-                    messages_read: messages,
-                }));
+            Err(StreamError::Mcap(McapError::Io(source))) => return Err(io(source)),
+            Err(e @ (StreamError::Damaged(_) | StreamError::DataCrc)) => {
+                return Err(mcap_error(
+                    path,
+                    Some(messages),
+                    None,
+                    format!(
+                        "{e}; nothing was written: run with --skip-damaged to leave the damaged \
+                         chunk's messages out of the output, or repair the file"
+                    ),
+                ));
             }
             Err(e) => {
                 return Err(mcap_error(
@@ -110,6 +119,7 @@ fn walk(
                 ));
             }
         };
+        let data = data.as_slice();
         let record = mcap::parse_record(opcode, data).map_err(|e| {
             mcap_error(
                 path,
@@ -184,7 +194,7 @@ fn walk(
             messages += 1;
         }
     }
-    Ok(None)
+    Ok((None, records.damaged))
 }
 
 /// Where `data` (a message of this encoding) holds `channel`'s readings, if it does.
@@ -243,9 +253,14 @@ fn find<'d>(
 }
 
 /// The range of the channel's readings: radians for JointState, `json_unit` for JSON.
-pub(super) fn scan(path: &Path, channel: &str, json_unit: AngleUnit) -> Result<Range, Error> {
+pub(super) fn scan(
+    path: &Path,
+    channel: &str,
+    json_unit: AngleUnit,
+    skip_damaged: bool,
+) -> Result<Range, Error> {
     let mut range = Range::new(json_unit);
-    walk(path, channel, |_, _, hit| {
+    walk(path, channel, skip_damaged, |_, _, hit| {
         match hit {
             Some(Hit::Joint { value, .. }) => range.add(value, AngleUnit::Rad),
             Some(Hit::Json { fields }) => {
@@ -265,6 +280,7 @@ pub(super) struct Rewritten {
     pub readings: u64,
     pub copied: u64,
     pub truncated: Option<Truncation>,
+    pub damaged: Vec<DamagedChunk>,
 }
 
 /// The writer's options for a copy of the log at `path`: its header's profile and library, and
@@ -310,12 +326,14 @@ pub(super) fn rewrite(
     channel: &str,
     joint_fix: &Correction,
     json_fix: &Correction,
+    skip_damaged: bool,
 ) -> Result<Rewritten, Error> {
     let mut writer: Option<Writer<AtomicFile>> = None;
     let mut done = Rewritten {
         readings: 0,
         copied: 0,
         truncated: None,
+        damaged: Vec::new(),
     };
     let mut buf: Vec<u8> = Vec::new();
     let mut number = ryu::Buffer::new();
@@ -331,7 +349,7 @@ pub(super) fn rewrite(
             format!("cannot write the MCAP file ({e})"),
         ),
     };
-    done.truncated = walk(input, channel, |record, index, hit| {
+    (done.truncated, done.damaged) = walk(input, channel, skip_damaged, |record, index, hit| {
         let w = match (record, writer.as_mut()) {
             (Record::Header(header), None) => {
                 let options = write_options(input, header)?;

@@ -30,7 +30,7 @@ mod csv;
 mod mcap;
 
 use crate::log::LogFormat;
-use crate::{Error, Truncation};
+use crate::{DamagedChunk, Error, Truncation};
 use calib_core::correction::{Correction, Wrapping};
 use calib_core::{AngleUnit, ErrorMap, RangeMap};
 use std::path::Path;
@@ -45,6 +45,9 @@ pub struct ApplyOptions {
     pub unit: Option<AngleUnit>,
     /// How the channel's readings are wrapped; detected from their range if `None`.
     pub wrapping: Option<Wrapping>,
+    /// MCAP: leave out chunks that do not match their CRC (listed in
+    /// [`Applied::damaged_chunks`]) instead of failing on the first.
+    pub skip_damaged: bool,
 }
 
 /// What [`apply`] did.
@@ -66,6 +69,9 @@ pub struct Applied {
     /// Where an MCAP log ended early (a crashed recording): the output holds everything before
     /// the break, as a complete file.
     pub truncated: Option<Truncation>,
+    /// MCAP chunks left out of the output because they were damaged (with
+    /// [`ApplyOptions::skip_damaged`]).
+    pub damaged_chunks: Vec<DamagedChunk>,
     /// Readings outside a range table's range, copied unchanged (0 for a whole-turn table).
     pub outside: u64,
 }
@@ -159,7 +165,7 @@ pub fn apply_map(
     let unit = opts.unit.unwrap_or(AngleUnit::Deg);
     let range = match format {
         LogFormat::Csv => csv::scan(input, &opts.channel, unit)?,
-        LogFormat::Mcap => mcap::scan(input, &opts.channel, unit)?,
+        LogFormat::Mcap => mcap::scan(input, &opts.channel, unit, opts.skip_damaged)?,
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
     };
     if range.count == 0 {
@@ -178,21 +184,29 @@ pub fn apply_map(
         MapRef::Turn(m) => Correction::new(m.clone(), unit, wrapping),
         MapRef::Range(m) => Correction::with_range(m.clone(), unit, wrapping),
     };
-    let (readings, copied, truncated, outside) = match format {
+    let (readings, copied, truncated, outside, damaged_chunks) = match format {
         LogFormat::Csv => {
             let f = fix(unit);
             let n = csv::rewrite(input, output, &opts.channel, &f)?;
-            (n, 0, None, f.outside())
+            (n, 0, None, f.outside(), Vec::new())
         }
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
         LogFormat::Mcap => {
             let (joint, json) = (fix(AngleUnit::Rad), fix(unit));
-            let done = mcap::rewrite(input, output, &opts.channel, &joint, &json)?;
+            let done = mcap::rewrite(
+                input,
+                output,
+                &opts.channel,
+                &joint,
+                &json,
+                opts.skip_damaged,
+            )?;
             (
                 done.readings,
                 done.copied,
                 done.truncated,
                 joint.outside() + json.outside(),
+                done.damaged,
             )
         }
     };
@@ -204,6 +218,7 @@ pub fn apply_map(
         range: (range.min, range.max),
         copied,
         truncated,
+        damaged_chunks,
         outside,
     })
 }

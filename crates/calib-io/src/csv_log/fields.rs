@@ -2,6 +2,7 @@
 //! tolerance for whitespace and a BOM, the same number syntax and the same error wording.
 
 use crate::Error;
+use crate::limits::{LineLimit, MAX_CSV_LINE_BYTES, line_too_long};
 use csv::ByteRecord;
 use std::fs::File;
 use std::io::{BufRead, BufReader};
@@ -14,19 +15,19 @@ const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
 /// `flexible`: rows with the wrong number of fields come through so the caller can say which row
 /// and how many fields, rather than csv's generic message. No header handling: the caller reads the
 /// header as the first record, so that it can strip a BOM and number lines itself.
-pub(crate) fn csv_reader(file: File) -> csv::Reader<File> {
+pub(crate) fn csv_reader(file: File) -> csv::Reader<LineLimit<File>> {
     csv_reader_with(file, b',')
 }
 
 /// [`csv_reader`] with another field separator.
-pub(crate) fn csv_reader_with(file: File, separator: u8) -> csv::Reader<File> {
+pub(crate) fn csv_reader_with(file: File, separator: u8) -> csv::Reader<LineLimit<File>> {
     csv::ReaderBuilder::new()
         .delimiter(separator)
         .has_headers(false)
         .flexible(true)
         // Bigger than csv's 8 KiB default: fewer read calls, measurably faster on large logs.
         .buffer_capacity(1 << 16)
-        .from_reader(file)
+        .from_reader(LineLimit::new(file))
 }
 
 /// The 1-based line of `path` on which `record` starts.
@@ -182,9 +183,20 @@ pub(crate) fn from_csv(path: &Path, e: csv::Error) -> Error {
     let line = e.position().map_or(0, |p| p.line());
     let message = e.to_string();
     match e.into_kind() {
-        csv::ErrorKind::Io(source) => Error::Io {
-            path: path.to_path_buf(),
-            source,
+        csv::ErrorKind::Io(source) => match line_too_long(&source) {
+            Some(long) => Error::Csv {
+                path: path.to_path_buf(),
+                line: long.line,
+                channel: None,
+                message: format!(
+                    "the line is longer than {MAX_CSV_LINE_BYTES} bytes, more than any log row: \
+                     this is not a CSV log (a binary file, or one without line ends)"
+                ),
+            },
+            None => Error::Io {
+                path: path.to_path_buf(),
+                source,
+            },
         },
         _ => Error::Csv {
             path: path.to_path_buf(),

@@ -2,6 +2,7 @@
 
 use super::dialect::{self, SNIFF_BYTES};
 use super::fields::{self, line_of, parse_f64};
+use crate::limits::LineLimit;
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use csv::ByteRecord;
@@ -39,7 +40,7 @@ use std::path::{Path, PathBuf};
 #[derive(Debug)]
 pub struct CsvReader {
     path: PathBuf,
-    reader: csv::Reader<File>,
+    reader: csv::Reader<LineLimit<File>>,
     /// Reused for every row: no allocation per row but the sample's own values.
     record: ByteRecord,
     /// `record` holds a row read ahead by `open` (the first data row) that is yet to be yielded.

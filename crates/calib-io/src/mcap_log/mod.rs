@@ -48,7 +48,7 @@
 pub(crate) mod cdr;
 pub(crate) mod json;
 pub(crate) mod read;
-mod records;
+pub(crate) mod records;
 mod write;
 
 pub use read::{IgnoredTopic, McapReader, PEEK_WINDOW, TopicInfo};

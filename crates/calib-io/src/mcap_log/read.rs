@@ -189,7 +189,7 @@ impl Read for Source {
 type Stream = records::Stream<Source>;
 
 /// A message stream over `file` from its start, and its count of bytes read.
-fn stream(mut file: File, len: u64) -> io::Result<(Stream, Arc<AtomicU64>)> {
+fn stream(mut file: File, len: u64, skip_damaged: bool) -> io::Result<(Stream, Arc<AtomicU64>)> {
     file.seek(SeekFrom::Start(0))?;
     let consumed = Arc::new(AtomicU64::new(0));
     let source = Source {
@@ -201,7 +201,10 @@ fn stream(mut file: File, len: u64) -> io::Result<(Stream, Arc<AtomicU64>)> {
         .with_skip_end_magic(true)
         // No record can be longer than the file; a corrupt length must not drive an allocation.
         .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
-    Ok((records::Stream::new(source, options), consumed))
+    Ok((
+        records::Stream::new(source, options, skip_damaged),
+        consumed,
+    ))
 }
 
 /// The file's summary as the `mcap` crate reads it (chunk indexes and statistics, which `calib
@@ -463,8 +466,9 @@ impl McapReader {
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut messages = 0u64;
         let mut damage = None;
+        let mut skipped = Vec::new();
         if expected.as_ref().is_none_or(|e| !e.is_empty()) {
-            let (mut peek, _) = stream(file, len).map_err(io)?;
+            let (mut peek, _) = stream(file, len, opts.skip_damaged).map_err(io)?;
             // Messages since every expected topic showed itself.
             let mut after_all: Option<u64> = None;
             for (index, message) in (&mut peek).enumerate() {
@@ -507,10 +511,27 @@ impl McapReader {
                     break;
                 }
             }
+            skipped = peek.damaged().to_vec();
             file = peek.into_inner().file.into_inner();
         }
         if registry.topics.is_empty() {
+            if !skipped.is_empty() {
+                let list: Vec<String> = skipped.iter().map(|c| c.to_string()).collect();
+                return Err(mcap_error(
+                    path,
+                    None,
+                    None,
+                    format!(
+                        "no JointState or JSON message is left once the damaged chunks are \
+                         skipped (--skip-damaged): {}; repair the file or record again",
+                        list.join("; ")
+                    ),
+                ));
+            }
             if let Some((index, e)) = damage {
+                if let StreamError::Damaged(_) = e {
+                    return Err(damaged_error(path, index, &e));
+                }
                 if !matches!(e, StreamError::Mcap(McapError::UnexpectedEof)) {
                     return Err(mcap_error(
                         path,
@@ -522,6 +543,20 @@ impl McapReader {
                         ),
                     ));
                 }
+            }
+            // A file cut before its first usable message is cut, whatever else it holds: say so
+            // rather than that it holds no samples.
+            if let Some(at) = find_break(path) {
+                return Err(mcap_error(
+                    path,
+                    None,
+                    None,
+                    format!(
+                        "the file is cut short at byte {at} of {len}, before its first JointState \
+                         or JSON message (a recording that stopped early, or a partial copy); \
+                         copy the file again or record again"
+                    ),
+                ));
             }
             if messages == 0 && registry.ignored.is_empty() {
                 return Err(Error::Empty {
@@ -567,7 +602,7 @@ impl McapReader {
                 });
             }
         }
-        let (stream, consumed) = stream(file, len).map_err(io)?;
+        let (stream, consumed) = stream(file, len, opts.skip_damaged).map_err(io)?;
         let width = all_channels.len();
         let mut reader = McapReader {
             path: path.to_path_buf(),
@@ -739,9 +774,11 @@ impl McapReader {
         true
     }
 
-    /// The stream has ended: what the aligner holds can now be decided.
+    /// The stream has ended: what the aligner holds can now be decided, and the damaged chunks
+    /// left out are listed.
     fn finish(&mut self) {
         self.done = true;
+        self.diagnostics.damaged_chunks = self.stream.damaged().to_vec();
         self.aligner.finish();
     }
 }
@@ -762,7 +799,9 @@ impl Iterator for McapReader {
             }
             let message = match self.stream.next() {
                 Some(Ok(message)) => {
-                    self.consumed_at_last = self.consumed.load(Ordering::Relaxed);
+                    // Chunks are held until checked: where this message's bytes ended is where
+                    // the reader was when it gave the message, not where the check got to.
+                    self.consumed_at_last = self.stream.consumed_at_last();
                     message
                 }
                 None => {
@@ -785,6 +824,9 @@ impl Iterator for McapReader {
                         continue;
                     }
                     self.failed = true;
+                    if matches!(e, StreamError::Damaged(_) | StreamError::DataCrc) {
+                        return Some(Err(damaged_error(&self.path, self.index, &e)));
+                    }
                     return Some(Err(mcap_error(
                         &self.path,
                         Some(self.index),
@@ -808,6 +850,18 @@ impl Iterator for McapReader {
             }
         }
     }
+}
+
+/// The error for a damaged chunk or data section met after `index` messages.
+fn damaged_error(path: &Path, index: u64, e: &StreamError) -> Error {
+    let what = match e {
+        StreamError::Damaged(_) => {
+            "none of its messages were used: run with --skip-damaged to calibrate without them \
+             (they are then listed in the report), or repair the file"
+        }
+        _ => "calib cannot tell which readings it changed: repair the file or record again",
+    };
+    mcap_error(path, Some(index), None, format!("{e}; {what}"))
 }
 
 fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<String> {
@@ -1000,7 +1054,11 @@ pub(crate) fn decode(
                 Some(topic.layout(&js).map_err(|m| (None, m))?)
             };
             let names = &topic.names;
-            let mut put = |i: usize, rad: f64| match crate::limits::reading_problem(rad, rad, rad) {
+            let mut put = |i: usize, rad: f64| match crate::limits::reading_problem(
+                crate::limits::readable(rad),
+                rad,
+                rad,
+            ) {
                 Some(problem) => Err((Some(names[i].clone()), problem)),
                 None => {
                     out[i] = rad;

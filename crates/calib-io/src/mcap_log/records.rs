@@ -6,9 +6,20 @@
 //! Record lengths themselves are bounded by the reader options (no record longer than the file or
 //! its chunk). Here the records' inner fields are walked first and parsed only when every length
 //! fits; records calib does not need (attachments, metadata, indexes) are skipped unparsed.
+//!
+//! # Checksums
+//! Every reader path goes through [`Checked`], which checks the CRC-32 the file records for each
+//! chunk (over its uncompressed records) and for the whole data section. A chunk's records are held
+//! back until the chunk has ended and its CRC matched, so nothing from a damaged chunk reaches a
+//! calibration: one flipped bit in a zstd chunk can decompress to other, valid-looking readings.
+//! A damaged chunk is an error naming its byte offset and its messages' log times, or, when the
+//! caller asks to skip damaged chunks, it is left out and listed in
+//! [`ReadDiagnostics::damaged_chunks`](crate::ReadDiagnostics::damaged_chunks). A chunk cut short
+//! by the end of the file cannot be checked: its records before the cut are handed on as the
+//! truncation recovery promises, and the file is reported cut.
 
 use std::borrow::Cow;
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::fmt;
 use std::fs::File;
 use std::io::{self, BufReader, Read, Seek, SeekFrom};
@@ -16,7 +27,7 @@ use std::sync::Arc;
 
 use mcap::read::ChannelAccumulator;
 use mcap::records::{Record, op};
-use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use mcap::sans_io::{ChunkSpan, LinearReadEvent, LinearReader, LinearReaderOptions};
 use mcap::{McapError, Message};
 
 /// Why the stream stopped.
@@ -26,6 +37,11 @@ pub(crate) enum StreamError {
     Mcap(McapError),
     /// A field's length exceeds what is left of its record.
     Length(String),
+    /// A chunk whose records do not match its CRC or cannot be decoded.
+    Damaged(crate::DamagedChunk),
+    /// The data section does not match its CRC, though every chunk matched its own: a record
+    /// outside the chunks is damaged.
+    DataCrc,
 }
 
 impl fmt::Display for StreamError {
@@ -33,6 +49,11 @@ impl fmt::Display for StreamError {
         match self {
             StreamError::Mcap(e) => write!(f, "{e}"),
             StreamError::Length(m) => f.write_str(m),
+            StreamError::Damaged(d) => write!(f, "{d}"),
+            StreamError::DataCrc => f.write_str(
+                "the data section does not match the CRC recorded in its data end record: a \
+                 record outside the chunks is damaged",
+            ),
         }
     }
 }
@@ -120,21 +141,47 @@ fn check(opcode: u8, body: &[u8]) -> Result<(), StreamError> {
     }
 }
 
-/// A stream of messages from an MCAP file's data section, to its data end record.
-pub(crate) struct Stream<R> {
+/// The CRC-checked top-level and chunk records of an MCAP stream, in file order, each as its
+/// opcode and body (see the module docs).
+pub(crate) struct Checked<R> {
     source: R,
     reader: LinearReader,
-    channels: ChannelAccumulator<'static>,
-    done: bool,
+    /// Records of the chunk being read, held until it has ended with a matching CRC, each with
+    /// the bytes read from `source` when the reader gave it.
+    held: VecDeque<(u8, Vec<u8>, u64)>,
+    /// Records ready to be handed on, likewise.
+    ready: VecDeque<(u8, Vec<u8>, u64)>,
+    /// The error to give once `ready` is drained; nothing follows it.
+    failed: Option<StreamError>,
+    ended: bool,
+    skip_damaged: bool,
+    /// Damaged chunks left out (only with `skip_damaged`).
+    pub(crate) damaged: Vec<crate::DamagedChunk>,
+    /// Bytes read from `source`.
+    pub(crate) consumed: u64,
+    /// `consumed` when the reader gave the record last handed on: the bytes that record came
+    /// from end before it (where a truncated file's readable data ends).
+    pub(crate) consumed_at_last: u64,
 }
 
-impl<R: Read> Stream<R> {
-    pub(crate) fn new(source: R, options: LinearReaderOptions) -> Self {
-        Stream {
+impl<R: Read> Checked<R> {
+    /// Reads `source` from its start; with `skip_damaged`, damaged chunks are left out instead
+    /// of ending the stream with an error.
+    pub(crate) fn new(source: R, options: LinearReaderOptions, skip_damaged: bool) -> Self {
+        let options = options
+            .with_validate_chunk_crcs(true)
+            .with_validate_data_section_crc(true);
+        Checked {
             source,
             reader: LinearReader::new_with_options(options),
-            channels: ChannelAccumulator::default(),
-            done: false,
+            held: VecDeque::new(),
+            ready: VecDeque::new(),
+            failed: None,
+            ended: false,
+            skip_damaged,
+            damaged: Vec::new(),
+            consumed: 0,
+            consumed_at_last: 0,
         }
     }
 
@@ -142,25 +189,144 @@ impl<R: Read> Stream<R> {
         self.source
     }
 
-    fn next_message(&mut self) -> Option<Result<Message<'static>, StreamError>> {
+    /// Notes the chunk `span` as damaged by `error` (`in_chunk`: met inside the chunk, which is
+    /// then abandoned to skip it; a CRC mismatch is met after it): skipped, or the end of the
+    /// stream.
+    fn damaged(&mut self, span: Option<ChunkSpan>, error: McapError, in_chunk: bool) {
+        self.held.clear();
+        let damage = crate::DamagedChunk::new(span, self.reader.position(), &error);
+        if self.skip_damaged && (!in_chunk || self.reader.skip_chunk()) {
+            self.damaged.push(damage);
+        } else {
+            self.failed = Some(StreamError::Damaged(damage));
+        }
+    }
+
+    /// The next record, after its chunk (if it is in one) has been checked.
+    pub(crate) fn next_record(&mut self) -> Option<Result<(u8, Vec<u8>), StreamError>> {
         loop {
-            let event = match self.reader.next_event()? {
-                Ok(event) => event,
-                Err(e) => return Some(Err(e.into())),
+            if let Some((opcode, data, consumed)) = self.ready.pop_front() {
+                self.consumed_at_last = consumed;
+                return Some(Ok((opcode, data)));
+            }
+            if let Some(e) = self.failed.take() {
+                self.ended = true;
+                return Some(Err(e));
+            }
+            if self.ended {
+                return None;
+            }
+            let event = match self.reader.next_event() {
+                None => {
+                    // A chunk that ended the stream ended without error: its CRC matched.
+                    self.ready.append(&mut self.held);
+                    self.ended = true;
+                    continue;
+                }
+                Some(event) => event,
             };
-            let (opcode, data) = match event {
-                LinearReadEvent::ReadRequest(need) => {
+            let error = match event {
+                Ok(LinearReadEvent::ReadRequest(need)) => {
                     let read = loop {
                         match self.source.read(self.reader.insert(need)) {
                             Ok(n) => break n,
                             Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                            Err(e) => return Some(Err(McapError::Io(e).into())),
+                            Err(e) => {
+                                self.ready.clear();
+                                self.held.clear();
+                                self.failed = Some(McapError::Io(e).into());
+                                break 0;
+                            }
                         }
                     };
-                    self.reader.notify_read(read);
+                    if self.failed.is_none() {
+                        self.consumed += read as u64;
+                        self.reader.notify_read(read);
+                    }
                     continue;
                 }
-                LinearReadEvent::Record { opcode, data } => (opcode, data),
+                Ok(LinearReadEvent::Record { opcode, data }) => {
+                    let record = (opcode, data.to_vec(), self.consumed);
+                    if self.reader.in_chunk() {
+                        self.held.push_back(record);
+                    } else {
+                        // The chunk before this record (if any) ended with a matching CRC.
+                        self.ready.append(&mut self.held);
+                        self.ready.push_back(record);
+                    }
+                    continue;
+                }
+                Err(e) => e,
+            };
+            match error {
+                McapError::UnexpectedEof => {
+                    // The file is cut: a chunk cut short cannot be checked, and its records
+                    // before the cut are kept, as truncation recovery promises.
+                    self.ready.append(&mut self.held);
+                    self.failed = Some(McapError::UnexpectedEof.into());
+                }
+                McapError::BadDataCrc { .. } => {
+                    // Skipped chunks are the damage the data section's CRC finds; any other
+                    // mismatch is damage outside the chunks.
+                    self.ready.append(&mut self.held);
+                    if self.damaged.is_empty() {
+                        self.failed = Some(StreamError::DataCrc);
+                    } else {
+                        self.ended = true;
+                    }
+                }
+                e @ McapError::BadChunkCrc { .. } => {
+                    let span = self.reader.last_chunk();
+                    self.damaged(span, e, false);
+                }
+                e if self.reader.in_chunk() => {
+                    let span = self.reader.last_chunk();
+                    self.damaged(span, e, true);
+                }
+                e => {
+                    self.ready.append(&mut self.held);
+                    self.failed = Some(e.into());
+                }
+            }
+        }
+    }
+}
+
+/// A stream of messages from an MCAP file's data section, to its data end record.
+pub(crate) struct Stream<R> {
+    records: Checked<R>,
+    channels: ChannelAccumulator<'static>,
+    done: bool,
+}
+
+impl<R: Read> Stream<R> {
+    pub(crate) fn new(source: R, options: LinearReaderOptions, skip_damaged: bool) -> Self {
+        Stream {
+            records: Checked::new(source, options, skip_damaged),
+            channels: ChannelAccumulator::default(),
+            done: false,
+        }
+    }
+
+    pub(crate) fn into_inner(self) -> R {
+        self.records.into_inner()
+    }
+
+    /// The damaged chunks left out so far.
+    pub(crate) fn damaged(&self) -> &[crate::DamagedChunk] {
+        &self.records.damaged
+    }
+
+    /// The bytes read from the source when the reader gave the last record handed on.
+    pub(crate) fn consumed_at_last(&self) -> u64 {
+        self.records.consumed_at_last
+    }
+
+    fn next_message(&mut self) -> Option<Result<Message<'static>, StreamError>> {
+        loop {
+            let (opcode, data) = match self.records.next_record()? {
+                Ok(record) => record,
+                Err(e) => return Some(Err(e)),
             };
             match opcode {
                 // The summary after it is read separately; its damage must not cost the data.
@@ -168,10 +334,10 @@ impl<R: Read> Stream<R> {
                 op::SCHEMA | op::CHANNEL | op::MESSAGE => {}
                 _ => continue,
             }
-            if let Err(e) = check(opcode, data) {
+            if let Err(e) = check(opcode, &data) {
                 return Some(Err(e));
             }
-            let record = match mcap::parse_record(opcode, data) {
+            let record = match mcap::parse_record(opcode, &data) {
                 Ok(record) => record,
                 Err(e) => return Some(Err(e.into())),
             };
@@ -293,4 +459,25 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
         summary.channels.insert(id, accumulator.get(id)?);
     }
     Some(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The channel record of the fuzz input `mcap-channel-topic-claims-2gb.mcap`, in short: a
+    /// topic length claiming 2.2 GB is an error naming the field, before any allocation.
+    #[test]
+    fn a_topic_claiming_gigabytes_is_a_length_error() {
+        let mut body = Vec::new();
+        body.extend_from_slice(&1u16.to_le_bytes()); // id
+        body.extend_from_slice(&1u16.to_le_bytes()); // schema id
+        body.extend_from_slice(&2_248_146_957u32.to_le_bytes()); // topic length
+        body.extend_from_slice(b"/joint_states");
+        let err = check(op::CHANNEL, &body).unwrap_err().to_string();
+        assert!(
+            err.contains("channel record's topic claims 2248146957 bytes"),
+            "{err}"
+        );
+    }
 }

@@ -27,6 +27,10 @@ enum CurrentlyReading {
     },
     ValidatingChunkCrc,
     ChunkRecord,
+    // calib: the rest of a damaged chunk, being discarded (see `LinearReader::skip_chunk`).
+    SkippingChunk {
+        left: u64,
+    },
     PaddingAfterChunk,
     EndMagic,
     AfterEndMagic,
@@ -51,6 +55,22 @@ struct ChunkState {
     padding_after_compressed_data: usize,
     // The CRC value that was read at the start of the chunk record.
     crc: u32,
+}
+
+/// calib: where a chunk record starts in the stream and the log times of its messages, so that a
+/// damaged chunk can be named.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChunkSpan {
+    /// Byte offset of the chunk record's opcode from the start of the stream.
+    pub offset: u64,
+    /// Length of the whole chunk record, opcode and length field included.
+    pub record_len: u64,
+    /// `message_start_time` of the chunk header, ns.
+    pub message_start_time: u64,
+    /// `message_end_time` of the chunk header, ns.
+    pub message_end_time: u64,
+    /// Whether the header records a CRC of the chunk's records (0 means none).
+    pub has_crc: bool,
 }
 
 // MCAP records start with an opcode (1 byte) and a 64-bit length (8 bytes).
@@ -313,6 +333,10 @@ pub struct LinearReader {
     // Stores the number of bytes written into this reader since the last `next_event()` call.
     options: LinearReaderOptions,
     at_eof: bool,
+    // calib: bytes handed to the reader so far (`notify_read`), for chunk offsets.
+    written: u64,
+    // calib: the chunk being read, or the last one entered.
+    last_chunk: Option<ChunkSpan>,
 }
 
 impl Default for LinearReader {
@@ -341,6 +365,8 @@ impl LinearReader {
             chunk_state: None,
             decompressors: Decompressors::builtin(),
             at_eof: false,
+            written: 0,
+            last_chunk: None,
         }
     }
 
@@ -418,11 +444,43 @@ impl LinearReader {
             panic!("notify_read called with n > last inserted length");
         }
         self.file_data.mark_written(written);
+        self.written += written as u64;
     }
 
     /// Whether the record most recently yielded came from inside a chunk.
-    pub(crate) fn in_chunk(&self) -> bool {
+    pub fn in_chunk(&self) -> bool {
         self.chunk_state.is_some()
+    }
+
+    /// calib: the byte offset, from the start of the stream, of the first byte not yet read.
+    pub fn position(&self) -> u64 {
+        self.written - self.file_data.len() as u64
+    }
+
+    /// calib: the chunk being read, or the last chunk entered once it has ended (or failed).
+    pub fn last_chunk(&self) -> Option<ChunkSpan> {
+        self.last_chunk
+    }
+
+    /// calib: abandons the chunk being read after an error inside it (a bad CRC is reported
+    /// after the chunk, so needs no call): its remaining bytes are discarded unread and reading
+    /// resumes at the record after it. Returns false (and changes nothing) outside a chunk.
+    pub fn skip_chunk(&mut self) -> bool {
+        let Some(mut state) = self.chunk_state.take() else {
+            return false;
+        };
+        let left = state
+            .compressed_remaining
+            .saturating_add(state.padding_after_compressed_data as u64);
+        self.decompressed_content.clear();
+        *self.decompressed_content.hasher_mut() = None;
+        if let Some(decompressor) = state.decompressor.take() {
+            // A decompressor that cannot be reset is dropped; the next chunk of that
+            // compression then fails with an error of its own.
+            let _ = self.decompressors.restore(decompressor);
+        }
+        self.currently_reading = SkippingChunk { left };
+        true
     }
 
     /// Yields the next event the caller should take to progress through the file.
@@ -510,6 +568,13 @@ impl LinearReader {
                     let len = u64::from_le_bytes(opcode_length_buf[1..].try_into().unwrap());
                     // Some record types are handled specially.
                     if opcode == op::CHUNK && !self.options.emit_chunks {
+                        self.last_chunk = Some(ChunkSpan {
+                            offset: self.written - self.file_data.len() as u64,
+                            record_len: len.saturating_add(OPCODE_LEN_SIZE as u64),
+                            message_start_time: 0,
+                            message_end_time: 0,
+                            has_crc: false,
+                        });
                         self.file_data.mark_read(OPCODE_LEN_SIZE);
                         self.currently_reading = CurrentlyReading::ChunkHeader { len };
                         continue;
@@ -622,6 +687,11 @@ impl LinearReader {
                             .ok_or(McapError::ChunkTooLarge(header_len)));
                     let header_buf = consume!(header_len);
                     let header: ChunkHeader = check!(std::io::Cursor::new(header_buf).read_le());
+                    if let Some(span) = self.last_chunk.as_mut() {
+                        span.message_start_time = header.message_start_time;
+                        span.message_end_time = header.message_end_time;
+                        span.has_crc = header.uncompressed_crc != 0;
+                    }
 
                     // Length checks run before the decompressor is taken out of the map. An error
                     // here must leave the decoder in place for a later chunk.
@@ -839,6 +909,24 @@ impl LinearReader {
                         (None, Err(err)) => return Some(Err(err)),
                         (None, Ok(())) => {}
                     }
+                }
+                SkippingChunk { left } => {
+                    if left == 0 {
+                        self.currently_reading = FileRecord;
+                        continue;
+                    }
+                    if self.file_data.len() == 0 {
+                        let want = usize::try_from(left).unwrap_or(usize::MAX).min(1 << 16);
+                        return Some(Ok(LinearReadEvent::ReadRequest(want)));
+                    }
+                    let n = self
+                        .file_data
+                        .len()
+                        .min(usize::try_from(left).unwrap_or(usize::MAX));
+                    self.file_data.mark_read(n);
+                    self.currently_reading = SkippingChunk {
+                        left: left - n as u64,
+                    };
                 }
                 EndMagic => {
                     if self.options.skip_end_magic {
