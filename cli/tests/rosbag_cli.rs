@@ -595,3 +595,31 @@ fn scalar_counts_are_read_with_a_counts_unit() {
         .unwrap_or_else(|| panic!("{text}"));
     assert_mentions(line, &["counts:4096", " 0.000000", "4059.000000", "0.991"]);
 }
+
+/// Reading speed: 10⁶ JointState messages (two joints, one topic, 100 Hz) in one `.db3` file,
+/// timed through `calib inspect` (which reads every message). Prints the figure; the bound is
+/// loose (a tenth of what was measured) so that only a collapse fails it.
+#[test]
+#[ignore = "writes a 10⁶-message bag; run for the figure"]
+fn reading_speed_of_a_large_bag() {
+    const N: i64 = 1_000_000;
+    let dir = tempfile::tempdir().unwrap();
+    let db3 = dir.path().join("big.db3");
+    let db = create_db3(&db3, &[("/joint_states", JOINT_STATE)]);
+    db.execute_batch("BEGIN").unwrap();
+    for i in 0..N {
+        let t = 1_000_000_000 + i * 10_000_000;
+        let q = (i as f64 * 0.001) % 6.0;
+        insert(&db, 1, t, &joint_state(t, &["a", "b"], &[q, q + 0.1]));
+    }
+    db.execute_batch("COMMIT").unwrap();
+    drop(db);
+    let start = std::time::Instant::now();
+    let o = calib(&["inspect", s(&db3)]);
+    let seconds = start.elapsed().as_secs_f64();
+    expect_exit(&o, 0);
+    assert!(stdout(&o).contains(&format!("  {N} samples over ")));
+    let rate = N as f64 / seconds;
+    eprintln!("calib inspect on {N} bag messages: {seconds:.2} s, {rate:.0} msg/s");
+    assert!(rate > 50_000.0, "{rate:.0} msg/s");
+}

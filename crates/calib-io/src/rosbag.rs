@@ -396,8 +396,6 @@ fn scan(files: &[PathBuf], wanted: &Wanted, mut f: impl FnMut(Row) -> bool) -> R
 ///
 /// The iterator ends after the first error it yields.
 pub struct BagReader {
-    /// The bag as given (directory or `.db3` file).
-    path: PathBuf,
     files: Vec<PathBuf>,
     wanted: Wanted,
     /// One MCAP channel per topic of the bag (by name), so that messages are decoded and
@@ -433,8 +431,8 @@ impl BagReader {
     /// Opens a bag with SQLite storage: `files` are its `.db3` files in order, `warnings` what
     /// [`bag_files`] found to say.
     ///
-    /// Errors if a file is not a rosbag2 SQLite file, no topic holds JointState messages, the
-    /// same channel is named twice, or a topic's first message is bad.
+    /// Errors if a file is not a rosbag2 SQLite file, no topic holds JointState or scalar
+    /// messages, a topic has two types, or a topic's first message is bad.
     pub fn open(
         path: &Path,
         files: Vec<PathBuf>,
@@ -616,7 +614,6 @@ impl BagReader {
         }
         let width = all_channels.len();
         let mut reader = BagReader {
-            path: path.to_path_buf(),
             files,
             wanted,
             topic_channels,
@@ -636,11 +633,6 @@ impl BagReader {
         let all: Vec<usize> = (0..width).collect();
         reader.select(&all, AlignOptions::default());
         Ok(reader)
-    }
-
-    /// The bag as given.
-    pub fn path(&self) -> &Path {
-        &self.path
     }
 
     /// The selected channels, in the order of each sample's values.
