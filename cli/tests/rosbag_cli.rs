@@ -597,8 +597,9 @@ fn scalar_counts_are_read_with_a_counts_unit() {
 }
 
 /// Reading speed: 10⁶ JointState messages (two joints, one topic, 100 Hz) in one `.db3` file,
-/// timed through `calib inspect` (which reads every message). Prints the figure; the bound is
-/// loose (a tenth of what was measured) so that only a collapse fails it.
+/// timed through `calib inspect` (which reads every message). Prints the figure (measured
+/// 2.7 s, 374k msg/s, on 2 shared cores under load); the bound is a tenth of that, so that only
+/// a collapse fails it.
 #[test]
 #[ignore = "writes a 10⁶-message bag; run for the figure"]
 fn reading_speed_of_a_large_bag() {
@@ -621,5 +622,5 @@ fn reading_speed_of_a_large_bag() {
     assert!(stdout(&o).contains(&format!("  {N} samples over ")));
     let rate = N as f64 / seconds;
     eprintln!("calib inspect on {N} bag messages: {seconds:.2} s, {rate:.0} msg/s");
-    assert!(rate > 50_000.0, "{rate:.0} msg/s");
+    assert!(rate > 37_000.0, "{rate:.0} msg/s");
 }
