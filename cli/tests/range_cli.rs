@@ -392,6 +392,31 @@ fn range_tables_in_apply_export_and_compare() {
     );
     let err = expect_exit(&calib(&["export", s(&table), "--format", "harmonic"]), 2);
     assert_mentions(&err, &["range table", "whole turn"]);
+    // The controllers interpolate their tables periodically, and orders need a whole turn too.
+    for format in ["moteus", "simplefoc"] {
+        let err = expect_exit(&calib(&["export", s(&table), "--format", format]), 2);
+        assert_mentions(&err, &[&format!("--format {format}"), "range table"]);
+    }
+    let err = expect_exit(
+        &calib(&["export", s(&table), "--format", "csv", "--harmonics", "3"]),
+        2,
+    );
+    assert_mentions(&err, &["choosing orders", "range table"]);
+    // The C array names where the range starts and ends.
+    let o = calib(&["export", s(&table), "--format", "c-array"]);
+    expect_exit(&o, 0);
+    assert_mentions(
+        &stdout(&o),
+        &["CALIB_CORRECTION_START_DEG", "CALIB_CORRECTION_END_DEG"],
+    );
+    // compose works on whole turns only.
+    let composed = dir.path().join("composed.csv");
+    let err = expect_exit(
+        &calib(&["compose", s(&table), s(&table), "-o", s(&composed)]),
+        2,
+    );
+    assert_mentions(&err, &["calib compose", "range table"]);
+    assert!(!composed.exists());
 
     // compare: over the common range with the truth of b (whose range is wider).
     let truth = dir.path().join("joint.truth/b.csv");

@@ -7,6 +7,7 @@ use calib_core::inspect::{Inspection, Inspector};
 use calib_core::segment::{SegmentKind, SegmentOptions};
 use calib_io::ReadOptions;
 use calib_io::mcap_log::TopicInfo;
+use calib_io::prefetch::Prefetch;
 use std::fmt::Write;
 use std::path::PathBuf;
 
@@ -86,10 +87,13 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             ..SegmentOptions::default()
         },
     );
-    for sample in reader.by_ref() {
+    // Decoding runs ahead on a second thread.
+    let mut samples = Prefetch::new(reader);
+    for sample in samples.by_ref() {
         let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
         inspector.push(s.t, &s.values, s.session);
     }
+    let reader = samples.finish();
     let result = inspector.finish();
     if result.samples == 0 {
         anyhow::bail!("{}: the log holds no samples", args.log.display());
@@ -108,9 +112,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         });
         return Ok(calib_io::report::render_json(&value)?);
     }
-    Ok(render_topics(&topics)
-        + &render(&args.log, &result, &warnings)
-        + &alignment_text(alignment.as_ref()))
+    Ok(
+        render(&args.log, &result, &render_topics(&topics), &warnings)
+            + &alignment_text(alignment.as_ref()),
+    )
 }
 
 /// Width the channel lists of the topic table are wrapped at.
@@ -167,7 +172,7 @@ fn render_topics(topics: &[TopicInfo]) -> String {
 }
 
 /// The human report.
-fn render(path: &std::path::Path, r: &Inspection, warnings: &[String]) -> String {
+fn render(path: &std::path::Path, r: &Inspection, topics: &str, warnings: &[String]) -> String {
     let mut o = String::new();
     let duration = r.end_s - r.start_s;
     let _ = writeln!(o, "{}", path.display());
@@ -199,6 +204,10 @@ fn render(path: &std::path::Path, r: &Inspection, warnings: &[String]) -> String
             "    stamp steps back by {:.6} s at sample {} ({:.6} s)",
             -g.step_s, g.index, g.t
         );
+    }
+    if !topics.is_empty() {
+        let _ = write!(o, "\n{}", topics.trim_end_matches('\n'));
+        let _ = writeln!(o);
     }
     let _ = writeln!(o, "\nchannels");
     let _ = writeln!(

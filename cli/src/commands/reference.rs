@@ -11,6 +11,7 @@ use calib_core::reference_cal::{
     ReferenceCal, ReferenceCalibration, ReferenceOptions, TableMap, Targets,
 };
 use calib_core::{AngleUnit, ChannelReport, Report};
+use calib_io::prefetch::Prefetch;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
@@ -166,7 +167,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let names = [args.dut.as_str(), args.reference.as_str()];
-    let mut reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = open_selected(log, args.unit, &args.input, &names)?;
     let (id, ir) = (0, 1);
     let bar = crate::ui::reading(log);
     let mut cal = ReferenceCal::new(ReferenceOptions {
@@ -178,13 +179,16 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         max_gap: args.bridge_gap.to_radians(),
         targets: args.targets.clone(),
     });
-    for (n, sample) in reader.by_ref().enumerate() {
+    // Decoding runs ahead on a second thread.
+    let mut samples = Prefetch::new(reader);
+    for (n, sample) in samples.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         if n as u64 % crate::ui::TICK == 0 {
             bar.inc(crate::ui::TICK);
         }
         cal.push(s.t, s.values[id], s.values[ir]);
     }
+    let reader = samples.finish();
     bar.finish_and_clear();
     let cal = cal.finish().with_context(|| {
         format!(

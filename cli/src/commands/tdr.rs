@@ -12,6 +12,7 @@ use calib_core::tdr::{
     FALSE_ORDER_PROBABILITY, Tdr, TdrCalibration, TdrOptions, significance_threshold,
 };
 use calib_core::{AngleUnit, ChannelReport, Report};
+use calib_io::prefetch::Prefetch;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
@@ -152,7 +153,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut names = vec![args.channel.as_str()];
     names.extend(args.reference.as_deref());
-    let mut reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = open_selected(log, args.unit, &args.input, &names)?;
     let ic = 0;
     let ir = args.reference.as_ref().map(|_| 1);
     let mut tdr = Tdr::new(TdrOptions {
@@ -164,7 +165,9 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         ..TdrOptions::default()
     });
     let mut travel = crate::input::Travel::default();
-    for sample in reader.by_ref() {
+    // Decoding runs ahead on a second thread.
+    let mut samples = Prefetch::new(reader);
+    for sample in samples.by_ref() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         travel.push(s.values[ic]);
         match ir {
@@ -172,6 +175,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             None => tdr.push(s.t, s.values[ic]),
         }
     }
+    let reader = samples.finish();
     let cal = tdr.finish().map_err(|e| {
         let hint = travel.no_whole_turn(
             log,

@@ -182,6 +182,20 @@ fn check_values(values: &[f64], what: &'static str, non_negative: bool) -> Resul
 /// ```
 pub fn render_table(map: &ErrorMap, u: Option<&[f64]>) -> Result<String, RenderError> {
     let n = map.len();
+    let mut out = String::with_capacity(48 * (n + 1));
+    push_rows(&mut out, map.values(), u, |i| grid_deg(i, n))?;
+    Ok(out)
+}
+
+/// Checks `values` (errors, radians) and `u`, then appends the header and one row per value at
+/// the reading `angle_deg(i)`: the rows of every table, whole-turn or range.
+fn push_rows(
+    out: &mut String,
+    values: &[f64],
+    u: Option<&[f64]>,
+    angle_deg: impl Fn(usize) -> f64,
+) -> Result<(), RenderError> {
+    let n = values.len();
     if let Some(u) = u {
         if u.len() != n {
             return Err(RenderError::UncertaintyCount {
@@ -191,72 +205,44 @@ pub fn render_table(map: &ErrorMap, u: Option<&[f64]>) -> Result<String, RenderE
         }
         check_values(u, "uncertainty", true)?;
     }
-    check_values(map.values(), "error", false)?;
-
-    let mut out = String::with_capacity(48 * (n + 1));
+    check_values(values, "error", false)?;
     out.push_str(HEADER);
     if u.is_some() {
         out.push(',');
         out.push_str(U_COLUMN);
     }
     out.push('\n');
-    for (i, &e) in map.values().iter().enumerate() {
+    for (i, &e) in values.iter().enumerate() {
         let e = e * ARCSEC_PER_RAD;
-        push_fixed(&mut out, grid_deg(i, n));
+        push_fixed(out, angle_deg(i));
         out.push(',');
-        push_fixed(&mut out, e);
+        push_fixed(out, e);
         out.push(',');
-        push_fixed(&mut out, -e);
+        push_fixed(out, -e);
         if let Some(u) = u {
             out.push(',');
-            push_fixed(&mut out, u[i] * ARCSEC_PER_RAD);
+            push_fixed(out, u[i] * ARCSEC_PER_RAD);
         }
         out.push('\n');
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Renders a range table (see [Range tables](self#range-tables)): the `# range_deg:` line, then
 /// the rows of `map`'s grid as [`render_table`] writes them.
 pub fn render_range_table(map: &RangeMap, u: Option<&[f64]>) -> Result<String, RenderError> {
     let n = map.len();
-    if let Some(u) = u {
-        if u.len() != n {
-            return Err(RenderError::UncertaintyCount {
-                points: n,
-                given: u.len(),
-            });
-        }
-        check_values(u, "uncertainty", true)?;
-    }
-    check_values(map.values(), "error", false)?;
+    let (lo, hi) = (map.start().to_degrees(), map.end().to_degrees());
     let mut out = String::with_capacity(48 * (n + 2));
     out.push_str(RANGE_MARKER);
     out.push(' ');
-    push_fixed(&mut out, map.start().to_degrees());
+    push_fixed(&mut out, lo);
     out.push_str(" to ");
-    push_fixed(&mut out, map.end().to_degrees());
+    push_fixed(&mut out, hi);
     out.push_str(" (a range table: it holds the error between these readings only)\n");
-    out.push_str(HEADER);
-    if u.is_some() {
-        out.push(',');
-        out.push_str(U_COLUMN);
-    }
-    out.push('\n');
-    let (lo, hi) = (map.start().to_degrees(), map.end().to_degrees());
-    for (i, &e) in map.values().iter().enumerate() {
-        let e = e * ARCSEC_PER_RAD;
-        push_fixed(&mut out, lo + (hi - lo) * i as f64 / (n - 1) as f64);
-        out.push(',');
-        push_fixed(&mut out, e);
-        out.push(',');
-        push_fixed(&mut out, -e);
-        if let Some(u) = u {
-            out.push(',');
-            push_fixed(&mut out, u[i] * ARCSEC_PER_RAD);
-        }
-        out.push('\n');
-    }
+    push_rows(&mut out, map.values(), u, |i| {
+        lo + (hi - lo) * i as f64 / (n - 1) as f64
+    })?;
     Ok(out)
 }
 
