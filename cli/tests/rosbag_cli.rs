@@ -239,7 +239,7 @@ fn inspect_lists_the_topics_calib_does_not_read() {
     let o = calib(&["inspect", s(&db3)]);
     expect_exit(&o, 0);
     let out = stdout(&o);
-    assert!(out.starts_with("topics: 1 read, 1 not read\n"), "{out}");
+    assert!(out.contains("\ntopics: 1 read, 1 not read\n"), "{out}");
     let line = |topic: &str| {
         out.lines()
             .find(|l| l.trim_start().starts_with(topic))
@@ -414,7 +414,7 @@ fn the_committed_bag_fixture_is_read() {
     let o = calib(&["inspect", s(&fixture())]);
     expect_exit(&o, 0);
     let out = stdout(&o);
-    assert!(out.starts_with("topics: 2 read, 1 not read\n"), "{out}");
+    assert!(out.contains("\ntopics: 2 read, 1 not read\n"), "{out}");
     assert_mentions(
         &out,
         &[
@@ -536,7 +536,7 @@ fn scalar_topics_in_mcap_and_bags_give_the_maps_of_the_same_run() {
         let o = calib(&["inspect", s(log)]);
         expect_exit(&o, 0);
         let out = stdout(&o);
-        assert!(out.starts_with("topics: 2 read, 0 not read\n"), "{out}");
+        assert!(out.contains("\ntopics: 2 read, 0 not read\n"), "{out}");
         assert_mentions(&out, &["std_msgs/msg/Float64", "      /enc_a/angle\n"]);
         let out = dir.path().join(log.extension().unwrap());
         let o = calib(&[
