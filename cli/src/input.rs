@@ -166,7 +166,7 @@ pub fn check_non_negative(option: &str, value: f64, unit: &str) -> Result<(), Us
 }
 
 /// Checks that `path` can be a log before it is opened: it exists (exit 2 if not, naming it)
-/// and is not a folder (exit 2). The one place that decides what a log path may be, so that
+/// and is not a folder other than a rosbag2 bag directory (exit 2). The one place that decides what a log path may be, so that
 /// folder formats (a rosbag2 bag directory) are accepted here.
 pub fn check_log_path(path: &Path) -> Result<(), Usage> {
     let shown = crate::ui::shown(path);
@@ -174,8 +174,10 @@ pub fn check_log_path(path: &Path) -> Result<(), Usage> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             Err(Usage(format!("{shown}: no such file; check the path")))
         }
-        Ok(meta) if meta.is_dir() => Err(Usage(format!(
-            "{shown}: this is a folder, not a log; name the .csv or .mcap file inside it"
+        Ok(meta) if meta.is_dir() && !calib_io::rosbag::is_bag_dir(path) => Err(Usage(format!(
+            "{shown}: this is a folder, not a log nor a rosbag2 bag directory (which holds \
+             metadata.yaml or .db3 files); name the .csv or .mcap file inside it, or the bag \
+             directory"
         ))),
         _ => Ok(()),
     }

@@ -44,17 +44,18 @@ pub enum MethodArg {
 /// session timeline), and prints a summary. With several logs, each log's files go to
 /// DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
 ///
-/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
-/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
-/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table
-/// is named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned
-/// on A's stamps (see --time, --max-gap).
+/// Channels are named by their CSV column; in MCAP and rosbag2 bags by the joint name (JointState)
+/// or field (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table is
+/// named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned on
+/// A's stamps (see --time, --max-gap).
 ///
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv or .mcap), calibrated independently and in parallel.
+    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
+    /// independently and in parallel.
     #[arg(required = true, value_name = "LOG")]
     pub logs: Vec<PathBuf>,
     /// Output folder.

@@ -20,13 +20,13 @@ use std::path::PathBuf;
 /// MCAP log it lists every topic first: message type, encoding, message count, rate, and its
 /// channels by the names the other commands accept.
 ///
-/// Channels are named by their CSV column; in MCAP by the joint name (JointState) or field
-/// (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
-/// (/sensor_a/joint_states/encoder). Channels on separate topics are aligned on the stamps of
-/// the pair's first channel (or the log's first channel), as the methods do.
+/// Channels are named by their CSV column; in MCAP and rosbag2 bags by the joint name (JointState)
+/// or field (JSON) where no other topic carries that name, and always accepted as TOPIC/NAME
+/// (/sensor_a/joint_states/encoder). Channels on separate topics are aligned on the stamps of the
+/// pair's first channel (or the log's first channel), as the methods do.
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The log (.csv or .mcap).
+    /// The log (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file).
     pub log: PathBuf,
     /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
     #[arg(long, value_parser = parse_unit)]

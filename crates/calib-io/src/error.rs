@@ -14,7 +14,7 @@ pub enum Error {
         source: std::io::Error,
     },
     /// The file's extension names no format calib reads.
-    #[error("{}: unknown log format; calib reads .csv and .mcap files", path.display())]
+    #[error("{}: unknown log format; calib reads .csv and .mcap files and rosbag2 bags (a bag directory or a .db3 file)", path.display())]
     UnknownFormat {
         /// The file.
         path: PathBuf,
@@ -40,6 +40,20 @@ pub enum Error {
         message_index: Option<u64>,
         /// The channel (joint name, JSON field or topic) concerned, where one is.
         channel: Option<String>,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// A rosbag2 bag (its `metadata.yaml` or a `.db3` file) has bad content.
+    #[error("{}: {}{}{}{message}", path.display(), table.as_ref().map(|t| format!("table `{t}`: ")).unwrap_or_default(), message_id.map(|i| format!("message id {i}: ")).unwrap_or_default(), topic.as_ref().map(|t| format!("topic `{t}`: ")).unwrap_or_default())]
+    Bag {
+        /// The file (or bag directory).
+        path: PathBuf,
+        /// The SQLite table concerned, where one is.
+        table: Option<String>,
+        /// The `id` of the row of `messages` concerned, where one is.
+        message_id: Option<i64>,
+        /// The topic concerned, where one is.
+        topic: Option<String>,
         /// What is wrong and what to do.
         message: String,
     },

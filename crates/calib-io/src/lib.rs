@@ -2,7 +2,9 @@
 //! reports.
 //!
 //! - [`csv_log`]: CSV logs (`t`, one column per channel, optional `session`).
-//! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` (CDR) or JSON messages.
+//! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` or `std_msgs` scalars (CDR),
+//!   or JSON messages.
+//! - [`rosbag`]: rosbag2 bags (a bag directory or a `.db3` file) with the same ROS 2 messages.
 //! - [`naming`]: channels addressed by joint name or `TOPIC/JOINT`.
 //! - [`align`]: channels on different clocks interpolated onto the first one's stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
@@ -51,6 +53,7 @@ pub mod points;
 pub mod prefetch;
 pub mod readings;
 pub mod report;
+pub mod rosbag;
 pub mod table;
 
 pub use error::Error;

@@ -4,6 +4,7 @@ use crate::align::{AlignOptions, Alignment};
 use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
+use crate::rosbag::{self, BagReader, SQLITE_MAGIC, Storage};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use std::io::Read;
@@ -16,6 +17,9 @@ pub enum LogFormat {
     Csv,
     /// MCAP.
     Mcap,
+    /// A rosbag2 bag: a bag directory (`metadata.yaml`, `.db3` or `.mcap` splits) or a `.db3`
+    /// file. Read only.
+    Rosbag,
 }
 
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
@@ -26,6 +30,7 @@ impl LogFormat {
         match self {
             LogFormat::Csv => "csv",
             LogFormat::Mcap => "mcap",
+            LogFormat::Rosbag => "db3",
         }
     }
 
@@ -40,10 +45,13 @@ impl LogFormat {
         }
     }
 
-    /// The format of an existing file, from its first bytes whatever its extension: MCAP's magic
-    /// number, or another known kind of file (compressed, an archive, a ROS 1 bag, a database,
-    /// UTF-16 or binary data), which is an error saying what the file is and what to do. Other
-    /// text is CSV if the extension says so (or is unknown and the text looks like CSV).
+    /// The format of an existing log. A directory is a rosbag2 bag if [`rosbag::is_bag_dir`]
+    /// says so (it holds `metadata.yaml` or `.db3` files), else an error. A file is known by its
+    /// first bytes whatever its extension: MCAP's magic number, SQLite's (a rosbag2 `.db3`
+    /// file), or another known kind of file (compressed, an archive, a ROS 1 bag, UTF-16 or
+    /// binary data), which is an error saying what the file is and what to do. Other content is
+    /// a bag if the extension is `.db3` (for the bag reader to refuse with its reason), CSV if
+    /// the extension says so (or is unknown and the text looks like CSV).
     /// Devices and sockets are refused: a log is a file (a named pipe, which can be read only
     /// once, is taken by its extension).
     pub fn detect(path: &Path) -> Result<Self, Error> {
@@ -52,11 +60,17 @@ impl LogFormat {
             source,
         };
         let meta = std::fs::metadata(path).map_err(io)?;
+        if meta.is_dir() && rosbag::is_bag_dir(path) {
+            return Ok(LogFormat::Rosbag);
+        }
         if !meta.is_file() && !is_fifo(&meta) {
             return Err(Error::Data {
                 path: path.to_path_buf(),
                 message: if meta.is_dir() {
-                    "this is a folder, not a log file; name the .csv or .mcap file".into()
+                    "this is a folder, not a log file nor a rosbag2 bag directory (which holds \
+                     metadata.yaml or .db3 files); name the .csv or .mcap file, or the bag \
+                     directory"
+                        .into()
                 } else {
                     "this is a device or socket, not a log file; name a .csv or .mcap file".into()
                 },
@@ -74,6 +88,9 @@ impl LogFormat {
         if head.starts_with(MCAP_MAGIC) {
             return Ok(LogFormat::Mcap);
         }
+        if head == SQLITE_MAGIC {
+            return Ok(LogFormat::Rosbag);
+        }
         if let Some((kind, todo)) = foreign_kind(head) {
             return Err(Error::Data {
                 path: path.to_path_buf(),
@@ -83,6 +100,7 @@ impl LogFormat {
         match extension(path).as_deref() {
             Some("mcap") => Ok(LogFormat::Mcap),
             Some("csv") => Ok(LogFormat::Csv),
+            Some("db3") => Ok(LogFormat::Rosbag),
             _ => Err(Error::UnknownFormat {
                 path: path.to_path_buf(),
             }),
@@ -134,11 +152,6 @@ fn foreign_kind(head: &[u8]) -> Option<(&'static str, &'static str)> {
             "a ROS 1 bag",
             "convert it to MCAP (`mcap convert`)",
         ),
-        (
-            b"SQLite format 3\x00",
-            "an SQLite database (a ROS 2 .db3 bag?)",
-            "convert the bag to MCAP (`ros2 bag convert`)",
-        ),
         (b"\x89PNG", "a PNG image", "name the log file"),
         (b"%PDF", "a PDF document", "name the log file"),
         (b"\xff\xfe", "UTF-16 text", "save it as UTF-8"),
@@ -169,19 +182,36 @@ pub struct LogReader {
     names: Vec<ChannelName>,
     /// CSV: the selected columns and their channels (MCAP selects itself).
     selection: Option<(Vec<usize>, Vec<Channel>)>,
+    /// A bag directory of MCAP storage without `metadata.yaml`: the warning to give.
+    bag_warnings: Vec<String>,
 }
 
 enum Inner {
     Csv(CsvReader),
     Mcap(McapReader),
+    Bag(BagReader),
 }
 
 impl LogReader {
     /// Opens a log, choosing the reader by [`LogFormat::detect`].
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
+        let mut bag_warnings = Vec::new();
         let inner = match LogFormat::detect(path)? {
             LogFormat::Csv => Inner::Csv(CsvReader::open(path, opts)?),
             LogFormat::Mcap => Inner::Mcap(McapReader::open(path, opts)?),
+            LogFormat::Rosbag => {
+                let found = rosbag::bag_files(path)?;
+                match found.storage {
+                    Storage::Sqlite3(files) => {
+                        Inner::Bag(BagReader::open(path, files, found.warnings, opts)?)
+                    }
+                    Storage::Mcap(file) => {
+                        let reader = McapReader::open(&file, opts)?;
+                        bag_warnings = found.warnings;
+                        Inner::Mcap(reader)
+                    }
+                }
+            }
         };
         let names = match &inner {
             Inner::Csv(r) => r
@@ -190,11 +220,13 @@ impl LogReader {
                 .map(|c| ChannelName::plain(&c.name))
                 .collect(),
             Inner::Mcap(r) => r.names().to_vec(),
+            Inner::Bag(r) => r.names().to_vec(),
         };
         Ok(LogReader {
             inner,
             names,
             selection: None,
+            bag_warnings,
         })
     }
 
@@ -220,6 +252,7 @@ impl LogReader {
                 self.selection = Some((channels.to_vec(), chosen));
             }
             Inner::Mcap(r) => r.select(channels, opts),
+            Inner::Bag(r) => r.select(channels, opts),
         }
     }
 
@@ -229,6 +262,7 @@ impl LogReader {
             (_, Some((_, chosen))) => chosen,
             (Inner::Csv(r), None) => r.channels(),
             (Inner::Mcap(r), None) => r.channels(),
+            (Inner::Bag(r), None) => r.channels(),
         }
     }
 
@@ -236,7 +270,7 @@ impl LogReader {
     pub fn has_session_marks(&self) -> bool {
         match &self.inner {
             Inner::Csv(r) => r.has_session_column(),
-            Inner::Mcap(_) => false,
+            Inner::Mcap(_) | Inner::Bag(_) => false,
         }
     }
 
@@ -245,6 +279,7 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(r) => r.diagnostics(),
             Inner::Mcap(r) => r.diagnostics(),
+            Inner::Bag(r) => r.diagnostics(),
         }
     }
 
@@ -254,6 +289,7 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(_) => None,
             Inner::Mcap(r) => Some(r.alignment()),
+            Inner::Bag(r) => Some(r.alignment()),
         }
     }
 
@@ -263,31 +299,37 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(_) => Vec::new(),
             Inner::Mcap(r) => r.topics(),
+            Inner::Bag(r) => r.topics(),
         }
     }
 
     /// Notes for the user about parts of the log that were not read (topics of other schemas).
     pub fn notes(&self) -> Vec<String> {
-        match &self.inner {
-            Inner::Csv(_) => Vec::new(),
-            Inner::Mcap(r) => r
-                .ignored_topics()
-                .iter()
-                .map(|t| {
-                    format!(
-                        "topic `{}` ({}, {}) is not JointState or JSON and was skipped",
-                        t.topic, t.schema, t.message_encoding
-                    )
-                })
-                .collect(),
-        }
+        let ignored = match &self.inner {
+            Inner::Csv(_) => return Vec::new(),
+            Inner::Mcap(r) => r.ignored_topics(),
+            Inner::Bag(r) => r.ignored_topics(),
+        };
+        ignored
+            .iter()
+            .map(|t| {
+                format!(
+                    "topic `{}` ({}, {}) is not JointState, a std_msgs scalar or JSON and was \
+                     skipped",
+                    t.topic, t.schema, t.message_encoding
+                )
+            })
+            .collect()
     }
 
     /// Warnings the user must see once the log has been read: truncation, damaged chunks skipped,
     /// and samples dropped because a channel could not be aligned on the clock.
     pub fn warnings(&self, path: &Path) -> Vec<String> {
         let d = self.diagnostics();
-        let mut w = Vec::new();
+        let mut w = match &self.inner {
+            Inner::Bag(r) => r.warnings().to_vec(),
+            _ => self.bag_warnings.clone(),
+        };
         if let Some(t) = &d.truncated {
             w.push(format!(
                 "{}: the log ends early at byte {} (a crashed recording?): the {} messages before the break were used",
@@ -347,6 +389,7 @@ impl Iterator for LogReader {
                 })
             }
             Inner::Mcap(r) => r.next(),
+            Inner::Bag(r) => r.next(),
         }
     }
 }
@@ -371,6 +414,12 @@ impl LogWriter {
             )?),
             LogFormat::Mcap => {
                 LogWriter::Mcap(Box::new(McapWriter::create(path, channels, DEFAULT_TOPIC)?))
+            }
+            // `for_output` names no format calib cannot write.
+            LogFormat::Rosbag => {
+                return Err(Error::UnknownFormat {
+                    path: path.to_path_buf(),
+                });
             }
         })
     }

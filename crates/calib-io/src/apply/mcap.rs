@@ -156,6 +156,16 @@ fn walk(
                         ),
                     )
                 })?;
+                if matches!(topic.encoding, Some(Encoding::Scalar(_))) && topic.name == channel {
+                    return Err(mcap_error(
+                        path,
+                        Some(messages),
+                        Some(&topic.name),
+                        "calib apply corrects JointState and JSON channels, not std_msgs \
+                         scalar topics; correct the readings where they are published"
+                            .into(),
+                    ));
+                }
                 hit = find(topic.encoding, data, channel)
                     .map_err(|m| mcap_error(path, Some(messages), Some(&topic.name), m))?;
                 if hit.is_some() {
@@ -194,7 +204,8 @@ fn find<'d>(
     channel: &str,
 ) -> Result<Option<Hit<'d>>, String> {
     match encoding {
-        None => Ok(None),
+        // A scalar topic's channel is the topic itself, refused by the caller.
+        None | Some(Encoding::Scalar(_)) => Ok(None),
         Some(Encoding::JointState) => {
             let message = JointState::parse(data).map_err(|e| e.to_string())?;
             let Some(index) = message.joint(channel) else {

@@ -128,6 +128,16 @@ pub fn apply(
     apply_map(input, output, MapRef::Turn(map), opts)
 }
 
+/// The error of `apply` on a rosbag2 bag, which calib reads but does not write.
+fn bag_not_rewritten(input: &Path) -> Error {
+    Error::Data {
+        path: input.to_path_buf(),
+        message: "calib corrects CSV and MCAP logs, not rosbag2 bags; convert the bag to MCAP \
+                  (`ros2 bag convert`) and correct that"
+            .into(),
+    }
+}
+
 /// [`apply`] with a whole-turn or a range map; with a range map the readings outside its range
 /// are copied unchanged and counted in [`Applied::outside`].
 pub fn apply_map(
@@ -137,6 +147,9 @@ pub fn apply_map(
     opts: &ApplyOptions,
 ) -> Result<Applied, Error> {
     let format = LogFormat::detect(input)?;
+    if format == LogFormat::Rosbag {
+        return Err(bag_not_rewritten(input));
+    }
     let out_format = LogFormat::for_output(output)?;
     if out_format != format {
         return Err(Error::Write {
@@ -153,6 +166,7 @@ pub fn apply_map(
     let range = match format {
         LogFormat::Csv => csv::scan(input, &opts.channel, unit)?,
         LogFormat::Mcap => mcap::scan(input, &opts.channel, unit, opts.skip_damaged)?,
+        LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
     };
     if range.count == 0 {
         return Err(Error::Data {
@@ -176,6 +190,7 @@ pub fn apply_map(
             let n = csv::rewrite(input, output, &opts.channel, &f)?;
             (n, 0, None, f.outside(), Vec::new())
         }
+        LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
         LogFormat::Mcap => {
             let (joint, json) = (fix(AngleUnit::Rad), fix(unit));
             let done = mcap::rewrite(

@@ -62,7 +62,7 @@ impl fmt::Display for CdrError {
             ),
             CdrError::Truncated { field, offset, len } => write!(
                 f,
-                "the JointState message is truncated: `{field}` at byte {offset} lies beyond \
+                "the CDR message is truncated: `{field}` at byte {offset} lies beyond \
                  its {len} bytes"
             ),
             CdrError::LengthTooLarge {
@@ -71,7 +71,7 @@ impl fmt::Display for CdrError {
                 remaining,
             } => write!(
                 f,
-                "the JointState message is truncated or corrupt: `{field}` claims {count} \
+                "the CDR message is truncated or corrupt: `{field}` claims {count} \
                  entries or bytes but only {remaining} bytes remain"
             ),
             CdrError::NameNotUtf8 { index } => {
@@ -362,12 +362,142 @@ impl Writer {
     }
 }
 
+/// The `std_msgs` scalar messages calib reads: one number (`data`) per message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Scalar {
+    Float64,
+    Float32,
+    Int64,
+    Int32,
+    UInt32,
+    UInt16,
+}
+
+impl Scalar {
+    /// The scalar type of a ROS message type name (`std_msgs/msg/Float64`, or the ROS 1 style
+    /// `std_msgs/Float64` that older converters write).
+    pub(crate) fn of_type(name: &str) -> Option<Self> {
+        let base = name
+            .strip_prefix("std_msgs/msg/")
+            .or_else(|| name.strip_prefix("std_msgs/"))?;
+        Some(match base {
+            "Float64" => Scalar::Float64,
+            "Float32" => Scalar::Float32,
+            "Int64" => Scalar::Int64,
+            "Int32" => Scalar::Int32,
+            "UInt32" => Scalar::UInt32,
+            "UInt16" => Scalar::UInt16,
+            _ => return None,
+        })
+    }
+
+    /// The value of a CDR message of this type. The one field lies right after the
+    /// encapsulation header, which is aligned for any size; integers are returned exactly as
+    /// `f64` (an `int64` beyond 2⁵³ is rounded, far beyond any encoder's count).
+    pub(crate) fn decode(self, data: &[u8]) -> Result<f64, CdrError> {
+        let size = match self {
+            Scalar::Float64 | Scalar::Int64 => 8,
+            Scalar::Float32 | Scalar::Int32 | Scalar::UInt32 => 4,
+            Scalar::UInt16 => 2,
+        };
+        let mut c = Cursor {
+            buf: data,
+            pos: 0,
+            big_endian: false,
+        };
+        let header = c.take(ORIGIN, "encapsulation header")?;
+        c.big_endian = match [header[0], header[1]] {
+            [0, 0] => true,
+            [0, 1] => false,
+            other => return Err(CdrError::Encapsulation(other)),
+        };
+        let bytes = c.take(size, "data")?;
+        let mut b = [0u8; 8];
+        if c.big_endian {
+            b[8 - size..].copy_from_slice(bytes);
+            b.reverse();
+        } else {
+            b[..size].copy_from_slice(bytes);
+        }
+        let (lo4, lo2) = ([b[0], b[1], b[2], b[3]], [b[0], b[1]]);
+        Ok(match self {
+            Scalar::Float64 => f64::from_le_bytes(b),
+            Scalar::Int64 => i64::from_le_bytes(b) as f64,
+            Scalar::Float32 => f64::from(f32::from_le_bytes(lo4)),
+            Scalar::Int32 => f64::from(i32::from_le_bytes(lo4)),
+            Scalar::UInt32 => f64::from(u32::from_le_bytes(lo4)),
+            Scalar::UInt16 => f64::from(u16::from_le_bytes(lo2)),
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn names<'a>(js: &JointState<'a>) -> Vec<&'a str> {
         js.names().map(|n| n.unwrap()).collect()
+    }
+
+    /// Each scalar type in both byte orders, as `rmw` serializes `std_msgs` messages: the
+    /// encapsulation header, then `data`.
+    #[test]
+    fn scalars_decode_in_both_byte_orders() {
+        let le = |bytes: &[u8]| [&[0u8, 1, 0, 0][..], bytes].concat();
+        let be = |bytes: &[u8]| [&[0u8, 0, 0, 0][..], bytes].concat();
+        let cases: [(Scalar, Vec<u8>, Vec<u8>, f64); 6] = [
+            (
+                Scalar::Float64,
+                le(&1.25f64.to_le_bytes()),
+                be(&1.25f64.to_be_bytes()),
+                1.25,
+            ),
+            (
+                Scalar::Float32,
+                le(&(-0.5f32).to_le_bytes()),
+                be(&(-0.5f32).to_be_bytes()),
+                -0.5,
+            ),
+            (
+                Scalar::Int64,
+                le(&(-3i64).to_le_bytes()),
+                be(&(-3i64).to_be_bytes()),
+                -3.0,
+            ),
+            (
+                Scalar::Int32,
+                le(&(-70000i32).to_le_bytes()),
+                be(&(-70000i32).to_be_bytes()),
+                -70000.0,
+            ),
+            (
+                Scalar::UInt32,
+                le(&4_000_000_000u32.to_le_bytes()),
+                be(&4_000_000_000u32.to_be_bytes()),
+                4e9,
+            ),
+            (
+                Scalar::UInt16,
+                le(&65535u16.to_le_bytes()),
+                be(&65535u16.to_be_bytes()),
+                65535.0,
+            ),
+        ];
+        for (kind, little, big, want) in cases {
+            assert_eq!(kind.decode(&little), Ok(want), "{kind:?} little-endian");
+            assert_eq!(kind.decode(&big), Ok(want), "{kind:?} big-endian");
+            assert!(matches!(
+                kind.decode(&little[..little.len() - 1]),
+                Err(CdrError::Truncated { field: "data", .. })
+            ));
+        }
+        assert_eq!(Scalar::of_type("std_msgs/msg/UInt16"), Some(Scalar::UInt16));
+        assert_eq!(Scalar::of_type("std_msgs/Float64"), Some(Scalar::Float64));
+        assert_eq!(Scalar::of_type("std_msgs/msg/String"), None);
+        assert!(matches!(
+            Scalar::Float64.decode(&[0, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]),
+            Err(CdrError::Encapsulation([0, 3]))
+        ));
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! MCAP logs: ROS 2 `sensor_msgs/msg/JointState` (CDR) and JSON messages.
+//! MCAP logs: ROS 2 `sensor_msgs/msg/JointState` and `std_msgs` scalars (CDR), and JSON messages.
 //!
 //! [`McapReader`] streams a recorded MCAP file into [`Sample`](calib_core::Sample)s;
 //! [`McapWriter`] writes samples as JointState messages (for `calib simulate`); [`crate::apply`]
@@ -12,6 +12,11 @@
 //! - **JSON** (message encoding `json`): each numeric top-level field is a channel, in the unit of
 //!   [`ReadOptions::unit`](crate::ReadOptions::unit) (degrees if `None`); other fields are ignored.
 //!   The time is the message's log time.
+//! - **`std_msgs` scalars** (message encoding `cdr`, schema `std_msgs/msg/Float64`, `Float32`,
+//!   `Int64`, `Int32`, `UInt32` or `UInt16`): the topic is one channel named after it (see
+//!   [`crate::naming`]), its `data` in the unit of [`ReadOptions::unit`](crate::ReadOptions::unit)
+//!   (degrees if `None`; raw counts with `counts:N`). The time is the message's log time (these
+//!   messages carry no header).
 //! - **Other topics** (images, TF, protobuf, ...) are skipped and listed by
 //!   [`McapReader::ignored_topics`]: a recording usually carries much more than the encoders, and
 //!   that is no reason to refuse it. Only a file without any usable topic is an error.

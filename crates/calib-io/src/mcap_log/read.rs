@@ -49,7 +49,7 @@ use mcap::McapError;
 use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 
 use super::JOINT_STATE_SCHEMA;
-use super::cdr::JointState;
+use super::cdr::{JointState, Scalar};
 use super::json;
 use super::records::{self, StreamError};
 use crate::align::{AlignOptions, Aligner, Alignment};
@@ -84,14 +84,14 @@ pub struct TopicInfo {
 
 /// Messages and log-time span of one topic.
 #[derive(Debug, Clone, Copy, Default)]
-struct TopicStats {
-    messages: u64,
-    first: u64,
-    last: u64,
+pub(crate) struct TopicStats {
+    pub(crate) messages: u64,
+    pub(crate) first: u64,
+    pub(crate) last: u64,
 }
 
 impl TopicStats {
-    fn note(&mut self, log_time: u64) {
+    pub(crate) fn note(&mut self, log_time: u64) {
         if self.messages == 0 {
             self.first = log_time;
         }
@@ -99,7 +99,7 @@ impl TopicStats {
         self.last = log_time;
     }
 
-    fn rate_hz(&self) -> Option<f64> {
+    pub(crate) fn rate_hz(&self) -> Option<f64> {
         (self.messages > 1 && self.last > self.first)
             .then(|| (self.messages - 1) as f64 / ((self.last - self.first) as f64 * 1e-9))
     }
@@ -237,10 +237,12 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
 pub(crate) enum Encoding {
     JointState,
     Json,
+    /// A `std_msgs` scalar (CDR): one channel, named after the topic.
+    Scalar(Scalar),
 }
 
 impl Encoding {
-    fn of(channel: &mcap::Channel) -> Option<Self> {
+    pub(crate) fn of(channel: &mcap::Channel) -> Option<Self> {
         let schema = channel.schema.as_ref().map_or("", |s| s.name.as_str());
         Self::from_names(&channel.message_encoding, schema)
     }
@@ -253,31 +255,32 @@ impl Encoding {
                 Some(Encoding::JointState)
             }
             "json" => Some(Encoding::Json),
+            "cdr" => Scalar::of_type(schema).map(Encoding::Scalar),
             _ => None,
         }
     }
 }
 
-struct Topic {
-    name: String,
-    schema: String,
-    message_encoding: String,
-    encoding: Encoding,
+pub(crate) struct Topic {
+    pub(crate) name: String,
+    pub(crate) schema: String,
+    pub(crate) message_encoding: String,
+    pub(crate) encoding: Encoding,
     /// JointState: the `name` block of the first message, compared byte for byte with later ones.
     name_block: Vec<u8>,
     /// The channel names: joint names or JSON fields.
-    names: Vec<String>,
+    pub(crate) names: Vec<String>,
     /// Index of the topic's first channel among the file's.
-    offset: usize,
+    pub(crate) offset: usize,
     /// JointState: whether messages carry different joint sets.
-    subset: bool,
+    pub(crate) subset: bool,
     /// JointState: name blocks other than the first message's, with the channel of each name.
     layouts: Vec<(Vec<u8>, Vec<usize>)>,
     /// Radians per unit of a JSON value.
     scale: f64,
     /// JSON: which channels a message has given, reused between messages.
     seen: Vec<bool>,
-    stats: TopicStats,
+    pub(crate) stats: TopicStats,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -288,23 +291,24 @@ enum Slot {
 }
 
 /// Channel IDs resolved to topics.
-struct Registry {
+#[derive(Default)]
+pub(crate) struct Registry {
     /// Indexed by channel ID: a vector lookup per message instead of hashing the topic.
     slots: Vec<Slot>,
-    topics: Vec<Topic>,
-    ignored: Vec<IgnoredTopic>,
-    ignored_stats: Vec<TopicStats>,
+    pub(crate) topics: Vec<Topic>,
+    pub(crate) ignored: Vec<IgnoredTopic>,
+    pub(crate) ignored_stats: Vec<TopicStats>,
 }
 
 /// What a channel ID resolves to when first seen.
-enum Resolved {
+pub(crate) enum Resolved {
     Topic(usize),
     Ignored(usize),
     NewTopic(Encoding),
 }
 
 impl Registry {
-    fn resolve(&mut self, channel: &mcap::Channel) -> Result<Resolved, String> {
+    pub(crate) fn resolve(&mut self, channel: &mcap::Channel) -> Result<Resolved, String> {
         let id = usize::from(channel.id);
         if let Some(slot) = self.slots.get(id) {
             match slot {
@@ -367,7 +371,7 @@ fn mcap_error(path: &Path, index: Option<u64>, channel: Option<&str>, message: S
 }
 
 /// A stamp in nanoseconds as seconds, exact to the nanosecond for any time of this era.
-fn seconds(ns: i64) -> f64 {
+pub(crate) fn seconds(ns: i64) -> f64 {
     const NS: i64 = 1_000_000_000;
     ns.div_euclid(NS) as f64 + ns.rem_euclid(NS) as f64 * 1e-9
 }
@@ -569,8 +573,8 @@ impl McapReader {
                 None,
                 None,
                 format!(
-                    "no topic holds {JOINT_STATE_SCHEMA} (cdr) or JSON messages (found: {}); \
-                     record the encoders as JointState or JSON",
+                    "no topic holds {JOINT_STATE_SCHEMA} (cdr), std_msgs scalar (cdr) or JSON \
+                     messages (found: {}); record the encoders as JointState or JSON",
                     if found.is_empty() {
                         "no topics".to_string()
                     } else {
@@ -584,16 +588,12 @@ impl McapReader {
             topic.offset = offset;
             offset += topic.names.len();
         }
-        let names = names_of(registry.topics.iter().flat_map(|t| {
-            t.names
-                .iter()
-                .map(move |n| (Some(t.name.as_str()), n.as_str()))
-        }));
+        let names = names_of(registry.topics.iter().flat_map(Topic::channel_names));
         let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
         for topic in &registry.topics {
             let unit = match topic.encoding {
                 Encoding::JointState => AngleUnit::Rad,
-                Encoding::Json => opts.unit.unwrap_or(AngleUnit::Deg),
+                Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
             };
             for _ in &topic.names {
                 all_channels.push(Channel {
@@ -887,7 +887,11 @@ fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<S
 }
 
 /// A topic's channels from its first message.
-fn first_message(message: &mcap::Message, encoding: Encoding, scale: f64) -> Result<Topic, String> {
+pub(crate) fn first_message(
+    message: &mcap::Message,
+    encoding: Encoding,
+    scale: f64,
+) -> Result<Topic, String> {
     let mut topic = Topic {
         name: message.channel.topic.clone(),
         schema: schema_name(&message.channel),
@@ -923,14 +927,19 @@ fn first_message(message: &mcap::Message, encoding: Encoding, scale: f64) -> Res
             })?;
             topic.seen = vec![false; topic.names.len()];
         }
+        Encoding::Scalar(kind) => {
+            kind.decode(&message.data).map_err(|e| e.to_string())?;
+            topic.names.push(topic.name.clone());
+        }
     }
     if topic.names.is_empty() {
         return Err(match encoding {
             Encoding::JointState => "the topic's first JointState message names no joints; \
                                      publish the encoders' names and positions"
                 .into(),
-            Encoding::Json => "the topic's first JSON message has no numeric field; publish \
-                               one numeric field per encoder"
+            Encoding::Json | Encoding::Scalar(_) => "the topic's first JSON message has no \
+                                                     numeric field; publish one numeric field \
+                                                     per encoder"
                 .into(),
         });
     }
@@ -945,8 +954,18 @@ fn repeated_joint(name: &str) -> String {
 }
 
 impl Topic {
+    /// `(topic, name)` of each channel, as [`names_of`] takes them: a scalar topic's one
+    /// channel is the topic itself.
+    pub(crate) fn channel_names(&self) -> impl Iterator<Item = (Option<&str>, &str)> {
+        let topic = match self.encoding {
+            Encoding::Scalar(_) => None,
+            _ => Some(self.name.as_str()),
+        };
+        self.names.iter().map(move |n| (topic, n.as_str()))
+    }
+
     /// Adds the joints of a later message the topic's first did not name (peek pass).
-    fn learn(&mut self, message: &mcap::Message) -> Result<(), String> {
+    pub(crate) fn learn(&mut self, message: &mcap::Message) -> Result<(), String> {
         if self.encoding != Encoding::JointState {
             return Ok(());
         }
@@ -1008,7 +1027,7 @@ impl Topic {
 /// as they are for channels the message does not carry) and returns its stamp in nanoseconds
 /// and whether it carried every channel in the topic's order. Errors carry the channel
 /// concerned (if not the topic) and the message.
-fn decode(
+pub(crate) fn decode(
     topic: &mut Topic,
     message: &mcap::Message,
     time: TimeSource,
@@ -1073,6 +1092,18 @@ fn decode(
                 i64::from(js.sec) * 1_000_000_000 + i64::from(js.nanosec)
             };
             Ok((stamp, full))
+        }
+        Encoding::Scalar(kind) => {
+            let stamp = log_time_ns(message.log_time).map_err(|m| (None, m))?;
+            let v = kind
+                .decode(&message.data)
+                .map_err(|e| (None, e.to_string()))?;
+            let rad = v * topic.scale;
+            if let Some(problem) = crate::limits::reading_problem(v, v, rad) {
+                return Err((None, problem));
+            }
+            out[0] = rad;
+            Ok((stamp, true))
         }
         Encoding::Json => {
             let stamp = log_time_ns(message.log_time).map_err(|m| (None, m))?;

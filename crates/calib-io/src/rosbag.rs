@@ -1,0 +1,925 @@
+//! rosbag2 bags: what `ros2 bag record` writes.
+//!
+//! A bag is a directory holding `metadata.yaml` and one or more storage files split by size or
+//! duration (`my_bag_0.db3`, `my_bag_1.db3`, …), listed in order by the metadata's
+//! `relative_file_paths`. ROS 2 Humble records to SQLite (`storage_identifier: sqlite3`, the
+//! default until Iron); later releases to MCAP.
+//!
+//! # SQLite storage
+//! Each `.db3` file holds the tables `topics(id, name, type, serialization_format,
+//! offered_qos_profiles)` and `messages(id, topic_id, timestamp, data)`; `data` is the CDR
+//! payload with its 4-byte encapsulation header, `timestamp` the receive time in nanoseconds.
+//! Humble stores no message definitions, so a topic is recognised by its type name:
+//! `sensor_msgs/msg/JointState` and the `std_msgs` scalars (`Float64`, `Float32`, `Int64`,
+//! `Int32`, `UInt32`, `UInt16`) are decoded as the MCAP reader decodes them (see
+//! [`crate::mcap_log`]), and the same rules name and align its channels (the joint name where
+//! unique, else `TOPIC/JOINT`; channels on several topics aligned on the first selected one's
+//! stamps). Topics of other types are listed by [`BagReader::topics`] and skipped.
+//!
+//! Messages are read in `timestamp` order within a file, file after file in the metadata's order
+//! (rosbag2 splits a recording in time, so this is the recording's order). A background thread
+//! streams the rows through a bounded channel, so memory stays bounded whatever the bag's size.
+//!
+//! # MCAP storage
+//! A bag directory of one `.mcap` file is read by the MCAP reader ([`bag_files`] names it);
+//! several `.mcap` splits are refused with a message saying how to merge them.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, sync_channel};
+
+use calib_core::{AngleUnit, Channel, Sample};
+use rusqlite::{Connection, OpenFlags};
+
+use crate::align::{AlignOptions, Aligner, Alignment};
+use crate::mcap_log::read::{
+    Encoding, Registry, Resolved, Topic, TopicStats, decode, first_message, seconds,
+};
+use crate::mcap_log::{IgnoredTopic, JOINT_STATE_SCHEMA, PEEK_WINDOW, TopicInfo};
+use crate::naming::{ChannelName, names_of};
+use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource};
+
+/// The first 16 bytes of every SQLite 3 database file.
+pub const SQLITE_MAGIC: &[u8; 16] = b"SQLite format 3\0";
+
+/// The metadata file of a bag directory.
+pub const METADATA: &str = "metadata.yaml";
+
+/// Rows in flight between the thread reading the bag and the iterator: enough to keep both busy,
+/// few enough that memory stays small (a JointState message is ~100 bytes).
+const ROWS_IN_FLIGHT: usize = 1024;
+
+/// The storage files of a bag, in reading order.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Storage {
+    /// SQLite `.db3` files.
+    Sqlite3(Vec<PathBuf>),
+    /// One MCAP file.
+    Mcap(PathBuf),
+}
+
+/// A bag's storage and what the user should know about how it was found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BagFiles {
+    /// The storage files.
+    pub storage: Storage,
+    /// Warnings (a missing `metadata.yaml`).
+    pub warnings: Vec<String>,
+}
+
+/// Whether `dir` is a bag directory: it holds `metadata.yaml` or `.db3` files.
+pub fn is_bag_dir(dir: &Path) -> bool {
+    dir.is_dir() && (dir.join(METADATA).is_file() || !files_with(dir, "db3").is_empty())
+}
+
+fn bag_error(
+    path: &Path,
+    table: Option<&str>,
+    message_id: Option<i64>,
+    topic: Option<&str>,
+    message: String,
+) -> Error {
+    Error::Bag {
+        path: path.to_path_buf(),
+        table: table.map(str::to_string),
+        message_id,
+        topic: topic.map(str::to_string),
+        message,
+    }
+}
+
+/// The files of `dir` with this extension, ordered by their split index (the number after the
+/// last `_`: `bag_10.db3` after `bag_9.db3`), then by name.
+fn files_with(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && p.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext)))
+        .collect();
+    let split_index = |p: &PathBuf| {
+        p.file_stem()
+            .and_then(|s| s.to_str())
+            .and_then(|s| s.rsplit('_').next())
+            .and_then(|n| n.parse::<u64>().ok())
+    };
+    files.sort_by(|a, b| (split_index(a), a).cmp(&(split_index(b), b)));
+    files
+}
+
+/// The storage files of the bag at `path`: a `.db3` file itself, or a bag directory's files in
+/// the order its `metadata.yaml` lists them (without one, the `.db3` or `.mcap` files found, with
+/// a warning).
+pub fn bag_files(path: &Path) -> Result<BagFiles, Error> {
+    if !path.is_dir() {
+        return Ok(BagFiles {
+            storage: Storage::Sqlite3(vec![path.to_path_buf()]),
+            warnings: Vec::new(),
+        });
+    }
+    let metadata = path.join(METADATA);
+    let (storage_id, files, warnings) = if metadata.is_file() {
+        let text = std::fs::read_to_string(&metadata).map_err(|source| Error::Io {
+            path: metadata.clone(),
+            source,
+        })?;
+        let (storage_id, relative) =
+            parse_metadata(&text).map_err(|m| bag_error(&metadata, None, None, None, m))?;
+        let mut files = Vec::with_capacity(relative.len());
+        for (k, rel) in relative.iter().enumerate() {
+            let file = locate_split(path, rel).ok_or_else(|| {
+                bag_error(
+                    &metadata,
+                    None,
+                    None,
+                    None,
+                    format!(
+                        "relative_file_paths entry {} names the split `{rel}`, which is not in \
+                         the bag directory {}; copy the whole bag directory, or remove the \
+                         entry from {METADATA} to read the other splits",
+                        k + 1,
+                        path.display()
+                    ),
+                )
+            })?;
+            files.push(file);
+        }
+        (storage_id, files, Vec::new())
+    } else {
+        let db3 = files_with(path, "db3");
+        let (storage_id, files) = if db3.is_empty() {
+            ("mcap".to_string(), files_with(path, "mcap"))
+        } else {
+            ("sqlite3".to_string(), db3)
+        };
+        if files.is_empty() {
+            return Err(bag_error(
+                path,
+                None,
+                None,
+                None,
+                format!(
+                    "the directory holds neither {METADATA} nor .db3 or .mcap files; give a \
+                     rosbag2 bag directory, or the log file itself"
+                ),
+            ));
+        }
+        let names: Vec<String> = files
+            .iter()
+            .map(|f| {
+                f.file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
+        let warning = format!(
+            "{}: the bag has no {METADATA}; reading the {} {} file(s) found, in the order of \
+             their split number: {}",
+            path.display(),
+            files.len(),
+            if storage_id == "mcap" {
+                ".mcap"
+            } else {
+                ".db3"
+            },
+            names.join(", ")
+        );
+        (storage_id, files, vec![warning])
+    };
+    let storage = match storage_id.as_str() {
+        "sqlite3" => Storage::Sqlite3(files),
+        "mcap" => match <[PathBuf; 1]>::try_from(files) {
+            Ok([file]) => Storage::Mcap(file),
+            Err(files) => {
+                return Err(bag_error(
+                    path,
+                    None,
+                    None,
+                    None,
+                    format!(
+                        "the bag's MCAP storage is split into {} files; calib reads one MCAP \
+                         file: merge them with `mcap merge` (or `ros2 bag convert`) and give \
+                         the merged file",
+                        files.len()
+                    ),
+                ));
+            }
+        },
+        other => {
+            return Err(bag_error(
+                &metadata,
+                None,
+                None,
+                None,
+                format!(
+                    "storage_identifier `{other}` is not one calib reads (sqlite3, mcap); \
+                     convert the bag with `ros2 bag convert`"
+                ),
+            ));
+        }
+    };
+    Ok(BagFiles { storage, warnings })
+}
+
+/// A split named by the metadata, relative to the bag directory. Bags from ROS 2 Foxy and
+/// earlier list it with the bag directory's name in front, which no longer resolves once the
+/// bag is moved: then the file name alone is tried.
+fn locate_split(dir: &Path, relative: &str) -> Option<PathBuf> {
+    let direct = dir.join(relative);
+    if direct.is_file() {
+        return Some(direct);
+    }
+    let bare = dir.join(Path::new(relative).file_name()?);
+    bare.is_file().then_some(bare)
+}
+
+/// `storage_identifier` (default `sqlite3`) and `relative_file_paths` of a bag's
+/// `metadata.yaml`.
+///
+/// Parsed by hand rather than with a YAML crate: calib needs two keys of a file rosbag2 writes
+/// in one fixed layout (block style, one scalar per line, a `- ` list), and a YAML dependency
+/// would be larger than this function. Flow-style lists (`[a, b]`) and quoted scalars are
+/// accepted too, as hand edits produce them.
+fn parse_metadata(text: &str) -> Result<(String, Vec<String>), String> {
+    let scalar = |v: &str| {
+        let v = v.trim();
+        let v = v
+            .strip_prefix('"')
+            .and_then(|v| v.strip_suffix('"'))
+            .or_else(|| v.strip_prefix('\'').and_then(|v| v.strip_suffix('\'')))
+            .unwrap_or(v);
+        v.to_string()
+    };
+    if !text.contains("rosbag2_bagfile_information:") {
+        return Err(format!(
+            "not a rosbag2 {METADATA} (no `rosbag2_bagfile_information` key); give the bag \
+             directory `ros2 bag record` wrote"
+        ));
+    }
+    let mut storage = None;
+    let mut files: Option<Vec<String>> = None;
+    let mut lines = text.lines().peekable();
+    while let Some(line) = lines.next() {
+        let key_indent = line.len() - line.trim_start().len();
+        let trimmed = line.trim();
+        if storage.is_none()
+            && let Some(v) = trimmed.strip_prefix("storage_identifier:")
+        {
+            storage = Some(scalar(v));
+        } else if files.is_none()
+            && let Some(v) = trimmed.strip_prefix("relative_file_paths:")
+        {
+            let v = v.trim();
+            if let Some(flow) = v.strip_prefix('[').and_then(|v| v.strip_suffix(']')) {
+                files = Some(
+                    flow.split(',')
+                        .map(scalar)
+                        .filter(|s| !s.is_empty())
+                        .collect(),
+                );
+                continue;
+            }
+            let mut list = Vec::new();
+            while let Some(next) = lines.peek() {
+                let indent = next.len() - next.trim_start().len();
+                match next.trim().strip_prefix('-') {
+                    Some(item) if indent >= key_indent => {
+                        list.push(scalar(item));
+                        lines.next();
+                    }
+                    _ => break,
+                }
+            }
+            files = Some(list);
+        }
+    }
+    let files = files.filter(|f| !f.is_empty()).ok_or_else(|| {
+        format!("no `relative_file_paths` list of storage files; the {METADATA} is incomplete")
+    })?;
+    Ok((storage.unwrap_or_else(|| "sqlite3".into()), files))
+}
+
+/// One row of a `messages` table, its topic resolved to the reader's.
+struct Row {
+    /// Index of the `.db3` file.
+    file: usize,
+    id: i64,
+    /// Index into [`BagReader::topic_channels`].
+    topic: usize,
+    timestamp: i64,
+    data: Vec<u8>,
+}
+
+/// The topics of each file to read: per file, the `topic_id`s and the reader's topic of each.
+type Wanted = Vec<Vec<(i64, usize)>>;
+
+fn open_db(path: &Path) -> Result<Connection, Error> {
+    Connection::open_with_flags(
+        path,
+        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+    .map_err(|e| {
+        bag_error(
+            path,
+            None,
+            None,
+            None,
+            format!("cannot open as SQLite: {e}"),
+        )
+    })
+}
+
+/// Calls `f` on each message of the wanted topics, file after file, in `timestamp` order within
+/// a file, until it returns `false`.
+fn scan(files: &[PathBuf], wanted: &Wanted, mut f: impl FnMut(Row) -> bool) -> Result<(), Error> {
+    for (k, (path, topics)) in files.iter().zip(wanted).enumerate() {
+        if topics.is_empty() {
+            continue;
+        }
+        let of_id: HashMap<i64, usize> = topics.iter().copied().collect();
+        let ids: Vec<String> = topics.iter().map(|(id, _)| id.to_string()).collect();
+        let fail = |e: rusqlite::Error| {
+            bag_error(
+                path,
+                Some("messages"),
+                None,
+                None,
+                format!("cannot read the messages: {e}; the file is damaged"),
+            )
+        };
+        let db = open_db(path)?;
+        let mut statement = db
+            .prepare(&format!(
+                "SELECT id, topic_id, timestamp, data FROM messages WHERE topic_id IN ({}) \
+                 ORDER BY timestamp, id",
+                ids.join(",")
+            ))
+            .map_err(fail)?;
+        let mut rows = statement.query([]).map_err(fail)?;
+        while let Some(row) = rows.next().map_err(fail)? {
+            let id: i64 = row.get(0).map_err(fail)?;
+            let topic_id: i64 = row.get(1).map_err(fail)?;
+            let column = |e: rusqlite::Error| {
+                bag_error(
+                    path,
+                    Some("messages"),
+                    Some(id),
+                    None,
+                    format!("{e}; the row is damaged"),
+                )
+            };
+            let timestamp: i64 = row.get(2).map_err(column)?;
+            let data: Vec<u8> = row.get(3).map_err(column)?;
+            let Some(&topic) = of_id.get(&topic_id) else {
+                continue;
+            };
+            if !f(Row {
+                file: k,
+                id,
+                topic,
+                timestamp,
+                data,
+            }) {
+                return Ok(());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Reads a rosbag2 bag with SQLite storage as a stream of [`Sample`]s (see the
+/// [module docs](self)).
+///
+/// The iterator ends after the first error it yields.
+pub struct BagReader {
+    files: Vec<PathBuf>,
+    wanted: Wanted,
+    /// One MCAP channel per topic of the bag (by name), so that messages are decoded and
+    /// registered exactly as the MCAP reader does.
+    topic_channels: Vec<Arc<mcap::Channel<'static>>>,
+    registry: Registry,
+    all_channels: Vec<Channel>,
+    names: Vec<ChannelName>,
+    channels: Vec<Channel>,
+    time: TimeSource,
+    aligner: Aligner,
+    raw: Vec<f64>,
+    rows: Option<Receiver<Result<Row, Error>>>,
+    diagnostics: ReadDiagnostics,
+    warnings: Vec<String>,
+    done: bool,
+    failed: bool,
+}
+
+/// The MCAP message a bag row stands for: log and publish time the row's `timestamp`.
+fn message<'a>(channel: &Arc<mcap::Channel<'static>>, row: &'a Row) -> mcap::Message<'a> {
+    let log_time = u64::try_from(row.timestamp).unwrap_or(0);
+    mcap::Message {
+        channel: Arc::clone(channel),
+        sequence: 0,
+        log_time,
+        publish_time: log_time,
+        data: Cow::Borrowed(&row.data),
+    }
+}
+
+impl BagReader {
+    /// Opens a bag with SQLite storage: `files` are its `.db3` files in order, `warnings` what
+    /// [`bag_files`] found to say.
+    ///
+    /// Errors if a file is not a rosbag2 SQLite file, no topic holds JointState or scalar
+    /// messages, a topic has two types, or a topic's first message is bad.
+    pub fn open(
+        path: &Path,
+        files: Vec<PathBuf>,
+        warnings: Vec<String>,
+        opts: &ReadOptions,
+    ) -> Result<Self, Error> {
+        let mut topic_channels: Vec<Arc<mcap::Channel<'static>>> = Vec::new();
+        let mut stats: Vec<TopicStats> = Vec::new();
+        let mut wanted: Wanted = Vec::with_capacity(files.len());
+        for file in &files {
+            let db = open_db(file)?;
+            check_tables(&db, file)?;
+            let topics = read_topics(&db, file)?;
+            let counts = read_counts(&db, file)?;
+            let mut of_file = Vec::new();
+            for (id, name, kind, format) in topics {
+                let k = match topic_channels.iter().position(|c| c.topic == name) {
+                    Some(k) => {
+                        let c = &topic_channels[k];
+                        let known = c.schema.as_ref().map_or("", |s| s.name.as_str());
+                        if known != kind || c.message_encoding != format {
+                            return Err(bag_error(
+                                file,
+                                Some("topics"),
+                                None,
+                                Some(&name),
+                                format!(
+                                    "the topic is {kind} ({format}) here but {known} ({}) in an \
+                                     earlier split; calib cannot read one topic as two types",
+                                    c.message_encoding
+                                ),
+                            ));
+                        }
+                        k
+                    }
+                    None => {
+                        let id16 = u16::try_from(topic_channels.len()).map_err(|_| {
+                            bag_error(
+                                file,
+                                Some("topics"),
+                                None,
+                                None,
+                                "more than 65535 topics; calib reads bags of fewer".into(),
+                            )
+                        })?;
+                        topic_channels.push(Arc::new(mcap::Channel {
+                            id: id16,
+                            topic: name.clone(),
+                            schema: Some(Arc::new(mcap::Schema {
+                                id: 1,
+                                name: kind.clone(),
+                                encoding: "ros2msg".into(),
+                                data: Cow::Borrowed(&[]),
+                            })),
+                            message_encoding: format.clone(),
+                            metadata: Default::default(),
+                        }));
+                        stats.push(TopicStats::default());
+                        topic_channels.len() - 1
+                    }
+                };
+                if let Some(&(n, first, last)) = counts.get(&id) {
+                    let s = &mut stats[k];
+                    if s.messages == 0 {
+                        s.first = first;
+                    }
+                    s.messages += n;
+                    s.last = last;
+                }
+                if Encoding::from_names(&format, &kind).is_some() {
+                    of_file.push((id, k));
+                }
+            }
+            wanted.push(of_file);
+        }
+        let mut registry = Registry::default();
+        // Topics with messages calib does not read: listed with their counts, never streamed.
+        for (channel, s) in topic_channels.iter().zip(&stats) {
+            if s.messages > 0
+                && let Ok(Resolved::Ignored(k)) = registry.resolve(channel)
+            {
+                registry.ignored_stats[k] = *s;
+            }
+        }
+        let expected = topic_channels
+            .iter()
+            .zip(&stats)
+            .filter(|(c, s)| s.messages > 0 && Encoding::of(c).is_some())
+            .count();
+        let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
+        let mut failure = None;
+        let mut after_all: Option<u64> = None;
+        scan(&files, &wanted, |row| {
+            let msg = message(&topic_channels[row.topic], &row);
+            let fail = |m| {
+                bag_error(
+                    &files[row.file],
+                    Some("messages"),
+                    Some(row.id),
+                    Some(&msg.channel.topic),
+                    m,
+                )
+            };
+            match registry.resolve(&msg.channel) {
+                Ok(Resolved::NewTopic(encoding)) => match first_message(&msg, encoding, scale) {
+                    Ok(topic) => {
+                        registry.topics.push(topic);
+                        // Resolve again to record the channel's slot.
+                        let _ = registry.resolve(&msg.channel);
+                    }
+                    Err(m) => {
+                        failure = Some(fail(m));
+                        return false;
+                    }
+                },
+                // A bad message is reported by the iteration, at the same message.
+                Ok(Resolved::Topic(k)) => {
+                    let _ = registry.topics[k].learn(&msg);
+                }
+                Ok(Resolved::Ignored(_)) => {}
+                Err(m) => {
+                    failure = Some(fail(m));
+                    return false;
+                }
+            }
+            if let Some(n) = &mut after_all {
+                *n += 1;
+            } else if registry.topics.len() == expected {
+                after_all = Some(0);
+            }
+            // Go on until every topic has shown itself and PEEK_WINDOW messages more, or to
+            // the end where a topic's messages carry different joint sets.
+            after_all.is_none_or(|n| n < PEEK_WINDOW) || registry.topics.iter().any(|t| t.subset)
+        })?;
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        if registry.topics.is_empty() {
+            let found: Vec<String> = registry
+                .ignored
+                .iter()
+                .map(|t| format!("{} ({})", t.topic, t.schema))
+                .collect();
+            if found.is_empty() {
+                return Err(Error::Empty {
+                    path: path.to_path_buf(),
+                });
+            }
+            return Err(bag_error(
+                path,
+                Some("topics"),
+                None,
+                None,
+                format!(
+                    "no topic holds {JOINT_STATE_SCHEMA} or std_msgs scalar messages (found: \
+                     {}); record the encoders as JointState",
+                    found.join(", ")
+                ),
+            ));
+        }
+        let mut offset = 0;
+        for topic in &mut registry.topics {
+            topic.offset = offset;
+            offset += topic.names.len();
+        }
+        let names = names_of(registry.topics.iter().flat_map(Topic::channel_names));
+        let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
+        for topic in &registry.topics {
+            let unit = match topic.encoding {
+                Encoding::JointState => AngleUnit::Rad,
+                Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
+            };
+            for _ in &topic.names {
+                all_channels.push(Channel {
+                    name: names[all_channels.len()].display.clone(),
+                    unit,
+                });
+            }
+        }
+        let width = all_channels.len();
+        let mut reader = BagReader {
+            files,
+            wanted,
+            topic_channels,
+            registry,
+            all_channels,
+            names,
+            channels: Vec::new(),
+            time: opts.time,
+            aligner: Aligner::new(vec![0], AlignOptions::default()),
+            raw: vec![f64::NAN; width],
+            rows: None,
+            diagnostics: ReadDiagnostics::default(),
+            warnings,
+            done: false,
+            failed: false,
+        };
+        let all: Vec<usize> = (0..width).collect();
+        reader.select(&all, AlignOptions::default());
+        Ok(reader)
+    }
+
+    /// The selected channels, in the order of each sample's values.
+    pub fn channels(&self) -> &[Channel] {
+        &self.channels
+    }
+
+    /// The names of every channel of the bag, in raw order: the indices
+    /// [`select`](Self::select) takes.
+    pub fn names(&self) -> &[ChannelName] {
+        &self.names
+    }
+
+    /// Reads only `channels` (indices into [`names`](Self::names)), in this order, aligned on
+    /// the first one's stamps ([`crate::align`]). Call it before reading any sample.
+    pub fn select(&mut self, channels: &[usize], opts: AlignOptions) {
+        self.aligner = Aligner::new(channels.to_vec(), opts);
+        self.channels = channels
+            .iter()
+            .map(|&i| self.all_channels[i].clone())
+            .collect();
+    }
+
+    /// How the selected channels were aligned on the first one's clock (complete once
+    /// iteration has ended).
+    pub fn alignment(&self) -> Alignment {
+        let names: Vec<String> = self.names.iter().map(|n| n.display.clone()).collect();
+        self.aligner.report(&names)
+    }
+
+    /// What the reader noticed so far.
+    pub fn diagnostics(&self) -> &ReadDiagnostics {
+        &self.diagnostics
+    }
+
+    /// Warnings about how the bag was found (a missing `metadata.yaml`).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// Topics skipped because calib does not read their type.
+    pub fn ignored_topics(&self) -> &[IgnoredTopic] {
+        &self.registry.ignored
+    }
+
+    /// Every topic of the bag: those read with their channels, then those skipped. Counts and
+    /// rates of the topics read are of the messages read so far; of those skipped, of the bag.
+    pub fn topics(&self) -> Vec<TopicInfo> {
+        let read = self.registry.topics.iter().map(|t| TopicInfo {
+            topic: t.name.clone(),
+            schema: t.schema.clone(),
+            message_encoding: t.message_encoding.clone(),
+            messages: t.stats.messages,
+            rate_hz: t.stats.rate_hz(),
+            channels: self.names[t.offset..t.offset + t.names.len()]
+                .iter()
+                .map(|n| n.display.clone())
+                .collect(),
+        });
+        let skipped = self
+            .registry
+            .ignored
+            .iter()
+            .zip(&self.registry.ignored_stats)
+            .map(|(t, stats)| TopicInfo {
+                topic: t.topic.clone(),
+                schema: t.schema.clone(),
+                message_encoding: t.message_encoding.clone(),
+                messages: stats.messages,
+                rate_hz: stats.rate_hz(),
+                channels: Vec::new(),
+            });
+        read.chain(skipped).collect()
+    }
+
+    /// Starts the thread that streams the rows of the topics read.
+    fn start(&mut self) -> Receiver<Result<Row, Error>> {
+        let (tx, rx) = sync_channel(ROWS_IN_FLIGHT);
+        let (files, wanted) = (self.files.clone(), self.wanted.clone());
+        std::thread::spawn(move || {
+            // A failed send means the reader was dropped: stop reading.
+            let result = scan(&files, &wanted, |row| tx.send(Ok(row)).is_ok());
+            if let Err(e) = result {
+                let _ = tx.send(Err(e));
+            }
+        });
+        rx
+    }
+
+    /// Decodes one row; a sample if it completes one.
+    fn step(&mut self, row: &Row) -> Result<Option<Sample>, Error> {
+        let file = &self.files[row.file];
+        let channel = &self.topic_channels[row.topic];
+        let fail = |m: String| {
+            bag_error(
+                file,
+                Some("messages"),
+                Some(row.id),
+                Some(&channel.topic),
+                m,
+            )
+        };
+        if row.timestamp < 0 {
+            return Err(fail(format!(
+                "the timestamp {} ns is before 1970; the recorder's clock is wrong",
+                row.timestamp
+            )));
+        }
+        let msg = message(channel, row);
+        let k = match self.registry.resolve(&msg.channel).map_err(fail)? {
+            Resolved::Topic(k) => k,
+            Resolved::Ignored(_) => return Ok(None),
+            Resolved::NewTopic(_) => {
+                return Err(fail(
+                    "this topic's first message was not met when the bag was opened; the \
+                     bag changed while it was read"
+                        .into(),
+                ));
+            }
+        };
+        let topic = &mut self.registry.topics[k];
+        topic.stats.note(msg.log_time);
+        let range = topic.offset..topic.offset + topic.names.len();
+        self.raw.fill(f64::NAN);
+        let (stamp, _) =
+            decode(topic, &msg, self.time, &mut self.raw[range]).map_err(|(c, m)| match c {
+                Some(joint) => fail(format!("joint `{joint}`: {m}")),
+                None => fail(m),
+            })?;
+        self.aligner.push(stamp, seconds(stamp), &self.raw, None);
+        Ok(self.aligner.pop())
+    }
+}
+
+impl Iterator for BagReader {
+    type Item = Result<Sample, Error>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        loop {
+            if let Some(sample) = self.aligner.pop() {
+                return Some(Ok(sample));
+            }
+            if self.done {
+                return None;
+            }
+            if self.rows.is_none() {
+                self.rows = Some(self.start());
+            }
+            let received = self.rows.as_ref().map(Receiver::recv);
+            match received {
+                Some(Ok(Ok(row))) => match self.step(&row) {
+                    Ok(Some(sample)) => return Some(Ok(sample)),
+                    Ok(None) => {}
+                    Err(e) => {
+                        self.failed = true;
+                        return Some(Err(e));
+                    }
+                },
+                Some(Ok(Err(e))) => {
+                    self.failed = true;
+                    return Some(Err(e));
+                }
+                // The thread has read every row.
+                Some(Err(_)) | None => {
+                    self.done = true;
+                    self.aligner.finish();
+                }
+            }
+        }
+    }
+}
+
+/// Checks that the file is SQLite with rosbag2's `topics` and `messages` tables.
+fn check_tables(db: &Connection, file: &Path) -> Result<(), Error> {
+    let tables: Result<Vec<String>, rusqlite::Error> = db
+        .prepare("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")
+        .and_then(|mut s| s.query_map([], |r| r.get(0))?.collect());
+    let tables = tables.map_err(|e| {
+        bag_error(
+            file,
+            None,
+            None,
+            None,
+            format!(
+                "not a rosbag2 bag: SQLite cannot read it ({e}); give a bag directory or a \
+                 .db3 file `ros2 bag record` wrote"
+            ),
+        )
+    })?;
+    for needed in ["topics", "messages"] {
+        if !tables.iter().any(|t| t == needed) {
+            return Err(bag_error(
+                file,
+                Some(needed),
+                None,
+                None,
+                format!(
+                    "not a rosbag2 bag: the SQLite file has no `{needed}` table (its tables: \
+                     {}); give a .db3 file `ros2 bag record` wrote",
+                    if tables.is_empty() {
+                        "none".to_string()
+                    } else {
+                        tables.join(", ")
+                    }
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `(id, name, type, serialization_format)` of each row of `topics`, by id.
+fn read_topics(db: &Connection, file: &Path) -> Result<Vec<(i64, String, String, String)>, Error> {
+    let rows: Result<Vec<_>, rusqlite::Error> = db
+        .prepare("SELECT id, name, type, serialization_format FROM topics ORDER BY id")
+        .and_then(|mut s| {
+            s.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)))?
+                .collect()
+        });
+    rows.map_err(|e| {
+        bag_error(
+            file,
+            Some("topics"),
+            None,
+            None,
+            format!(
+                "cannot read the topics ({e}); rosbag2's table has the columns id, name, \
+                 type, serialization_format"
+            ),
+        )
+    })
+}
+
+/// Messages, first and last timestamp of each `topic_id`.
+fn read_counts(db: &Connection, file: &Path) -> Result<HashMap<i64, (u64, u64, u64)>, Error> {
+    let rows: Result<HashMap<_, _>, rusqlite::Error> = db
+        .prepare(
+            "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages \
+             GROUP BY topic_id",
+        )
+        .and_then(|mut s| {
+            s.query_map([], |r| {
+                let (n, first, last): (i64, i64, i64) = (r.get(1)?, r.get(2)?, r.get(3)?);
+                let ns = |v: i64| u64::try_from(v).unwrap_or(0);
+                Ok((r.get(0)?, (ns(n), ns(first), ns(last))))
+            })?
+            .collect()
+        });
+    rows.map_err(|e| {
+        bag_error(
+            file,
+            Some("messages"),
+            None,
+            None,
+            format!(
+                "cannot read the messages ({e}); rosbag2's table has the columns id, \
+                 topic_id, timestamp, data"
+            ),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn metadata_as_rosbag2_writes_it() {
+        let text = "rosbag2_bagfile_information:\n  version: 5\n  storage_identifier: sqlite3\n  \
+                    duration:\n    nanoseconds: 100\n  relative_file_paths:\n    - run_0.db3\n    \
+                    - run_1.db3\n  topics_with_message_count:\n    - topic_metadata:\n        \
+                    name: /a\n";
+        let (storage, files) = parse_metadata(text).unwrap();
+        assert_eq!(storage, "sqlite3");
+        assert_eq!(files, ["run_0.db3", "run_1.db3"]);
+        let text = "rosbag2_bagfile_information:\n  storage_identifier: 'mcap'\n  \
+                    relative_file_paths: [\"a_0.mcap\", a_1.mcap]\n";
+        let (storage, files) = parse_metadata(text).unwrap();
+        assert_eq!(storage, "mcap");
+        assert_eq!(files, ["a_0.mcap", "a_1.mcap"]);
+        // Lists at the key's own indentation are YAML too.
+        let text = "rosbag2_bagfile_information:\n  relative_file_paths:\n  - x.db3\n  files:\n";
+        assert_eq!(parse_metadata(text).unwrap().1, ["x.db3"]);
+        assert!(parse_metadata("foo: 1\n").is_err());
+        assert!(parse_metadata("rosbag2_bagfile_information:\n  version: 5\n").is_err());
+    }
+}
