@@ -10,6 +10,7 @@ use calib_core::multihead::{
     Head, Method, Multihead, MultiheadCalibration, MultiheadOptions, Readings,
 };
 use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report};
+use calib_io::prefetch::Prefetch;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
@@ -223,11 +224,13 @@ fn calibrate(
 ) -> anyhow::Result<Outcome> {
     let mut mh = Multihead::new(heads.to_vec(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
     let names: Vec<&str> = heads.iter().map(|h| h.name.as_str()).collect();
-    let mut reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = open_selected(log, args.unit, &args.input, &names)?;
     let columns: Vec<usize> = (0..names.len()).collect();
     let mut readings = vec![0.0; columns.len()];
     let mut travel = crate::input::Travel::default();
-    for sample in reader.by_ref() {
+    // Decoding runs ahead on a second thread.
+    let mut samples = Prefetch::new(reader);
+    for sample in samples.by_ref() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         for (r, &c) in readings.iter_mut().zip(&columns) {
             *r = s.values[c];
@@ -235,6 +238,7 @@ fn calibrate(
         travel.push(readings[0]);
         mh.push(&readings);
     }
+    let reader = samples.finish();
     let cal = mh.finish().map_err(|e| {
         let hint = travel.no_whole_turn(
             log,
