@@ -681,31 +681,7 @@ impl BagReader {
     /// Every topic of the bag: those read with their channels, then those skipped. Counts and
     /// rates of the topics read are of the messages read so far; of those skipped, of the bag.
     pub fn topics(&self) -> Vec<TopicInfo> {
-        let read = self.registry.topics.iter().map(|t| TopicInfo {
-            topic: t.name.clone(),
-            schema: t.schema.clone(),
-            message_encoding: t.message_encoding.clone(),
-            messages: t.stats.messages,
-            rate_hz: t.stats.rate_hz(),
-            channels: self.names[t.offset..t.offset + t.names.len()]
-                .iter()
-                .map(|n| n.display.clone())
-                .collect(),
-        });
-        let skipped = self
-            .registry
-            .ignored
-            .iter()
-            .zip(&self.registry.ignored_stats)
-            .map(|(t, stats)| TopicInfo {
-                topic: t.topic.clone(),
-                schema: t.schema.clone(),
-                message_encoding: t.message_encoding.clone(),
-                messages: stats.messages,
-                rate_hz: stats.rate_hz(),
-                channels: Vec::new(),
-            });
-        read.chain(skipped).collect()
+        self.registry.topic_infos(&self.names)
     }
 
     /// Starts the thread that streams the rows of the topics read.

@@ -308,6 +308,35 @@ pub(crate) enum Resolved {
 }
 
 impl Registry {
+    /// Every topic: those read with their channels (by the names in `names`), then those
+    /// skipped. Message counts and rates are of the messages counted so far.
+    pub(crate) fn topic_infos(&self, names: &[ChannelName]) -> Vec<TopicInfo> {
+        let read = self.topics.iter().map(|t| TopicInfo {
+            topic: t.name.clone(),
+            schema: t.schema.clone(),
+            message_encoding: t.message_encoding.clone(),
+            messages: t.stats.messages,
+            rate_hz: t.stats.rate_hz(),
+            channels: names[t.offset..t.offset + t.names.len()]
+                .iter()
+                .map(|n| n.display.clone())
+                .collect(),
+        });
+        let skipped = self
+            .ignored
+            .iter()
+            .zip(&self.ignored_stats)
+            .map(|(t, stats)| TopicInfo {
+                topic: t.topic.clone(),
+                schema: t.schema.clone(),
+                message_encoding: t.message_encoding.clone(),
+                messages: stats.messages,
+                rate_hz: stats.rate_hz(),
+                channels: Vec::new(),
+            });
+        read.chain(skipped).collect()
+    }
+
     pub(crate) fn resolve(&mut self, channel: &mcap::Channel) -> Result<Resolved, String> {
         let id = usize::from(channel.id);
         if let Some(slot) = self.slots.get(id) {
@@ -675,31 +704,7 @@ impl McapReader {
     /// Every topic of the file: those read with their channels, then those skipped. Message counts
     /// and rates are of the messages read so far (all of them once iteration has ended).
     pub fn topics(&self) -> Vec<TopicInfo> {
-        let read = self.registry.topics.iter().map(|t| TopicInfo {
-            topic: t.name.clone(),
-            schema: t.schema.clone(),
-            message_encoding: t.message_encoding.clone(),
-            messages: t.stats.messages,
-            rate_hz: t.stats.rate_hz(),
-            channels: self.names[t.offset..t.offset + t.names.len()]
-                .iter()
-                .map(|n| n.display.clone())
-                .collect(),
-        });
-        let skipped = self
-            .registry
-            .ignored
-            .iter()
-            .zip(&self.registry.ignored_stats)
-            .map(|(t, stats)| TopicInfo {
-                topic: t.topic.clone(),
-                schema: t.schema.clone(),
-                message_encoding: t.message_encoding.clone(),
-                messages: stats.messages,
-                rate_hz: stats.rate_hz(),
-                channels: Vec::new(),
-            });
-        read.chain(skipped).collect()
+        self.registry.topic_infos(&self.names)
     }
 
     /// What the reader noticed so far: where a truncated file broke off (once iteration has
