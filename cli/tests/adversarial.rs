@@ -553,6 +553,32 @@ fn bad_option_values_are_named_with_their_range() {
         assert_eq!(code(&o), 2, "{option}: {}", stderr(&o));
         assert!(stderr(&o).contains(says), "{option}: {}", stderr(&o));
     }
+    // The same for the other methods' options.
+    for (args, says) in [
+        (
+            vec!["tdr", &log, "--channel", "a", "--motion-degree", "99"],
+            "--motion-degree 99 is outside its range, 1 to",
+        ),
+        (
+            vec!["tdr", &log, "--channel", "a", "--min-revolutions", "0.5"],
+            "--min-revolutions 0.5 is outside its range, 1 or more",
+        ),
+        (
+            vec![
+                "multihead",
+                &log,
+                "--heads",
+                "a@0,b@90",
+                "--min-observability",
+                "1.5",
+            ],
+            "--min-observability 1.5 is outside its range, 0 to 1 (excluded)",
+        ),
+    ] {
+        let o = calib(&[args.as_slice(), &["-o", "/nonexistent/never"]].concat());
+        assert_eq!(code(&o), 2, "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+    }
 }
 
 #[test]

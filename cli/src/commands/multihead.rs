@@ -185,11 +185,15 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     }
     let sets = parse_sets(&args.sets, &heads)?;
     if args.max_order == Some(0) {
-        return Err(Usage("--max-order must be at least 1".into()).into());
+        return Err(Usage("--max-order 0 is outside its range, 1 or more".into()).into());
     }
     crate::input::check_points(args.points)?;
     if !(0.0..1.0).contains(&args.min_observability) {
-        return Err(Usage("--min-observability must be in [0, 1)".into()).into());
+        return Err(Usage(format!(
+            "--min-observability {} is outside its range, 0 to 1 (excluded)",
+            calib_io::limits::readable(args.min_observability)
+        ))
+        .into());
     }
     let opts = MultiheadOptions {
         method: match args.method {

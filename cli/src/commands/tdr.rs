@@ -115,29 +115,31 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     crate::input::check_points(Some(args.points))?;
-    if args
-        .max_order
-        .is_some_and(|h| !(1..=MAX_ORDER).contains(&h))
-    {
-        return Err(Usage(format!("--max-order must be between 1 and {MAX_ORDER}")).into());
-    }
-    if args.max_drag_order > MAX_DRAG_ORDER {
+    if let Some(h) = args.max_order.filter(|h| !(1..=MAX_ORDER).contains(h)) {
         return Err(Usage(format!(
-            "--max-drag-order must be between 0 and {MAX_DRAG_ORDER}"
+            "--max-order {h} is outside its range, 1 to {MAX_ORDER}"
         ))
         .into());
     }
-    if args
-        .motion_degree
-        .is_some_and(|p| !(1..=MAX_DEGREE).contains(&p))
-    {
+    if args.max_drag_order > MAX_DRAG_ORDER {
         return Err(Usage(format!(
-            "--motion-degree must be between 1 and {MAX_DEGREE}"
+            "--max-drag-order {} is outside its range, 0 to {MAX_DRAG_ORDER}",
+            args.max_drag_order
+        ))
+        .into());
+    }
+    if let Some(p) = args.motion_degree.filter(|p| !(1..=MAX_DEGREE).contains(p)) {
+        return Err(Usage(format!(
+            "--motion-degree {p} is outside its range, 1 to {MAX_DEGREE}"
         ))
         .into());
     }
     if !(args.min_revolutions.is_finite() && args.min_revolutions >= 1.0) {
-        return Err(Usage("--min-revolutions must be at least 1".into()).into());
+        return Err(Usage(format!(
+            "--min-revolutions {} is outside its range, 1 or more",
+            calib_io::limits::readable(args.min_revolutions)
+        ))
+        .into());
     }
     batch::run(
         "tdr",
