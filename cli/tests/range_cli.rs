@@ -7,7 +7,8 @@ mod common;
 
 use common::*;
 use serde_json::Value;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 /// A joint swept 15° → 135° and back four times at four speeds (10–40°/s), 500 Hz: the DUT `b`
 /// errs by 1° at order 1, 0.5° at order 2, 400″ at order 3 and less at orders 5 and 8
@@ -126,6 +127,26 @@ fn max_diff(got: &[(f64, f64)], expected: impl Fn(f64) -> Option<f64>) -> (f64, 
     (worst, pairs.len())
 }
 
+/// Simulates `JOINT` into `dir/joint.csv` and runs `calib reference` on it into `dir/out`, which
+/// must succeed; returns the log, the output folder and the run.
+fn reference_on_the_joint(dir: &Path) -> (PathBuf, PathBuf, Output) {
+    let scenario = write(dir, "joint.toml", JOINT);
+    let log = simulate(&scenario, dir, "joint.csv");
+    let out = dir.join("out");
+    let o = calib(&[
+        "reference",
+        s(&log),
+        "--dut",
+        "b",
+        "--ref",
+        "ref",
+        "-o",
+        s(&out),
+    ]);
+    expect_exit(&o, 0);
+    (log, out, o)
+}
+
 /// The bar: the table spans the swept range within 1.5° at each end and is within 0.5″ of the
 /// true error everywhere in it (aim 0.3″).
 ///
@@ -140,20 +161,7 @@ fn max_diff(got: &[(f64, f64)], expected: impl Fn(f64) -> Option<f64>) -> (f64, 
 #[test]
 fn a_swept_joint_gives_a_range_table_matching_the_truth() {
     let dir = tempfile::tempdir().unwrap();
-    let scenario = write(dir.path(), "joint.toml", JOINT);
-    let log = simulate(&scenario, dir.path(), "joint.csv");
-    let out = dir.path().join("out");
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "b",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
-    expect_exit(&o, 0);
+    let (_, out, o) = reference_on_the_joint(dir.path());
     let summary = stdout(&o);
     assert_mentions(&summary, &["range table from", "no whole turn"]);
 
@@ -313,20 +321,7 @@ fn a_slipping_reference_is_refused() {
 #[test]
 fn range_tables_in_apply_export_and_compare() {
     let dir = tempfile::tempdir().unwrap();
-    let scenario = write(dir.path(), "joint.toml", JOINT);
-    let log = simulate(&scenario, dir.path(), "joint.csv");
-    let out = dir.path().join("out");
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "b",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
-    expect_exit(&o, 0);
+    let (log, out, _) = reference_on_the_joint(dir.path());
     let table = out.join("b.csv");
     let ((lo, hi), _) = read_range(&table);
 
