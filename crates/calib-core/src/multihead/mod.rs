@@ -130,9 +130,10 @@ use crate::angle::{wrap_2pi, wrap_pi};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
 use crate::uncertainty::MapUncertainty;
+use bins::Binned;
 use bins::largest_gap;
 use eda::{check_set, eda, eda_weights, infer_sets};
-use joint::{Residual, joint, joint_weights, series_of};
+use joint::{JointFit, Residual, joint, joint_weights, series_of};
 use std::f64::consts::{PI, TAU};
 use uncertainty::{fit_noise, map_uncertainty};
 
@@ -459,27 +460,73 @@ impl Multihead {
         self.samples += 1;
     }
 
-    /// Solves, once every sample is in.
+    /// Solves, once every sample is in: checks that the heads follow the first, recognizes each
+    /// head's reading convention, chooses the grid and the orders, fits, and describes the
+    /// result (each a step below).
     pub fn finish(self) -> Result<MultiheadCalibration, MultiheadError> {
-        let first = self.heads[0].name.clone();
+        self.check_following()?;
+        let (readings, base) = self.conventions()?;
+        let (bins, max_order) = self.grid()?;
+        let data = self.merge(bins, &base);
+        let fit = joint(&data, &self.rel[1..], max_order, &self.opts)?;
+
+        let mut warnings = self.fit_warnings(&fit, &readings);
+        let orders = self.orders(&data, &fit, max_order);
+        let points = self
+            .opts
+            .points
+            .unwrap_or_else(|| crate::csrr::table_points(&orders.series));
+        let map = ErrorMap::from_series(&orders.series, points);
+        let uncertainty = self.uncertainty(&fit, &orders, max_order, points);
+        let heads = self.head_estimates(&fit, &readings);
+        warnings.extend(misfits(&heads, &fit.residuals, bins));
+        Ok(MultiheadCalibration {
+            method: self.opts.method,
+            map,
+            series: orders.series,
+            heads,
+            max_order,
+            bins,
+            blind: orders.blind,
+            ill_conditioned: orders.ill_conditioned,
+            sets: orders.sets,
+            residual_rms: orders.residual_rms,
+            uncertainty,
+            iterations: fit.iterations,
+            samples: self.samples,
+            skipped: self.skipped,
+            revolutions: self.travel / TAU,
+            warnings,
+        })
+    }
+
+    /// Refuses a log without samples, and heads whose difference to the first head changes by
+    /// more than [`MultiheadOptions::head_tol`] (not the same scale).
+    fn check_following(&self) -> Result<(), MultiheadError> {
         if self.samples == 0 {
             return Err(MultiheadError::NoSamples {
                 skipped: self.skipped,
             });
         }
-        let others = self.heads.len() - 1;
-        for j in 0..others {
+        for j in 0..self.heads.len() - 1 {
             let change = self.d_max[j] - self.d_min[j];
             if change > self.opts.head_tol {
                 return Err(MultiheadError::NotFollowing {
                     head: self.heads[j + 1].name.clone(),
-                    first,
+                    first: self.heads[0].name.clone(),
                     change_deg: change.to_degrees(),
                     tol_deg: self.opts.head_tol.to_degrees(),
                 });
             }
         }
-        // Each head's reading convention, from its mean difference to the first head.
+        Ok(())
+    }
+
+    /// Each other head's reading convention, from its mean difference to the first head, and the
+    /// base added to its bin means (its first difference, less the nominal angle for raw
+    /// readings).
+    fn conventions(&self) -> Result<(Vec<Readings>, Vec<f64>), MultiheadError> {
+        let others = self.heads.len() - 1;
         let n_all = self.samples as f64;
         let mut readings = Vec::with_capacity(others);
         let mut base = Vec::with_capacity(others);
@@ -507,16 +554,20 @@ impl Multihead {
             base.push(wrap_pi(self.d_ref[j] - removed));
             readings.push(conv);
         }
+        Ok((readings, base))
+    }
 
+    /// The uniform bins every bin of which holds samples, and the highest order fitted (given,
+    /// or from the samples per revolution; see the module doc's section on sampling).
+    fn grid(&self) -> Result<(usize, usize), MultiheadError> {
         let bins = self.uniform_bins().ok_or_else(|| {
             let (gap, at) = largest_gap(&self.count);
             MultiheadError::NotCovered {
-                first: first.clone(),
+                first: self.heads[0].name.clone(),
                 gap_deg: gap.to_degrees(),
                 at_deg: at.to_degrees(),
             }
         })?;
-        let revolutions = self.travel / TAU;
         let max_order = match self.opts.max_order {
             Some(h) if 4 * h > bins => {
                 return Err(MultiheadError::TooFewSamplesPerRevolution {
@@ -527,14 +578,16 @@ impl Multihead {
             }
             Some(h) => h,
             None => {
-                let per_rev = n_all / revolutions.max(1.0);
+                let per_rev = self.samples as f64 / (self.travel / TAU).max(1.0);
                 ((0.4 * per_rev).floor() as usize).clamp(1, (bins / 4).min(2000))
             }
         };
-        let data = self.merge(bins, &base);
-        let rel_others: Vec<f64> = self.rel[1..].to_vec();
-        let fit = joint(&data, &rel_others, max_order, &self.opts)?;
+        Ok((bins, max_order))
+    }
 
+    /// Warnings about the samples and the solve: skipped samples, a solve that did not
+    /// converge, heads of both reading conventions.
+    fn fit_warnings(&self, fit: &JointFit, readings: &[Readings]) -> Vec<String> {
         let mut warnings = Vec::new();
         if self.skipped > 0 {
             warnings.push(format!(
@@ -556,54 +609,82 @@ impl Multihead {
                     .into(),
             );
         }
+        warnings
+    }
 
-        // Structural blindness: every head's nominal angle on a multiple of 360°/h.
-        let structurally_blind = |h: usize| {
-            self.rel
-                .iter()
-                .all(|&p| wrap_pi(h as f64 * p).abs() <= h as f64 * self.opts.angle_tol)
-        };
-        let psi: Vec<f64> = rel_others
+    /// The map's series and the orders left out, by the chosen method: the joint fit's own, its
+    /// excluded orders split into blind (every head's nominal angle on a multiple of `360°/h`)
+    /// and ill-conditioned; or eq. 9 per set, combined.
+    fn orders(&self, data: &Binned, fit: &JointFit, max_order: usize) -> Orders {
+        match self.opts.method {
+            Method::Joint => {
+                let structurally_blind = |h: usize| {
+                    self.rel
+                        .iter()
+                        .all(|&p| wrap_pi(h as f64 * p).abs() <= h as f64 * self.opts.angle_tol)
+                };
+                let (blind, ill_conditioned): (Vec<ExcludedOrder>, Vec<ExcludedOrder>) = fit
+                    .excluded
+                    .iter()
+                    .partition(|e| structurally_blind(e.order));
+                let sum: f64 = fit.residuals.iter().map(|r| r.between + r.within).sum();
+                let others = self.heads.len() - 1;
+                let rms = (sum / (self.samples as f64 * others as f64)).sqrt();
+                Orders {
+                    series: series_of(&fit.s),
+                    blind,
+                    ill_conditioned,
+                    sets: Vec::new(),
+                    residual_rms: Some(rms),
+                }
+            }
+            Method::Eda => {
+                let (series, sets, blind) = eda(data, fit, &self.sets, max_order);
+                Orders {
+                    series,
+                    blind,
+                    ill_conditioned: Vec::new(),
+                    sets,
+                    residual_rms: None,
+                }
+            }
+        }
+    }
+
+    /// The map's uncertainty over the orders fitted, with the heads' estimated angles.
+    fn uncertainty(
+        &self,
+        fit: &JointFit,
+        orders: &Orders,
+        max_order: usize,
+        points: usize,
+    ) -> MapUncertainty {
+        let others = self.heads.len() - 1;
+        let excluded: Vec<usize> = orders
+            .blind
+            .iter()
+            .chain(&orders.ill_conditioned)
+            .map(|e| e.order)
+            .collect();
+        let fitted: Vec<usize> = (1..=max_order).filter(|h| !excluded.contains(h)).collect();
+        let psi: Vec<f64> = self.rel[1..]
             .iter()
             .zip(&fit.delta)
             .map(|(p, d)| p + d)
             .collect();
-        let (series, blind, ill_conditioned, set_estimates, residual_rms) = match self.opts.method {
-            Method::Joint => {
-                let (blind, ill): (Vec<ExcludedOrder>, Vec<ExcludedOrder>) = fit
-                    .excluded
-                    .iter()
-                    .partition(|e| structurally_blind(e.order));
-                let series = series_of(&fit.s);
-                let sum: f64 = fit.residuals.iter().map(|r| r.between + r.within).sum();
-                let rms = (sum / (n_all * others as f64)).sqrt();
-                (series, blind, ill, Vec::new(), Some(rms))
-            }
-            Method::Eda => {
-                let (series, sets, blind) = eda(&data, &fit, &self.sets, max_order);
-                (series, blind, Vec::new(), sets, None)
-            }
-        };
-        let points = self
-            .opts
-            .points
-            .unwrap_or_else(|| crate::csrr::table_points(&series));
-        let map = ErrorMap::from_series(&series, points);
-        let excluded: Vec<usize> = blind
-            .iter()
-            .chain(&ill_conditioned)
-            .map(|e| e.order)
-            .collect();
-        let fitted: Vec<usize> = (1..=max_order).filter(|h| !excluded.contains(h)).collect();
         let weights = |h: usize| match self.opts.method {
             Method::Joint => joint_weights(h, &psi),
             Method::Eda => eda_weights(h, &self.sets, others),
         };
         let unknowns = 2 * fitted.len() + others;
         let u_fit = fit_noise(&fit.bin_residuals, unknowns, &fitted, weights);
-        let uncertainty = map_uncertainty(self.opts.method, u_fit, &series, points);
-        let heads: Vec<HeadEstimate> = self
-            .heads
+        map_uncertainty(self.opts.method, u_fit, &orders.series, points)
+    }
+
+    /// Every head with its estimated angle error, reading convention, residual and noise.
+    fn head_estimates(&self, fit: &JointFit, readings: &[Readings]) -> Vec<HeadEstimate> {
+        let n_all = self.samples as f64;
+        self.heads
             .iter()
             .enumerate()
             .map(|(j, h)| HeadEstimate {
@@ -620,27 +701,17 @@ impl Multihead {
                     .filter(|r| r.dof > 0.0)
                     .map(|r| (r.within / r.dof).sqrt()),
             })
-            .collect();
-        warnings.extend(misfits(&heads, &fit.residuals, bins));
-        Ok(MultiheadCalibration {
-            method: self.opts.method,
-            map,
-            series,
-            heads,
-            max_order,
-            bins,
-            blind,
-            ill_conditioned,
-            sets: set_estimates,
-            residual_rms,
-            uncertainty,
-            iterations: fit.iterations,
-            samples: self.samples,
-            skipped: self.skipped,
-            revolutions,
-            warnings,
-        })
+            .collect()
     }
+}
+
+/// The map's series and what was left out of it, by method (see [`Multihead::finish`]).
+struct Orders {
+    series: FourierSeries,
+    blind: Vec<ExcludedOrder>,
+    ill_conditioned: Vec<ExcludedOrder>,
+    sets: Vec<SetEstimate>,
+    residual_rms: Option<f64>,
 }
 
 /// Warnings for heads whose bin means depart from the joint fit by far more than their noise
