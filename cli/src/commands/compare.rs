@@ -109,7 +109,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         )
     })?;
     let csv_path = args.output.join("compare.csv");
-    calib_io::atomic::write_atomic(&csv_path, render_csv(&c).as_bytes())?;
+    calib_io::atomic::write_atomic(
+        &csv_path,
+        calib_io::compare::render_compare_csv(&c).as_bytes(),
+    )?;
     let stdout = if args.json {
         serde_json::to_string_pretty(&c)? + "\n"
     } else {
@@ -212,27 +215,6 @@ fn with_expanded(
             })
         })
         .collect()
-}
-
-/// `compare.csv`.
-pub fn render_csv(c: &Comparison) -> String {
-    let mut s = String::from(
-        "angle_deg,error1_arcsec,error2_arcsec,difference_arcsec,U1_arcsec,U2_arcsec,En\n",
-    );
-    for p in &c.points {
-        let _ = writeln!(
-            s,
-            "{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.4}",
-            p.angle_deg,
-            p.error1_arcsec,
-            p.error2_arcsec,
-            p.difference_arcsec,
-            p.expanded1_arcsec,
-            p.expanded2_arcsec,
-            p.en
-        );
-    }
-    s
 }
 
 fn render_summary(args: &Args, c: &Comparison, csv_path: &Path) -> String {

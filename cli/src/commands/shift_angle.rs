@@ -7,6 +7,7 @@ use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::shift_angle::{self, Method, ShiftAngleResult};
 use calib_core::uncertainty::{self, BudgetResult};
 use calib_core::{ChannelReport, ErrorMap, Report};
+use calib_io::shift_angle::deg;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -129,9 +130,9 @@ fn calibrate(
     let report = build_report(args, path, &readings, &result, budget)?;
     let report_json = serde_json::to_string_pretty(&report)? + "\n";
 
-    check_values(&result).with_context(|| format!("{}", path.display()))?;
-    let encoder_csv = render_encoder(&result, budget);
-    let polygon_csv = render_polygon(&result);
+    calib_io::shift_angle::check_values(&result).with_context(|| format!("{}", path.display()))?;
+    let encoder_csv = calib_io::shift_angle::render_encoder(&result, budget);
+    let polygon_csv = calib_io::shift_angle::render_polygon(&result);
     let doc = crate::document::shift_angle::document(&readings, &result, budget, &report);
     let files = crate::output::write_outputs(
         out,
@@ -162,94 +163,6 @@ fn calibrate(
         warnings: report.warnings,
         files,
     })
-}
-
-fn opt(v: Option<f64>) -> String {
-    v.map(|v| format!("{v:.6}")).unwrap_or_default()
-}
-
-/// Degrees with at most 9 decimals, trailing zeros trimmed (shifts are usually whole or tenths).
-fn deg(v: f64) -> String {
-    let s = format!("{v:.9}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.into() }
-}
-
-/// `encoder.csv`.
-pub fn render_encoder(result: &ShiftAngleResult, budget: Option<&BudgetResult>) -> String {
-    let mut s = String::from("angle_deg,error_arcsec,correction_arcsec,u_arcsec");
-    s += if budget.is_some() {
-        ",expanded_uncertainty_arcsec\n"
-    } else {
-        "\n"
-    };
-    for p in &result.points {
-        let u = match budget {
-            Some(b) => Some(b.combined_standard_uncertainty),
-            None => p.u_arcsec,
-        };
-        let _ = write!(
-            s,
-            "{},{:.6},{:.6},{}",
-            deg(p.angle_deg),
-            p.error_arcsec,
-            -p.error_arcsec,
-            opt(u)
-        );
-        match budget {
-            Some(b) => {
-                let _ = writeln!(s, ",{:.6}", b.expanded_uncertainty);
-            }
-            None => s.push('\n'),
-        }
-    }
-    s
-}
-
-/// Refuses a result with a value no table may hold (non-finite, or beyond
-/// [`calib_io::table::MAX_TABLE_ARCSEC`]): extreme readings solve to numbers no encoder or
-/// polygon has, and a wrong table is worse than none.
-fn check_values(result: &ShiftAngleResult) -> anyhow::Result<()> {
-    let limit = calib_io::table::MAX_TABLE_ARCSEC;
-    let bad = |v: f64| !v.is_finite() || v.abs() > limit;
-    for p in &result.points {
-        if bad(p.error_arcsec) || p.u_arcsec.is_some_and(bad) {
-            anyhow::bail!(
-                "the encoder's error at {:.6}° solves to {}″ (u {:?}), not a finite value within \
-                 ±{limit}″: check the readings' unit (arcseconds) and values; no table was written",
-                p.angle_deg,
-                p.error_arcsec,
-                p.u_arcsec
-            );
-        }
-    }
-    for f in &result.polygon {
-        if bad(f.pitch_deviation_arcsec) || f.u_arcsec.is_some_and(bad) {
-            anyhow::bail!(
-                "face {}'s pitch deviation solves to {}″ (u {:?}), not a finite value within \
-                 ±{limit}″: check the readings' unit (arcseconds) and values; no table was written",
-                f.face,
-                f.pitch_deviation_arcsec,
-                f.u_arcsec
-            );
-        }
-    }
-    Ok(())
-}
-
-/// `polygon.csv`.
-pub fn render_polygon(result: &ShiftAngleResult) -> String {
-    let mut s = String::from("face,pitch_deviation_arcsec,u_arcsec\n");
-    for f in &result.polygon {
-        let _ = writeln!(
-            s,
-            "{},{:.6},{}",
-            f.face,
-            f.pitch_deviation_arcsec,
-            opt(f.u_arcsec)
-        );
-    }
-    s
 }
 
 /// Whether the points lie on the uniform grid `i·360/N` (then the map has harmonics).

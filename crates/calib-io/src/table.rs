@@ -50,6 +50,7 @@ use crate::atomic::AtomicFile;
 use crate::csv_log::{
     csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, wrong_width,
 };
+use crate::error::csv_error;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::{ErrorMap, RangeMap};
 use csv::ByteRecord;
@@ -394,16 +395,6 @@ struct Rows {
     u: Option<Vec<f64>>,
 }
 
-/// The error of a table's line (and column).
-fn table_error(path: &Path, line: u64, column: Option<&str>, message: String) -> Error {
-    Error::Csv {
-        path: path.to_path_buf(),
-        line,
-        channel: column.map(str::to_string),
-        message,
-    }
-}
-
 /// Reads the header: the three columns of [`HEADER`] in any order, optionally [`U_COLUMN`],
 /// nothing else.
 fn read_columns<R: std::io::Read>(
@@ -415,7 +406,7 @@ fn read_columns<R: std::io::Read>(
         .read_byte_record(&mut record)
         .map_err(|e| from_csv(path, e))?
     {
-        return Err(table_error(
+        return Err(csv_error(
             path,
             1,
             None,
@@ -431,7 +422,7 @@ fn read_columns<R: std::io::Read>(
             "angle_deg" | "error_arcsec" | "correction_arcsec" | "u_arcsec"
         )
     }) {
-        return Err(table_error(
+        return Err(csv_error(
             path,
             header_line,
             Some(unknown),
@@ -446,7 +437,7 @@ fn read_columns<R: std::io::Read>(
         column("error_arcsec"),
         column("correction_arcsec"),
     ) else {
-        return Err(table_error(
+        return Err(csv_error(
             path,
             header_line,
             None,
@@ -478,7 +469,7 @@ fn read_rows<R: std::io::Read>(
 ) -> Result<Rows, Error> {
     let names = &columns.names;
     let err =
-        |line: u64, column: Option<&str>, message: String| table_error(path, line, column, message);
+        |line: u64, column: Option<&str>, message: String| csv_error(path, line, column, message);
     // Tables are small (one row per grid point), and the grid can only be checked once N is
     // known, so they are read whole.
     let mut rows = Rows {
@@ -610,7 +601,7 @@ fn range_grid(
                 at(i)
             )
         };
-        return Err(table_error(
+        return Err(csv_error(
             path,
             line_at(path, &rows.positions[i]),
             Some("angle_deg"),
@@ -619,7 +610,7 @@ fn range_grid(
     }
     let step = (hi - lo) / (n - 1) as f64;
     let map = RangeMap::new(lo.to_radians(), step.to_radians(), rows.errors)
-        .map_err(|e| table_error(path, marker_line, None, e.to_string()))?;
+        .map_err(|e| csv_error(path, marker_line, None, e.to_string()))?;
     Ok(RangeTable { map, u: rows.u })
 }
 
@@ -629,7 +620,7 @@ fn turn_grid(path: &Path, rows: Rows) -> Result<CorrectionTable, Error> {
     let n = angles.len();
     if let Some(i) = (0..n).find(|&i| (angles[i] - grid_deg(i, n)).abs() > GRID_TOLERANCE_DEG) {
         let (row, message) = off_grid(angles, i);
-        return Err(table_error(
+        return Err(csv_error(
             path,
             line_at(path, &rows.positions[row]),
             Some("angle_deg"),
