@@ -10,6 +10,7 @@ mod commands;
 mod document;
 mod exit;
 mod input;
+mod method;
 mod output;
 mod summary;
 mod ui;

@@ -1,17 +1,17 @@
 //! `calib csrr`: self-calibration of two coaxial sensors.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::batch::{ChannelFigures, Outcome};
 use crate::document::csrr::{self as document, Comparisons};
 use crate::exit::Usage;
-use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
+use crate::input::{alignment_detail, alignment_text};
+use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_tables_and_report};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
 use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
-use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report, SessionReport};
-use calib_io::prefetch::Prefetch;
+use calib_core::{ChannelReport, ErrorMap, Report, SessionReport};
 use calib_report::trace::Trace;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -54,13 +54,9 @@ pub enum MethodArg {
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
-    #[arg(required = true, value_name = "LOG")]
-    pub logs: Vec<PathBuf>,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
-    pub output: PathBuf,
+    /// Logs, output, unit, output form, gates, timing.
+    #[command(flatten)]
+    pub common: MethodArgs,
     /// Channel of sensor A (the rotor turned between sessions).
     #[arg(long, default_value = "a")]
     pub a: String,
@@ -84,9 +80,6 @@ pub struct Args {
     /// Points of the output tables (default: enough for linear interpolation to 0.01″, ≥ 3600).
     #[arg(long)]
     pub points: Option<usize>,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
-    #[arg(long, value_parser = parse_unit)]
-    pub unit: Option<AngleUnit>,
     /// Largest drift of the relative angle within one session, degrees; must exceed the
     /// peak-to-peak of the two sensors' errors.
     #[arg(long, default_value_t = 1.0)]
@@ -103,16 +96,6 @@ pub struct Args {
     /// Benchmark readings of A and B for `--method paper`, degrees.
     #[arg(long, num_args = 2, value_names = ["A_DEG", "B_DEG"], default_values_t = [0.0, 0.0])]
     pub benchmarks: Vec<f64>,
-    /// Print report.json on standard output instead of the summary (summary.json with several
-    /// logs).
-    #[arg(long)]
-    pub json: bool,
-    /// Pipelines and gates.
-    #[command(flatten)]
-    pub batch: BatchArgs,
-    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
-    #[command(flatten)]
-    pub input: LogArgs,
 }
 
 /// Runs `calib csrr`.
@@ -154,26 +137,20 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.max_order == Some(0) {
         return Err(Usage("--max-order must be at least 1".into()).into());
     }
-    if args.truth.is_some() && args.logs.len() > 1 {
+    if args.truth.is_some() && args.common.logs.len() > 1 {
         return Err(
             Usage("--truth DIR holds the truth of one log: give one log with it".into()).into(),
         );
     }
-    batch::run(
-        "csrr",
-        &args.logs,
-        &args.output,
-        &args.batch,
-        args.json,
-        |log, out| calibrate(args, log, out),
-    )
+    args.common
+        .run("csrr", |log, out| calibrate(args, log, out))
 }
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut names = vec![args.a.as_str(), args.b.as_str()];
     names.extend(args.reference.as_deref());
-    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = args.common.open(log, &names)?;
     let (ia, ib) = (0, 1);
     let ir = args.reference.as_ref().map(|_| 2);
     let opts = CsrrOptions {
@@ -208,14 +185,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         crate::input::Travel::default(),
         crate::input::Travel::default(),
     );
-    let bar = crate::ui::reading(log);
-    // Decoding runs ahead on a second thread while this one segments and bins.
-    let mut samples = Prefetch::new(reader);
-    for (n, sample) in samples.by_ref().enumerate() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
-        if n as u64 % crate::ui::TICK == 0 {
-            bar.inc(crate::ui::TICK);
-        }
+    let reader = for_each_sample(log, reader, |s| {
         trace.push(s.t, s.values[ia], s.values[ib]);
         travel_a.push(s.values[ia]);
         travel_b.push(s.values[ib]);
@@ -225,9 +195,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             }
             None => csrr.push(s.t, s.values[ia], s.values[ib], s.session),
         }
-    }
-    bar.finish_and_clear();
-    let reader = samples.finish();
+    })?;
     let solving = crate::ui::working("solving");
     let cal = csrr.finish();
     solving.finish_and_clear();
@@ -294,7 +262,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         &json,
         &doc,
     )?;
-    let text = if args.json {
+    let text = if args.common.json {
         json
     } else {
         alignment_text(reader.alignment().as_ref())

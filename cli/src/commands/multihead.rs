@@ -1,20 +1,20 @@
 //! `calib multihead`: self-calibration of one scale read by several heads.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
+use crate::input::{alignment_detail, alignment_text};
+use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_tables_and_report};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::multihead::{
     Head, Method, Multihead, MultiheadCalibration, MultiheadOptions, Readings,
 };
-use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report};
-use calib_io::prefetch::Prefetch;
+use calib_core::{ChannelReport, ErrorMap, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The method, as chosen on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -57,17 +57,13 @@ pub enum MethodArg {
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
-    #[arg(required = true, value_name = "LOG")]
-    pub logs: Vec<PathBuf>,
+    /// Logs, output, unit, output form, gates, timing.
+    #[command(flatten)]
+    pub common: MethodArgs,
     /// The heads as NAME@DEG (nominal angle in degrees), comma-separated or repeated; the first
     /// is the head whose map is written.
     #[arg(long, required = true, value_delimiter = ',', value_name = "NAME@DEG")]
     pub heads: Vec<String>,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
-    pub output: PathBuf,
     /// The method.
     #[arg(long, value_enum, default_value_t = MethodArg::Joint)]
     pub method: MethodArg,
@@ -83,22 +79,10 @@ pub struct Args {
     /// Points of the output table (default: enough for linear interpolation to 0.01″, ≥ 3600).
     #[arg(long)]
     pub points: Option<usize>,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
-    #[arg(long, value_parser = parse_unit)]
-    pub unit: Option<AngleUnit>,
     /// Orders whose observability (0 blind … 1 as seen by equally spaced heads) is below this
     /// are left out of the map (joint method).
     #[arg(long, default_value_t = 0.01)]
     pub min_observability: f64,
-    /// Print report.json on standard output instead of the summary.
-    #[arg(long)]
-    pub json: bool,
-    /// Pipelines and gates.
-    #[command(flatten)]
-    pub batch: BatchArgs,
-    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
-    #[command(flatten)]
-    pub input: LogArgs,
 }
 
 /// One `NAME@DEG` of `--heads`.
@@ -208,14 +192,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     };
     // Head and set problems concern the command line, whatever the log holds.
     Multihead::new(heads.clone(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
-    batch::run(
-        "multihead",
-        &args.logs,
-        &args.output,
-        &args.batch,
-        args.json,
-        |log, out| calibrate(args, &heads, &opts, log, out),
-    )
+    args.common.run("multihead", |log, out| {
+        calibrate(args, &heads, &opts, log, out)
+    })
 }
 
 /// Calibrates one log into the folder `out`.
@@ -228,21 +207,17 @@ fn calibrate(
 ) -> anyhow::Result<Outcome> {
     let mut mh = Multihead::new(heads.to_vec(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
     let names: Vec<&str> = heads.iter().map(|h| h.name.as_str()).collect();
-    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = args.common.open(log, &names)?;
     let columns: Vec<usize> = (0..names.len()).collect();
     let mut readings = vec![0.0; columns.len()];
     let mut travel = crate::input::Travel::default();
-    // Decoding runs ahead on a second thread.
-    let mut samples = Prefetch::new(reader);
-    for sample in samples.by_ref() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
+    let reader = for_each_sample(log, reader, |s| {
         for (r, &c) in readings.iter_mut().zip(&columns) {
             *r = s.values[c];
         }
         travel.push(readings[0]);
         mh.push(&readings);
-    }
-    let reader = samples.finish();
+    })?;
     let cal = mh.finish().map_err(|e| {
         let hint = travel.no_whole_turn(
             log,
@@ -280,7 +255,7 @@ fn calibrate(
         &json,
         &crate::document::multihead::document(first, &cal, &report),
     )?;
-    let text = if args.json {
+    let text = if args.common.json {
         json
     } else {
         alignment_text(reader.alignment().as_ref())

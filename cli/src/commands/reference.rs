@@ -1,8 +1,9 @@
 //! `calib reference`: cross-calibration of an encoder against a better reference encoder.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
+use crate::input::{alignment_detail, alignment_text};
+use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_outputs};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
@@ -10,12 +11,11 @@ use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
     ReferenceCal, ReferenceCalibration, ReferenceOptions, TableMap, Targets,
 };
-use calib_core::{AngleUnit, ChannelReport, Report};
-use calib_io::prefetch::Prefetch;
+use calib_core::{ChannelReport, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Calibrate an encoder (the DUT) against a better reference encoder on the same shaft.
 ///
@@ -49,10 +49,9 @@ use std::path::{Path, PathBuf};
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
-    #[arg(required = true, value_name = "LOG")]
-    pub logs: Vec<PathBuf>,
+    /// Logs, output, unit, output form, gates, timing.
+    #[command(flatten)]
+    pub common: MethodArgs,
     /// Channel of the encoder to calibrate (device under test).
     #[arg(long)]
     pub dut: String,
@@ -62,15 +61,9 @@ pub struct Args {
     /// The reference's stated standard uncertainty, arcseconds (combined into u_arcsec).
     #[arg(long, default_value_t = 0.0)]
     pub ref_u: f64,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
-    pub output: PathBuf,
     /// Points of the output table.
     #[arg(long, default_value_t = 3600)]
     pub points: usize,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
-    #[arg(long, value_parser = parse_unit)]
-    pub unit: Option<AngleUnit>,
     /// Speed below which the DUT counts as stopped, degrees per second.
     #[arg(long, default_value_t = 1.0)]
     pub min_speed: f64,
@@ -92,16 +85,6 @@ pub struct Args {
     /// approach: backlash settles).
     #[arg(long, default_value_t = 1.0)]
     pub approach: f64,
-    /// Print report.json on standard output instead of the summary (summary.json with several
-    /// logs).
-    #[arg(long)]
-    pub json: bool,
-    /// Pipelines and gates.
-    #[command(flatten)]
-    pub batch: BatchArgs,
-    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
-    #[command(flatten)]
-    pub input: LogArgs,
 }
 
 /// `--targets`: a count (`20`) or a comma-separated list of degrees (`15,30.5,45`).
@@ -154,22 +137,15 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    batch::run(
-        "reference",
-        &args.logs,
-        &args.output,
-        &args.batch,
-        args.json,
-        |log, out| calibrate(args, log, out),
-    )
+    args.common
+        .run("reference", |log, out| calibrate(args, log, out))
 }
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let names = [args.dut.as_str(), args.reference.as_str()];
-    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = args.common.open(log, &names)?;
     let (id, ir) = (0, 1);
-    let bar = crate::ui::reading(log);
     let mut cal = ReferenceCal::new(ReferenceOptions {
         points: args.points,
         min_speed: args.min_speed.to_radians(),
@@ -179,17 +155,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         max_gap: args.bridge_gap.to_radians(),
         targets: args.targets.clone(),
     });
-    // Decoding runs ahead on a second thread.
-    let mut samples = Prefetch::new(reader);
-    for (n, sample) in samples.by_ref().enumerate() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
-        if n as u64 % crate::ui::TICK == 0 {
-            bar.inc(crate::ui::TICK);
-        }
-        cal.push(s.t, s.values[id], s.values[ir]);
-    }
-    let reader = samples.finish();
-    bar.finish_and_clear();
+    let reader = for_each_sample(log, reader, |s| cal.push(s.t, s.values[id], s.values[ir]))?;
     let cal = cal.finish().with_context(|| {
         format!(
             "{}: DUT `{}`, reference `{}`",
@@ -220,7 +186,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         ],
         &doc,
     )?;
-    let text = if args.json {
+    let text = if args.common.json {
         json
     } else {
         alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)

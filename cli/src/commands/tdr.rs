@@ -1,22 +1,20 @@
 //! `calib tdr`: self-calibration of one encoder from a free spin-down (coast-down) log.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{
-    LogArgs, alignment_detail, alignment_text, command_line, open_selected, parse_unit,
-};
+use crate::input::{alignment_detail, alignment_text, command_line};
+use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_tables_and_report};
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::tdr::{
     FALSE_ORDER_PROBABILITY, Tdr, TdrCalibration, TdrOptions, significance_threshold,
 };
-use calib_core::{AngleUnit, ChannelReport, Report};
-use calib_io::prefetch::Prefetch;
+use calib_core::{ChannelReport, Report};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
 const MAX_ORDER: usize = 1000;
@@ -61,19 +59,15 @@ const MAX_DEGREE: usize = 60;
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
-    #[arg(required = true, value_name = "LOG")]
-    pub logs: Vec<PathBuf>,
+    /// Logs, output, unit, output form, gates, timing.
+    #[command(flatten)]
+    pub common: MethodArgs,
     /// Channel of the encoder to calibrate.
     #[arg(long)]
     pub channel: String,
     /// Channel of a reference encoder on the same shaft, to check the map against.
     #[arg(long = "ref")]
     pub reference: Option<String>,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
-    pub output: PathBuf,
     /// Highest harmonic order tested. Default: 0.4 × the samples per revolution where the coast
     /// is slowest (at most 500). Only orders that stand above the noise are kept in the map.
     #[arg(long)]
@@ -91,18 +85,6 @@ pub struct Args {
     /// Points of the output table.
     #[arg(long, default_value_t = 3600)]
     pub points: usize,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
-    #[arg(long, value_parser = parse_unit)]
-    pub unit: Option<AngleUnit>,
-    /// Print report.json on standard output instead of the summary.
-    #[arg(long)]
-    pub json: bool,
-    /// Pipelines and gates.
-    #[command(flatten)]
-    pub batch: BatchArgs,
-    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
-    #[command(flatten)]
-    pub input: LogArgs,
 }
 
 /// Runs `calib tdr`.
@@ -141,21 +123,14 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    batch::run(
-        "tdr",
-        &args.logs,
-        &args.output,
-        &args.batch,
-        args.json,
-        |log, out| calibrate(args, log, out),
-    )
+    args.common.run("tdr", |log, out| calibrate(args, log, out))
 }
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut names = vec![args.channel.as_str()];
     names.extend(args.reference.as_deref());
-    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = args.common.open(log, &names)?;
     let ic = 0;
     let ir = args.reference.as_ref().map(|_| 1);
     let mut tdr = Tdr::new(TdrOptions {
@@ -167,17 +142,13 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         ..TdrOptions::default()
     });
     let mut travel = crate::input::Travel::default();
-    // Decoding runs ahead on a second thread.
-    let mut samples = Prefetch::new(reader);
-    for sample in samples.by_ref() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
+    let reader = for_each_sample(log, reader, |s| {
         travel.push(s.values[ic]);
         match ir {
             Some(ir) => tdr.push_with_reference(s.t, s.values[ic], s.values[ir]),
             None => tdr.push(s.t, s.values[ic]),
         }
-    }
-    let reader = samples.finish();
+    })?;
     let cal = tdr.finish().map_err(|e| {
         let hint = travel.no_whole_turn(
             log,
@@ -205,7 +176,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         &json,
         &crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, &report),
     )?;
-    let text = if args.json {
+    let text = if args.common.json {
         json
     } else {
         alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
