@@ -36,6 +36,12 @@ impl Scratch {
     /// output with this folder's path as `[TMP]` and the version as `[VERSION]`.
     #[track_caller]
     fn run(&self, args: &[&str]) -> String {
+        self.run_exit(args, 0)
+    }
+
+    /// [`Scratch::run`] expecting the exit status `code`.
+    #[track_caller]
+    fn run_exit(&self, args: &[&str], code: i32) -> String {
         let o = Command::new(env!("CARGO_BIN_EXE_calib"))
             .current_dir(root())
             .args(args)
@@ -44,7 +50,7 @@ impl Scratch {
         let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert!(
-            o.status.success(),
+            o.status.code() == Some(code),
             "calib {args:?}: {:?}\nstdout:\n{stdout}\nstderr:\n{stderr}",
             o.status
         );
@@ -234,6 +240,23 @@ fn compare() {
             "-o",
             &out
         ])
+    );
+    // The same with too small a U: the gate fails (exit 3) and the failing points are listed.
+    let out = s.path("compare-fails");
+    insta::assert_snapshot!(
+        "compare_failing_points",
+        s.run_exit(
+            &[
+                "compare",
+                &format!("{calibrated}/encoder.csv"),
+                "testdata/shift-angle/truth_encoder.csv",
+                "--U2",
+                "0.05",
+                "-o",
+                &out
+            ],
+            3
+        )
     );
 }
 

@@ -5,6 +5,7 @@ use crate::exit::Usage;
 use crate::input::{alignment_detail, alignment_text};
 use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_tables_and_report};
+use crate::summary::TextTable;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::multihead::{
@@ -413,11 +414,16 @@ fn render_summary(
         o,
         "\nheads (angles from `{first}`; angle error = actual − nominal, estimated)"
     );
-    let _ = writeln!(
-        o,
-        "  {:<12} {:>12} {:>16} {:>13}  readings",
-        "head", "nominal °", "angle error ″", "residual ″"
-    );
+    // The widths keep the layout of earlier versions while names fit; longer names widen the
+    // column instead of pushing the rest of their row out of line.
+    let mut table = TextTable::new(&[
+        "head",
+        "nominal °",
+        "angle error ″",
+        "residual ″",
+        "readings",
+    ])
+    .min_widths(&[12, 11, 15, 12, 0]);
     for h in &cal.heads {
         let (error, residual) = match h.residual_rms {
             Some(r) => (
@@ -426,16 +432,15 @@ fn render_summary(
             ),
             None => ("0 (origin)".to_string(), "—".to_string()),
         };
-        let _ = writeln!(
-            o,
-            "  {:<12} {:>12.6} {:>16} {:>13}  {}",
-            h.name,
-            h.nominal.to_degrees(),
+        table.row(vec![
+            h.name.clone(),
+            format!("{:.6}", h.nominal.to_degrees()),
             error,
             residual,
-            readings_name(h.readings)
-        );
+            readings_name(h.readings).to_string(),
+        ]);
     }
+    o += &table.render();
     if !cal.sets.is_empty() {
         let _ = writeln!(o, "\nEDA sets (each blind to multiples of its head count)");
         for (i, s) in cal.sets.iter().enumerate() {
