@@ -54,9 +54,6 @@ pub enum MethodArg {
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// Logs, output, unit, output form, gates, timing.
-    #[command(flatten)]
-    pub common: MethodArgs,
     /// Channel of sensor A (the rotor turned between sessions).
     #[arg(long, default_value = "a")]
     pub a: String,
@@ -96,6 +93,9 @@ pub struct Args {
     /// Benchmark readings of A and B for `--method paper`, degrees.
     #[arg(long, num_args = 2, value_names = ["A_DEG", "B_DEG"], default_values_t = [0.0, 0.0])]
     pub benchmarks: Vec<f64>,
+    /// Logs, output, unit, output form, gates, timing.
+    #[command(flatten)]
+    pub common: MethodArgs,
 }
 
 /// Runs `calib csrr`.

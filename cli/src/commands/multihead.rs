@@ -58,9 +58,6 @@ pub enum MethodArg {
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// Logs, output, unit, output form, gates, timing.
-    #[command(flatten)]
-    pub common: MethodArgs,
     /// The heads as NAME@DEG (nominal angle in degrees), comma-separated or repeated; the first
     /// is the head whose map is written.
     #[arg(long, required = true, value_delimiter = ',', value_name = "NAME@DEG")]
@@ -84,6 +81,9 @@ pub struct Args {
     /// are left out of the map (joint method).
     #[arg(long, default_value_t = 0.01)]
     pub min_observability: f64,
+    /// Logs, output, unit, output form, gates, timing.
+    #[command(flatten)]
+    pub common: MethodArgs,
 }
 
 /// One `NAME@DEG` of `--heads`.

@@ -49,9 +49,6 @@ use std::path::Path;
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// Logs, output, unit, output form, gates, timing.
-    #[command(flatten)]
-    pub common: MethodArgs,
     /// Channel of the encoder to calibrate (device under test).
     #[arg(long)]
     pub dut: String,
@@ -85,6 +82,9 @@ pub struct Args {
     /// approach: backlash settles).
     #[arg(long, default_value_t = 1.0)]
     pub approach: f64,
+    /// Logs, output, unit, output form, gates, timing.
+    #[command(flatten)]
+    pub common: MethodArgs,
 }
 
 /// `--targets`: a count (`20`) or a comma-separated list of degrees (`15,30.5,45`).

@@ -59,9 +59,6 @@ const MAX_DEGREE: usize = 60;
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// Logs, output, unit, output form, gates, timing.
-    #[command(flatten)]
-    pub common: MethodArgs,
     /// Channel of the encoder to calibrate.
     #[arg(long)]
     pub channel: String,
@@ -85,6 +82,9 @@ pub struct Args {
     /// Points of the output table.
     #[arg(long, default_value_t = 3600)]
     pub points: usize,
+    /// Logs, output, unit, output form, gates, timing.
+    #[command(flatten)]
+    pub common: MethodArgs,
 }
 
 /// Runs `calib tdr`.
