@@ -495,19 +495,8 @@ impl Tdr {
         })?;
         let residual_rms = (fit.rss / t.len() as f64).sqrt();
 
-        let mut series = FourierSeries::zeros(h);
-        for (i, &k) in orders.iter().enumerate() {
-            series.cos[k - 1] = fit.beta[degree + 1 + 2 * i];
-            series.sin[k - 1] = fit.beta[degree + 2 + 2 * i];
-        }
+        let (series, motion) = series_and_motion(&basis, &fit, h, y0);
         let map = ErrorMap::from_series(&series, self.opts.points);
-        let motion = TdrMotion {
-            degree,
-            t_start: span.0,
-            t_end: span.1,
-            angle_origin: y0,
-            coefficients: fit.beta[..=degree].to_vec(),
-        };
         let drag = drag_terms(&basis, &fit, speeds.drag_gain);
 
         // 4. What the model leaves: periodic structure in the residual above the orders fitted.
@@ -775,6 +764,25 @@ fn motion_degree_by_bic(basis: &Basis, t: &[f64], r: &[f64], y: &[f64]) -> usize
         }
     }
     best.map_or(max_degree, |(_, p)| p)
+}
+
+/// The map's series (orders `1..=h`, those not in `basis` zero) and the motion (`y0` its angle
+/// origin) of the final fit.
+fn series_and_motion(basis: &Basis, fit: &Fit, h: usize, y0: f64) -> (FourierSeries, TdrMotion) {
+    let degree = basis.degree;
+    let mut series = FourierSeries::zeros(h);
+    for (i, &k) in basis.orders.iter().enumerate() {
+        series.cos[k - 1] = fit.beta[degree + 1 + 2 * i];
+        series.sin[k - 1] = fit.beta[degree + 2 + 2 * i];
+    }
+    let motion = TdrMotion {
+        degree,
+        t_start: basis.t0,
+        t_end: basis.t1,
+        angle_origin: y0,
+        coefficients: fit.beta[..=degree].to_vec(),
+    };
+    (series, motion)
 }
 
 /// The drag terms of the final fit: each order's imprint, and the deceleration
