@@ -8,7 +8,7 @@ use calib_core::{AngleUnit, Channel, ErrorMap, Sample};
 use calib_io::mcap_log::McapWriter;
 use common::*;
 use serde_json::Value;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The simulator runs this many times faster than the sensors publish, so that each sensor can
 /// be sampled at its own instants: offsets and jitter are whole 24ths of the sample period.
@@ -301,10 +301,13 @@ fn lab_csv_with_semicolons_metadata_and_a_time_unit_is_read() {
 ///   B 0.9 ms and the reference 1.6 ms after A.
 /// - `testdata/csv/lab-export.csv`: a TwinCAT-Scope-like export: three metadata lines and a blank
 ///   one, then `Time [ms];enc_a;enc_b` and 400 rows 2.5 ms apart, `;`-separated.
+/// - `testdata/mcap/ros1.mcap`: `quick.toml`'s run as `mcap convert` makes of a ROS 1 bag (see
+///   [`write_ros1_run`]).
 #[test]
 #[ignore = "writes the committed fixtures"]
 fn make_fixtures() {
     write_small_run(&clocks());
+    write_ros1_run(&ros1());
     let mut csv = String::from(
         "Scope Project;calib fixture\nExported;2026-12-01 14:00:00\nSample time;2.5 ms\n\nTime [ms];enc_a;enc_b\n",
     );
@@ -337,4 +340,164 @@ fn write_small_run(path: &Path) {
         }
     }
     writer.finish().unwrap();
+}
+
+/// The committed ROS 1 fixture (see [`write_ros1_run`]).
+fn ros1() -> PathBuf {
+    testdata("mcap/ros1.mcap")
+}
+
+/// The `ros1msg` schema `mcap convert` stores for `sensor_msgs/JointState`.
+const ROS1_JOINT_STATE: &str = "Header header
+string[] name
+float64[] position
+float64[] velocity
+float64[] effort
+
+================================================================================
+MSG: std_msgs/Header
+uint32 seq
+time stamp
+string frame_id
+";
+
+/// A ROS 1 `sensor_msgs/JointState` in the ROS 1 wire format: little-endian, no padding,
+/// strings without NUL, the header `seq`, `stamp` (`uint32 secs, nsecs`) and `frame_id`
+/// (`enc`, three bytes: everything after it is off any 4-byte boundary).
+fn ros1_joint_state(seq: u32, stamp_ns: u64, names: &[&str], positions: &[f64]) -> Vec<u8> {
+    let mut b = Vec::new();
+    let string = |b: &mut Vec<u8>, s: &str| {
+        b.extend_from_slice(&(s.len() as u32).to_le_bytes());
+        b.extend_from_slice(s.as_bytes());
+    };
+    b.extend_from_slice(&seq.to_le_bytes());
+    b.extend_from_slice(&((stamp_ns / 1_000_000_000) as u32).to_le_bytes());
+    b.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
+    string(&mut b, "enc");
+    b.extend_from_slice(&(names.len() as u32).to_le_bytes());
+    for n in names {
+        string(&mut b, n);
+    }
+    b.extend_from_slice(&(positions.len() as u32).to_le_bytes());
+    for p in positions {
+        b.extend_from_slice(&p.to_le_bytes());
+    }
+    b.extend_from_slice(&0u32.to_le_bytes());
+    b.extend_from_slice(&0u32.to_le_bytes());
+    b
+}
+
+/// A stamp in nanoseconds as `McapWriter` rounds it: whole seconds, then the fraction to the
+/// nanosecond.
+fn ns(t: f64) -> u64 {
+    let sec = t.floor();
+    sec as u64 * 1_000_000_000 + ((t - sec) * 1e9).round() as u64
+}
+
+/// Writes `quick.toml`'s run (3301 samples of `a` and `b`) to `path` as `mcap convert` makes of
+/// a ROS 1 bag: schema `sensor_msgs/JointState` (`ros1msg`), message encoding `ros1`, one
+/// message per sample on `/joint_states`, header stamp and log time the sample's time (whole
+/// nanoseconds, as `calib simulate` writes them).
+fn write_ros1_run(path: &Path) {
+    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
+    let sc: Scenario = toml::from_str(&text).unwrap();
+    let names = sc.channels();
+    assert_eq!((names[0].name.as_str(), names[1].name.as_str()), ("a", "b"));
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            "sensor_msgs/JointState",
+            "ros1msg",
+            ROS1_JOINT_STATE.as_bytes(),
+        )
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/joint_states", "ros1", &Default::default())
+        .unwrap();
+    for (n, sample) in sc.samples().unwrap().enumerate() {
+        let t = ns(sample.t);
+        let data = ros1_joint_state(n as u32, t, &["a", "b"], &sample.values[..2]);
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: n as u32,
+            log_time: t,
+            publish_time: t,
+        };
+        writer.write_to_known_channel(&header, &data).unwrap();
+    }
+    writer.finish().unwrap();
+}
+
+/// The largest |difference| of the error column between two tables on the same grid, arcsec.
+fn table_difference(want: &Path, got: &Path) -> f64 {
+    let (w, g) = (read_table(want), read_table(got));
+    assert_eq!(w.len(), g.len(), "{}", got.display());
+    w.iter()
+        .zip(&g)
+        .map(|(w, g)| {
+            assert_eq!(w.0, g.0, "grid");
+            (w.1 - g.1).abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The committed ROS 1 fixture holds `quick.toml`'s run with the stamps and values `calib
+/// simulate` writes to its CDR MCAP, so the maps agree to floating-point rounding (< 1e-6″;
+/// measured 0).
+#[test]
+fn a_ros1_encoded_mcap_gives_the_maps_of_the_cdr_mcap() {
+    let o = calib(&["inspect", s(&ros1())]);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
+    let line = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("/joint_states"))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert_mentions(line, &["sensor_msgs/JointState", "ros1", "3301 msg"]);
+    assert!(out.contains("      a, b\n"), "{out}");
+    let dir = tempfile::tempdir().unwrap();
+    let cdr = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");
+    let (want, got) = (dir.path().join("cdr"), dir.path().join("ros1"));
+    expect_exit(&calib(&["csrr", s(&cdr), "-o", s(&want)]), 0);
+    let o = calib(&["csrr", s(&ros1()), "--a", "a", "--b", "b", "-o", s(&got)]);
+    expect_exit(&o, 0);
+    for table in ["a.csv", "b.csv"] {
+        let worst = table_difference(&want.join(table), &got.join(table));
+        eprintln!("ros1 vs cdr MCAP, {table}: max |difference| {worst:e}″");
+        assert!(worst < 1e-6, "{table}: {worst}″");
+    }
+    // A message cut short is an error naming the file, the message and the topic.
+    let cut = dir.path().join("cut.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&cut).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            "sensor_msgs/JointState",
+            "ros1msg",
+            ROS1_JOINT_STATE.as_bytes(),
+        )
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/joint_states", "ros1", &Default::default())
+        .unwrap();
+    for n in 0..10u32 {
+        let mut data = ros1_joint_state(n, 1_000_000_000 + u64::from(n), &["a"], &[0.1]);
+        if n == 5 {
+            data.truncate(30);
+        }
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: n,
+            log_time: u64::from(n),
+            publish_time: u64::from(n),
+        };
+        writer.write_to_known_channel(&header, &data).unwrap();
+    }
+    writer.finish().unwrap();
+    let err = expect_exit(&calib(&["inspect", s(&cut)]), 1);
+    assert_mentions(
+        &err,
+        &["cut.mcap", "message 5", "/joint_states", "truncated"],
+    );
 }

@@ -602,7 +602,7 @@ impl BagReader {
         let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
         for topic in &registry.topics {
             let unit = match topic.encoding {
-                Encoding::JointState => AngleUnit::Rad,
+                Encoding::JointState(_) => AngleUnit::Rad,
                 Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
             };
             for _ in &topic.names {

@@ -48,10 +48,10 @@ use calib_core::{AngleUnit, Channel, Sample};
 use mcap::McapError;
 use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 
-use super::JOINT_STATE_SCHEMA;
-use super::cdr::{JointState, Scalar};
+use super::cdr::{JointFormat, JointState, Scalar};
 use super::json;
 use super::records::{self, StreamError};
+use super::{DYNAMIC_JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA};
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::naming::{ChannelName, names_of};
 use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource, Truncation};
@@ -235,7 +235,8 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
 /// How a topic's messages are decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Encoding {
-    JointState,
+    /// Joint positions by joint name: JointState (CDR or ROS 1) or DynamicJointState.
+    JointState(JointFormat),
     Json,
     /// A `std_msgs` scalar (CDR): one channel, named after the topic.
     Scalar(Scalar),
@@ -249,10 +250,17 @@ impl Encoding {
 
     /// The encoding of a channel with this message encoding and schema name, if calib reads it.
     pub(crate) fn from_names(message_encoding: &str, schema: &str) -> Option<Self> {
+        let joint_state = schema == JOINT_STATE_SCHEMA || schema == "sensor_msgs/JointState";
         match message_encoding {
             // ROS 1 style names appear in bags converted with older tools.
-            "cdr" if schema == JOINT_STATE_SCHEMA || schema == "sensor_msgs/JointState" => {
-                Some(Encoding::JointState)
+            "cdr" if joint_state => Some(Encoding::JointState(JointFormat::Cdr)),
+            // `mcap convert` of a ROS 1 bag.
+            "ros1" if joint_state => Some(Encoding::JointState(JointFormat::Ros1)),
+            "cdr"
+                if schema == DYNAMIC_JOINT_STATE_SCHEMA
+                    || schema == "control_msgs/DynamicJointState" =>
+            {
+                Some(Encoding::JointState(JointFormat::Dynamic))
             }
             "json" => Some(Encoding::Json),
             "cdr" => Scalar::of_type(schema).map(Encoding::Scalar),
@@ -621,7 +629,7 @@ impl McapReader {
         let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
         for topic in &registry.topics {
             let unit = match topic.encoding {
-                Encoding::JointState => AngleUnit::Rad,
+                Encoding::JointState(_) => AngleUnit::Rad,
                 Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
             };
             for _ in &topic.names {
@@ -912,8 +920,8 @@ pub(crate) fn first_message(
         stats: TopicStats::default(),
     };
     match encoding {
-        Encoding::JointState => {
-            let js = JointState::parse(&message.data).map_err(|e| e.to_string())?;
+        Encoding::JointState(format) => {
+            let js = JointState::parse_as(&message.data, format).map_err(|e| e.to_string())?;
             for name in js.names() {
                 let name = name.map_err(|e| e.to_string())?;
                 if topic.names.iter().any(|n| n == name) {
@@ -939,7 +947,7 @@ pub(crate) fn first_message(
     }
     if topic.names.is_empty() {
         return Err(match encoding {
-            Encoding::JointState => "the topic's first JointState message names no joints; \
+            Encoding::JointState(_) => "the topic's first JointState message names no joints; \
                                      publish the encoders' names and positions"
                 .into(),
             Encoding::Json | Encoding::Scalar(_) => "the topic's first JSON message has no \
@@ -971,10 +979,10 @@ impl Topic {
 
     /// Adds the joints of a later message the topic's first did not name (peek pass).
     pub(crate) fn learn(&mut self, message: &mcap::Message) -> Result<(), String> {
-        if self.encoding != Encoding::JointState {
+        let Encoding::JointState(format) = self.encoding else {
             return Ok(());
-        }
-        let js = JointState::parse(&message.data).map_err(|e| e.to_string())?;
+        };
+        let js = JointState::parse_as(&message.data, format).map_err(|e| e.to_string())?;
         if js.name_block == self.name_block.as_slice() {
             return Ok(());
         }
@@ -1039,8 +1047,9 @@ pub(crate) fn decode(
     out: &mut [f64],
 ) -> Result<(i64, bool), (Option<String>, String)> {
     match topic.encoding {
-        Encoding::JointState => {
-            let js = JointState::parse(&message.data).map_err(|e| (None, e.to_string()))?;
+        Encoding::JointState(format) => {
+            let js =
+                JointState::parse_as(&message.data, format).map_err(|e| (None, e.to_string()))?;
             if js.position_count() != js.name_count {
                 return Err((
                     None,
@@ -1070,6 +1079,16 @@ pub(crate) fn decode(
                     Ok(())
                 }
             };
+            // A DynamicJointState joint without a `position` interface carries no reading.
+            let dynamic = format == JointFormat::Dynamic;
+            let mut missing = false;
+            let mut put = |i: usize, rad: f64| {
+                if dynamic && rad.is_nan() {
+                    missing = true;
+                    return Ok(());
+                }
+                put(i, rad)
+            };
             let full = if let Some(layout) = layout {
                 for (&i, rad) in layout.iter().zip(js.positions()) {
                     put(i, rad)?;
@@ -1081,6 +1100,7 @@ pub(crate) fn decode(
                 }
                 js.name_count == names.len()
             };
+            let full = full && !missing;
             if js.nanosec >= 1_000_000_000 {
                 return Err((
                     None,
@@ -1094,7 +1114,7 @@ pub(crate) fn decode(
             let stamp = if time == TimeSource::Log || (js.sec == 0 && js.nanosec == 0) {
                 log_time_ns(message.log_time).map_err(|m| (None, m))?
             } else {
-                i64::from(js.sec) * 1_000_000_000 + i64::from(js.nanosec)
+                js.sec * 1_000_000_000 + i64::from(js.nanosec)
             };
             Ok((stamp, full))
         }
