@@ -624,3 +624,224 @@ fn reading_speed_of_a_large_bag() {
     eprintln!("calib inspect on {N} bag messages: {seconds:.2} s, {rate:.0} msg/s");
     assert!(rate > 37_000.0, "{rate:.0} msg/s");
 }
+
+const DYNAMIC_JOINT_STATE: &str = "control_msgs/msg/DynamicJointState";
+
+/// The `ros2msg` definition of `control_msgs/msg/DynamicJointState` as rosbag2 stores it in an
+/// MCAP schema record.
+const DYNAMIC_JOINT_STATE_MSGDEF: &str = "std_msgs/Header header
+string[] joint_names
+control_msgs/InterfaceValue[] interface_values
+
+================================================================================
+MSG: control_msgs/InterfaceValue
+string[] interface_names
+float64[] values
+
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+";
+
+/// A `control_msgs/msg/DynamicJointState` in little-endian CDR: for each joint its name and
+/// its interfaces `(name, value)`; `frame_id` is `base`.
+fn dynamic_joint_state(stamp_ns: i64, joints: &[(&str, &[(&str, f64)])]) -> Vec<u8> {
+    let mut b = vec![0u8, 1, 0, 0];
+    let align = |b: &mut Vec<u8>, n: usize| {
+        while (b.len() - 4) % n != 0 {
+            b.push(0);
+        }
+    };
+    let u32_at = |b: &mut Vec<u8>, v: u32| {
+        align(b, 4);
+        b.extend_from_slice(&v.to_le_bytes());
+    };
+    let string = |b: &mut Vec<u8>, s: &str| {
+        u32_at(b, s.len() as u32 + 1);
+        b.extend_from_slice(s.as_bytes());
+        b.push(0);
+    };
+    b.extend_from_slice(&((stamp_ns / 1_000_000_000) as i32).to_le_bytes());
+    b.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
+    string(&mut b, "base");
+    u32_at(&mut b, joints.len() as u32);
+    for (name, _) in joints {
+        string(&mut b, name);
+    }
+    u32_at(&mut b, joints.len() as u32);
+    for (_, interfaces) in joints {
+        u32_at(&mut b, interfaces.len() as u32);
+        for (name, _) in *interfaces {
+            string(&mut b, name);
+        }
+        u32_at(&mut b, interfaces.len() as u32);
+        if !interfaces.is_empty() {
+            align(&mut b, 8);
+        }
+        for (_, v) in *interfaces {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    b
+}
+
+/// The joints of one DynamicJointState as `ros2_control`'s broadcaster publishes them: `a` with
+/// position and velocity, `b` with effort first and then position, and `gripper` with an
+/// effort only (not a channel: it has no position).
+fn dynamic_message(t: i64, a: f64, b: f64) -> Vec<u8> {
+    dynamic_joint_state(
+        t,
+        &[
+            ("a", &[("position", a), ("velocity", 1.0)]),
+            ("b", &[("effort", 0.5), ("position", b)]),
+            ("gripper", &[("effort", 2.0)]),
+        ],
+    )
+}
+
+/// `quick.toml`'s run as DynamicJointState messages on `/dynamic_joint_states` (see
+/// [`dynamic_message`]), once in an MCAP file (`ros2msg` schema, `cdr`) and once in a `.db3`
+/// file, header stamp and log time the sample's time; returns both.
+fn write_dynamic_run(dir: &Path) -> (PathBuf, PathBuf) {
+    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
+    let sc: Scenario = toml::from_str(&text).unwrap();
+    let samples: Vec<Sample> = sc.samples().unwrap().collect();
+    let mcap_path = dir.join("dynamic.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&mcap_path).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            DYNAMIC_JOINT_STATE,
+            "ros2msg",
+            DYNAMIC_JOINT_STATE_MSGDEF.as_bytes(),
+        )
+        .unwrap();
+    let id = writer
+        .add_channel(schema, "/dynamic_joint_states", "cdr", &Default::default())
+        .unwrap();
+    let db3 = dir.join("dynamic.db3");
+    let db = create_db3(&db3, &[("/dynamic_joint_states", DYNAMIC_JOINT_STATE)]);
+    db.execute_batch("BEGIN").unwrap();
+    for (n, s) in samples.iter().enumerate() {
+        let t = ns(s.t);
+        let data = dynamic_message(t, s.values[0], s.values[1]);
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: n as u32,
+            log_time: t as u64,
+            publish_time: t as u64,
+        };
+        writer.write_to_known_channel(&header, &data).unwrap();
+        insert(&db, 1, t, &data);
+    }
+    db.execute_batch("COMMIT").unwrap();
+    writer.finish().unwrap();
+    (mcap_path, db3)
+}
+
+/// DynamicJointState in MCAP and in a bag: the `position` interface of each joint, wherever it
+/// is among the joint's interfaces; a joint without one is no channel. The stamps and values
+/// are those of `calib simulate`'s MCAP, so the maps agree to rounding (< 1e-6″; measured 0).
+#[test]
+fn dynamic_joint_states_in_mcap_and_bags_give_the_maps_of_the_same_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mcap, db3) = write_dynamic_run(dir.path());
+    let reference = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");
+    let want = dir.path().join("want");
+    expect_exit(&calib(&["csrr", s(&reference), "-o", s(&want)]), 0);
+    for log in [&mcap, &db3] {
+        let o = calib(&["inspect", s(log)]);
+        expect_exit(&o, 0);
+        let out = stdout(&o);
+        assert_mentions(&out, &[DYNAMIC_JOINT_STATE, "3301 msg", "      a, b\n"]);
+        assert!(!out.contains("gripper"), "{out}");
+        let out = dir.path().join(log.extension().unwrap());
+        let o = calib(&["csrr", s(log), "--a", "a", "--b", "b", "-o", s(&out)]);
+        expect_exit(&o, 0);
+        for table in ["a.csv", "b.csv"] {
+            let (w, g) = (read_table(&want.join(table)), read_table(&out.join(table)));
+            assert_eq!(w.len(), g.len());
+            let worst = w
+                .iter()
+                .zip(&g)
+                .map(|(w, g)| (w.1 - g.1).abs())
+                .fold(0.0, f64::max);
+            eprintln!("{}: {table} max |difference| {worst:e}″", log.display());
+            assert!(
+                worst < 1e-6,
+                "{}: {table} differs by {worst}″",
+                log.display()
+            );
+        }
+    }
+}
+
+/// The committed fixture `testdata/mcap/dynamic.mcap` (see [`make_dynamic_fixture`]).
+fn dynamic_fixture() -> PathBuf {
+    testdata("mcap/dynamic.mcap")
+}
+
+#[test]
+fn the_committed_dynamic_joint_state_fixture_is_read() {
+    let o = calib(&["inspect", s(&dynamic_fixture())]);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
+    assert_mentions(
+        &out,
+        &[
+            "/dynamic_joint_states",
+            DYNAMIC_JOINT_STATE,
+            "200 msg",
+            "100.00 Hz",
+            "      a, b\n",
+            "  200 samples over ",
+        ],
+    );
+    // The readings: a = i·0.01 rad, b = −a, as written.
+    let a = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("a ") && l.contains("rad"))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert_mentions(a, &[" 0.000000", "1.990000"]);
+}
+
+/// Writes `testdata/mcap/dynamic.mcap`: 2 s at 100 Hz of `/dynamic_joint_states` with joints
+/// `a` (position `i·0.01` rad), `b` (position `−i·0.01` rad) and `gripper` (effort only), as
+/// [`dynamic_message`] lays them out. Run after changing it:
+/// `cargo test -p calib-cli --test rosbag_cli -- --ignored make_dynamic_fixture`.
+#[test]
+#[ignore = "writes the committed fixture"]
+fn make_dynamic_fixture() {
+    let file = std::io::BufWriter::new(std::fs::File::create(dynamic_fixture()).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            DYNAMIC_JOINT_STATE,
+            "ros2msg",
+            DYNAMIC_JOINT_STATE_MSGDEF.as_bytes(),
+        )
+        .unwrap();
+    let id = writer
+        .add_channel(schema, "/dynamic_joint_states", "cdr", &Default::default())
+        .unwrap();
+    for i in 0..200i64 {
+        let t = 1_700_000_000_000_000_000 + i * 10_000_000;
+        let q = i as f64 * 0.01;
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: i as u32,
+            log_time: t as u64,
+            publish_time: t as u64,
+        };
+        writer
+            .write_to_known_channel(&header, &dynamic_message(t, q, -q))
+            .unwrap();
+    }
+    writer.finish().unwrap();
+}

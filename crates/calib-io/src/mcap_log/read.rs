@@ -282,8 +282,11 @@ pub(crate) struct Topic {
     pub(crate) offset: usize,
     /// JointState: whether messages carry different joint sets.
     pub(crate) subset: bool,
-    /// JointState: name blocks other than the first message's, with the channel of each name.
+    /// JointState: name blocks other than the first message's, with the channel of each name
+    /// ([`NO_POSITION`] for a joint that has no channel).
     layouts: Vec<(Vec<u8>, Vec<usize>)>,
+    /// DynamicJointState: joints met without a `position` interface, which are not channels.
+    no_position: Vec<String>,
     /// Radians per unit of a JSON value.
     scale: f64,
     /// JSON: which channels a message has given, reused between messages.
@@ -899,6 +902,9 @@ fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<S
     topics
 }
 
+/// The layout entry of a DynamicJointState joint without a `position` interface: no channel.
+const NO_POSITION: usize = usize::MAX;
+
 /// A topic's channels from its first message.
 pub(crate) fn first_message(
     message: &mcap::Message,
@@ -915,6 +921,7 @@ pub(crate) fn first_message(
         offset: 0,
         subset: false,
         layouts: Vec::new(),
+        no_position: Vec::new(),
         scale,
         seen: Vec::new(),
         stats: TopicStats::default(),
@@ -922,14 +929,27 @@ pub(crate) fn first_message(
     match encoding {
         Encoding::JointState(format) => {
             let js = JointState::parse_as(&message.data, format).map_err(|e| e.to_string())?;
-            for name in js.names() {
+            for (name, position) in js.names().zip(js.positions()) {
                 let name = name.map_err(|e| e.to_string())?;
-                if topic.names.iter().any(|n| n == name) {
+                if topic
+                    .names
+                    .iter()
+                    .chain(&topic.no_position)
+                    .any(|n| n == name)
+                {
                     return Err(repeated_joint(name));
                 }
-                topic.names.push(name.to_string());
+                if format == JointFormat::Dynamic && position.is_nan() {
+                    topic.no_position.push(name.to_string());
+                } else {
+                    topic.names.push(name.to_string());
+                }
             }
-            topic.name_block = js.name_block.to_vec();
+            // The fast path takes the message's joints as the channels in order; with joints
+            // left out, every message goes through its layout.
+            if topic.no_position.is_empty() {
+                topic.name_block = js.name_block.to_vec();
+            }
         }
         Encoding::Json => {
             json::for_each_field(&message.data, |key, value| {
@@ -947,6 +967,10 @@ pub(crate) fn first_message(
     }
     if topic.names.is_empty() {
         return Err(match encoding {
+            Encoding::JointState(JointFormat::Dynamic) => "the topic's first DynamicJointState \
+                                                           message has no joint with a \
+                                                           `position` interface"
+                .into(),
             Encoding::JointState(_) => "the topic's first JointState message names no joints; \
                                      publish the encoders' names and positions"
                 .into(),
@@ -986,6 +1010,23 @@ impl Topic {
         if js.name_block == self.name_block.as_slice() {
             return Ok(());
         }
+        if format == JointFormat::Dynamic {
+            // Joints without a `position` interface are not channels; a joint with one that the
+            // first message lacked is a channel of its own series.
+            for (name, position) in js.names().zip(js.positions()) {
+                let name = name.map_err(|e| e.to_string())?;
+                let known = self.names.iter().any(|n| n == name);
+                if position.is_nan() {
+                    if !known && !self.no_position.iter().any(|n| n == name) {
+                        self.no_position.push(name.to_string());
+                    }
+                } else if !known {
+                    self.names.push(name.to_string());
+                    self.subset = true;
+                }
+            }
+            return Ok(());
+        }
         let mut names = Vec::with_capacity(js.name_count);
         for name in js.names() {
             let name = name.map_err(|e| e.to_string())?;
@@ -1016,7 +1057,12 @@ impl Topic {
         let mut layout = Vec::with_capacity(js.name_count);
         for name in js.names() {
             let name = name.map_err(|e| e.to_string())?;
-            let Some(i) = self.names.iter().position(|n| n == name) else {
+            let Some(i) = self.names.iter().position(|n| n == name).or_else(|| {
+                self.no_position
+                    .iter()
+                    .any(|n| n == name)
+                    .then_some(NO_POSITION)
+            }) else {
                 return Err(format!(
                     "joint `{name}` is new: the topic's joints [{}] were gathered from its \
                      first messages when the file was opened; calib needs every joint to \
@@ -1024,7 +1070,7 @@ impl Topic {
                     self.names.join(", ")
                 ));
             };
-            if layout.contains(&i) {
+            if i != NO_POSITION && layout.contains(&i) {
                 return Err(repeated_joint(name));
             }
             layout.push(i);
@@ -1091,9 +1137,15 @@ pub(crate) fn decode(
             };
             let full = if let Some(layout) = layout {
                 for (&i, rad) in layout.iter().zip(js.positions()) {
-                    put(i, rad)?;
+                    if i != NO_POSITION {
+                        put(i, rad)?;
+                    }
                 }
-                layout.len() == names.len() && layout.iter().copied().eq(0..layout.len())
+                layout
+                    .iter()
+                    .copied()
+                    .filter(|&i| i != NO_POSITION)
+                    .eq(0..names.len())
             } else {
                 for (i, rad) in js.positions().enumerate() {
                     put(i, rad)?;
