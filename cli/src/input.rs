@@ -80,7 +80,8 @@ pub fn open_selected(
     log: &LogArgs,
     names: &[&str],
 ) -> anyhow::Result<LogReader> {
-    let (read, align) = log.options(unit)?;
+    let (mut read, align) = log.options(unit)?;
+    read.fields = names.iter().map(|n| n.to_string()).collect();
     let mut reader = open_log_with(path, read)?;
     let indices = names
         .iter()

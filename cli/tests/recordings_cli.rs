@@ -301,6 +301,8 @@ fn lab_csv_with_semicolons_metadata_and_a_time_unit_is_read() {
 ///   B 0.9 ms and the reference 1.6 ms after A.
 /// - `testdata/csv/lab-export.csv`: a TwinCAT-Scope-like export: three metadata lines and a blank
 ///   one, then `Time [ms];enc_a;enc_b` and 400 rows 2.5 ms apart, `;`-separated.
+/// - `testdata/mcap/fields.mcap`: the first 200 samples of `quick.toml`'s run as
+///   `my_robot/msg/MotorState` messages (see [`write_field_run`]).
 /// - `testdata/mcap/ros1.mcap`: `quick.toml`'s run as `mcap convert` makes of a ROS 1 bag (see
 ///   [`write_ros1_run`]).
 #[test]
@@ -308,6 +310,8 @@ fn lab_csv_with_semicolons_metadata_and_a_time_unit_is_read() {
 fn make_fixtures() {
     write_small_run(&clocks());
     write_ros1_run(&ros1());
+    let samples = scenario_samples("quick.toml").into_iter().take(200);
+    write_field_run(&fields(), samples);
     let mut csv = String::from(
         "Scope Project;calib fixture\nExported;2026-12-01 14:00:00\nSample time;2.5 ms\n\nTime [ms];enc_a;enc_b\n",
     );
@@ -499,5 +503,218 @@ fn a_ros1_encoded_mcap_gives_the_maps_of_the_cdr_mcap() {
     assert_mentions(
         &err,
         &["cut.mcap", "message 5", "/joint_states", "truncated"],
+    );
+}
+
+/// The samples of a scenario of `testdata/scenarios`.
+fn scenario_samples(name: &str) -> Vec<Sample> {
+    let text = std::fs::read_to_string(testdata(&format!("scenarios/{name}"))).unwrap();
+    let sc: Scenario = toml::from_str(&text).unwrap();
+    sc.samples().unwrap().collect()
+}
+
+/// The committed field-path fixture (see [`write_field_run`]).
+fn fields() -> PathBuf {
+    testdata("mcap/fields.mcap")
+}
+
+/// The `ros2msg` definition of a motor driver's own message type: a header, a string, a fixed
+/// array, the position, and a sequence of structures, so that a field path crosses every kind
+/// of CDR field and padding.
+const MOTOR_STATE: &str = "# State of one motor.
+std_msgs/Header header
+string name
+float32[3] currents   # A
+float64 position      # rad
+Reading[] extra
+uint8 MODE_IDLE=0
+
+================================================================================
+MSG: my_robot/Reading
+uint8 id
+float64 value
+
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+";
+
+/// A `my_robot/msg/MotorState` in little-endian CDR, padding as `rmw` writes it: `frame_id`
+/// `m`, `name` `motor`, `currents` 1, 2, 3, `position` A's reading and `extra` `[(1, 0.5),
+/// (2, B's reading)]`.
+fn motor_state(stamp_ns: u64, a: f64, b: f64) -> Vec<u8> {
+    let mut buf = vec![0u8, 1, 0, 0];
+    let pad = |buf: &mut Vec<u8>, n: usize| {
+        while (buf.len() - 4) % n != 0 {
+            buf.push(0);
+        }
+    };
+    let string = |buf: &mut Vec<u8>, s: &str| {
+        pad(buf, 4);
+        buf.extend_from_slice(&(s.len() as u32 + 1).to_le_bytes());
+        buf.extend_from_slice(s.as_bytes());
+        buf.push(0);
+    };
+    buf.extend_from_slice(&((stamp_ns / 1_000_000_000) as i32).to_le_bytes());
+    buf.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
+    string(&mut buf, "m");
+    string(&mut buf, "motor");
+    pad(&mut buf, 4);
+    for c in [1.0f32, 2.0, 3.0] {
+        buf.extend_from_slice(&c.to_le_bytes());
+    }
+    pad(&mut buf, 8);
+    buf.extend_from_slice(&a.to_le_bytes());
+    pad(&mut buf, 4);
+    buf.extend_from_slice(&2u32.to_le_bytes());
+    for (id, value) in [(1u8, 0.5), (2, b)] {
+        buf.push(id);
+        pad(&mut buf, 8);
+        buf.extend_from_slice(&value.to_le_bytes());
+    }
+    buf
+}
+
+/// Writes `samples` (of `a` and `b`, radians) to `path` as rosbag2 writes MCAP: one
+/// `my_robot/msg/MotorState` message per sample on `/motor/state`, A in `position`, B in
+/// `extra[1].value`, header stamp and log time the sample's time.
+fn write_field_run(path: &Path, samples: impl IntoIterator<Item = Sample>) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema("my_robot/msg/MotorState", "ros2msg", MOTOR_STATE.as_bytes())
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/motor/state", "cdr", &Default::default())
+        .unwrap();
+    for (n, sample) in samples.into_iter().enumerate() {
+        let t = ns(sample.t);
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: n as u32,
+            log_time: t,
+            publish_time: t,
+        };
+        let data = motor_state(t, sample.values[0], sample.values[1]);
+        writer.write_to_known_channel(&header, &data).unwrap();
+    }
+    writer.finish().unwrap();
+}
+
+/// Fields by path through the message definition the file carries: `TOPIC.position` and
+/// `TOPIC.extra[1].value` of a message type calib does not know. The values and stamps are
+/// those of `calib simulate`'s MCAP of the same run, so the maps agree to rounding (< 1e-6″;
+/// measured 0).
+#[test]
+fn numeric_fields_are_read_by_path_through_the_schema() {
+    // The committed fixture: the motor topic is listed as not read until a field is named.
+    let o = calib(&["inspect", s(&fields())]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &["fields.mcap", "/motor/state (my_robot/msg/MotorState"],
+    );
+    let o = calib(&[
+        "inspect",
+        s(&fields()),
+        "--a",
+        "/motor/state.position",
+        "--b",
+        "/motor/state.extra[1].value",
+        "--unit",
+        "rad",
+    ]);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
+    assert_mentions(
+        &out,
+        &[
+            "my_robot/msg/MotorState",
+            "200 msg",
+            "      /motor/state.position, /motor/state.extra[1].value\n",
+            "  200 samples over ",
+        ],
+    );
+    // The whole run: the same maps as the CDR JointState MCAP of it.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("motor.mcap");
+    write_field_run(&log, scenario_samples("quick.toml"));
+    let cdr = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");
+    let (want, got) = (dir.path().join("cdr"), dir.path().join("fields"));
+    expect_exit(&calib(&["csrr", s(&cdr), "-o", s(&want)]), 0);
+    let o = calib(&[
+        "csrr",
+        s(&log),
+        "--a",
+        "/motor/state.position",
+        "--b",
+        "/motor/state.extra[1].value",
+        "--unit",
+        "rad",
+        "-o",
+        s(&got),
+    ]);
+    expect_exit(&o, 0);
+    for (table, field) in [
+        ("a.csv", "motor_state.position.csv"),
+        ("b.csv", "motor_state.extra_1_.value.csv"),
+    ] {
+        let worst = table_difference(&want.join(table), &got.join(field));
+        eprintln!("field path vs JointState MCAP, {field}: max |difference| {worst:e}″");
+        assert!(worst < 1e-6, "{field}: {worst}″");
+    }
+    // A path the type does not have, and a definition that does not parse, are errors naming
+    // the topic and what is wrong.
+    let o = calib(&["inspect", s(&fields()), "--a", "/motor/state.speed"]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            "fields.mcap",
+            "/motor/state",
+            "no field `speed`",
+            "currents, position",
+        ],
+    );
+    let broken = dir.path().join("broken.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&broken).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            "my_robot/msg/MotorState",
+            "ros2msg",
+            b"float64 position\nmy_robot/Gear gear\n",
+        )
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/motor/state", "cdr", &Default::default())
+        .unwrap();
+    let header = mcap::records::MessageHeader {
+        channel_id: channel,
+        sequence: 0,
+        log_time: 1,
+        publish_time: 1,
+    };
+    writer
+        .write_to_known_channel(&header, &[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+        .unwrap();
+    writer.finish().unwrap();
+    let o = calib(&["inspect", s(&broken), "--a", "/motor/state.position"]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            "broken.mcap",
+            "/motor/state",
+            "does not parse",
+            "line 2",
+            "`my_robot/Gear`",
+        ],
     );
 }

@@ -50,6 +50,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let (opts, align) = args.input.options(args.unit)?;
     let opts = ReadOptions {
         allow_unordered_time: true,
+        fields: [&args.a, &args.b].into_iter().flatten().cloned().collect(),
         ..opts
     };
     let mut reader = open_log_with(&args.log, opts)?;

@@ -603,7 +603,9 @@ impl BagReader {
         for topic in &registry.topics {
             let unit = match topic.encoding {
                 Encoding::JointState(_) => AngleUnit::Rad,
-                Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
+                Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
+                    opts.unit.unwrap_or(AngleUnit::Deg)
+                }
             };
             for _ in &topic.names {
                 all_channels.push(Channel {

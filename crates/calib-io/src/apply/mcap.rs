@@ -205,7 +205,7 @@ fn find<'d>(
 ) -> Result<Option<Hit<'d>>, String> {
     match encoding {
         // A scalar topic's channel is the topic itself, refused by the caller.
-        None | Some(Encoding::Scalar(_)) => Ok(None),
+        None | Some(Encoding::Scalar(_) | Encoding::Field) => Ok(None),
         Some(Encoding::JointState(format)) => {
             let message = JointState::parse_as(data, format).map_err(|e| e.to_string())?;
             let Some(index) = message.joint(channel) else {

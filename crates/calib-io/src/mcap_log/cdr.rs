@@ -32,7 +32,7 @@
 use std::fmt;
 
 /// Bytes of the encapsulation header; alignment is counted from its end.
-const ORIGIN: usize = 4;
+pub(super) const ORIGIN: usize = 4;
 
 /// What is wrong with a CDR message.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -122,10 +122,10 @@ pub(crate) enum JointFormat {
 }
 
 /// A bounds-checked reader of CDR (or, `packed`, ROS 1) primitives.
-struct Cursor<'a> {
+pub(super) struct Cursor<'a> {
     buf: &'a [u8],
     pos: usize,
-    big_endian: bool,
+    pub(super) big_endian: bool,
     /// Where alignment is counted from: the end of the CDR encapsulation header.
     origin: usize,
     /// ROS 1: no alignment padding, strings without their NUL.
@@ -133,7 +133,7 @@ struct Cursor<'a> {
 }
 
 impl<'a> Cursor<'a> {
-    fn cdr(buf: &'a [u8], pos: usize, big_endian: bool) -> Self {
+    pub(super) fn cdr(buf: &'a [u8], pos: usize, big_endian: bool) -> Self {
         Cursor {
             buf,
             pos,
@@ -143,7 +143,7 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    fn align(&mut self, n: usize) {
+    pub(super) fn align(&mut self, n: usize) {
         if self.packed {
             return;
         }
@@ -155,7 +155,7 @@ impl<'a> Cursor<'a> {
         self.buf.len().saturating_sub(self.pos)
     }
 
-    fn take(&mut self, n: usize, field: &'static str) -> Result<&'a [u8], CdrError> {
+    pub(super) fn take(&mut self, n: usize, field: &'static str) -> Result<&'a [u8], CdrError> {
         let bytes = self
             .pos
             .checked_add(n)
@@ -169,7 +169,7 @@ impl<'a> Cursor<'a> {
         Ok(bytes)
     }
 
-    fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
+    pub(super) fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
         self.align(4);
         let b: [u8; 4] = self.take(4, field)?.try_into().unwrap_or_default();
         Ok(if self.big_endian {
@@ -181,7 +181,11 @@ impl<'a> Cursor<'a> {
 
     /// A sequence count, checked against the bytes left: each element takes at least
     /// `min_size` bytes.
-    fn count(&mut self, field: &'static str, min_size: usize) -> Result<usize, CdrError> {
+    pub(super) fn count(
+        &mut self,
+        field: &'static str,
+        min_size: usize,
+    ) -> Result<usize, CdrError> {
         let count = self.u32(field)?;
         let remaining = self.remaining();
         if (count as usize).saturating_mul(min_size) > remaining {
@@ -195,7 +199,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// A string's bytes without the trailing NUL.
-    fn string(&mut self, field: &'static str) -> Result<&'a [u8], CdrError> {
+    pub(super) fn string(&mut self, field: &'static str) -> Result<&'a [u8], CdrError> {
         let len = self.count(field, 1)?;
         let bytes = self.take(len, field)?;
         // The length counts the NUL; tolerate writers that omit it (or write length 0). ROS 1
@@ -248,7 +252,7 @@ impl<'a> Cursor<'a> {
 }
 
 /// The CDR encapsulation header's byte order: `true` for big-endian.
-fn encapsulation(data: &[u8]) -> Result<bool, CdrError> {
+pub(super) fn encapsulation(data: &[u8]) -> Result<bool, CdrError> {
     let header = data.get(..ORIGIN).ok_or(CdrError::Truncated {
         field: "encapsulation header",
         offset: 0,

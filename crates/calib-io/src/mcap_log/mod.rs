@@ -47,6 +47,7 @@
 
 pub(crate) mod cdr;
 pub(crate) mod json;
+pub(crate) mod msgdef;
 pub(crate) mod read;
 pub(crate) mod records;
 mod write;

@@ -50,6 +50,7 @@ use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, Summar
 
 use super::cdr::{JointFormat, JointState, Scalar};
 use super::json;
+use super::msgdef::{Definition, Plan};
 use super::records::{self, StreamError};
 use super::{DYNAMIC_JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA};
 use crate::align::{AlignOptions, Aligner, Alignment};
@@ -240,6 +241,9 @@ pub(crate) enum Encoding {
     Json,
     /// A `std_msgs` scalar (CDR): one channel, named after the topic.
     Scalar(Scalar),
+    /// Numeric fields named by path (`TOPIC.field.path`), read through the message definition
+    /// (see [`super::msgdef`]); added by [`Registry::read_fields`], never met by type.
+    Field,
 }
 
 impl Encoding {
@@ -287,8 +291,10 @@ pub(crate) struct Topic {
     layouts: Vec<(Vec<u8>, Vec<usize>)>,
     /// DynamicJointState: joints met without a `position` interface, which are not channels.
     no_position: Vec<String>,
-    /// Radians per unit of a JSON value.
+    /// Radians per unit of a JSON, scalar or field value.
     scale: f64,
+    /// Field paths: the walk that reads them.
+    plan: Option<Box<Plan>>,
     /// JSON: which channels a message has given, reused between messages.
     seen: Vec<bool>,
     pub(crate) stats: TopicStats,
@@ -309,6 +315,8 @@ pub(crate) struct Registry {
     pub(crate) topics: Vec<Topic>,
     pub(crate) ignored: Vec<IgnoredTopic>,
     pub(crate) ignored_stats: Vec<TopicStats>,
+    /// The schema encoding and text of each skipped topic, for field paths.
+    definitions: Vec<Option<(String, Vec<u8>)>>,
 }
 
 /// What a channel ID resolves to when first seen.
@@ -361,6 +369,15 @@ impl Registry {
             self.slots.resize(id + 1, Slot::Unknown);
         }
         let Some(encoding) = Encoding::of(channel) else {
+            // A topic whose fields are read by path: first met after they were added.
+            if let Some(k) = self
+                .topics
+                .iter()
+                .position(|t| t.encoding == Encoding::Field && t.name == channel.topic)
+            {
+                self.slots[id] = Slot::Topic(k);
+                return Ok(Resolved::Topic(k));
+            }
             let k = self.ignore(channel);
             self.slots[id] = Slot::Ignored(k);
             return Ok(Resolved::Ignored(k));
@@ -390,7 +407,111 @@ impl Registry {
             message_encoding: channel.message_encoding.clone(),
         });
         self.ignored_stats.push(TopicStats::default());
+        self.definitions.push(
+            channel
+                .schema
+                .as_ref()
+                .map(|s| (s.encoding.clone(), s.data.to_vec())),
+        );
         self.ignored.len() - 1
+    }
+
+    /// Reads the names among `wanted` of the form `TOPIC.field.path` whose `TOPIC` is a topic
+    /// calib skips otherwise (see [`read_fields`](Self::read_fields)); other names are left
+    /// for [`crate::naming::resolve`] to judge. The error names the topic.
+    pub(crate) fn read_wanted_fields(
+        &mut self,
+        wanted: &[String],
+        scale: f64,
+    ) -> Result<(), (String, String)> {
+        let mut by_topic: Vec<(&str, Vec<String>)> = Vec::new();
+        for name in wanted {
+            let Some((topic, path)) = name.split_once('.') else {
+                continue;
+            };
+            if path.is_empty() || !self.ignored.iter().any(|t| t.topic == topic) {
+                continue;
+            }
+            match by_topic.iter_mut().find(|(t, _)| *t == topic) {
+                Some((_, names)) if names.contains(name) => {}
+                Some((_, names)) => names.push(name.clone()),
+                None => by_topic.push((topic, vec![name.clone()])),
+            }
+        }
+        for (topic, names) in by_topic {
+            self.read_fields(topic, &names, scale)
+                .map_err(|m| (topic.to_string(), m))?;
+        }
+        Ok(())
+    }
+
+    /// Reads the numeric fields `names` (`TOPIC.field.path`, all of topic `topic`, which calib
+    /// skips otherwise) through the message definition the file carries for it: the topic moves
+    /// from the skipped ones to those read. The error says why the topic or a path cannot be
+    /// read.
+    fn read_fields(&mut self, topic: &str, names: &[String], scale: f64) -> Result<(), String> {
+        let Some(k) = self.ignored.iter().position(|t| t.topic == topic) else {
+            return Err("the file has no such topic".into());
+        };
+        let skipped = &self.ignored[k];
+        let text = match &self.definitions[k] {
+            Some((encoding, text))
+                if encoding == "ros2msg" && skipped.message_encoding == "cdr" =>
+            {
+                text
+            }
+            other => {
+                return Err(format!(
+                    "its messages are `{}` with a schema of encoding `{}`; calib reads fields \
+                     by path only from CDR messages whose file carries their `ros2msg` message \
+                     definition (as rosbag2 writes MCAP)",
+                    skipped.message_encoding,
+                    other.as_ref().map_or("none", |(e, _)| e.as_str())
+                ));
+            }
+        };
+        let text = std::str::from_utf8(text)
+            .map_err(|_| "its message definition is not UTF-8 text".to_string())?;
+        let definition = Definition::parse(&skipped.schema, text).map_err(|e| {
+            format!(
+                "its message definition ({}) does not parse: {e}; the recording's schema \
+                 record is damaged or not a ros2msg text",
+                skipped.schema
+            )
+        })?;
+        let paths: Vec<String> = names
+            .iter()
+            .map(|n| n[topic.len() + 1..].to_string())
+            .collect();
+        let plan = definition.plan(&paths)?;
+        let skipped = self.ignored.remove(k);
+        self.ignored_stats.remove(k);
+        self.definitions.remove(k);
+        let new = self.topics.len();
+        for slot in &mut self.slots {
+            match *slot {
+                Slot::Ignored(j) if j == k => *slot = Slot::Topic(new),
+                Slot::Ignored(j) if j > k => *slot = Slot::Ignored(j - 1),
+                _ => {}
+            }
+        }
+        self.topics.push(Topic {
+            name: skipped.topic,
+            schema: skipped.schema,
+            message_encoding: skipped.message_encoding,
+            encoding: Encoding::Field,
+            name_block: Vec::new(),
+            names: names.to_vec(),
+            offset: 0,
+            subset: false,
+            layouts: Vec::new(),
+            no_position: Vec::new(),
+            scale,
+            plan: Some(Box::new(plan)),
+            seen: Vec::new(),
+            stats: TopicStats::default(),
+        });
+        Ok(())
     }
 }
 
@@ -494,12 +615,7 @@ impl McapReader {
                     .into(),
             ));
         }
-        let mut registry = Registry {
-            slots: Vec::new(),
-            topics: Vec::new(),
-            ignored: Vec::new(),
-            ignored_stats: Vec::new(),
-        };
+        let mut registry = Registry::default();
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
         let expected = records::read_summary(&mut file, len)
             .map(|summary| expected_topics(&summary, &mut registry));
@@ -554,6 +670,9 @@ impl McapReader {
             skipped = peek.damaged().to_vec();
             file = peek.into_inner().file.into_inner();
         }
+        registry
+            .read_wanted_fields(&opts.fields, scale)
+            .map_err(|(topic, m)| mcap_error(path, None, Some(&topic), m))?;
         if registry.topics.is_empty() {
             if !skipped.is_empty() {
                 let list: Vec<String> = skipped.iter().map(|c| c.to_string()).collect();
@@ -633,7 +752,9 @@ impl McapReader {
         for topic in &registry.topics {
             let unit = match topic.encoding {
                 Encoding::JointState(_) => AngleUnit::Rad,
-                Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
+                Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
+                    opts.unit.unwrap_or(AngleUnit::Deg)
+                }
             };
             for _ in &topic.names {
                 all_channels.push(Channel {
@@ -922,6 +1043,7 @@ pub(crate) fn first_message(
         subset: false,
         layouts: Vec::new(),
         no_position: Vec::new(),
+        plan: None,
         scale,
         seen: Vec::new(),
         stats: TopicStats::default(),
@@ -964,6 +1086,8 @@ pub(crate) fn first_message(
             kind.decode(&message.data).map_err(|e| e.to_string())?;
             topic.names.push(topic.name.clone());
         }
+        // Added by name ([`Registry::read_fields`]), not from a first message.
+        Encoding::Field => {}
     }
     if topic.names.is_empty() {
         return Err(match encoding {
@@ -974,10 +1098,12 @@ pub(crate) fn first_message(
             Encoding::JointState(_) => "the topic's first JointState message names no joints; \
                                      publish the encoders' names and positions"
                 .into(),
-            Encoding::Json | Encoding::Scalar(_) => "the topic's first JSON message has no \
+            Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
+                "the topic's first JSON message has no \
                                                      numeric field; publish one numeric field \
                                                      per encoder"
-                .into(),
+                    .into()
+            }
         });
     }
     Ok(topic)
@@ -995,7 +1121,8 @@ impl Topic {
     /// channel is the topic itself.
     pub(crate) fn channel_names(&self) -> impl Iterator<Item = (Option<&str>, &str)> {
         let topic = match self.encoding {
-            Encoding::Scalar(_) => None,
+            // Named in full: the topic itself, or `TOPIC.field.path`.
+            Encoding::Scalar(_) | Encoding::Field => None,
             _ => Some(self.name.as_str()),
         };
         self.names.iter().map(move |n| (topic, n.as_str()))
@@ -1180,6 +1307,33 @@ pub(crate) fn decode(
                 return Err((None, problem));
             }
             out[0] = rad;
+            Ok((stamp, true))
+        }
+        Encoding::Field => {
+            let Some(plan) = topic.plan.as_deref() else {
+                return Err((None, "the topic's fields were never named".into()));
+            };
+            let header = plan
+                .read(&message.data, out)
+                .map_err(|e| (None, e.to_string()))?;
+            for (i, slot) in out.iter_mut().enumerate() {
+                let v = *slot;
+                let rad = v * topic.scale;
+                if let Some(problem) = crate::limits::reading_problem(v, v, rad) {
+                    return Err((Some(topic.names[i].clone()), problem));
+                }
+                *slot = rad;
+            }
+            let stamp = match header {
+                Some((sec, nanosec))
+                    if time == TimeSource::Header
+                        && (sec, nanosec) != (0, 0)
+                        && nanosec < 1_000_000_000 =>
+                {
+                    sec * 1_000_000_000 + i64::from(nanosec)
+                }
+                _ => log_time_ns(message.log_time).map_err(|m| (None, m))?,
+            };
             Ok((stamp, true))
         }
         Encoding::Json => {
