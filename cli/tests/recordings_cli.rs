@@ -718,3 +718,109 @@ fn numeric_fields_are_read_by_path_through_the_schema() {
         ],
     );
 }
+
+/// The readings of channel `name` of `log`, read on its own clock (no alignment).
+fn channel_readings(log: &Path, name: &str) -> Vec<(f64, f64)> {
+    let mut reader = calib_io::LogReader::open(log, &calib_io::ReadOptions::default()).unwrap();
+    let i = reader.resolve(name).unwrap();
+    reader.select(&[i], calib_io::align::AlignOptions::default());
+    reader
+        .map(|s| {
+            let s = s.unwrap();
+            (s.t, s.values[0])
+        })
+        .collect()
+}
+
+/// `calib apply` corrects a channel named `TOPIC/JOINT` (only that topic's joint, though two
+/// other topics carry a joint of the same name), and a lab CSV export in its own dialect: the
+/// output keeps its metadata lines, `;` separators and `Time [ms]` column byte for byte, and
+/// only the channel's field changes. The map is +36″ at 0° and −36″ at 180°, linear between, so
+/// every corrected reading is known in closed form (to rounding: 1e-12 rad, 1e-9°).
+#[test]
+fn apply_corrects_a_qualified_channel_and_keeps_a_csv_dialect() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = write(
+        dir.path(),
+        "map.csv",
+        "angle_deg,error_arcsec,correction_arcsec\n0,36,-36\n180,-36,36\n",
+    );
+    // The map's error at `deg`, in degrees.
+    let e = |deg: f64| {
+        let deg = deg.rem_euclid(360.0);
+        36.0 * (1.0 - 2.0 * (deg.min(360.0 - deg) / 180.0)) / 3600.0
+    };
+    let fixed = dir.path().join("fixed.mcap");
+    let b = "/sensor_b/joint_states/encoder";
+    let o = calib(&[
+        "apply",
+        s(&table),
+        s(&clocks()),
+        "--channel",
+        b,
+        "-o",
+        s(&fixed),
+    ]);
+    expect_exit(&o, 0);
+    assert_mentions(&stdout(&o), &["400 readings"]);
+    for (name, corrected) in [(b, true), (TOPICS[0], false), (TOPICS[2], false)] {
+        let name = if name == b {
+            name.to_string()
+        } else {
+            format!("{name}/encoder")
+        };
+        let (before, after) = (
+            channel_readings(&clocks(), &name),
+            channel_readings(&fixed, &name),
+        );
+        assert_eq!(before.len(), 400, "{name}");
+        assert_eq!(before.len(), after.len(), "{name}");
+        for (x, y) in before.iter().zip(&after) {
+            assert_eq!(x.0, y.0, "{name}: stamps");
+            let want = if corrected {
+                x.1 - e(x.1.to_degrees()).to_radians()
+            } else {
+                x.1
+            };
+            let d = (want - y.1).abs();
+            assert!(d < 1e-12, "{name}: {x:?} → {y:?}");
+        }
+    }
+    // A lab CSV export: the same text but for enc_b's fields.
+    let out = dir.path().join("fixed.csv");
+    let o = calib(&[
+        "apply",
+        s(&table),
+        s(&lab_export()),
+        "--channel",
+        "enc_b",
+        "-o",
+        s(&out),
+    ]);
+    expect_exit(&o, 0);
+    let (input, output) = (
+        std::fs::read_to_string(lab_export()).unwrap(),
+        std::fs::read_to_string(&out).unwrap(),
+    );
+    let (input, output): (Vec<&str>, Vec<&str>) =
+        (input.lines().collect(), output.lines().collect());
+    assert_eq!(input.len(), output.len());
+    assert_eq!(input[..5], output[..5], "metadata lines and header");
+    for (a, b) in input[5..].iter().zip(&output[5..]) {
+        let (a, b): (Vec<&str>, Vec<&str>) = (a.split(';').collect(), b.split(';').collect());
+        assert_eq!((a.len(), a[0], a[1]), (3, b[0], b[1]), "{a:?} → {b:?}");
+        let (x, y): (f64, f64) = (a[2].parse().unwrap(), b[2].parse().unwrap());
+        assert!((x - e(x) - y).abs() < 1e-9, "{a:?} → {b:?}");
+    }
+    // The time column is not a channel to correct.
+    let o = calib(&[
+        "apply",
+        s(&table),
+        s(&lab_export()),
+        "--channel",
+        "Time [ms]",
+        "-o",
+        s(&dir.path().join("time.csv")),
+    ]);
+    assert_ne!(code(&o), 0);
+}

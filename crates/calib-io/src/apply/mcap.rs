@@ -166,7 +166,13 @@ fn walk(
                             .into(),
                     ));
                 }
-                hit = find(topic.encoding, data, channel)
+                // A qualified name `TOPIC/NAME` names the joint or field `NAME` of that topic
+                // only; a short name, the one of any topic carrying it.
+                let member = channel
+                    .strip_prefix(topic.name.as_str())
+                    .and_then(|rest| rest.strip_prefix('/'))
+                    .unwrap_or(channel);
+                hit = find(topic.encoding, data, member)
                     .map_err(|m| mcap_error(path, Some(messages), Some(&topic.name), m))?;
                 if hit.is_some() {
                     match &carrier {
