@@ -151,7 +151,7 @@ impl<'a> Cursor<'a> {
         self.pos = self.origin + rel.div_ceil(n) * n;
     }
 
-    fn remaining(&self) -> usize {
+    pub(super) fn remaining(&self) -> usize {
         self.buf.len().saturating_sub(self.pos)
     }
 

@@ -32,6 +32,9 @@ use std::fmt;
 
 use super::cdr::{CdrError, Cursor, ORIGIN, encapsulation};
 
+/// The deepest nesting of message types walked: far beyond any real message (a few levels).
+const MAX_DEPTH: usize = 64;
+
 /// A primitive ROS type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Primitive {
@@ -215,11 +218,15 @@ impl Definition {
                         let array = if inner.is_empty() || inner.starts_with("<=") {
                             Array::Sequence
                         } else {
-                            Array::Fixed(inner.parse().map_err(|_| {
-                                format!(
-                                    "line {n}: array size `{inner}` of `{kind}` is not a number"
-                                )
-                            })?)
+                            match inner.parse() {
+                                Ok(0) | Err(_) => {
+                                    return Err(format!(
+                                        "line {n}: array size `{inner}` of `{kind}` is not a \
+                                         number above 0"
+                                    ));
+                                }
+                                Ok(size) => Array::Fixed(size),
+                            }
                         };
                         (&kind[..at], array)
                     }
@@ -246,25 +253,42 @@ impl Definition {
             });
         }
         let definition = Definition { types };
-        definition.check_recursion(0, &mut Vec::new())?;
+        let mut checked = vec![false; definition.types.len()];
+        definition.check_nesting(0, &mut Vec::new(), &mut checked)?;
         Ok(definition)
     }
 
-    /// A type that contains itself cannot be walked (nor be a ROS message).
-    fn check_recursion(&self, t: usize, stack: &mut Vec<usize>) -> Result<(), String> {
+    /// A type that contains itself cannot be walked (nor be a ROS message), and one nested
+    /// deeper than [`MAX_DEPTH`] is refused before a walk could exhaust the stack. Each type is
+    /// checked once (`checked`), so a type used by many fields costs nothing more.
+    fn check_nesting(
+        &self,
+        t: usize,
+        stack: &mut Vec<usize>,
+        checked: &mut [bool],
+    ) -> Result<(), String> {
         if stack.contains(&t) {
             return Err(format!(
                 "type `{}` contains itself; the message definition is damaged",
                 self.types[t].name
             ));
         }
+        if stack.len() >= MAX_DEPTH {
+            return Err(format!(
+                "types are nested more than {MAX_DEPTH} deep; the message definition is damaged"
+            ));
+        }
+        if checked[t] {
+            return Ok(());
+        }
         stack.push(t);
         for f in &self.types[t].fields {
             if let Base::Message(u) = f.base {
-                self.check_recursion(u, stack)?;
+                self.check_nesting(u, stack, checked)?;
             }
         }
         stack.pop();
+        checked[t] = true;
         Ok(())
     }
 
@@ -511,12 +535,18 @@ impl Plan {
         want: Option<&Want>,
         out: &mut [f64],
     ) -> Result<(), WalkError> {
+        let fields = &self.definition.types[t].fields;
+        if fields.is_empty() {
+            // `rosidl` gives a message without fields one `uint8` member, so that it has a size.
+            c.take(1, "message field")?;
+            return Ok(());
+        }
         let mut wanted = want
             .map(|w| w.fields.as_slice())
             .unwrap_or_default()
             .iter()
             .peekable();
-        for (k, field) in self.definition.types[t].fields.iter().enumerate() {
+        for (k, field) in fields.iter().enumerate() {
             let w = wanted.next_if(|(i, _)| *i == k).map(|(_, w)| w);
             self.field(c, field, w, out)?;
         }
@@ -533,8 +563,18 @@ impl Plan {
         let count = match field.array {
             Array::One => return self.value(c, field, want, out),
             Array::Fixed(n) => n,
-            Array::Sequence => c.count("message field", field_min_size(&field.base))?,
+            Array::Sequence => c.count("message field", 0)?,
         };
+        // Every element takes at least this many bytes: a count beyond the bytes left is a
+        // damaged message (or definition), refused before it could drive a long loop.
+        let least = field_min_size(&field.base);
+        if count.saturating_mul(least) > c.remaining() {
+            return Err(WalkError::Cdr(CdrError::LengthTooLarge {
+                field: "message field",
+                count: u32::try_from(count).unwrap_or(u32::MAX),
+                remaining: c.remaining(),
+            }));
+        }
         let elements = want.map(|w| w.elements.as_slice()).unwrap_or_default();
         if let Some((i, _)) = elements.iter().find(|(i, _)| *i >= count) {
             return Err(WalkError::Missing {
@@ -549,7 +589,7 @@ impl Plan {
             // Skipped whole: aligned once (only if there is an element), then its bytes.
             if count > 0 {
                 c.align(size);
-                c.take(count * size, "message field")?;
+                c.take(count.saturating_mul(size), "message field")?;
             }
             return Ok(());
         }
@@ -593,8 +633,8 @@ impl Plan {
     }
 }
 
-/// The least bytes an element of this type takes, to check a sequence count against the
-/// bytes left (a message may be empty).
+/// The least bytes an element of this type takes, to check an array's count against the bytes
+/// left.
 fn field_min_size(base: &Base) -> usize {
     match base {
         Base::Primitive(p) => p.size().unwrap_or(4),
@@ -723,5 +763,28 @@ uint32 nanosec
         assert!(bad.contains("line 1"), "{bad}");
         let bad = Definition::parse("a/msg/B", "float64[x] v\n").unwrap_err();
         assert!(bad.contains("not a number"), "{bad}");
+        let bad = Definition::parse("a/msg/B", "float64[0] v\n").unwrap_err();
+        assert!(bad.contains("above 0"), "{bad}");
+        // A type without fields (std_msgs/Empty) takes its one dummy byte.
+        let d = Definition::parse("a/msg/B", "uint8 a\nE e\nuint8 b\n===\nMSG: a/E\n").unwrap();
+        let plan = d.plan(&["b".to_string()]).unwrap();
+        let mut out = [0.0];
+        plan.read(&[0, 1, 0, 0, 1, 0, 7], &mut out).unwrap();
+        assert_eq!(out, [7.0]);
+        let bad = Definition::parse("a/msg/B", "B inner\n").unwrap_err();
+        assert!(bad.contains("contains itself"), "{bad}");
+        // Forty types each holding the next twice: checked once per type, not 2⁴⁰ times.
+        let mut text = String::from("T0 a\nT0 b\n");
+        for k in 0..40 {
+            text.push_str(&format!("===\nMSG: a/T{k}\nT{} a\nT{} b\n", k + 1, k + 1));
+        }
+        text.push_str("===\nMSG: a/T40\nuint8 x\n");
+        let d = Definition::parse("a/msg/B", &text).unwrap();
+        // A count or fixed size beyond the message is an error, not a long loop.
+        let plan = d.plan(&[format!("{}x", "a.".repeat(41))]).unwrap();
+        assert!(plan.read(&[0, 1, 0, 0, 1], &mut [0.0]).is_err());
+        let d = Definition::parse("a/msg/B", "uint8[4000000000] big\nuint8 x\n").unwrap();
+        let plan = d.plan(&["x".to_string()]).unwrap();
+        assert!(plan.read(&[0, 1, 0, 0, 1, 2], &mut [0.0]).is_err());
     }
 }
