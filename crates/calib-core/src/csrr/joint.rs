@@ -166,37 +166,59 @@ impl SeriesEval {
     }
 
     /// `θ` with `θ + ε(θ) = r` for every `r`, by Newton's method (`|ε′| < 1` for any sensor whose
-    /// reading increases with the angle), and `1/(1 + ε′(θ))` there.
-    fn invert(&self, readings: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    /// reading increases with the angle), from the guess in `theta` (overwritten). Returns the
+    /// stencils at the final `θ` (which the step's operator reuses) and `1/(1 + ε′(θ))` there.
+    ///
+    /// Newton stops when no point moved by more than [`NEWTON_TOLERANCE`] (the next update would
+    /// be of the order of its square), or after [`NEWTON_STEPS`] updates. From the previous
+    /// Gauss–Newton step's `θ` that takes one update once the series settle, so a step builds
+    /// two sets of stencils per sensor instead of seven.
+    fn invert(&self, readings: &[f64], theta: &mut [f64]) -> (Stencils, Vec<f64>) {
         let grid = self.value.len();
-        let mut theta = readings.to_vec();
         let mut e = vec![0.0; theta.len()];
         let mut de = vec![0.0; theta.len()];
-        for _ in 0..6 {
+        let mut settled = false;
+        let mut updates = 0;
+        loop {
             let st = Stencils::new(theta.iter().copied(), grid);
-            st.gather(&self.value, &mut e);
-            st.gather(&self.slope, &mut de);
-            for j in 0..theta.len() {
-                theta[j] -= (theta[j] + e[j] - readings[j]) / (1.0 + de[j]).max(0.05);
+            st.gather2((&self.value, &self.slope), (&mut e, &mut de));
+            if settled || updates == NEWTON_STEPS {
+                let scale = de.iter().map(|d| 1.0 / (1.0 + d).max(0.05)).collect();
+                return (st, scale);
             }
+            let mut largest = 0.0f64;
+            for (((t, &r), &e), &de) in theta.iter_mut().zip(readings).zip(&e).zip(&de) {
+                let update = (*t + e - r) / (1.0 + de).max(0.05);
+                *t -= update;
+                largest = largest.max(update.abs());
+            }
+            updates += 1;
+            settled = largest <= NEWTON_TOLERANCE;
         }
-        let st = Stencils::new(theta.iter().copied(), grid);
-        st.gather(&self.slope, &mut de);
-        let scale = de.iter().map(|d| 1.0 / (1.0 + d).max(0.05)).collect();
-        (theta, scale)
     }
 }
+
+/// Newton's updates in [`SeriesEval::invert`] stop below this, rad (2·10⁻⁹″).
+const NEWTON_TOLERANCE: f64 = 1e-14;
+
+/// At most this many Newton updates per inversion: from the readings themselves (`θ = r`), the
+/// first update leaves an error of about `ε″·ε²/2` and each further one squares it, so for
+/// errors of ±680″ at order 84 (the steepest bundled case) three suffice.
+const NEWTON_STEPS: usize = 8;
 
 /// One Gauss–Newton step's linear operator `A` and its weighted transpose.
 struct Step<'a> {
     orders: &'a [usize],
-    sessions: usize,
-    session_of: &'a [u32],
+    /// Bins `sessions[k]` belong to session `k` (bins are grouped by session).
+    sessions: &'a [std::ops::Range<usize>],
     n: &'a [f64],
     at_a: Stencils,
     at_b: Stencils,
     scale_a: Vec<f64>,
     scale_b: Vec<f64>,
+    /// `n·scale_a` and `−n·scale_b`, the weights of [`Step::transpose_weighted`].
+    weight_a: Vec<f64>,
+    weight_b: Vec<f64>,
     fft: &'a mut GridTransform,
     grid_buf: Vec<f64>,
     ea: Vec<f64>,
@@ -205,7 +227,7 @@ struct Step<'a> {
 
 impl Step<'_> {
     fn len(&self) -> usize {
-        4 * self.orders.len() + self.sessions
+        4 * self.orders.len() + self.sessions.len()
     }
 
     /// `r = A·u` (per bin, unweighted).
@@ -222,9 +244,13 @@ impl Step<'_> {
         );
         self.at_b.gather(&self.grid_buf, &mut self.eb);
         let deltas = &u[4 * l..];
-        for (j, rj) in r.iter_mut().enumerate() {
-            *rj = self.scale_a[j] * self.ea[j] - self.scale_b[j] * self.eb[j]
-                + deltas[self.session_of[j] as usize];
+        for (range, &delta) in self.sessions.iter().zip(deltas) {
+            let r = &mut r[range.clone()];
+            let (sa, ea) = (&self.scale_a[range.clone()], &self.ea[range.clone()]);
+            let (sb, eb) = (&self.scale_b[range.clone()], &self.eb[range.clone()]);
+            for ((((rj, &sa), &ea), &sb), &eb) in r.iter_mut().zip(sa).zip(ea).zip(sb).zip(eb) {
+                *rj = sa * ea - sb * eb + delta;
+            }
         }
     }
 
@@ -233,25 +259,28 @@ impl Step<'_> {
         let l = self.orders.len();
         let (ga, rest) = g.split_at_mut(2 * l);
         let (gb, gd) = rest.split_at_mut(2 * l);
-        for j in 0..r.len() {
-            self.ea[j] = self.n[j] * r[j] * self.scale_a[j];
+        for ((e, &w), &r) in self.ea.iter_mut().zip(&self.weight_a).zip(r) {
+            *e = w * r;
         }
-        self.grid_buf.iter_mut().for_each(|v| *v = 0.0);
+        self.grid_buf.fill(0.0);
         self.at_a.scatter(&self.ea, &mut self.grid_buf);
         let (gac, gas) = ga.split_at_mut(l);
         self.fft
             .analyze_transpose(&mut self.grid_buf, self.orders, gac, gas);
-        for j in 0..r.len() {
-            self.eb[j] = -self.n[j] * r[j] * self.scale_b[j];
+        for ((e, &w), &r) in self.eb.iter_mut().zip(&self.weight_b).zip(r) {
+            *e = w * r;
         }
-        self.grid_buf.iter_mut().for_each(|v| *v = 0.0);
+        self.grid_buf.fill(0.0);
         self.at_b.scatter(&self.eb, &mut self.grid_buf);
         let (gbc, gbs) = gb.split_at_mut(l);
         self.fft
             .analyze_transpose(&mut self.grid_buf, self.orders, gbc, gbs);
-        gd.iter_mut().for_each(|v| *v = 0.0);
-        for j in 0..r.len() {
-            gd[self.session_of[j] as usize] += self.n[j] * r[j];
+        for (range, gd) in self.sessions.iter().zip(gd) {
+            *gd = self.n[range.clone()]
+                .iter()
+                .zip(&r[range.clone()])
+                .map(|(n, r)| n * r)
+                .sum();
         }
     }
 }
@@ -353,6 +382,12 @@ fn conjugate_gradient(
     (opts.max_iterations, false)
 }
 
+/// Points of the uniform grid for series up to `max_order`: at least 16 per period of the highest
+/// order (the `nufft` module's accuracy), a power of two for the FFT.
+pub(crate) fn grid_points(max_order: usize) -> usize {
+    (16 * max_order).max(64).next_power_of_two()
+}
+
 /// Solves the joint CSRR equation for the binned sessions. See the module docs.
 pub(crate) fn solve(
     sessions: &[SessionData],
@@ -393,7 +428,7 @@ pub(crate) fn solve(
         });
     }
 
-    let grid = (16 * opts.max_order).max(64).next_power_of_two();
+    let grid = grid_points(opts.max_order);
     let bins: Vec<_> = sessions.iter().flat_map(|s| s.bins.iter()).collect();
     let m = bins.len();
     let xs: Vec<f64> = bins.iter().map(|b| b.x).collect();
@@ -401,7 +436,9 @@ pub(crate) fn solve(
     let d: Vec<f64> = bins.iter().map(|b| b.d).collect();
     let n: Vec<f64> = bins.iter().map(|b| b.n).collect();
     let mut session_of: Vec<u32> = Vec::with_capacity(m);
+    let mut ranges = Vec::with_capacity(k_count);
     for (k, s) in sessions.iter().enumerate() {
+        ranges.push(session_of.len()..session_of.len() + s.bins.len());
         session_of.extend(std::iter::repeat_n(k as u32, s.bins.len()));
     }
     let precond = Preconditioner::new(&orders, &centred, &weights);
@@ -415,11 +452,14 @@ pub(crate) fn solve(
     let mut residual = vec![0.0; m];
     let mut du = vec![0.0; 4 * l + k_count];
     let mut fft = GridTransform::new(grid);
+    // Each step's inversion starts from the last step's angles.
+    let mut theta_a = xs.clone();
+    let mut theta_b = ys.clone();
     while steps < opts.max_steps {
         eval_a.load(&ca, &sa);
         eval_b.load(&cb, &sb);
-        let (theta_a, scale_a) = eval_a.invert(&xs);
-        let (theta_b, scale_b) = eval_b.invert(&ys);
+        let (at_a, scale_a) = eval_a.invert(&xs, &mut theta_a);
+        let (at_b, scale_b) = eval_b.invert(&ys, &mut theta_b);
         for j in 0..m {
             let model =
                 (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
@@ -427,11 +467,12 @@ pub(crate) fn solve(
         }
         let mut step = Step {
             orders: &orders,
-            sessions: k_count,
-            session_of: &session_of,
+            sessions: &ranges,
             n: &n,
-            at_a: Stencils::new(theta_a.iter().copied(), grid),
-            at_b: Stencils::new(theta_b.iter().copied(), grid),
+            at_a,
+            at_b,
+            weight_a: n.iter().zip(&scale_a).map(|(n, s)| n * s).collect(),
+            weight_b: n.iter().zip(&scale_b).map(|(n, s)| -n * s).collect(),
             scale_a,
             scale_b,
             fft: &mut fft,
@@ -468,8 +509,8 @@ pub(crate) fn solve(
     // Residual of the final model, per sample: between-bin part plus the spread inside bins.
     eval_a.load(&ca, &sa);
     eval_b.load(&cb, &sb);
-    let (theta_a, _) = eval_a.invert(&xs);
-    let (theta_b, _) = eval_b.invert(&ys);
+    eval_a.invert(&xs, &mut theta_a);
+    eval_b.invert(&ys, &mut theta_b);
     let total: f64 = n.iter().sum();
     let within: f64 = sessions
         .iter()
@@ -515,13 +556,14 @@ pub(crate) fn solve(
 /// whatever orders the reading-domain map holds.
 pub(crate) fn reading_map(series: &FourierSeries, points: usize) -> ErrorMap {
     let orders: Vec<usize> = (1..=series.max_order()).collect();
-    let grid = (16 * series.max_order()).max(64).next_power_of_two();
+    let grid = grid_points(series.max_order());
     let mut eval = SeriesEval::new(orders, grid);
     eval.load(&series.cos, &series.sin);
     let n = points.max(1);
     let readings: Vec<f64> = (0..n)
         .map(|i| std::f64::consts::TAU * i as f64 / n as f64)
         .collect();
-    let (theta, _) = eval.invert(&readings);
+    let mut theta = readings.clone();
+    eval.invert(&readings, &mut theta);
     ErrorMap::new(readings.iter().zip(&theta).map(|(r, t)| r - t).collect())
 }

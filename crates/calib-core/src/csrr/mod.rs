@@ -26,6 +26,8 @@ pub(crate) mod nufft;
 mod observability;
 pub mod paper;
 mod reference;
+#[doc(hidden)]
+pub mod stages;
 
 pub use observability::observability;
 pub use reference::{EffectiveRange, EpsHarmonic, ReferenceCheck};
@@ -463,28 +465,14 @@ fn finish_joint(
             adv.extra_rotation.to_degrees()
         ));
     }
-    let points = opts
-        .points
-        .unwrap_or_else(|| table_points(&sol.a).max(table_points(&sol.b)));
-    let a = joint::reading_map(&sol.a, points);
-    let b = joint::reading_map(&sol.b, points);
-    let a_series = a.series();
-    let b_series = b.series();
-    let fitted: Vec<usize> = (1..=max_order)
-        .filter(|h| sol.excluded.iter().all(|e| e.order != *h))
-        .collect();
-    let u_fit = fit_noise(&fitted, &centred, &weights, sol.noise_rms);
-    let uncertainty = Some((
-        map_uncertainty(u_fit, &a_series, points),
-        map_uncertainty(u_fit, &b_series, points),
-    ));
+    let maps = joint_maps(&sessions, &sol, max_order, opts.points);
     Ok(Calibration {
         method: Method::Joint,
-        a_series,
-        b_series,
+        a_series: maps.a_series,
+        b_series: maps.b_series,
         true_angle_series: Some((sol.a, sol.b)),
-        a,
-        b,
+        a: maps.a,
+        b: maps.b,
         sessions: summaries(&sessions, &sol.deltas),
         segmentation,
         max_order,
@@ -494,9 +482,50 @@ fn finish_joint(
         iterations: sol.iterations,
         paper_points: Vec::new(),
         reference: None,
-        uncertainty,
+        uncertainty: Some(maps.uncertainty),
         warnings,
     })
+}
+
+/// The tables of a joint solution and their uncertainties.
+struct JointMaps {
+    a: ErrorMap,
+    b: ErrorMap,
+    a_series: FourierSeries,
+    b_series: FourierSeries,
+    uncertainty: (MapUncertainty, MapUncertainty),
+}
+
+/// Both sensors' tables on `points` points (chosen by [`table_points`] when `None`) from the
+/// joint solution, with their uncertainties.
+fn joint_maps(
+    sessions: &[SessionData],
+    sol: &joint::JointSolution,
+    max_order: usize,
+    points: Option<usize>,
+) -> JointMaps {
+    let points = points.unwrap_or_else(|| table_points(&sol.a).max(table_points(&sol.b)));
+    let a = joint::reading_map(&sol.a, points);
+    let b = joint::reading_map(&sol.b, points);
+    let a_series = a.series();
+    let b_series = b.series();
+    let weights: Vec<f64> = sessions.iter().map(|s| s.samples as f64).collect();
+    let centred: Vec<f64> = sol.deltas.iter().map(|d| d - sol.deltas[0]).collect();
+    let fitted: Vec<usize> = (1..=max_order)
+        .filter(|h| sol.excluded.iter().all(|e| e.order != *h))
+        .collect();
+    let u_fit = fit_noise(&fitted, &centred, &weights, sol.noise_rms);
+    let uncertainty = (
+        map_uncertainty(u_fit, &a_series, points),
+        map_uncertainty(u_fit, &b_series, points),
+    );
+    JointMaps {
+        a,
+        b,
+        a_series,
+        b_series,
+        uncertainty,
+    }
 }
 
 /// The standard uncertainty, at any angle, that the noise of the readings leaves in either

@@ -1,0 +1,70 @@
+//! The stages of [`super::Csrr`] one by one, for the solver's benchmark
+//! (`crates/calib-core/benches/csrr.rs`): binning the streamed samples, building the NUFFT
+//! stencils of the binned readings, the joint solve, and the uncertainty of its maps. Not part
+//! of the library's interface.
+
+use super::bins::SessionBinner;
+use super::nufft::Stencils;
+use super::{CsrrOptions, SessionData, joint};
+use crate::segment::Segmenter;
+
+/// The sessions of a log reduced to bins.
+pub struct Binned {
+    sessions: Vec<SessionData>,
+}
+
+impl Binned {
+    /// Occupied bins over all sessions.
+    pub fn bins(&self) -> usize {
+        self.sessions.iter().map(|s| s.bins.len()).sum()
+    }
+}
+
+/// A joint solution.
+pub struct Solved {
+    sol: joint::JointSolution,
+    max_order: usize,
+}
+
+/// Segmentation and binning of `(t, x, y)` readings with the default options.
+pub fn bin(readings: &[(f64, f64, f64)]) -> Binned {
+    let opts = CsrrOptions::default();
+    let mut segmenter = Segmenter::new(opts.segments);
+    let mut binner = SessionBinner::new(opts.bins_per_rev);
+    for &(t, x, y) in readings {
+        segmenter.push(t, x, y, None, &[], &mut binner);
+    }
+    segmenter.finish(&mut binner);
+    Binned {
+        sessions: binner.into_sessions(),
+    }
+}
+
+/// One build of the stencils of every bin's two readings on the grid of `max_order`, as the
+/// solver builds them; returns the stencils' count.
+pub fn stencils(binned: &Binned, max_order: usize) -> usize {
+    let grid = joint::grid_points(max_order);
+    let bins = || binned.sessions.iter().flat_map(|s| s.bins.iter());
+    let a = Stencils::new(bins().map(|b| b.x), grid);
+    let b = Stencils::new(bins().map(|b| b.x - b.d), grid);
+    a.len() + b.len()
+}
+
+/// The joint solve at `max_order`.
+pub fn solve(binned: &Binned, max_order: usize) -> Solved {
+    let mut jopts = joint::JointOptions::with_max_order(max_order);
+    jopts.min_observability = CsrrOptions::default().min_observability;
+    Solved {
+        sol: joint::solve(&binned.sessions, &jopts).expect("the bench's sessions solve"),
+        max_order,
+    }
+}
+
+/// The tables and their uncertainty from a solve (what [`super::Csrr::finish`] does after it);
+/// returns the median u of A's table, rad.
+pub fn uncertainty(binned: &Binned, solved: &Solved) -> f64 {
+    super::joint_maps(&binned.sessions, &solved.sol, solved.max_order, None)
+        .uncertainty
+        .0
+        .median()
+}
