@@ -122,7 +122,7 @@ fn bench_stages(c: &mut Criterion, label: &str, readings: &[(f64, f64, f64)], ma
     });
     let solved = stages::solve(&binned, max_order);
     group.bench_function(format!("uncertainty/orders={max_order}"), |b| {
-        b.iter(|| stages::uncertainty(black_box(&binned), &solved))
+        b.iter(|| stages::uncertainty(black_box(&solved)))
     });
     group.finish();
 }

@@ -54,7 +54,7 @@
 //! ([`super::observability`]); such orders are left out of both maps and reported.
 
 use super::nufft::{GridTransform, Stencils};
-use super::observability::observability;
+use super::observability::{coefficient_variance, observability};
 use super::{CsrrError, SessionData};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
@@ -74,6 +74,9 @@ pub(crate) struct JointOptions {
     pub max_iterations: usize,
     /// Gauss–Newton steps at most (default 8).
     pub max_steps: usize,
+    /// After the fit, the residual is searched for periodic structure at the orders above
+    /// `max_order` up to this one ([`JointSolution::unresolved`]; default 0: not searched).
+    pub check_up_to: usize,
 }
 
 impl JointOptions {
@@ -85,6 +88,7 @@ impl JointOptions {
             tolerance: 1e-10,
             max_iterations: 2000,
             max_steps: 8,
+            check_up_to: 0,
         }
     }
 }
@@ -96,6 +100,17 @@ pub struct ExcludedOrder {
     pub order: usize,
     /// Its observability `q_h` (0: blind).
     pub observability: f64,
+}
+
+/// Periodic structure left in the residual at an order above the fitted ones.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct UnresolvedOrder {
+    /// The order.
+    pub order: usize,
+    /// The amplitude that sensor A's error would have there, rad.
+    pub a: f64,
+    /// The amplitude that sensor B's error would have there, rad.
+    pub b: f64,
 }
 
 /// The joint solve's result.
@@ -118,6 +133,9 @@ pub(crate) struct JointSolution {
     /// leaves out the spread inside the bins, which for steep errors is mostly the errors'
     /// own change across a bin, not noise.
     pub noise_rms: f64,
+    /// Orders above `max_order` (up to [`JointOptions::check_up_to`]) where the residual holds
+    /// periodic structure that passes the significance rule (see [`solve`]), ascending.
+    pub unresolved: Vec<UnresolvedOrder>,
     /// Conjugate-gradient iterations taken, over all steps.
     pub iterations: usize,
     /// Gauss–Newton steps taken.
@@ -389,9 +407,21 @@ pub(crate) fn grid_points(max_order: usize) -> usize {
 }
 
 /// Solves the joint CSRR equation for the binned sessions. See the module docs.
+///
+/// Every observable order up to [`JointOptions::max_order`] is fitted, or, with `only`, the
+/// observable ones among those. Then, if [`JointOptions::check_up_to`] is above the highest
+/// order, the residual `r_j` is projected per session on the orders above it,
+/// `z_k(h) = (2/W_k)·Σ_{j∈k} n_j r_j e^{−ihθ_j}` (by scatter and FFT, as in the solve), and
+/// `z_k = α − β·e^{−ihΔ_k}` is solved for the complex amplitudes `α, β` that sensor A's and B's
+/// errors would have at order `h` — the same 2×2 block as the fit's, whose inverse gives each
+/// amplitude the variance `2σ²W/(W² − |S_h|²)` per coefficient
+/// ([`super::observability::coefficient_variance`]). An order whose `α` or `β` passes the
+/// significance rule ([`crate::tdr::significance_threshold`] over the `2M` amplitudes of the `M`
+/// orders searched) is reported.
 pub(crate) fn solve(
     sessions: &[SessionData],
     opts: &JointOptions,
+    only: Option<&[usize]>,
 ) -> Result<JointSolution, CsrrError> {
     if sessions.len() < 2 {
         return Err(CsrrError::TooFewSessions {
@@ -418,7 +448,7 @@ pub(crate) fn solve(
                 order: h,
                 observability: q,
             });
-        } else {
+        } else if only.is_none_or(|o| o.contains(&h)) {
             orders.push(h);
         }
     }
@@ -517,18 +547,20 @@ pub(crate) fn solve(
         .flat_map(|s| &s.bins)
         .map(|b| b.d_var_sum)
         .sum();
-    let between: f64 = (0..m)
-        .map(|j| {
-            let model =
-                (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
-            n[j] * (d[j] - model).powi(2)
-        })
-        .sum();
+    for j in 0..m {
+        let model = (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
+        residual[j] = d[j] - model;
+    }
+    let between: f64 = n.iter().zip(&residual).map(|(n, r)| n * r * r).sum();
     let residual_rms = ((between + within) / total).sqrt();
     let noise_rms = (between / m.saturating_sub(4 * l + k_count).max(1) as f64).sqrt();
     if !residual_rms.is_finite() {
         return Err(CsrrError::NotFinite);
     }
+
+    let unresolved = residual_structure(
+        opts, &ranges, &theta_a, &n, &residual, &deltas, &weights, noise_rms,
+    );
 
     let mut a = FourierSeries::zeros(opts.max_order);
     let mut b = FourierSeries::zeros(opts.max_order);
@@ -545,10 +577,94 @@ pub(crate) fn solve(
         excluded,
         residual_rms,
         noise_rms,
+        unresolved,
         iterations,
         steps,
         converged,
     })
+}
+
+/// The orders above the fitted ones that the residual holds (see [`solve`]).
+#[allow(clippy::too_many_arguments)]
+fn residual_structure(
+    opts: &JointOptions,
+    ranges: &[std::ops::Range<usize>],
+    theta: &[f64],
+    n: &[f64],
+    residual: &[f64],
+    deltas: &[f64],
+    weights: &[f64],
+    sigma: f64,
+) -> Vec<UnresolvedOrder> {
+    let (lo, hi) = (opts.max_order + 1, opts.check_up_to);
+    if hi < lo || sigma <= 0.0 {
+        return Vec::new();
+    }
+    let grid = grid_points(hi);
+    let mut fft = GridTransform::new(grid);
+    let mut q = vec![0.0; grid];
+    let tested: Vec<usize> = (lo..=hi).collect();
+    // z[k][i]: session k's projection on order tested[i], as (re, im).
+    let z: Vec<Vec<(f64, f64)>> = ranges
+        .iter()
+        .zip(weights)
+        .map(|(range, &w)| {
+            let st = Stencils::new(theta[range.clone()].iter().copied(), grid);
+            let values: Vec<f64> = n[range.clone()]
+                .iter()
+                .zip(&residual[range.clone()])
+                .map(|(n, r)| n * r)
+                .collect();
+            q.fill(0.0);
+            st.scatter(&values, &mut q);
+            let (mut c, mut s) = (vec![0.0; tested.len()], vec![0.0; tested.len()]);
+            fft.analyze_transpose(&mut q, &tested, &mut c, &mut s);
+            c.iter()
+                .zip(&s)
+                .map(|(c, s)| (2.0 * c / w, -2.0 * s / w))
+                .collect()
+        })
+        .collect();
+    let centred: Vec<f64> = deltas.iter().map(|d| d - deltas[0]).collect();
+    let threshold = crate::tdr::significance_threshold(2 * tested.len());
+    let w: f64 = weights.iter().sum();
+    let mut found = Vec::new();
+    for (i, &h) in tested.iter().enumerate() {
+        if observability(h, &centred, weights) < opts.min_observability {
+            continue;
+        }
+        // Weighted least squares of z_k = α − β·u_k, u_k = e^{−ihΔ_k}:
+        // [[W, −S], [−S̄, W]]·[α; β] = [Σ W_k z_k; −Σ W_k ū_k z_k], S = Σ W_k u_k.
+        let (mut s, mut p, mut r) = ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0));
+        for (k, &wk) in weights.iter().enumerate() {
+            let (sn, cs) = (h as f64 * centred[k]).sin_cos();
+            let u = (cs, -sn);
+            let zk = z[k][i];
+            s = (s.0 + wk * u.0, s.1 + wk * u.1);
+            p = (p.0 + wk * zk.0, p.1 + wk * zk.1);
+            // −ū·z = −(u.0 − i u.1)(z.0 + i z.1)
+            r = (
+                r.0 - wk * (u.0 * zk.0 + u.1 * zk.1),
+                r.1 - wk * (u.0 * zk.1 - u.1 * zk.0),
+            );
+        }
+        let det = w * w - s.0 * s.0 - s.1 * s.1;
+        // α = (W·P + S·R)/det, β = (S̄·P + W·R)/det
+        let alpha = (
+            (w * p.0 + s.0 * r.0 - s.1 * r.1) / det,
+            (w * p.1 + s.0 * r.1 + s.1 * r.0) / det,
+        );
+        let beta = (
+            (s.0 * p.0 + s.1 * p.1 + w * r.0) / det,
+            (s.0 * p.1 - s.1 * p.0 + w * r.1) / det,
+        );
+        let var = coefficient_variance(h, &centred, weights, sigma);
+        let (a, b) = (alpha.0.hypot(alpha.1), beta.0.hypot(beta.1));
+        if a * a / var > threshold || b * b / var > threshold {
+            found.push(UnresolvedOrder { order: h, a, b });
+        }
+    }
+    found
 }
 
 /// The map of an error given as a function of the true angle, `ε(θ)`, as a function of the

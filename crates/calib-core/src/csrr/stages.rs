@@ -23,7 +23,7 @@ impl Binned {
 /// A joint solution.
 pub struct Solved {
     sol: joint::JointSolution,
-    max_order: usize,
+    screen: super::Screen,
 }
 
 /// Segmentation and binning of `(t, x, y)` readings with the default options.
@@ -50,20 +50,23 @@ pub fn stencils(binned: &Binned, max_order: usize) -> usize {
     a.len() + b.len()
 }
 
-/// The joint solve at `max_order`.
+/// The joint solve at `max_order` as [`super::Csrr`] makes it (with the significance screening
+/// and the residual check).
 pub fn solve(binned: &Binned, max_order: usize) -> Solved {
     let mut jopts = joint::JointOptions::with_max_order(max_order);
     jopts.min_observability = CsrrOptions::default().min_observability;
-    Solved {
-        sol: joint::solve(&binned.sessions, &jopts).expect("the bench's sessions solve"),
-        max_order,
-    }
+    jopts.check_up_to =
+        super::residual_check_order(super::densest_samples_per_rev(&binned.sessions));
+    let weights: Vec<f64> = binned.sessions.iter().map(|s| s.samples as f64).collect();
+    let (sol, screen) = super::fit_significant(&binned.sessions, &jopts, &weights)
+        .expect("the bench's sessions solve");
+    Solved { sol, screen }
 }
 
 /// The tables and their uncertainty from a solve (what [`super::Csrr::finish`] does after it);
 /// returns the median u of A's table, rad.
-pub fn uncertainty(binned: &Binned, solved: &Solved) -> f64 {
-    super::joint_maps(&binned.sessions, &solved.sol, solved.max_order, None)
+pub fn uncertainty(solved: &Solved) -> f64 {
+    super::joint_maps(&solved.sol, &solved.screen, None)
         .uncertainty
         .0
         .median()
