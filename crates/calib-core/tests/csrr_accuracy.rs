@@ -3,9 +3,10 @@
 //! `testdata/scenarios/csrr{72,84,90}.toml`), and the paper method's behaviour on dense-Δ runs.
 //!
 //! Tolerances: the per-sample noise is ~0.08″ RMS in `x − y` (two sensors' 0.05″ noise and
-//! 0.09″/√12 quantization); fitting ~4000 coefficients from ~47000 samples leaves a map error of
-//! ~0.03″ RMS, whose maximum over 10⁴–10⁵ grid points is ~4–5× that. Each bound below is the
-//! issue's bar; the measured figures are in the comments.
+//! 0.09″/√12 quantization); of the ~1000 orders tested the significance rule keeps the 6–16
+//! the sensors hold, whose coefficients from ~47000 samples leave a map error of ~0.002″ RMS
+//! (~0.03″ when every order was kept), its maximum over 10⁵ grid points ~4–5× that. Each bound
+//! below is the bar; the measured figures are in the comments.
 
 use calib_core::ErrorMap;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -108,20 +109,22 @@ fn check(file: &str, bar_arcsec: f64) {
     }
 }
 
-/// Bar 1: Table II's 72-pole-pair sensors, 1 % speed variation: ≤ 0.2″ (measured 0.083″/0.089″;
-/// the paper reports ±1.5″).
+/// Bar 1: Table II's 72-pole-pair sensors, 1 % speed variation: ≤ 0.2″ (measured 0.0048″/0.0049″,
+/// 0.083″/0.088″ with every order kept; the paper reports ±1.5″).
 #[test]
 fn table_ii_72_pole_pairs_within_0_2_arcsec() {
     check("csrr72.toml", 0.2);
 }
 
-/// Bar 2: 84 pole pairs at ±680″ with Table III's ε_θ: ≤ 1.0″ (measured 0.150″/0.128″; paper ±2″).
+/// Bar 2: 84 pole pairs at ±680″ with Table III's ε_θ: ≤ 1.0″ (measured 0.0135″/0.0074″, 0.087″/0.088″
+/// with every order kept; paper ±2″).
 #[test]
 fn table_iv_84_pole_pairs_at_680_arcsec_within_1_arcsec() {
     check("csrr84.toml", 1.0);
 }
 
-/// Bar 3: 90 pole pairs at ±250″, ε_θ sharing order 90: ≤ 0.3″ (measured 0.109″/0.102″; paper ±10″).
+/// Bar 3: 90 pole pairs at ±250″, ε_θ sharing order 90: ≤ 0.3″ (measured 0.0086″/0.0112″, 0.087″/0.073″
+/// with every order kept; paper ±10″).
 #[test]
 fn table_v_90_pole_pairs_sharing_order_90_within_0_3_arcsec() {
     check("csrr90.toml", 0.3);
