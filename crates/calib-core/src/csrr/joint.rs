@@ -408,8 +408,10 @@ pub(crate) fn grid_points(max_order: usize) -> usize {
 
 /// Solves the joint CSRR equation for the binned sessions. See the module docs.
 ///
-/// Every observable order up to [`JointOptions::max_order`] is fitted, or, with `only`, the
-/// observable ones among those. Then, if [`JointOptions::check_up_to`] is above the highest
+/// Every observable order up to [`JointOptions::max_order`] is fitted, or, with
+/// `refit = (orders, previous)`, the observable ones among `orders`, starting from `previous`'s
+/// coefficients and rotations (a fit of more orders to the same data: one or two Gauss–Newton
+/// steps then suffice). Then, if [`JointOptions::check_up_to`] is above the highest
 /// order, the residual `r_j` is projected per session on the orders above it,
 /// `z_k(h) = (2/W_k)·Σ_{j∈k} n_j r_j e^{−ihθ_j}` (by scatter and FFT, as in the solve), and
 /// `z_k = α − β·e^{−ihΔ_k}` is solved for the complex amplitudes `α, β` that sensor A's and B's
@@ -421,7 +423,7 @@ pub(crate) fn grid_points(max_order: usize) -> usize {
 pub(crate) fn solve(
     sessions: &[SessionData],
     opts: &JointOptions,
-    only: Option<&[usize]>,
+    refit: Option<(&[usize], &JointSolution)>,
 ) -> Result<JointSolution, CsrrError> {
     if sessions.len() < 2 {
         return Err(CsrrError::TooFewSessions {
@@ -448,7 +450,7 @@ pub(crate) fn solve(
                 order: h,
                 observability: q,
             });
-        } else if only.is_none_or(|o| o.contains(&h)) {
+        } else if refit.is_none_or(|(o, _)| o.contains(&h)) {
             orders.push(h);
         }
     }
@@ -458,7 +460,7 @@ pub(crate) fn solve(
         });
     }
 
-    let grid = grid_points(opts.max_order);
+    let grid = grid_points(*orders.last().expect("not empty"));
     let bins: Vec<_> = sessions.iter().flat_map(|s| s.bins.iter()).collect();
     let m = bins.len();
     let xs: Vec<f64> = bins.iter().map(|b| b.x).collect();
@@ -474,6 +476,15 @@ pub(crate) fn solve(
     let precond = Preconditioner::new(&orders, &centred, &weights);
     let l = orders.len();
     let (mut ca, mut sa, mut cb, mut sb) = (vec![0.0; l], vec![0.0; l], vec![0.0; l], vec![0.0; l]);
+    if let Some((_, previous)) = refit {
+        for (i, &h) in orders.iter().enumerate() {
+            ca[i] = previous.a.cos[h - 1];
+            sa[i] = previous.a.sin[h - 1];
+            cb[i] = previous.b.cos[h - 1];
+            sb[i] = previous.b.sin[h - 1];
+        }
+        deltas.clone_from(&previous.deltas);
+    }
     let mut eval_a = SeriesEval::new(orders.clone(), grid);
     let mut eval_b = SeriesEval::new(orders.clone(), grid);
     let mut iterations = 0;

@@ -521,7 +521,8 @@ fn finish_joint(
 
 /// The joint fit of the orders that stand above the noise: every observable order up to the
 /// highest is fitted, screened by the significance rule ([`screen_orders`]), and the kept
-/// orders fitted again alone. The solution's iterations and steps count both fits.
+/// orders fitted again alone, from the first fit's values. The solution's iterations and steps
+/// count both fits.
 fn fit_significant(
     sessions: &[SessionData],
     jopts: &JointOptions,
@@ -539,7 +540,7 @@ fn fit_significant(
         sol.b = FourierSeries::zeros(jopts.max_order);
         sol
     } else {
-        joint::solve(sessions, jopts, Some(&screen.kept))?
+        joint::solve(sessions, jopts, Some((&screen.kept, &screening)))?
     };
     if !screen.kept.is_empty() {
         sol.iterations += screening.iterations;
