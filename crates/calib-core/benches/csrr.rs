@@ -120,7 +120,7 @@ fn bench_stages(c: &mut Criterion, label: &str, readings: &[(f64, f64, f64)], ma
     group.bench_function(format!("solve/orders={max_order}"), |b| {
         b.iter(|| stages::solve(black_box(&binned), max_order))
     });
-    let solved = stages::solve(&binned, max_order);
+    let solved = stages::solve(&binned, max_order).expect("the bench scenario solves");
     group.bench_function(format!("uncertainty/orders={max_order}"), |b| {
         b.iter(|| stages::uncertainty(black_box(&solved)))
     });

@@ -5,7 +5,7 @@
 
 use super::bins::SessionBinner;
 use super::nufft::Stencils;
-use super::{CsrrOptions, SessionData, joint};
+use super::{CsrrError, CsrrOptions, SessionData, joint};
 use crate::segment::Segmenter;
 
 /// The sessions of a log reduced to bins.
@@ -52,15 +52,14 @@ pub fn stencils(binned: &Binned, max_order: usize) -> usize {
 
 /// The joint solve at `max_order` as [`super::Csrr`] makes it (with the significance screening
 /// and the residual check).
-pub fn solve(binned: &Binned, max_order: usize) -> Solved {
+pub fn solve(binned: &Binned, max_order: usize) -> Result<Solved, CsrrError> {
     let mut jopts = joint::JointOptions::with_max_order(max_order);
     jopts.min_observability = CsrrOptions::default().min_observability;
     jopts.check_up_to =
         super::residual_check_order(super::densest_samples_per_rev(&binned.sessions));
     let weights: Vec<f64> = binned.sessions.iter().map(|s| s.samples as f64).collect();
-    let (sol, screen) = super::fit_significant(&binned.sessions, &jopts, &weights)
-        .expect("the bench's sessions solve");
-    Solved { sol, screen }
+    let (sol, screen) = super::fit_significant(&binned.sessions, &jopts, &weights)?;
+    Ok(Solved { sol, screen })
 }
 
 /// The tables and their uncertainty from a solve (what [`super::Csrr::finish`] does after it);
