@@ -72,8 +72,11 @@ pub struct Args {
     /// The solver.
     #[arg(long, value_enum, default_value_t = MethodArg::Joint)]
     pub method: MethodArg,
-    /// Highest harmonic order fitted (default: from the samples per revolution, 40 % of the
-    /// sparsest session's).
+    /// Highest harmonic order tested (default: 40 % of the samples per revolution of the densest
+    /// session, at most 2000). Only orders whose amplitude stands above the noise are kept
+    /// (chi-square of A's or B's pair of coefficients above 2·ln(2M/0.01) for M orders tested:
+    /// for noise alone a 1 % chance that any passes), so a high value costs time, not accuracy;
+    /// orders above it that the residual still holds are warned about (joint method).
     #[arg(long)]
     pub max_order: Option<usize>,
     /// Points of the output tables (default: enough for linear interpolation to 0.01″, ≥ 3600).
