@@ -11,6 +11,8 @@ mod document;
 mod exit;
 mod input;
 mod output;
+#[cfg(test)]
+mod schema;
 mod summary;
 mod ui;
 

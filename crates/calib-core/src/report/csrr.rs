@@ -27,7 +27,7 @@ pub struct CsrrDetails {
     pub segments: usize,
     /// Orders left out: the sessions' relative rotations cannot separate them.
     pub excluded_orders: Vec<ExcludedOrderReport>,
-    /// Fitted orders whose observability is below [`ILL_CONDITIONED`] (joint solver).
+    /// Fitted orders whose observability is below 0.1 ([`ILL_CONDITIONED`]; joint solver).
     pub ill_conditioned_orders: Vec<usize>,
     /// Where one more session would help most.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -41,7 +41,8 @@ pub const SCHEMA_VERSION: u32 = 1;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Report {
-    /// The version of this report's shape ([`SCHEMA_VERSION`]).
+    /// The version of this report's shape: raised when a key is removed or renamed, or its
+    /// meaning or unit changes ([`SCHEMA_VERSION`]).
     pub schema_version: u32,
     /// Version of calib that wrote it.
     pub calib_version: String,
@@ -119,7 +120,7 @@ impl Report {
     }
 }
 
-/// The `details` of each method; which one a report holds is named by [`Report::method`].
+/// The `details` of each method; which one a report holds is named by its `method`.
 ///
 /// Written with its keys in alphabetical order at every depth, as `report.json` always had them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

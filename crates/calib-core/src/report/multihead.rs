@@ -43,7 +43,7 @@ pub struct MultiheadDetails {
     pub alignment: Option<super::Alignment>,
 }
 
-/// The multi-head solver ([`Method`]).
+/// The multi-head solver (as [`Method`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Solver {
@@ -53,7 +53,7 @@ pub enum Solver {
     Eda,
 }
 
-/// How a head's readings relate to its place on the scale ([`Readings`]).
+/// How a head's readings relate to its place on the scale (as [`Readings`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum HeadReadings {
