@@ -133,21 +133,21 @@ struct LogResult {
     /// `pass`, `fail` (a gate failed) or `error` (not calibrated).
     status: Status,
     /// Every calibrated channel, in report order.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     channels: Vec<ChannelFigures>,
     /// RMS of the fit's residuals, arcsec, for methods that fit.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     residual_rms_arcsec: Option<f64>,
     /// The report's warnings.
     warnings: Vec<String>,
     /// The gates that failed, one line each.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     gate_failures: Vec<String>,
     /// Why the log could not be calibrated.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     error: Option<String>,
     /// The files written, relative to `output`.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     files: Vec<String>,
     #[serde(skip)]
     exit_code: u8,

@@ -45,22 +45,33 @@ pub struct MinPasses {
     pub decreasing: u32,
 }
 
-/// The figures of ISO 230-2 (section 2 of the standard), arcsec.
+/// The figures of ISO 230-2, arcsec (as [`crate::reference_cal::Iso230_2`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
-#[allow(missing_docs)]
 pub struct Iso230_2Report {
+    /// Unidirectional systematic deviation E↑ (increasing readings).
     pub systematic_up_arcsec: Option<f64>,
+    /// Unidirectional systematic deviation E↓ (decreasing readings).
     pub systematic_down_arcsec: Option<f64>,
+    /// Bidirectional systematic deviation E.
     pub systematic_arcsec: Option<f64>,
+    /// Mean bidirectional positional deviation M.
     pub mean_bidirectional_arcsec: Option<f64>,
+    /// Reversal value B = max |B_i| (needs both directions).
     pub reversal_arcsec: Option<f64>,
+    /// Mean reversal value, increasing minus decreasing.
     pub mean_reversal_arcsec: Option<f64>,
+    /// Unidirectional repeatability R↑ = max 4 s_i↑.
     pub repeatability_up_arcsec: Option<f64>,
+    /// Unidirectional repeatability R↓ = max 4 s_i↓.
     pub repeatability_down_arcsec: Option<f64>,
+    /// Bidirectional repeatability R.
     pub repeatability_arcsec: Option<f64>,
+    /// Unidirectional accuracy A↑.
     pub accuracy_up_arcsec: Option<f64>,
+    /// Unidirectional accuracy A↓.
     pub accuracy_down_arcsec: Option<f64>,
+    /// Bidirectional accuracy A.
     pub accuracy_arcsec: Option<f64>,
 }
 

@@ -219,3 +219,94 @@ impl ShiftAngleResult {
             .fold(0.0, f64::max)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shift_angle::{Shift, StartFaceRow, calibrate};
+
+    /// Readings of a 6-face polygon at `shifts_deg`, every start face at every shift: the
+    /// encoder errs by 1.2″·sin(2θ + 0.4) + 0.5″·cos θ, the faces by a fixed pattern, each start
+    /// face has its own setup error, and every reading gets a deterministic ±`noise` (a
+    /// sequence with no structure at the method's orders) plus `outlier` at shift 0, face 2,
+    /// step 3.
+    fn readings(shifts_deg: &[f64], noise: f64, outlier: f64) -> Readings {
+        let n = 6;
+        let beta: Vec<f64> = [0.3, -0.6, 0.0, 0.6, -0.3, 0.0].to_vec();
+        let alpha = |deg: f64| {
+            let t = deg.to_radians();
+            1.2 * (2.0 * t + 0.4).sin() + 0.5 * t.cos()
+        };
+        let mut k = 0u32;
+        let mut jitter = move || {
+            k = k.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+            noise * ((k >> 16) as f64 / 32_768.0 - 1.0)
+        };
+        let shifts = shifts_deg
+            .iter()
+            .map(|&s| Shift {
+                shift_deg: s,
+                rows: (1..=n)
+                    .map(|j| StartFaceRow {
+                        start_face: j,
+                        readings_arcsec: (0..n)
+                            .map(|i| {
+                                let faces: f64 = (0..=i).map(|m| beta[(j - 1 + m) % n]).sum();
+                                let bad = if s == 0.0 && j == 2 && i == 2 {
+                                    outlier
+                                } else {
+                                    0.0
+                                };
+                                alpha(i as f64 * 60.0 + s) + faces + 0.1 * j as f64 + jitter() + bad
+                            })
+                            .collect(),
+                    })
+                    .collect(),
+            })
+            .collect();
+        Readings::new(n, shifts).unwrap()
+    }
+
+    #[test]
+    fn a_clean_uniform_measurement_has_harmonics_and_no_warnings() {
+        let r = readings(&[0.0, 20.0, 40.0], 0.01, 0.0);
+        let result = calibrate(&r, Method::Joint).unwrap();
+        let section = result.report_section(&r, None);
+        assert!(section.warnings.is_empty(), "{:?}", section.warnings);
+        let enc = &section.channels["encoder"];
+        assert_eq!(enc.points, 18);
+        // The map holds orders 1 and 2 (1.2″ at order 2, the largest).
+        assert_eq!(enc.harmonics[0].order, 2);
+        assert!((enc.harmonics[0].amplitude_arcsec - 1.2).abs() < 0.05);
+        assert!(result.max_u_fit().is_some());
+    }
+
+    #[test]
+    fn the_checks_are_warned_about() {
+        // One reading 1″ off with 0.01″ noise: far beyond 5σ̂, named by its place.
+        let r = readings(&[0.0, 20.0, 40.0], 0.01, 1.0);
+        let w = calibrate(&r, Method::Joint).unwrap().warnings(None);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("shift 0°, start face 2, step 3"), "{w:?}");
+
+        // Shifts not spread evenly over the 60° pitch: no harmonics, figures from the values.
+        let r = readings(&[0.0, 5.0], 0.01, 0.0);
+        let result = calibrate(&r, Method::Joint).unwrap();
+        let section = result.report_section(&r, None);
+        assert!(section.warnings[0].contains("not a uniform grid"));
+        let enc = &section.channels["encoder"];
+        assert!(enc.harmonics.is_empty());
+        let values: Vec<f64> = result.points.iter().map(|p| p.error_arcsec).collect();
+        let max = values.iter().copied().fold(f64::MIN, f64::max);
+        let min = values.iter().copied().fold(f64::MAX, f64::min);
+        assert_eq!(enc.peak_to_peak_arcsec, max - min);
+
+        // The paper's method gives no uncertainty per point, and without a budget none at all.
+        let r = readings(&[0.0, 20.0, 40.0], 0.01, 0.0);
+        let w = calibrate(&r, Method::Paper).unwrap().warnings(None);
+        assert!(
+            w.iter().any(|w| w.contains("has no uncertainties")),
+            "{w:?}"
+        );
+    }
+}
