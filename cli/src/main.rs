@@ -12,6 +12,8 @@ mod exit;
 mod input;
 mod method;
 mod output;
+#[cfg(test)]
+mod schema;
 mod summary;
 mod ui;
 

@@ -1,7 +1,7 @@
 //! `calib csrr`: self-calibration of two coaxial sensors.
 
 use crate::batch::{ChannelFigures, Outcome};
-use crate::document::csrr::{self as document, Comparisons};
+use crate::document::csrr as document;
 use crate::exit::Usage;
 use crate::input::{alignment_detail, alignment_text};
 use crate::method::{MethodArgs, for_each_sample};
@@ -11,10 +11,8 @@ use anyhow::Context;
 use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
-use calib_core::{ChannelReport, ErrorMap, Report, SessionReport};
+use calib_core::{ErrorMap, Report};
 use calib_report::trace::Trace;
-use serde_json::json;
-use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -232,24 +230,18 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             None => err,
         }
     })?;
-    let mut warnings = reader.warnings(log);
-    warnings.extend(cal.warnings.iter().cloned());
-
-    let mut report = build_report(args, log, &cal, warnings);
-    if let Some(a) = alignment_detail(&reader) {
-        report.details.insert("alignment".to_string(), a);
-    }
-    let json = calib_io::report::render_json(&report)?;
-    let comparisons = Comparisons {
-        truth: truth.as_ref().map(|(a, b)| (a, b)),
-    };
-    let doc = document::document(
-        (&args.a, &args.b),
-        &cal,
-        &report,
-        &trace.trace,
-        &comparisons,
+    let truth = truth.as_ref().map(|(a, b)| (a, b));
+    let section = cal
+        .report_section((&args.a, &args.b), args.reference.as_deref(), truth)
+        .with_alignment(alignment_detail(&reader));
+    let report = Report::new(
+        section,
+        vec![log.display().to_string()],
+        Some(crate::input::command_line()),
+        reader.warnings(log),
     );
+    let json = calib_io::report::render_json(&report)?;
+    let doc = document::document((&args.a, &args.b), &cal, &report, &trace.trace, truth);
     let files = write_tables_and_report(
         out,
         &[
@@ -270,17 +262,11 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let text = if args.common.json {
         json
     } else {
-        alignment_text(reader.alignment().as_ref())
-            + &render_summary(args, out, &cal, &report, &comparisons)
+        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
     };
-    let channels = [(&args.a, true), (&args.b, false)]
+    let channels = [&args.a, &args.b]
         .into_iter()
-        .map(|(name, a)| ChannelFigures {
-            channel: name.clone(),
-            peak_to_peak_before_arcsec: report.channels[name].peak_to_peak_arcsec,
-            peak_to_peak_after_arcsec: document::after_correction(&cal, &comparisons, a)
-                .map(|(_, pp)| pp),
-        })
+        .map(|name| ChannelFigures::of(name, &report.channels[name]))
         .collect();
     Ok(Outcome {
         text,
@@ -325,113 +311,7 @@ impl TraceRecorder {
     }
 }
 
-fn build_report(args: &Args, log: &Path, cal: &Calibration, warnings: Vec<String>) -> Report {
-    let mut channels = BTreeMap::new();
-    channels.insert(
-        args.a.clone(),
-        ChannelReport::of_map(&table_name(&args.a), &cal.a, 10),
-    );
-    channels.insert(
-        args.b.clone(),
-        ChannelReport::of_map(&table_name(&args.b), &cal.b, 10),
-    );
-    let sessions = cal
-        .sessions
-        .iter()
-        .map(|s| SessionReport {
-            index: s.index,
-            start_s: s.start_s,
-            end_s: s.end_s,
-            revolutions: s.revolutions,
-            relative_rotation_deg: s.relative_rotation.to_degrees(),
-        })
-        .collect();
-    let mut details = BTreeMap::new();
-    details.insert("solver".to_string(), json!(cal.method));
-    details.insert("max_order".to_string(), json!(cal.max_order));
-    if let Some((ua, ub)) = &cal.uncertainty {
-        details.insert(
-            "uncertainty".to_string(),
-            json!({
-                args.a.clone(): crate::document::uncertainty_json(ua),
-                args.b.clone(): crate::document::uncertainty_json(ub),
-            }),
-        );
-    }
-    details.insert(
-        "excluded_orders".to_string(),
-        json!(
-            cal.excluded
-                .iter()
-                .map(|e| json!({"order": e.order, "observability": e.observability}))
-                .collect::<Vec<_>>()
-        ),
-    );
-    if let Some(adv) = cal.advice {
-        details.insert(
-            "advice".to_string(),
-            json!({
-                "extra_relative_rotation_deg": adv.extra_rotation.to_degrees(),
-                "min_observability_after": adv.min_observability,
-            }),
-        );
-    }
-    if let Some(r) = cal.residual_rms {
-        details.insert("residual_rms_arcsec".to_string(), json!(r * ARCSEC_PER_RAD));
-        details.insert("iterations".to_string(), json!(cal.iterations));
-    }
-    details.insert(
-        "segments".to_string(),
-        json!(cal.segmentation.segments.len()),
-    );
-    if !cal.paper_points.is_empty() {
-        details.insert(
-            "paper_points".to_string(),
-            json!(
-                cal.paper_points
-                    .iter()
-                    .map(|p| json!({
-                        "delta_deg": p.delta.to_degrees(),
-                        "a_angle_deg": p.a_angle.to_degrees(),
-                        "a_error_arcsec": p.a_error * ARCSEC_PER_RAD,
-                        "b_angle_deg": p.b_angle.to_degrees(),
-                        "b_error_arcsec": p.b_error * ARCSEC_PER_RAD,
-                    }))
-                    .collect::<Vec<_>>()
-            ),
-        );
-    }
-    if let (Some(r), Some(name)) = (&cal.reference, &args.reference) {
-        details.insert(
-            "reference".to_string(),
-            json!({
-                "channel": name,
-                "a_max_difference_arcsec": r.a_max_diff_arcsec,
-                "b_max_difference_arcsec": r.b_max_diff_arcsec,
-                "sampling_nonuniformity": r.eps_theta,
-                "effective_range": r.effective_range,
-            }),
-        );
-    }
-    Report {
-        calib_version: env!("CARGO_PKG_VERSION").to_string(),
-        method: "csrr".to_string(),
-        inputs: vec![log.display().to_string()],
-        command_line: Some(crate::input::command_line()),
-        channels,
-        sessions,
-        warnings,
-        details,
-    }
-}
-
-fn render_summary(
-    args: &Args,
-    out: &Path,
-    cal: &Calibration,
-    report: &Report,
-    cmp: &Comparisons,
-) -> String {
+fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -> String {
     let mut o = String::new();
     let method = match cal.method {
         Method::Joint => "joint least squares",
@@ -533,7 +413,7 @@ fn render_summary(
     }
     o += &key_values(&facts);
     let mut t = TextTable::new(&["channel", "p-p before", "→ after", "rms", "largest orders"]);
-    for (name, a) in [(&args.a, true), (&args.b, false)] {
+    for name in [&args.a, &args.b] {
         let ch = &report.channels[name];
         let top: Vec<String> = ch
             .harmonics
@@ -541,8 +421,9 @@ fn render_summary(
             .take(3)
             .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
             .collect();
-        let after = document::after_correction(cal, cmp, a)
-            .map_or("—".to_string(), |(_, v)| format!("{v:.3}″"));
+        let after = ch.after_correction.as_ref().map_or("—".to_string(), |a| {
+            format!("{:.3}″", a.peak_to_peak_arcsec)
+        });
         t.row(vec![
             name.clone(),
             format!("{:.3}″", ch.peak_to_peak_arcsec),
@@ -552,7 +433,11 @@ fn render_summary(
         ]);
     }
     let _ = writeln!(o, "\n{}", t.render().trim_end());
-    if cmp.truth.is_none() && cal.reference.is_none() {
+    if report
+        .channels
+        .values()
+        .all(|c| c.after_correction.is_none())
+    {
         let _ = writeln!(
             o,
             "  (→ after: the error left after correction, known with --truth DIR or --ref NAME)"

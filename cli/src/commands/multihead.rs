@@ -4,16 +4,14 @@ use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
 use crate::input::{alignment_detail, alignment_text};
 use crate::method::{MethodArgs, for_each_sample};
-use crate::output::{table_name, write_tables_and_report};
+use crate::output::write_tables_and_report;
 use crate::summary::TextTable;
 use anyhow::Context;
+use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::multihead::{
     Head, Method, Multihead, MultiheadCalibration, MultiheadOptions, Readings,
 };
-use calib_core::{ChannelReport, ErrorMap, Report};
-use serde_json::json;
-use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::Path;
 
@@ -243,14 +241,14 @@ fn calibrate(
                 .join(", ")
         )
     })?;
-    let mut warnings = reader.warnings(log);
-    warnings.extend(cal.warnings.iter().cloned());
-
     let first = &heads[0].name;
-    let mut report = build_report(log, heads, &cal, warnings);
-    if let Some(a) = alignment_detail(&reader) {
-        report.details.insert("alignment".to_string(), a);
-    }
+    let report = Report::new(
+        cal.report_section(heads)
+            .with_alignment(alignment_detail(&reader)),
+        vec![log.display().to_string()],
+        Some(crate::input::command_line()),
+        reader.warnings(log),
+    );
     let json = calib_io::report::render_json(&report)?;
     let files = write_tables_and_report(
         out,
@@ -266,11 +264,7 @@ fn calibrate(
     };
     Ok(Outcome {
         text,
-        channels: vec![ChannelFigures {
-            channel: first.clone(),
-            peak_to_peak_before_arcsec: report.channels[first].peak_to_peak_arcsec,
-            peak_to_peak_after_arcsec: None,
-        }],
+        channels: vec![ChannelFigures::of(first, &report.channels[first])],
         residual_rms_arcsec: cal.residual_rms.map(|r| r * ARCSEC_PER_RAD),
         warnings: report.warnings,
         files,
@@ -288,92 +282,6 @@ fn readings_name(r: Option<Readings>) -> &'static str {
 /// A set's heads by name.
 fn set_names(set: &[usize], heads: &[Head]) -> Vec<String> {
     set.iter().map(|&j| heads[j].name.clone()).collect()
-}
-
-fn build_report(
-    log: &Path,
-    heads: &[Head],
-    cal: &MultiheadCalibration,
-    warnings: Vec<String>,
-) -> Report {
-    let first = &heads[0].name;
-    let mut channels = BTreeMap::new();
-    channels.insert(
-        first.clone(),
-        ChannelReport::of_map(&table_name(first), &cal.map, 10),
-    );
-    let arcsec = |v: Option<f64>| v.map(|v| v * ARCSEC_PER_RAD);
-    let mut details = BTreeMap::new();
-    details.insert("solver".to_string(), json!(cal.method));
-    details.insert(
-        "heads".to_string(),
-        json!(
-            heads
-                .iter()
-                .zip(&cal.heads)
-                .map(|(given, est)| json!({
-                    "name": est.name,
-                    "nominal_deg": given.nominal.to_degrees(),
-                    "nominal_from_first_deg": est.nominal.to_degrees(),
-                    "angle_error_arcsec": est.angle_error * ARCSEC_PER_RAD,
-                    "readings": est.readings,
-                    "residual_rms_arcsec": arcsec(est.residual_rms),
-                    "noise_rms_arcsec": arcsec(est.noise_rms),
-                }))
-                .collect::<Vec<_>>()
-        ),
-    );
-    details.insert("max_order".to_string(), json!(cal.max_order));
-    details.insert(
-        "uncertainty".to_string(),
-        json!({ heads[0].name.clone(): crate::document::uncertainty_json(&cal.uncertainty) }),
-    );
-    details.insert("bins_per_revolution".to_string(), json!(cal.bins));
-    details.insert(
-        "blind_orders".to_string(),
-        json!(cal.blind.iter().map(|e| e.order).collect::<Vec<_>>()),
-    );
-    details.insert(
-        "ill_conditioned_orders".to_string(),
-        json!(cal.ill_conditioned),
-    );
-    details.insert(
-        "residual_rms_arcsec".to_string(),
-        json!(arcsec(cal.residual_rms)),
-    );
-    details.insert("iterations".to_string(), json!(cal.iterations));
-    details.insert("samples".to_string(), json!(cal.samples));
-    details.insert("skipped_samples".to_string(), json!(cal.skipped));
-    details.insert("revolutions".to_string(), json!(cal.revolutions));
-    if !cal.sets.is_empty() {
-        let points = cal.map.len();
-        details.insert(
-            "sets".to_string(),
-            json!(
-                cal.sets
-                    .iter()
-                    .map(|s| {
-                        let map = ErrorMap::from_series(&s.series, points);
-                        json!({
-                            "heads": set_names(&s.heads, heads),
-                            "blind_to_multiples_of": s.heads.len(),
-                            "peak_to_peak_arcsec": map.peak_to_peak() * ARCSEC_PER_RAD,
-                        })
-                    })
-                    .collect::<Vec<_>>()
-            ),
-        );
-    }
-    Report {
-        calib_version: env!("CARGO_PKG_VERSION").to_string(),
-        method: "multihead".to_string(),
-        inputs: vec![log.display().to_string()],
-        command_line: Some(crate::input::command_line()),
-        channels,
-        sessions: Vec::new(),
-        warnings,
-        details,
-    }
 }
 
 /// Orders as `84, 168, …` (the first 12, then how many more), or `none`.
