@@ -311,6 +311,20 @@ impl TraceRecorder {
     }
 }
 
+/// The orders line of the summaries: the range tested, how many of them the significance rule
+/// kept (joint solver) and how many the sessions cannot see.
+pub(crate) fn orders_text(cal: &Calibration) -> String {
+    match cal.method {
+        Method::Joint => format!(
+            "1–{} tested, {} kept above the noise, {} left out",
+            cal.max_order,
+            cal.orders.len(),
+            cal.excluded.len()
+        ),
+        Method::Paper => format!("1–{} ({} left out)", cal.max_order, cal.excluded.len()),
+    }
+}
+
 fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -> String {
     let mut o = String::new();
     let method = match cal.method {
@@ -350,10 +364,7 @@ fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -
     )];
     match cal.residual_rms {
         Some(r) => {
-            facts.push((
-                "orders fitted",
-                format!("1–{} ({} left out)", cal.max_order, cal.excluded.len()),
-            ));
+            facts.push(("orders", orders_text(cal)));
             facts.push((
                 "fit residual",
                 format!(

@@ -129,8 +129,8 @@ fn summary(names: (&str, &str), cal: &Calibration, report: &Report) -> Section {
         .row(["solver".to_string(), solver.to_string()])
         .row(["sessions used".to_string(), cal.sessions.len().to_string()])
         .row([
-            "orders fitted".to_string(),
-            format!("1–{} ({} left out)", cal.max_order, cal.excluded.len()),
+            "orders".to_string(),
+            crate::commands::csrr::orders_text(cal),
         ]);
     if let Some(r) = cal.residual_rms {
         t = t

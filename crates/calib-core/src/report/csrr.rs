@@ -21,8 +21,16 @@ pub const ILL_CONDITIONED: f64 = 0.1;
 pub struct CsrrDetails {
     /// The solver: `joint` or `paper`.
     pub solver: Method,
-    /// Highest harmonic order fitted.
+    /// Highest harmonic order tested.
     pub max_order: usize,
+    /// The orders the maps hold: those up to `max_order` that stand above the noise by the
+    /// significance rule (joint solver; `docs/uncertainty.md`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub orders_kept: Vec<usize>,
+    /// Orders above `max_order` where the residual still holds periodic structure above the
+    /// noise (joint solver), with the amplitudes A's and B's errors would have there.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unresolved_orders: Vec<UnresolvedOrderReport>,
     /// Segments the log was cut into (moving, stopped, sessions).
     pub segments: usize,
     /// Orders left out: the sessions' relative rotations cannot separate them.
@@ -50,6 +58,18 @@ pub struct CsrrDetails {
     /// How the channels were aligned on one clock, where anything was interpolated or dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<super::Alignment>,
+}
+
+/// Periodic structure the residual holds above the orders tested.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct UnresolvedOrderReport {
+    /// The order.
+    pub order: usize,
+    /// The amplitude A's error would have at that order, arcsec.
+    pub a_arcsec: f64,
+    /// The amplitude B's error would have at that order, arcsec.
+    pub b_arcsec: f64,
 }
 
 /// An order left out of the maps.
@@ -113,7 +133,9 @@ impl Calibration {
         }
         let deltas: Vec<f64> = self.sessions.iter().map(|s| s.absolute_rotation).collect();
         let weights: Vec<f64> = self.sessions.iter().map(|s| s.samples as f64).collect();
-        (1..=self.max_order)
+        self.orders
+            .iter()
+            .copied()
             .filter(|h| !self.excluded.iter().any(|e| e.order == *h))
             .filter(|&h| observability(h, &deltas, &weights) < ILL_CONDITIONED)
             .collect()
@@ -171,6 +193,16 @@ impl Calibration {
         let details = CsrrDetails {
             solver: self.method,
             max_order: self.max_order,
+            orders_kept: self.orders.clone(),
+            unresolved_orders: self
+                .unresolved
+                .iter()
+                .map(|u| UnresolvedOrderReport {
+                    order: u.order,
+                    a_arcsec: arcsec(u.a),
+                    b_arcsec: arcsec(u.b),
+                })
+                .collect(),
             segments: self.segmentation.segments.len(),
             excluded_orders: self
                 .excluded
