@@ -50,11 +50,16 @@ use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, Summar
 
 use super::JOINT_STATE_SCHEMA;
 use super::cdr::{JointState, Scalar};
+use super::chunks;
 use super::json;
 use super::records::{self, StreamError};
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::naming::{ChannelName, names_of};
 use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource, Truncation};
+
+/// Chunks a file's summary must list for them to be read on worker threads: a file of one chunk
+/// gains nothing from it, and a small log should not pay for starting threads.
+pub const PARALLEL_CHUNKS: usize = 2;
 
 /// Messages the peek pass reads on after every topic has shown itself, gathering the joints of
 /// topics whose messages carry subsets of them: several hundred messages of each of a few
@@ -166,6 +171,11 @@ pub struct McapReader {
     done: bool,
     /// An error was yielded: the iteration is over.
     failed: bool,
+    /// Reading chunks in parallel: the file, for the streaming reader to take over with.
+    reopen: Option<File>,
+    skip_damaged: bool,
+    /// Messages the streaming reader skips after taking over: those handed on already.
+    skip: u64,
 }
 
 /// Read buffer of the stream: large enough that reading costs few system calls, small against
@@ -205,6 +215,29 @@ fn stream(mut file: File, len: u64, skip_damaged: bool) -> io::Result<(Stream, A
         records::Stream::new(source, options, skip_damaged),
         consumed,
     ))
+}
+
+/// The stream of the whole file: its chunks decompressed on worker threads where the summary
+/// lists at least [`PARALLEL_CHUNKS`] of them (see [`super::chunks`]), else the streaming reader.
+/// With the first, a second handle on the file for the streaming reader to take over with.
+fn main_stream(
+    file: File,
+    len: u64,
+    skip_damaged: bool,
+    chunks: usize,
+) -> io::Result<(Stream, Arc<AtomicU64>, Option<File>)> {
+    let spare = (chunks >= PARALLEL_CHUNKS)
+        .then(|| file.try_clone().ok())
+        .flatten();
+    if let Some(spare) = spare {
+        let consumed = Arc::new(AtomicU64::new(0));
+        let workers = chunks::workers();
+        if let Some(chunked) = chunks::Chunked::new(spare, len, Arc::clone(&consumed), workers) {
+            return Ok((records::Stream::chunked(chunked), consumed, Some(file)));
+        }
+    }
+    let (stream, consumed) = stream(file, len, skip_damaged)?;
+    Ok((stream, consumed, None))
 }
 
 /// The file's summary as the `mcap` crate reads it (chunk indexes and statistics, which `calib
@@ -450,6 +483,16 @@ impl McapReader {
     /// Errors if the file cannot be read, is empty, is not MCAP, holds no JointState or JSON
     /// topic, names the same channel on two topics, or its first message of a topic is bad.
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
+        Self::open_with(path, opts, PARALLEL_CHUNKS)
+    }
+
+    /// [`open`](Self::open), reading the chunks on worker threads where the summary lists at
+    /// least `parallel_chunks` of them.
+    pub(crate) fn open_with(
+        path: &Path,
+        opts: &ReadOptions,
+        parallel_chunks: usize,
+    ) -> Result<Self, Error> {
         let io = |source| Error::Io {
             path: path.to_path_buf(),
             source,
@@ -490,8 +533,13 @@ impl McapReader {
             ignored_stats: Vec::new(),
         };
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
-        let expected = records::read_summary(&mut file, len)
-            .map(|summary| expected_topics(&summary, &mut registry));
+        let summary = records::read_summary(&mut file, len);
+        let chunk_count = summary
+            .as_ref()
+            .map_or(0, |s| s.chunks)
+            .checked_sub(parallel_chunks)
+            .map_or(0, |_| PARALLEL_CHUNKS);
+        let expected = summary.map(|summary| expected_topics(&summary, &mut registry));
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut messages = 0u64;
         let mut damage = None;
@@ -541,7 +589,10 @@ impl McapReader {
                 }
             }
             skipped = peek.damaged().to_vec();
-            file = peek.into_inner().file.into_inner();
+            file = match peek.into_inner() {
+                Some(source) => source.file.into_inner(),
+                None => File::open(path).map_err(io)?,
+            };
         }
         if registry.topics.is_empty() {
             if !skipped.is_empty() {
@@ -631,7 +682,8 @@ impl McapReader {
                 });
             }
         }
-        let (stream, consumed) = stream(file, len, opts.skip_damaged).map_err(io)?;
+        let (stream, consumed, reopen) =
+            main_stream(file, len, opts.skip_damaged, chunk_count).map_err(io)?;
         let width = all_channels.len();
         let mut reader = McapReader {
             path: path.to_path_buf(),
@@ -652,6 +704,9 @@ impl McapReader {
             diagnostics: ReadDiagnostics::default(),
             done: false,
             failed: false,
+            reopen,
+            skip_damaged: opts.skip_damaged,
+            skip: 0,
         };
         let all: Vec<usize> = (0..width).collect();
         reader.select(&all, AlignOptions::default());
@@ -765,6 +820,24 @@ impl McapReader {
         Ok(self.aligner.pop())
     }
 
+    /// Hands reading over from the chunks read in parallel to the streaming reader, from the
+    /// start of the file, which skips the messages handed on already (see [`super::chunks`]).
+    fn take_over(&mut self) -> Result<(), Error> {
+        let io = |source| Error::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let file = match self.reopen.take() {
+            Some(file) => file,
+            None => File::open(&self.path).map_err(io)?,
+        };
+        let (stream, consumed) = stream(file, self.len, self.skip_damaged).map_err(io)?;
+        self.stream = Box::new(stream);
+        self.consumed = consumed;
+        self.skip = self.index;
+        Ok(())
+    }
+
     /// Records where reading stopped if the data section is cut short; whether it is.
     fn note_truncation(&mut self) -> bool {
         // Reading stopped at the first incomplete record, or inside it (a chunk cut short)
@@ -807,7 +880,19 @@ impl Iterator for McapReader {
                     // Chunks are held until checked: where this message's bytes ended is where
                     // the reader was when it gave the message, not where the check got to.
                     self.consumed_at_last = self.stream.consumed_at_last();
+                    if self.skip > 0 {
+                        self.skip -= 1;
+                        continue;
+                    }
                     message
+                }
+                Some(Err(StreamError::Fallback)) => {
+                    if let Err(e) = self.take_over() {
+                        self.finish();
+                        self.failed = true;
+                        return Some(Err(e));
+                    }
+                    continue;
                 }
                 None => {
                     self.finish();
