@@ -869,7 +869,10 @@ impl Iterator for McapReader {
             return None;
         }
         loop {
-            if let Some(sample) = self.aligner.pop() {
+            // The fast path leaves the aligner empty.
+            if !self.fast
+                && let Some(sample) = self.aligner.pop()
+            {
                 return Some(Ok(sample));
             }
             if self.done {
@@ -930,7 +933,9 @@ impl Iterator for McapReader {
             };
             let index = self.index;
             self.index += 1;
-            match self.step(&message, index) {
+            let stepped = self.step(&message, index);
+            self.stream.recycle(message);
+            match stepped {
                 Ok(Some(sample)) => return Some(Ok(sample)),
                 Ok(None) => {}
                 Err(e) => {

@@ -317,6 +317,8 @@ pub(crate) struct Stream<R> {
     by_id: Vec<Option<Arc<mcap::Channel<'static>>>>,
     /// `Checked::consumed_at_last` when the last message was handed on.
     consumed_at_message: u64,
+    /// A message's data buffer given back by the caller, to hold the next one's.
+    spare: Vec<u8>,
     done: bool,
 }
 
@@ -341,6 +343,7 @@ impl<R: Read> Stream<R> {
             channels: ChannelAccumulator::default(),
             by_id: Vec::new(),
             consumed_at_message: 0,
+            spare: Vec::new(),
             done: false,
         }
     }
@@ -365,6 +368,14 @@ impl<R: Read> Stream<R> {
     /// streaming reader: where a truncated file's readable data ends).
     pub(crate) fn consumed_at_last(&self) -> u64 {
         self.consumed_at_message
+    }
+
+    /// Takes back a message handed on, whose data buffer then holds the next message's: no
+    /// allocation per message.
+    pub(crate) fn recycle(&mut self, message: Message<'static>) {
+        if let Cow::Owned(data) = message.data {
+            self.spare = data;
+        }
     }
 
     fn next_message(&mut self) -> Option<Result<Message<'static>, StreamError>> {
@@ -412,7 +423,12 @@ impl<R: Read> Stream<R> {
                     sequence,
                     log_time: u64_at(6),
                     publish_time: u64_at(14),
-                    data: Cow::Owned(data[MESSAGE_HEADER..].to_vec()),
+                    data: Cow::Owned({
+                        let mut buffer = std::mem::take(&mut self.spare);
+                        buffer.clear();
+                        buffer.extend_from_slice(&data[MESSAGE_HEADER..]);
+                        buffer
+                    }),
                 }));
             }
             let record = match mcap::parse_record(opcode, data) {
