@@ -33,11 +33,7 @@ use std::thread::JoinHandle;
 
 use mcap::records::op;
 
-/// The largest chunk read on a worker, in bytes, compressed or decompressed: 16 MiB, sixteen
-/// times the chunks the `mcap` and ROS 2 writers close by default. Larger chunks are read by the
-/// streaming reader, which holds only part of a chunk at a time, so that a file claiming huge
-/// chunks costs no memory for them.
-pub const MAX_PARALLEL_CHUNK_BYTES: usize = 16 << 20;
+use crate::limits::MAX_PARALLEL_CHUNK_BYTES;
 
 /// Chunks decompressed ahead per worker: one being handed on while the next is decompressed.
 pub const AHEAD: usize = 2;

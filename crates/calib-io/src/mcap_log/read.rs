@@ -33,6 +33,12 @@
 //! stream stops at the data end record, so a damaged or missing summary does not stop reading
 //! the data.
 //!
+//! Where the summary's chunk index lists [`PARALLEL_CHUNKS`] chunks or more, each lying within
+//! the data section, the chunks are decompressed and checked on worker threads instead, and
+//! their records handed on in the same order ([`super::chunks`]); at the first irregularity the
+//! streaming reader reads the file again from its start, skipping the messages already handed
+//! on, so that every message, error and recovery is the streaming reader's.
+//!
 //! # Truncation
 //! [`Truncation::byte_offset`] is where reading stopped (see the [`mcap_log`](super) docs): the
 //! larger of the first incomplete top-level record's start and the bytes handed to the stream
@@ -832,7 +838,7 @@ impl McapReader {
             None => File::open(&self.path).map_err(io)?,
         };
         let (stream, consumed) = stream(file, self.len, self.skip_damaged).map_err(io)?;
-        self.stream = Box::new(stream);
+        *self.stream = stream;
         self.consumed = consumed;
         self.skip = self.index;
         Ok(())

@@ -301,12 +301,13 @@ impl<R: Read> Checked<R> {
     }
 }
 
-/// Where a [`Stream`]'s records come from.
+/// Where a [`Stream`]'s records come from. Unboxed: the stream itself lives boxed.
+#[allow(clippy::large_enum_variant)]
 enum Records<R> {
     /// The streaming reader, and the record it last handed on.
     Linear(Checked<R>, Vec<u8>),
     /// Chunks decompressed on worker threads.
-    Chunked(Box<Chunked>),
+    Chunked(Chunked),
 }
 
 /// A stream of messages from an MCAP file's data section, to its data end record.
@@ -334,7 +335,7 @@ impl<R: Read> Stream<R> {
     /// Chunks decompressed on worker threads ([`Chunked`]); its [`Fallback`] is the stream's
     /// [`StreamError::Fallback`].
     pub(crate) fn chunked(chunked: Chunked) -> Self {
-        Self::over(Records::Chunked(Box::new(chunked)))
+        Self::over(Records::Chunked(chunked))
     }
 
     fn over(records: Records<R>) -> Self {
