@@ -80,7 +80,8 @@ pub fn open_selected(
     log: &LogArgs,
     names: &[&str],
 ) -> anyhow::Result<LogReader> {
-    let (read, align) = log.options(unit)?;
+    let (mut read, align) = log.options(unit)?;
+    read.fields = names.iter().map(|n| n.to_string()).collect();
     let mut reader = open_log_with(path, read)?;
     let indices = names
         .iter()
@@ -179,8 +180,25 @@ pub fn check_log_path(path: &Path) -> Result<(), Usage> {
              metadata.yaml or .db3 files); name the .csv or .mcap file inside it, or the bag \
              directory"
         ))),
+        Ok(meta) if meta.is_file() && is_ros1_bag(path) => Err(Usage(format!(
+            "{shown}: this is a ROS 1 bag, which calib does not read directly; convert it to \
+             MCAP with the mcap CLI (`mcap convert {shown} run.mcap`) and give calib the .mcap \
+             file: its JointState topics (ros1 encoding) are read as they are"
+        ))),
         _ => Ok(()),
     }
+}
+
+/// Whether the file at `path` starts as a ROS 1 bag does (`#ROSBAG V2.0`). calib does not read
+/// them: the one Rust reader (the `rosbag` crate: two releases since 2022, ~150 downloads a
+/// month, ROS 1 itself at end of life) is not one to depend on, and `mcap convert` turns a bag
+/// into an MCAP file calib reads.
+fn is_ros1_bag(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 7];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| &head == b"#ROSBAG")
 }
 
 /// Opens a log for reading.

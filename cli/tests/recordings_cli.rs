@@ -8,7 +8,7 @@ use calib_core::{AngleUnit, Channel, ErrorMap, Sample};
 use calib_io::mcap_log::McapWriter;
 use common::*;
 use serde_json::Value;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The simulator runs this many times faster than the sensors publish, so that each sensor can
 /// be sampled at its own instants: offsets and jitter are whole 24ths of the sample period.
@@ -301,10 +301,17 @@ fn lab_csv_with_semicolons_metadata_and_a_time_unit_is_read() {
 ///   B 0.9 ms and the reference 1.6 ms after A.
 /// - `testdata/csv/lab-export.csv`: a TwinCAT-Scope-like export: three metadata lines and a blank
 ///   one, then `Time [ms];enc_a;enc_b` and 400 rows 2.5 ms apart, `;`-separated.
+/// - `testdata/mcap/fields.mcap`: the first 200 samples of `quick.toml`'s run as
+///   `my_robot/msg/MotorState` messages (see [`write_field_run`]).
+/// - `testdata/mcap/ros1.mcap`: `quick.toml`'s run as `mcap convert` makes of a ROS 1 bag (see
+///   [`write_ros1_run`]).
 #[test]
 #[ignore = "writes the committed fixtures"]
 fn make_fixtures() {
     write_small_run(&clocks());
+    write_ros1_run(&ros1());
+    let samples = scenario_samples("quick.toml").into_iter().take(200);
+    write_field_run(&fields(), samples);
     let mut csv = String::from(
         "Scope Project;calib fixture\nExported;2026-12-01 14:00:00\nSample time;2.5 ms\n\nTime [ms];enc_a;enc_b\n",
     );
@@ -337,4 +344,509 @@ fn write_small_run(path: &Path) {
         }
     }
     writer.finish().unwrap();
+}
+
+/// The committed ROS 1 fixture (see [`write_ros1_run`]).
+fn ros1() -> PathBuf {
+    testdata("mcap/ros1.mcap")
+}
+
+/// The `ros1msg` schema `mcap convert` stores for `sensor_msgs/JointState`.
+const ROS1_JOINT_STATE: &str = "Header header
+string[] name
+float64[] position
+float64[] velocity
+float64[] effort
+
+================================================================================
+MSG: std_msgs/Header
+uint32 seq
+time stamp
+string frame_id
+";
+
+/// A ROS 1 `sensor_msgs/JointState` in the ROS 1 wire format: little-endian, no padding,
+/// strings without NUL, the header `seq`, `stamp` (`uint32 secs, nsecs`) and `frame_id`
+/// (`enc`, three bytes: everything after it is off any 4-byte boundary).
+fn ros1_joint_state(seq: u32, stamp_ns: u64, names: &[&str], positions: &[f64]) -> Vec<u8> {
+    let mut b = Vec::new();
+    let string = |b: &mut Vec<u8>, s: &str| {
+        b.extend_from_slice(&(s.len() as u32).to_le_bytes());
+        b.extend_from_slice(s.as_bytes());
+    };
+    b.extend_from_slice(&seq.to_le_bytes());
+    b.extend_from_slice(&((stamp_ns / 1_000_000_000) as u32).to_le_bytes());
+    b.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
+    string(&mut b, "enc");
+    b.extend_from_slice(&(names.len() as u32).to_le_bytes());
+    for n in names {
+        string(&mut b, n);
+    }
+    b.extend_from_slice(&(positions.len() as u32).to_le_bytes());
+    for p in positions {
+        b.extend_from_slice(&p.to_le_bytes());
+    }
+    b.extend_from_slice(&0u32.to_le_bytes());
+    b.extend_from_slice(&0u32.to_le_bytes());
+    b
+}
+
+/// A stamp in nanoseconds as `McapWriter` rounds it: whole seconds, then the fraction to the
+/// nanosecond.
+fn ns(t: f64) -> u64 {
+    let sec = t.floor();
+    sec as u64 * 1_000_000_000 + ((t - sec) * 1e9).round() as u64
+}
+
+/// Writes `quick.toml`'s run (3301 samples of `a` and `b`) to `path` as `mcap convert` makes of
+/// a ROS 1 bag: schema `sensor_msgs/JointState` (`ros1msg`), message encoding `ros1`, one
+/// message per sample on `/joint_states`, header stamp and log time the sample's time (whole
+/// nanoseconds, as `calib simulate` writes them).
+fn write_ros1_run(path: &Path) {
+    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
+    let sc: Scenario = toml::from_str(&text).unwrap();
+    let names = sc.channels();
+    assert_eq!((names[0].name.as_str(), names[1].name.as_str()), ("a", "b"));
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            "sensor_msgs/JointState",
+            "ros1msg",
+            ROS1_JOINT_STATE.as_bytes(),
+        )
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/joint_states", "ros1", &Default::default())
+        .unwrap();
+    for (n, sample) in sc.samples().unwrap().enumerate() {
+        let t = ns(sample.t);
+        let data = ros1_joint_state(n as u32, t, &["a", "b"], &sample.values[..2]);
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: n as u32,
+            log_time: t,
+            publish_time: t,
+        };
+        writer.write_to_known_channel(&header, &data).unwrap();
+    }
+    writer.finish().unwrap();
+}
+
+/// The largest |difference| of the error column between two tables on the same grid, arcsec.
+fn table_difference(want: &Path, got: &Path) -> f64 {
+    let (w, g) = (read_table(want), read_table(got));
+    assert_eq!(w.len(), g.len(), "{}", got.display());
+    w.iter()
+        .zip(&g)
+        .map(|(w, g)| {
+            assert_eq!(w.0, g.0, "grid");
+            (w.1 - g.1).abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The committed ROS 1 fixture holds `quick.toml`'s run with the stamps and values `calib
+/// simulate` writes to its CDR MCAP, so the maps agree to floating-point rounding (< 1e-6″;
+/// measured 0).
+#[test]
+fn a_ros1_encoded_mcap_gives_the_maps_of_the_cdr_mcap() {
+    let o = calib(&["inspect", s(&ros1())]);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
+    let line = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("/joint_states"))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert_mentions(line, &["sensor_msgs/JointState", "ros1", "3301 msg"]);
+    assert!(out.contains("      a, b\n"), "{out}");
+    let dir = tempfile::tempdir().unwrap();
+    let cdr = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");
+    let (want, got) = (dir.path().join("cdr"), dir.path().join("ros1"));
+    expect_exit(&calib(&["csrr", s(&cdr), "-o", s(&want)]), 0);
+    let o = calib(&["csrr", s(&ros1()), "--a", "a", "--b", "b", "-o", s(&got)]);
+    expect_exit(&o, 0);
+    for table in ["a.csv", "b.csv"] {
+        let worst = table_difference(&want.join(table), &got.join(table));
+        eprintln!("ros1 vs cdr MCAP, {table}: max |difference| {worst:e}″");
+        assert!(worst < 1e-6, "{table}: {worst}″");
+    }
+    // A message cut short is an error naming the file, the message and the topic.
+    let cut = dir.path().join("cut.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&cut).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            "sensor_msgs/JointState",
+            "ros1msg",
+            ROS1_JOINT_STATE.as_bytes(),
+        )
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/joint_states", "ros1", &Default::default())
+        .unwrap();
+    for n in 0..10u32 {
+        let mut data = ros1_joint_state(n, 1_000_000_000 + u64::from(n), &["a"], &[0.1]);
+        if n == 5 {
+            data.truncate(30);
+        }
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: n,
+            log_time: u64::from(n),
+            publish_time: u64::from(n),
+        };
+        writer.write_to_known_channel(&header, &data).unwrap();
+    }
+    writer.finish().unwrap();
+    let err = expect_exit(&calib(&["inspect", s(&cut)]), 1);
+    assert_mentions(
+        &err,
+        &["cut.mcap", "message 5", "/joint_states", "truncated"],
+    );
+}
+
+/// The samples of a scenario of `testdata/scenarios`.
+fn scenario_samples(name: &str) -> Vec<Sample> {
+    let text = std::fs::read_to_string(testdata(&format!("scenarios/{name}"))).unwrap();
+    let sc: Scenario = toml::from_str(&text).unwrap();
+    sc.samples().unwrap().collect()
+}
+
+/// The committed field-path fixture (see [`write_field_run`]).
+fn fields() -> PathBuf {
+    testdata("mcap/fields.mcap")
+}
+
+/// The `ros2msg` definition of a motor driver's own message type: a header, a string, a fixed
+/// array, the position, and a sequence of structures, so that a field path crosses every kind
+/// of CDR field and padding.
+const MOTOR_STATE: &str = "# State of one motor.
+std_msgs/Header header
+string name
+float32[3] currents   # A
+float64 position      # rad
+Reading[] extra
+uint8 MODE_IDLE=0
+
+================================================================================
+MSG: my_robot/Reading
+uint8 id
+float64 value
+
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+";
+
+/// A `my_robot/msg/MotorState` in little-endian CDR, padding as `rmw` writes it: `frame_id`
+/// `m`, `name` `motor`, `currents` 1, 2, 3, `position` A's reading and `extra` `[(1, 0.5),
+/// (2, B's reading)]`.
+fn motor_state(stamp_ns: u64, a: f64, b: f64) -> Vec<u8> {
+    let mut buf = vec![0u8, 1, 0, 0];
+    let pad = |buf: &mut Vec<u8>, n: usize| {
+        while (buf.len() - 4) % n != 0 {
+            buf.push(0);
+        }
+    };
+    let string = |buf: &mut Vec<u8>, s: &str| {
+        pad(buf, 4);
+        buf.extend_from_slice(&(s.len() as u32 + 1).to_le_bytes());
+        buf.extend_from_slice(s.as_bytes());
+        buf.push(0);
+    };
+    buf.extend_from_slice(&((stamp_ns / 1_000_000_000) as i32).to_le_bytes());
+    buf.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
+    string(&mut buf, "m");
+    string(&mut buf, "motor");
+    pad(&mut buf, 4);
+    for c in [1.0f32, 2.0, 3.0] {
+        buf.extend_from_slice(&c.to_le_bytes());
+    }
+    pad(&mut buf, 8);
+    buf.extend_from_slice(&a.to_le_bytes());
+    pad(&mut buf, 4);
+    buf.extend_from_slice(&2u32.to_le_bytes());
+    for (id, value) in [(1u8, 0.5), (2, b)] {
+        buf.push(id);
+        pad(&mut buf, 8);
+        buf.extend_from_slice(&value.to_le_bytes());
+    }
+    buf
+}
+
+/// Writes `samples` (of `a` and `b`, radians) to `path` as rosbag2 writes MCAP: one
+/// `my_robot/msg/MotorState` message per sample on `/motor/state`, A in `position`, B in
+/// `extra[1].value`, header stamp and log time the sample's time.
+fn write_field_run(path: &Path, samples: impl IntoIterator<Item = Sample>) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema("my_robot/msg/MotorState", "ros2msg", MOTOR_STATE.as_bytes())
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/motor/state", "cdr", &Default::default())
+        .unwrap();
+    for (n, sample) in samples.into_iter().enumerate() {
+        let t = ns(sample.t);
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: n as u32,
+            log_time: t,
+            publish_time: t,
+        };
+        let data = motor_state(t, sample.values[0], sample.values[1]);
+        writer.write_to_known_channel(&header, &data).unwrap();
+    }
+    writer.finish().unwrap();
+}
+
+/// Fields by path through the message definition the file carries: `TOPIC.position` and
+/// `TOPIC.extra[1].value` of a message type calib does not know. The values and stamps are
+/// those of `calib simulate`'s MCAP of the same run, so the maps agree to rounding (< 1e-6″;
+/// measured 0).
+#[test]
+fn numeric_fields_are_read_by_path_through_the_schema() {
+    // The committed fixture: the motor topic is listed as not read until a field is named.
+    let o = calib(&["inspect", s(&fields())]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &["fields.mcap", "/motor/state (my_robot/msg/MotorState"],
+    );
+    let o = calib(&[
+        "inspect",
+        s(&fields()),
+        "--a",
+        "/motor/state.position",
+        "--b",
+        "/motor/state.extra[1].value",
+        "--unit",
+        "rad",
+    ]);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
+    assert_mentions(
+        &out,
+        &[
+            "my_robot/msg/MotorState",
+            "200 msg",
+            "      /motor/state.position, /motor/state.extra[1].value\n",
+            "  200 samples over ",
+        ],
+    );
+    // The whole run: the same maps as the CDR JointState MCAP of it.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("motor.mcap");
+    write_field_run(&log, scenario_samples("quick.toml"));
+    let cdr = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");
+    let (want, got) = (dir.path().join("cdr"), dir.path().join("fields"));
+    expect_exit(&calib(&["csrr", s(&cdr), "-o", s(&want)]), 0);
+    let o = calib(&[
+        "csrr",
+        s(&log),
+        "--a",
+        "/motor/state.position",
+        "--b",
+        "/motor/state.extra[1].value",
+        "--unit",
+        "rad",
+        "-o",
+        s(&got),
+    ]);
+    expect_exit(&o, 0);
+    for (table, field) in [
+        ("a.csv", "motor_state.position.csv"),
+        ("b.csv", "motor_state.extra_1_.value.csv"),
+    ] {
+        let worst = table_difference(&want.join(table), &got.join(field));
+        eprintln!("field path vs JointState MCAP, {field}: max |difference| {worst:e}″");
+        assert!(worst < 1e-6, "{field}: {worst}″");
+    }
+    // A path the type does not have, and a definition that does not parse, are errors naming
+    // the topic and what is wrong.
+    let o = calib(&["inspect", s(&fields()), "--a", "/motor/state.speed"]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            "fields.mcap",
+            "/motor/state",
+            "no field `speed`",
+            "currents, position",
+        ],
+    );
+    let broken = dir.path().join("broken.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&broken).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            "my_robot/msg/MotorState",
+            "ros2msg",
+            b"float64 position\nmy_robot/Gear gear\n",
+        )
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/motor/state", "cdr", &Default::default())
+        .unwrap();
+    let header = mcap::records::MessageHeader {
+        channel_id: channel,
+        sequence: 0,
+        log_time: 1,
+        publish_time: 1,
+    };
+    writer
+        .write_to_known_channel(&header, &[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+        .unwrap();
+    writer.finish().unwrap();
+    let o = calib(&["inspect", s(&broken), "--a", "/motor/state.position"]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            "broken.mcap",
+            "/motor/state",
+            "does not parse",
+            "line 2",
+            "`my_robot/Gear`",
+        ],
+    );
+}
+
+/// The readings of channel `name` of `log`, read on its own clock (no alignment).
+fn channel_readings(log: &Path, name: &str) -> Vec<(f64, f64)> {
+    let mut reader = calib_io::LogReader::open(log, &calib_io::ReadOptions::default()).unwrap();
+    let i = reader.resolve(name).unwrap();
+    reader.select(&[i], calib_io::align::AlignOptions::default());
+    reader
+        .map(|s| {
+            let s = s.unwrap();
+            (s.t, s.values[0])
+        })
+        .collect()
+}
+
+/// `calib apply` corrects a channel named `TOPIC/JOINT` (only that topic's joint, though two
+/// other topics carry a joint of the same name), and a lab CSV export in its own dialect: the
+/// output keeps its metadata lines, `;` separators and `Time [ms]` column byte for byte, and
+/// only the channel's field changes. The map is +36″ at 0° and −36″ at 180°, linear between, so
+/// every corrected reading is known in closed form (to rounding: 1e-12 rad, 1e-9°).
+#[test]
+fn apply_corrects_a_qualified_channel_and_keeps_a_csv_dialect() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = write(
+        dir.path(),
+        "map.csv",
+        "angle_deg,error_arcsec,correction_arcsec\n0,36,-36\n180,-36,36\n",
+    );
+    // The map's error at `deg`, in degrees.
+    let e = |deg: f64| {
+        let deg = deg.rem_euclid(360.0);
+        36.0 * (1.0 - 2.0 * (deg.min(360.0 - deg) / 180.0)) / 3600.0
+    };
+    let fixed = dir.path().join("fixed.mcap");
+    let b = "/sensor_b/joint_states/encoder";
+    let o = calib(&[
+        "apply",
+        s(&table),
+        s(&clocks()),
+        "--channel",
+        b,
+        "-o",
+        s(&fixed),
+    ]);
+    expect_exit(&o, 0);
+    assert_mentions(&stdout(&o), &["400 readings"]);
+    for (name, corrected) in [(b, true), (TOPICS[0], false), (TOPICS[2], false)] {
+        let name = if name == b {
+            name.to_string()
+        } else {
+            format!("{name}/encoder")
+        };
+        let (before, after) = (
+            channel_readings(&clocks(), &name),
+            channel_readings(&fixed, &name),
+        );
+        assert_eq!(before.len(), 400, "{name}");
+        assert_eq!(before.len(), after.len(), "{name}");
+        for (x, y) in before.iter().zip(&after) {
+            assert_eq!(x.0, y.0, "{name}: stamps");
+            let want = if corrected {
+                x.1 - e(x.1.to_degrees()).to_radians()
+            } else {
+                x.1
+            };
+            let d = (want - y.1).abs();
+            assert!(d < 1e-12, "{name}: {x:?} → {y:?}");
+        }
+    }
+    // A lab CSV export: the same text but for enc_b's fields.
+    let out = dir.path().join("fixed.csv");
+    let o = calib(&[
+        "apply",
+        s(&table),
+        s(&lab_export()),
+        "--channel",
+        "enc_b",
+        "-o",
+        s(&out),
+    ]);
+    expect_exit(&o, 0);
+    let (input, output) = (
+        std::fs::read_to_string(lab_export()).unwrap(),
+        std::fs::read_to_string(&out).unwrap(),
+    );
+    let (input, output): (Vec<&str>, Vec<&str>) =
+        (input.lines().collect(), output.lines().collect());
+    assert_eq!(input.len(), output.len());
+    assert_eq!(input[..5], output[..5], "metadata lines and header");
+    for (a, b) in input[5..].iter().zip(&output[5..]) {
+        let (a, b): (Vec<&str>, Vec<&str>) = (a.split(';').collect(), b.split(';').collect());
+        assert_eq!((a.len(), a[0], a[1]), (3, b[0], b[1]), "{a:?} → {b:?}");
+        let (x, y): (f64, f64) = (a[2].parse().unwrap(), b[2].parse().unwrap());
+        assert!((x - e(x) - y).abs() < 1e-9, "{a:?} → {b:?}");
+    }
+    // The time column is not a channel to correct.
+    let o = calib(&[
+        "apply",
+        s(&table),
+        s(&lab_export()),
+        "--channel",
+        "Time [ms]",
+        "-o",
+        s(&dir.path().join("time.csv")),
+    ]);
+    assert_ne!(code(&o), 0);
+}
+
+/// A ROS 1 `.bag` file is a usage error (exit 2) saying how to convert it, for every command
+/// that reads a log.
+#[test]
+fn a_ros1_bag_is_refused_with_the_conversion_to_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("run.bag");
+    std::fs::write(&bag, b"#ROSBAG V2.0\n\x04\x00\x00\x00op=\x03").unwrap();
+    let out = dir.path().join("out");
+    let table = write(
+        dir.path(),
+        "map.csv",
+        "angle_deg,error_arcsec,correction_arcsec\n0,36,-36\n180,-36,36\n",
+    );
+    let fixed = dir.path().join("fixed.mcap");
+    for args in [
+        vec!["inspect", s(&bag)],
+        vec!["csrr", s(&bag), "-o", s(&out)],
+        vec!["apply", s(&table), s(&bag), "-o", s(&fixed)],
+    ] {
+        let err = expect_exit(&calib(&args), 2);
+        assert_mentions(&err, &["run.bag", "ROS 1 bag", "mcap convert"]);
+    }
+    assert_no_output(&out);
+    assert!(!fixed.exists());
 }

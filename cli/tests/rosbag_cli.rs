@@ -86,11 +86,17 @@ fn joint_state(stamp_ns: i64, names: &[&str], positions: &[f64]) -> Vec<u8> {
 
 /// `metadata.yaml` as `ros2 bag record` (Humble) writes it, listing these splits.
 fn metadata(storage: &str, files: &[&str]) -> String {
+    compressed_metadata(storage, files, "\"\"", "\"\"")
+}
+
+/// `metadata.yaml` of a bag recorded with `--compression-format FORMAT --compression-mode
+/// MODE`.
+fn compressed_metadata(storage: &str, files: &[&str], format: &str, mode: &str) -> String {
     let mut text = format!(
         "rosbag2_bagfile_information:\n  version: 5\n  storage_identifier: {storage}\n  \
          duration:\n    nanoseconds: 0\n  starting_time:\n    nanoseconds_since_epoch: 0\n  \
-         message_count: 0\n  topics_with_message_count: []\n  compression_format: \"\"\n  \
-         compression_mode: \"\"\n  relative_file_paths:\n"
+         message_count: 0\n  topics_with_message_count: []\n  compression_format: {format}\n  \
+         compression_mode: {mode}\n  relative_file_paths:\n"
     );
     for f in files {
         text.push_str(&format!("    - {f}\n"));
@@ -432,7 +438,8 @@ fn the_committed_bag_fixture_is_read() {
 /// `testdata/rosbag/small_bag`: a Humble bag directory of two splits, 2 s at 100 Hz of two arms
 /// publishing the same joint names (`shoulder`, `elbow`) on `/left/joint_states` and
 /// `/right/joint_states` (the right arm 4 ms after the left), and a `/rosout` topic calib does
-/// not read: 600 messages.
+/// not read: 600 messages. `testdata/rosbag/small_bag_zstd`: the same bag with both splits
+/// compressed whole (zstd, `compression_mode: FILE`).
 #[test]
 #[ignore = "writes the committed fixture"]
 fn make_fixture() {
@@ -465,6 +472,16 @@ fn make_fixture() {
         metadata("sqlite3", &["small_bag_0.db3", "small_bag_1.db3"]),
     )
     .unwrap();
+    let zstd_bag = testdata("rosbag/small_bag_zstd");
+    if zstd_bag.exists() {
+        std::fs::remove_dir_all(&zstd_bag).unwrap();
+    }
+    compress_files(
+        &bag,
+        &zstd_bag,
+        "sqlite3",
+        &["small_bag_0.db3", "small_bag_1.db3"],
+    );
 }
 
 /// A `std_msgs/msg/Float64` message in little-endian CDR.
@@ -623,4 +640,392 @@ fn reading_speed_of_a_large_bag() {
     let rate = N as f64 / seconds;
     eprintln!("calib inspect on {N} bag messages: {seconds:.2} s, {rate:.0} msg/s");
     assert!(rate > 37_000.0, "{rate:.0} msg/s");
+}
+
+const DYNAMIC_JOINT_STATE: &str = "control_msgs/msg/DynamicJointState";
+
+/// The `ros2msg` definition of `control_msgs/msg/DynamicJointState` as rosbag2 stores it in an
+/// MCAP schema record.
+const DYNAMIC_JOINT_STATE_MSGDEF: &str = "std_msgs/Header header
+string[] joint_names
+control_msgs/InterfaceValue[] interface_values
+
+================================================================================
+MSG: control_msgs/InterfaceValue
+string[] interface_names
+float64[] values
+
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+";
+
+/// A `control_msgs/msg/DynamicJointState` in little-endian CDR: for each joint its name and
+/// its interfaces `(name, value)`; `frame_id` is `base`.
+fn dynamic_joint_state(stamp_ns: i64, joints: &[(&str, &[(&str, f64)])]) -> Vec<u8> {
+    let mut b = vec![0u8, 1, 0, 0];
+    let align = |b: &mut Vec<u8>, n: usize| {
+        while (b.len() - 4) % n != 0 {
+            b.push(0);
+        }
+    };
+    let u32_at = |b: &mut Vec<u8>, v: u32| {
+        align(b, 4);
+        b.extend_from_slice(&v.to_le_bytes());
+    };
+    let string = |b: &mut Vec<u8>, s: &str| {
+        u32_at(b, s.len() as u32 + 1);
+        b.extend_from_slice(s.as_bytes());
+        b.push(0);
+    };
+    b.extend_from_slice(&((stamp_ns / 1_000_000_000) as i32).to_le_bytes());
+    b.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
+    string(&mut b, "base");
+    u32_at(&mut b, joints.len() as u32);
+    for (name, _) in joints {
+        string(&mut b, name);
+    }
+    u32_at(&mut b, joints.len() as u32);
+    for (_, interfaces) in joints {
+        u32_at(&mut b, interfaces.len() as u32);
+        for (name, _) in *interfaces {
+            string(&mut b, name);
+        }
+        u32_at(&mut b, interfaces.len() as u32);
+        if !interfaces.is_empty() {
+            align(&mut b, 8);
+        }
+        for (_, v) in *interfaces {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    b
+}
+
+/// The joints of one DynamicJointState as `ros2_control`'s broadcaster publishes them: `a` with
+/// position and velocity, `b` with effort first and then position, and `gripper` with an
+/// effort only (not a channel: it has no position).
+fn dynamic_message(t: i64, a: f64, b: f64) -> Vec<u8> {
+    dynamic_joint_state(
+        t,
+        &[
+            ("a", &[("position", a), ("velocity", 1.0)]),
+            ("b", &[("effort", 0.5), ("position", b)]),
+            ("gripper", &[("effort", 2.0)]),
+        ],
+    )
+}
+
+/// `quick.toml`'s run as DynamicJointState messages on `/dynamic_joint_states` (see
+/// [`dynamic_message`]), once in an MCAP file (`ros2msg` schema, `cdr`) and once in a `.db3`
+/// file, header stamp and log time the sample's time; returns both.
+fn write_dynamic_run(dir: &Path) -> (PathBuf, PathBuf) {
+    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
+    let sc: Scenario = toml::from_str(&text).unwrap();
+    let samples: Vec<Sample> = sc.samples().unwrap().collect();
+    let mcap_path = dir.join("dynamic.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&mcap_path).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            DYNAMIC_JOINT_STATE,
+            "ros2msg",
+            DYNAMIC_JOINT_STATE_MSGDEF.as_bytes(),
+        )
+        .unwrap();
+    let id = writer
+        .add_channel(schema, "/dynamic_joint_states", "cdr", &Default::default())
+        .unwrap();
+    let db3 = dir.join("dynamic.db3");
+    let db = create_db3(&db3, &[("/dynamic_joint_states", DYNAMIC_JOINT_STATE)]);
+    db.execute_batch("BEGIN").unwrap();
+    for (n, s) in samples.iter().enumerate() {
+        let t = ns(s.t);
+        let data = dynamic_message(t, s.values[0], s.values[1]);
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: n as u32,
+            log_time: t as u64,
+            publish_time: t as u64,
+        };
+        writer.write_to_known_channel(&header, &data).unwrap();
+        insert(&db, 1, t, &data);
+    }
+    db.execute_batch("COMMIT").unwrap();
+    writer.finish().unwrap();
+    (mcap_path, db3)
+}
+
+/// DynamicJointState in MCAP and in a bag: the `position` interface of each joint, wherever it
+/// is among the joint's interfaces; a joint without one is no channel. The stamps and values
+/// are those of `calib simulate`'s MCAP, so the maps agree to rounding (< 1e-6″; measured 0).
+#[test]
+fn dynamic_joint_states_in_mcap_and_bags_give_the_maps_of_the_same_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mcap, db3) = write_dynamic_run(dir.path());
+    let reference = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");
+    let want = dir.path().join("want");
+    expect_exit(&calib(&["csrr", s(&reference), "-o", s(&want)]), 0);
+    for log in [&mcap, &db3] {
+        let o = calib(&["inspect", s(log)]);
+        expect_exit(&o, 0);
+        let out = stdout(&o);
+        assert_mentions(&out, &[DYNAMIC_JOINT_STATE, "3301 msg", "      a, b\n"]);
+        assert!(!out.contains("gripper"), "{out}");
+        let out = dir.path().join(log.extension().unwrap());
+        let o = calib(&["csrr", s(log), "--a", "a", "--b", "b", "-o", s(&out)]);
+        expect_exit(&o, 0);
+        for table in ["a.csv", "b.csv"] {
+            let (w, g) = (read_table(&want.join(table)), read_table(&out.join(table)));
+            assert_eq!(w.len(), g.len());
+            let worst = w
+                .iter()
+                .zip(&g)
+                .map(|(w, g)| (w.1 - g.1).abs())
+                .fold(0.0, f64::max);
+            eprintln!("{}: {table} max |difference| {worst:e}″", log.display());
+            assert!(
+                worst < 1e-6,
+                "{}: {table} differs by {worst}″",
+                log.display()
+            );
+        }
+    }
+}
+
+/// The committed fixture `testdata/mcap/dynamic.mcap` (see [`make_dynamic_fixture`]).
+fn dynamic_fixture() -> PathBuf {
+    testdata("mcap/dynamic.mcap")
+}
+
+#[test]
+fn the_committed_dynamic_joint_state_fixture_is_read() {
+    let o = calib(&["inspect", s(&dynamic_fixture())]);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
+    assert_mentions(
+        &out,
+        &[
+            "/dynamic_joint_states",
+            DYNAMIC_JOINT_STATE,
+            "200 msg",
+            "100.00 Hz",
+            "      a, b\n",
+            "  200 samples over ",
+        ],
+    );
+    // The readings: a = i·0.01 rad, b = −a, as written.
+    let a = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("a ") && l.contains("rad"))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert_mentions(a, &[" 0.000000", "1.990000"]);
+}
+
+/// Writes `testdata/mcap/dynamic.mcap`: 2 s at 100 Hz of `/dynamic_joint_states` with joints
+/// `a` (position `i·0.01` rad), `b` (position `−i·0.01` rad) and `gripper` (effort only), as
+/// [`dynamic_message`] lays them out. Run after changing it:
+/// `cargo test -p calib-cli --test rosbag_cli -- --ignored make_dynamic_fixture`.
+#[test]
+#[ignore = "writes the committed fixture"]
+fn make_dynamic_fixture() {
+    let file = std::io::BufWriter::new(std::fs::File::create(dynamic_fixture()).unwrap());
+    let mut writer = mcap::Writer::new(file).unwrap();
+    let schema = writer
+        .add_schema(
+            DYNAMIC_JOINT_STATE,
+            "ros2msg",
+            DYNAMIC_JOINT_STATE_MSGDEF.as_bytes(),
+        )
+        .unwrap();
+    let id = writer
+        .add_channel(schema, "/dynamic_joint_states", "cdr", &Default::default())
+        .unwrap();
+    for i in 0..200i64 {
+        let t = 1_700_000_000_000_000_000 + i * 10_000_000;
+        let q = i as f64 * 0.01;
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: i as u32,
+            log_time: t as u64,
+            publish_time: t as u64,
+        };
+        writer
+            .write_to_known_channel(&header, &dynamic_message(t, q, -q))
+            .unwrap();
+    }
+    writer.finish().unwrap();
+}
+
+/// The largest |difference| between the `a.csv` and `b.csv` maps of two output folders, arcsec.
+fn worst_difference(want: &Path, got: &Path) -> f64 {
+    ["a.csv", "b.csv"]
+        .iter()
+        .map(|table| {
+            let (w, g) = (read_table(&want.join(table)), read_table(&got.join(table)));
+            assert_eq!(w.len(), g.len(), "{table}");
+            w.iter()
+                .zip(&g)
+                .map(|(w, g)| (w.1 - g.1).abs())
+                .fold(0.0, f64::max)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Copies the bag directory `from` to `to` with every split compressed whole (zstd), as
+/// `ros2 bag record --compression-mode file --compression-format zstd` leaves it.
+fn compress_files(from: &Path, to: &Path, storage: &str, splits: &[&str]) {
+    std::fs::create_dir(to).unwrap();
+    let mut names = Vec::new();
+    for split in splits {
+        let name = format!("{split}.zstd");
+        let input = std::fs::File::open(from.join(split)).unwrap();
+        let output = std::fs::File::create(to.join(&name)).unwrap();
+        zstd::stream::copy_encode(input, output, 3).unwrap();
+        names.push(name);
+    }
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    std::fs::write(
+        to.join("metadata.yaml"),
+        compressed_metadata(storage, &names, "zstd", "FILE"),
+    )
+    .unwrap();
+}
+
+/// Writes `quick.toml`'s run as a bag directory `dir/NAME` of two `.mcap` splits (the second
+/// from the middle of the run on), as `calib simulate` writes MCAP: joints `a` and `b` on
+/// `/joint_states`.
+fn write_mcap_split_run(dir: &Path, name: &str) -> PathBuf {
+    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
+    let sc: Scenario = toml::from_str(&text).unwrap();
+    let samples: Vec<Sample> = sc.samples().unwrap().collect();
+    let channels: Vec<Channel> = sc.channels()[..2]
+        .iter()
+        .map(|c| Channel {
+            name: c.name.clone(),
+            unit: AngleUnit::Rad,
+        })
+        .collect();
+    let bag = dir.join(name);
+    std::fs::create_dir(&bag).unwrap();
+    let half = samples.len() / 2;
+    let mut splits = Vec::new();
+    for (k, part) in [&samples[..half], &samples[half..]].into_iter().enumerate() {
+        let split = format!("{name}_{k}.mcap");
+        let mut writer = McapWriter::create(&bag.join(&split), &channels, "/joint_states").unwrap();
+        for s in part {
+            let sample = Sample {
+                t: s.t,
+                values: s.values[..2].to_vec(),
+                session: None,
+            };
+            writer.write(&sample).unwrap();
+        }
+        writer.finish().unwrap();
+        splits.push(split);
+    }
+    let splits: Vec<&str> = splits.iter().map(String::as_str).collect();
+    std::fs::write(bag.join("metadata.yaml"), metadata("mcap", &splits)).unwrap();
+    bag
+}
+
+/// Compressed bags and bags of several MCAP splits give the maps of the MCAP file of the same
+/// run: zstd file mode (`.db3.zstd`, `.mcap.zstd`), zstd message mode (`.db3`), and two `.mcap`
+/// splits. The stamps and values are the same, so the maps agree to rounding (< 1e-6″;
+/// measured 0).
+#[test]
+fn compressed_bags_and_mcap_splits_give_the_maps_of_the_same_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bag, mcap) = write_run(dir.path());
+    let want = dir.path().join("want");
+    expect_exit(&calib(&["csrr", s(&mcap), "-o", s(&want)]), 0);
+    let splits = ["run_bag_0.db3", "run_bag_1.db3"];
+    // File mode, SQLite storage.
+    let db3_zstd = dir.path().join("db3_zstd");
+    compress_files(&bag, &db3_zstd, "sqlite3", &splits);
+    // Message mode, SQLite storage: each payload compressed.
+    let db3_msg = dir.path().join("db3_msg");
+    std::fs::create_dir(&db3_msg).unwrap();
+    for split in splits {
+        std::fs::copy(bag.join(split), db3_msg.join(split)).unwrap();
+        let db = Connection::open(db3_msg.join(split)).unwrap();
+        let rows: Vec<(i64, Vec<u8>)> = db
+            .prepare("SELECT id, data FROM messages")
+            .unwrap()
+            .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))
+            .unwrap()
+            .map(Result::unwrap)
+            .collect();
+        db.execute_batch("BEGIN").unwrap();
+        for (id, data) in rows {
+            let packed = zstd::bulk::compress(&data, 3).unwrap();
+            db.execute(
+                "UPDATE messages SET data = ?1 WHERE id = ?2",
+                params![packed, id],
+            )
+            .unwrap();
+        }
+        db.execute_batch("COMMIT").unwrap();
+    }
+    std::fs::write(
+        db3_msg.join("metadata.yaml"),
+        compressed_metadata("sqlite3", &splits, "zstd", "MESSAGE"),
+    )
+    .unwrap();
+    // Two MCAP splits, and the same compressed whole.
+    let mcap_bag = write_mcap_split_run(dir.path(), "mcap_bag");
+    let mcap_zstd = dir.path().join("mcap_zstd");
+    compress_files(
+        &mcap_bag,
+        &mcap_zstd,
+        "mcap",
+        &["mcap_bag_0.mcap", "mcap_bag_1.mcap"],
+    );
+    for log in [&db3_zstd, &db3_msg, &mcap_bag, &mcap_zstd] {
+        let out = dir.path().join(format!(
+            "out_{}",
+            log.file_name().unwrap().to_string_lossy()
+        ));
+        let o = calib(&["csrr", s(log), "--a", "a", "--b", "b", "-o", s(&out)]);
+        expect_exit(&o, 0);
+        let worst = worst_difference(&want, &out);
+        eprintln!("{}: max |map − MCAP map| {worst:e}″", log.display());
+        assert!(worst < 1e-6, "{}: {worst}″", log.display());
+    }
+    // A payload that is not zstd in a message-mode bag names the file, table and message.
+    let db = Connection::open(db3_msg.join(splits[1])).unwrap();
+    db.execute("UPDATE messages SET data = x'00010000' WHERE id = 7", [])
+        .unwrap();
+    drop(db);
+    let err = expect_exit(&calib(&["inspect", s(&db3_msg)]), 1);
+    assert_mentions(
+        &err,
+        &[
+            "run_bag_1.db3",
+            "table `messages`",
+            "message id 7",
+            "cannot be decompressed",
+        ],
+    );
+}
+
+/// The committed compressed bag: `small_bag`'s two splits compressed whole (see
+/// [`make_fixture`]) read as the uncompressed bag is.
+#[test]
+fn the_committed_compressed_bag_fixture_is_read_as_the_uncompressed_one() {
+    let zstd_bag = testdata("rosbag/small_bag_zstd");
+    let (plain, packed) = (
+        calib(&["inspect", s(&fixture())]),
+        calib(&["inspect", s(&zstd_bag)]),
+    );
+    expect_exit(&plain, 0);
+    expect_exit(&packed, 0);
+    let strip = |o: &std::process::Output, name: &str| stdout(o).replace(name, "BAG");
+    assert_eq!(strip(&plain, "small_bag"), strip(&packed, "small_bag_zstd"));
 }

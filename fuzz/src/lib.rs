@@ -2,7 +2,7 @@
 //! yielded sample must pass, and wrapping message payloads into a well-formed MCAP file.
 
 use calib_core::{AngleUnit, Sample};
-use calib_io::ReadOptions;
+use calib_io::{ReadOptions, TimeSource};
 use mcap::records::MessageHeader;
 use mcap::{WriteOptions, Writer};
 use std::collections::BTreeMap;
@@ -23,7 +23,8 @@ pub fn scratch(ext: &str, data: &[u8]) -> PathBuf {
     path
 }
 
-/// Read options chosen by one input byte: every unit, with and without unordered time.
+/// Read options chosen by one input byte: every unit, with and without unordered time, skipping
+/// damaged chunks or not, header or log time.
 pub fn options(byte: u8) -> ReadOptions {
     let unit = match byte & 0x7 {
         0 => None,
@@ -39,6 +40,12 @@ pub fn options(byte: u8) -> ReadOptions {
         unit,
         allow_unordered_time: byte & 0x8 != 0,
         skip_damaged: byte & 0x10 != 0,
+        time: if byte & 0x20 != 0 {
+            TimeSource::Log
+        } else {
+            TimeSource::Header
+        },
+        ..ReadOptions::default()
     }
 }
 

@@ -55,7 +55,8 @@ pub struct Args {
     #[arg(short, long = "output")]
     pub output: PathBuf,
     /// The channel to correct (default: the table's file name without extension, so
-    /// `calib-out/a.csv` corrects channel `a`).
+    /// `calib-out/a.csv` corrects channel `a`): a CSV column, a joint or JSON field by its name,
+    /// or as TOPIC/NAME to correct it on that topic only.
     #[arg(long)]
     pub channel: Option<String>,
     /// Unit of CSV readings and JSON fields: deg (default), rad, arcsec, rev, counts:N.

@@ -80,6 +80,11 @@ pub struct ReadOptions {
     pub time_column: Option<String>,
     /// The unit of a CSV log's time column (default: its name's suffix, else seconds).
     pub time_unit: Option<csv_log::dialect::TimeUnit>,
+    /// MCAP: channel names to read as `TOPIC.field.path` — a numeric field of a topic calib does
+    /// not otherwise read, found through the `ros2msg` message definition the file carries, in
+    /// the unit of [`unit`](Self::unit). Names of other forms are ignored here (pass every
+    /// channel name the command was given).
+    pub fields: Vec<String>,
 }
 
 /// The time of a message: the stamp its publisher wrote, or when the recorder logged it.

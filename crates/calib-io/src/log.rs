@@ -4,7 +4,7 @@ use crate::align::{AlignOptions, Alignment};
 use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
-use crate::rosbag::{self, BagReader, SQLITE_MAGIC, Storage};
+use crate::rosbag::{self, BagReader, PreparedStorage, SQLITE_MAGIC};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use std::io::Read;
@@ -184,6 +184,9 @@ pub struct LogReader {
     selection: Option<(Vec<usize>, Vec<Channel>)>,
     /// A bag directory of MCAP storage without `metadata.yaml`: the warning to give.
     bag_warnings: Vec<String>,
+    /// A bag's decompressed or merged files, removed when the reader is dropped (after it:
+    /// fields drop in order).
+    _temp: Option<tempfile::TempDir>,
 }
 
 enum Inner {
@@ -196,18 +199,24 @@ impl LogReader {
     /// Opens a log, choosing the reader by [`LogFormat::detect`].
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
         let mut bag_warnings = Vec::new();
+        let mut temp = None;
         let inner = match LogFormat::detect(path)? {
             LogFormat::Csv => Inner::Csv(CsvReader::open(path, opts)?),
             LogFormat::Mcap => Inner::Mcap(McapReader::open(path, opts)?),
             LogFormat::Rosbag => {
-                let found = rosbag::bag_files(path)?;
-                match found.storage {
-                    Storage::Sqlite3(files) => {
-                        Inner::Bag(BagReader::open(path, files, found.warnings, opts)?)
-                    }
-                    Storage::Mcap(file) => {
+                let bag = rosbag::prepare(path)?;
+                temp = bag.temp;
+                match bag.storage {
+                    PreparedStorage::Sqlite3(files) => Inner::Bag(BagReader::open(
+                        path,
+                        files,
+                        bag.compressed_messages,
+                        bag.warnings,
+                        opts,
+                    )?),
+                    PreparedStorage::Mcap(file) => {
                         let reader = McapReader::open(&file, opts)?;
-                        bag_warnings = found.warnings;
+                        bag_warnings = bag.warnings;
                         Inner::Mcap(reader)
                     }
                 }
@@ -227,6 +236,7 @@ impl LogReader {
             names,
             selection: None,
             bag_warnings,
+            _temp: temp,
         })
     }
 

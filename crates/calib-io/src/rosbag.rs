@@ -10,7 +10,7 @@
 //! offered_qos_profiles)` and `messages(id, topic_id, timestamp, data)`; `data` is the CDR
 //! payload with its 4-byte encapsulation header, `timestamp` the receive time in nanoseconds.
 //! Humble stores no message definitions, so a topic is recognised by its type name:
-//! `sensor_msgs/msg/JointState` and the `std_msgs` scalars (`Float64`, `Float32`, `Int64`,
+//! `sensor_msgs/msg/JointState`, `control_msgs/msg/DynamicJointState` and the `std_msgs` scalars (`Float64`, `Float32`, `Int64`,
 //! `Int32`, `UInt32`, `UInt16`) are decoded as the MCAP reader decodes them (see
 //! [`crate::mcap_log`]), and the same rules name and align its channels (the joint name where
 //! unique, else `TOPIC/JOINT`; channels on several topics aligned on the first selected one's
@@ -21,8 +21,14 @@
 //! streams the rows through a bounded channel, so memory stays bounded whatever the bag's size.
 //!
 //! # MCAP storage
-//! A bag directory of one `.mcap` file is read by the MCAP reader ([`bag_files`] names it);
-//! several `.mcap` splits are refused with a message saying how to merge them.
+//! A bag directory of MCAP storage is read by the MCAP reader: one `.mcap` file as it is,
+//! several splits merged in order into one temporary file first ([`prepare`]).
+//!
+//! # Compression
+//! `ros2 bag record --compression-format zstd` compresses either each split whole
+//! (`compression_mode: FILE`: `bag_0.db3.zstd`, `bag_0.mcap.zstd`), which [`prepare`]
+//! decompresses into a temporary folder, or each message's payload (`MESSAGE`, SQLite storage),
+//! which is decompressed as it is read.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -56,17 +62,54 @@ const ROWS_IN_FLIGHT: usize = 1024;
 pub enum Storage {
     /// SQLite `.db3` files.
     Sqlite3(Vec<PathBuf>),
-    /// One MCAP file.
-    Mcap(PathBuf),
+    /// MCAP files.
+    Mcap(Vec<PathBuf>),
+}
+
+/// How a bag is compressed (`compression_format` and `compression_mode` of its metadata).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Compression {
+    /// Not compressed.
+    #[default]
+    None,
+    /// `zstd`, `FILE`: each split file compressed whole (`bag_0.db3.zstd`).
+    File,
+    /// `zstd`, `MESSAGE`: each message's payload compressed on its own.
+    Message,
 }
 
 /// A bag's storage and what the user should know about how it was found.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BagFiles {
-    /// The storage files.
+    /// The storage files, as the bag holds them (compressed, in file mode).
     pub storage: Storage,
+    /// How the bag is compressed.
+    pub compression: Compression,
     /// Warnings (a missing `metadata.yaml`).
     pub warnings: Vec<String>,
+}
+
+/// A bag ready to read: splits compressed whole are decompressed, and MCAP splits merged into
+/// one file, in a temporary folder that lives as long as this.
+#[derive(Debug)]
+pub struct PreparedBag {
+    /// `.db3` files to read in order, or the one MCAP file.
+    pub storage: PreparedStorage,
+    /// Each message's payload is zstd-compressed (`compression_mode: MESSAGE`).
+    pub compressed_messages: bool,
+    /// Warnings (a missing `metadata.yaml`).
+    pub warnings: Vec<String>,
+    /// The folder of decompressed or merged files, removed when dropped.
+    pub temp: Option<tempfile::TempDir>,
+}
+
+/// What [`PreparedBag`] reads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PreparedStorage {
+    /// SQLite `.db3` files, in order.
+    Sqlite3(Vec<PathBuf>),
+    /// One MCAP file (the bag's only split, or its splits merged in order).
+    Mcap(PathBuf),
 }
 
 /// Whether `dir` is a bag directory: it holds `metadata.yaml` or `.db3` files.
@@ -117,17 +160,21 @@ pub fn bag_files(path: &Path) -> Result<BagFiles, Error> {
     if !path.is_dir() {
         return Ok(BagFiles {
             storage: Storage::Sqlite3(vec![path.to_path_buf()]),
+            compression: Compression::None,
             warnings: Vec::new(),
         });
     }
     let metadata = path.join(METADATA);
+    let mut compression = Compression::None;
     let (storage_id, files, warnings) = if metadata.is_file() {
         let text = std::fs::read_to_string(&metadata).map_err(|source| Error::Io {
             path: metadata.clone(),
             source,
         })?;
-        let (storage_id, relative) =
+        let parsed =
             parse_metadata(&text).map_err(|m| bag_error(&metadata, None, None, None, m))?;
+        compression = parsed.compression;
+        let (storage_id, relative) = (parsed.storage, parsed.files);
         let mut files = Vec::with_capacity(relative.len());
         for (k, rel) in relative.iter().enumerate() {
             let file = locate_split(path, rel).ok_or_else(|| {
@@ -192,23 +239,19 @@ pub fn bag_files(path: &Path) -> Result<BagFiles, Error> {
     };
     let storage = match storage_id.as_str() {
         "sqlite3" => Storage::Sqlite3(files),
-        "mcap" => match <[PathBuf; 1]>::try_from(files) {
-            Ok([file]) => Storage::Mcap(file),
-            Err(files) => {
-                return Err(bag_error(
-                    path,
-                    None,
-                    None,
-                    None,
-                    format!(
-                        "the bag's MCAP storage is split into {} files; calib reads one MCAP \
-                         file: merge them with `mcap merge` (or `ros2 bag convert`) and give \
-                         the merged file",
-                        files.len()
-                    ),
-                ));
-            }
-        },
+        "mcap" if compression == Compression::Message => {
+            return Err(bag_error(
+                &metadata,
+                None,
+                None,
+                None,
+                "the bag is MCAP storage with each message zstd-compressed (compression_mode: \
+                 MESSAGE), which calib does not read; convert it with `ros2 bag convert` to \
+                 an uncompressed or file-compressed bag"
+                    .into(),
+            ));
+        }
+        "mcap" => Storage::Mcap(files),
         other => {
             return Err(bag_error(
                 &metadata,
@@ -222,7 +265,177 @@ pub fn bag_files(path: &Path) -> Result<BagFiles, Error> {
             ));
         }
     };
-    Ok(BagFiles { storage, warnings })
+    Ok(BagFiles {
+        storage,
+        compression,
+        warnings,
+    })
+}
+
+/// The bag at `path` ready to read (see [`PreparedBag`]): its files found by [`bag_files`],
+/// splits compressed whole (`.zstd`) decompressed and several MCAP splits merged, in order,
+/// into one file, in a temporary folder. The whole recording is then on disk uncompressed:
+/// SQLite reads a database from a file, and the MCAP reader reads one file.
+pub fn prepare(path: &Path) -> Result<PreparedBag, Error> {
+    let found = bag_files(path)?;
+    let mut temp = None;
+    let mut folder = |split: &Path| -> Result<PathBuf, Error> {
+        if temp.is_none() {
+            temp = Some(
+                tempfile::Builder::new()
+                    .prefix("calib-bag-")
+                    .tempdir()
+                    .map_err(|source| Error::Io {
+                        path: split.to_path_buf(),
+                        source,
+                    })?,
+            );
+        }
+        Ok(temp
+            .as_ref()
+            .map_or_else(PathBuf::new, |t| t.path().to_path_buf()))
+    };
+    let mut unpack = |files: Vec<PathBuf>| -> Result<Vec<PathBuf>, Error> {
+        if found.compression != Compression::File {
+            return Ok(files);
+        }
+        files
+            .iter()
+            .map(|split| {
+                let dir = folder(split)?;
+                decompress(split, &dir)
+            })
+            .collect()
+    };
+    let storage = match found.storage {
+        Storage::Sqlite3(files) => PreparedStorage::Sqlite3(unpack(files)?),
+        Storage::Mcap(files) => {
+            let files = unpack(files)?;
+            match <[PathBuf; 1]>::try_from(files) {
+                Ok([file]) => PreparedStorage::Mcap(file),
+                Err(files) => {
+                    let name = path.file_name().unwrap_or_default().to_string_lossy();
+                    let merged = folder(path)?.join(format!("{name}.merged.mcap"));
+                    merge_mcap(&files, &merged)?;
+                    PreparedStorage::Mcap(merged)
+                }
+            }
+        }
+    };
+    Ok(PreparedBag {
+        storage,
+        compressed_messages: found.compression == Compression::Message,
+        warnings: found.warnings,
+        temp,
+    })
+}
+
+/// Decompresses the zstd-compressed split `split` (`bag_0.db3.zstd`) into `dir` under its name
+/// without `.zstd`; the new file's path.
+fn decompress(split: &Path, dir: &Path) -> Result<PathBuf, Error> {
+    let name = split.file_name().unwrap_or_default().to_string_lossy();
+    let name = name.strip_suffix(".zstd").unwrap_or(&name);
+    let out = dir.join(name);
+    let io = |source| Error::Io {
+        path: split.to_path_buf(),
+        source,
+    };
+    let input = std::fs::File::open(split).map_err(io)?;
+    let output = std::fs::File::create(&out).map_err(|source| Error::Io {
+        path: out.clone(),
+        source,
+    })?;
+    zstd::stream::copy_decode(input, std::io::BufWriter::new(output)).map_err(|e| {
+        bag_error(
+            split,
+            None,
+            None,
+            None,
+            format!(
+                "cannot decompress the split ({e}); the bag's metadata says its files are \
+                 zstd-compressed (compression_mode: FILE): the file is damaged or not zstd"
+            ),
+        )
+    })?;
+    Ok(out)
+}
+
+/// Writes the messages of the MCAP splits `files`, split after split, each in its order, to
+/// the MCAP file `out`: the bag as one recording. Channels of equal topic, message encoding and
+/// schema share one channel.
+fn merge_mcap(files: &[PathBuf], out: &Path) -> Result<(), Error> {
+    use crate::mcap_log::records;
+    use mcap::sans_io::LinearReaderOptions;
+    let write_error = |e: mcap::McapError| Error::Write {
+        path: out.to_path_buf(),
+        message: format!("cannot write the merged MCAP file: {e}"),
+    };
+    let file = std::fs::File::create(out).map_err(|source| Error::Io {
+        path: out.to_path_buf(),
+        source,
+    })?;
+    let mut writer = mcap::WriteOptions::new()
+        .compression(None)
+        .create(std::io::BufWriter::new(file))
+        .map_err(write_error)?;
+    let mut channels: HashMap<(String, String, String), u16> = HashMap::new();
+    for split in files {
+        let io = |source| Error::Io {
+            path: split.clone(),
+            source,
+        };
+        let input = std::fs::File::open(split).map_err(io)?;
+        let len = input.metadata().map_err(io)?.len();
+        let options = LinearReaderOptions::default()
+            .with_skip_end_magic(true)
+            .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
+        let stream = records::Stream::new(std::io::BufReader::new(input), options, false);
+        for (index, message) in stream.enumerate() {
+            let message = message.map_err(|e| Error::Mcap {
+                path: split.clone(),
+                message_index: Some(index as u64),
+                channel: None,
+                message: format!(
+                    "the split is damaged here ({e}); recover it with `mcap recover`, or \
+                     remove it from {METADATA} to read the other splits"
+                ),
+            })?;
+            let c = &message.channel;
+            let schema = c.schema.as_ref();
+            let key = (
+                c.topic.clone(),
+                c.message_encoding.clone(),
+                schema.map_or_else(String::new, |s| s.name.clone()),
+            );
+            let id = match channels.get(&key) {
+                Some(&id) => id,
+                None => {
+                    let schema_id = match schema {
+                        Some(s) => writer
+                            .add_schema(&s.name, &s.encoding, &s.data)
+                            .map_err(write_error)?,
+                        None => 0,
+                    };
+                    let id = writer
+                        .add_channel(schema_id, &c.topic, &c.message_encoding, &c.metadata)
+                        .map_err(write_error)?;
+                    channels.insert(key, id);
+                    id
+                }
+            };
+            let header = mcap::records::MessageHeader {
+                channel_id: id,
+                sequence: message.sequence,
+                log_time: message.log_time,
+                publish_time: message.publish_time,
+            };
+            writer
+                .write_to_known_channel(&header, &message.data)
+                .map_err(write_error)?;
+        }
+    }
+    writer.finish().map_err(write_error)?;
+    Ok(())
 }
 
 /// A split named by the metadata, relative to the bag directory. Bags from ROS 2 Foxy and
@@ -237,14 +450,25 @@ fn locate_split(dir: &Path, relative: &str) -> Option<PathBuf> {
     bare.is_file().then_some(bare)
 }
 
-/// `storage_identifier` (default `sqlite3`) and `relative_file_paths` of a bag's
-/// `metadata.yaml`.
+/// What calib needs from a bag's `metadata.yaml`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Metadata {
+    /// `storage_identifier` (default `sqlite3`).
+    storage: String,
+    /// `relative_file_paths`.
+    files: Vec<String>,
+    /// `compression_format` and `compression_mode`.
+    compression: Compression,
+}
+
+/// `storage_identifier`, `relative_file_paths`, `compression_format` and `compression_mode`
+/// of a bag's `metadata.yaml`.
 ///
 /// Parsed by hand rather than with a YAML crate: calib needs two keys of a file rosbag2 writes
 /// in one fixed layout (block style, one scalar per line, a `- ` list), and a YAML dependency
 /// would be larger than this function. Flow-style lists (`[a, b]`) and quoted scalars are
 /// accepted too, as hand edits produce them.
-fn parse_metadata(text: &str) -> Result<(String, Vec<String>), String> {
+fn parse_metadata(text: &str) -> Result<Metadata, String> {
     let scalar = |v: &str| {
         let v = v.trim();
         let v = v
@@ -262,6 +486,7 @@ fn parse_metadata(text: &str) -> Result<(String, Vec<String>), String> {
     }
     let mut storage = None;
     let mut files: Option<Vec<String>> = None;
+    let (mut format, mut mode) = (String::new(), String::new());
     let mut lines = text.lines().peekable();
     while let Some(line) = lines.next() {
         let key_indent = line.len() - line.trim_start().len();
@@ -270,6 +495,10 @@ fn parse_metadata(text: &str) -> Result<(String, Vec<String>), String> {
             && let Some(v) = trimmed.strip_prefix("storage_identifier:")
         {
             storage = Some(scalar(v));
+        } else if let Some(v) = trimmed.strip_prefix("compression_format:") {
+            format = scalar(v);
+        } else if let Some(v) = trimmed.strip_prefix("compression_mode:") {
+            mode = scalar(v);
         } else if files.is_none()
             && let Some(v) = trimmed.strip_prefix("relative_file_paths:")
         {
@@ -300,7 +529,22 @@ fn parse_metadata(text: &str) -> Result<(String, Vec<String>), String> {
     let files = files.filter(|f| !f.is_empty()).ok_or_else(|| {
         format!("no `relative_file_paths` list of storage files; the {METADATA} is incomplete")
     })?;
-    Ok((storage.unwrap_or_else(|| "sqlite3".into()), files))
+    let compression = match (format.as_str(), mode.to_ascii_uppercase().as_str()) {
+        (_, "" | "NONE") | ("", _) => Compression::None,
+        ("zstd", "FILE") => Compression::File,
+        ("zstd", "MESSAGE") => Compression::Message,
+        (format, mode) => {
+            return Err(format!(
+                "the bag is compressed with `{format}` ({mode}); calib reads zstd (FILE or \
+                 MESSAGE): decompress it with `ros2 bag convert`"
+            ));
+        }
+    };
+    Ok(Metadata {
+        storage: storage.unwrap_or_else(|| "sqlite3".into()),
+        files,
+        compression,
+    })
 }
 
 /// One row of a `messages` table, its topic resolved to the reader's.
@@ -335,7 +579,14 @@ fn open_db(path: &Path) -> Result<Connection, Error> {
 
 /// Calls `f` on each message of the wanted topics, file after file, in `timestamp` order within
 /// a file, until it returns `false`.
-fn scan(files: &[PathBuf], wanted: &Wanted, mut f: impl FnMut(Row) -> bool) -> Result<(), Error> {
+/// `compressed`: each payload is zstd-compressed (`compression_mode: MESSAGE`) and is
+/// decompressed here.
+fn scan(
+    files: &[PathBuf],
+    wanted: &Wanted,
+    compressed: bool,
+    mut f: impl FnMut(Row) -> bool,
+) -> Result<(), Error> {
     for (k, (path, topics)) in files.iter().zip(wanted).enumerate() {
         if topics.is_empty() {
             continue;
@@ -373,7 +624,21 @@ fn scan(files: &[PathBuf], wanted: &Wanted, mut f: impl FnMut(Row) -> bool) -> R
                 )
             };
             let timestamp: i64 = row.get(2).map_err(column)?;
-            let data: Vec<u8> = row.get(3).map_err(column)?;
+            let mut data: Vec<u8> = row.get(3).map_err(column)?;
+            if compressed {
+                data = zstd::stream::decode_all(data.as_slice()).map_err(|e| {
+                    bag_error(
+                        path,
+                        Some("messages"),
+                        Some(id),
+                        None,
+                        format!(
+                            "the payload cannot be decompressed ({e}); the bag's metadata says \
+                             each message is zstd-compressed (compression_mode: MESSAGE)"
+                        ),
+                    )
+                })?;
+            }
             let Some(&topic) = of_id.get(&topic_id) else {
                 continue;
             };
@@ -398,6 +663,8 @@ fn scan(files: &[PathBuf], wanted: &Wanted, mut f: impl FnMut(Row) -> bool) -> R
 pub struct BagReader {
     files: Vec<PathBuf>,
     wanted: Wanted,
+    /// Each payload is zstd-compressed.
+    compressed: bool,
     /// One MCAP channel per topic of the bag (by name), so that messages are decoded and
     /// registered exactly as the MCAP reader does.
     topic_channels: Vec<Arc<mcap::Channel<'static>>>,
@@ -428,14 +695,16 @@ fn message<'a>(channel: &Arc<mcap::Channel<'static>>, row: &'a Row) -> mcap::Mes
 }
 
 impl BagReader {
-    /// Opens a bag with SQLite storage: `files` are its `.db3` files in order, `warnings` what
-    /// [`bag_files`] found to say.
+    /// Opens a bag with SQLite storage: `files` are its `.db3` files in order (decompressed),
+    /// `compressed` whether each payload is zstd-compressed, `warnings` what [`bag_files`]
+    /// found to say.
     ///
     /// Errors if a file is not a rosbag2 SQLite file, no topic holds JointState or scalar
     /// messages, a topic has two types, or a topic's first message is bad.
     pub fn open(
         path: &Path,
         files: Vec<PathBuf>,
+        compressed: bool,
         warnings: Vec<String>,
         opts: &ReadOptions,
     ) -> Result<Self, Error> {
@@ -525,7 +794,7 @@ impl BagReader {
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut failure = None;
         let mut after_all: Option<u64> = None;
-        scan(&files, &wanted, |row| {
+        scan(&files, &wanted, compressed, |row| {
             let msg = message(&topic_channels[row.topic], &row);
             let fail = |m| {
                 bag_error(
@@ -602,8 +871,10 @@ impl BagReader {
         let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
         for topic in &registry.topics {
             let unit = match topic.encoding {
-                Encoding::JointState => AngleUnit::Rad,
-                Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
+                Encoding::JointState(_) => AngleUnit::Rad,
+                Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
+                    opts.unit.unwrap_or(AngleUnit::Deg)
+                }
             };
             for _ in &topic.names {
                 all_channels.push(Channel {
@@ -616,6 +887,7 @@ impl BagReader {
         let mut reader = BagReader {
             files,
             wanted,
+            compressed,
             topic_channels,
             registry,
             all_channels,
@@ -687,10 +959,11 @@ impl BagReader {
     /// Starts the thread that streams the rows of the topics read.
     fn start(&mut self) -> Receiver<Result<Row, Error>> {
         let (tx, rx) = sync_channel(ROWS_IN_FLIGHT);
-        let (files, wanted) = (self.files.clone(), self.wanted.clone());
+        let (files, wanted, compressed) =
+            (self.files.clone(), self.wanted.clone(), self.compressed);
         std::thread::spawn(move || {
             // A failed send means the reader was dropped: stop reading.
-            let result = scan(&files, &wanted, |row| tx.send(Ok(row)).is_ok());
+            let result = scan(&files, &wanted, compressed, |row| tx.send(Ok(row)).is_ok());
             if let Err(e) = result {
                 let _ = tx.send(Err(e));
             }
@@ -884,17 +1157,31 @@ mod tests {
                     duration:\n    nanoseconds: 100\n  relative_file_paths:\n    - run_0.db3\n    \
                     - run_1.db3\n  topics_with_message_count:\n    - topic_metadata:\n        \
                     name: /a\n";
-        let (storage, files) = parse_metadata(text).unwrap();
-        assert_eq!(storage, "sqlite3");
-        assert_eq!(files, ["run_0.db3", "run_1.db3"]);
+        let m = parse_metadata(text).unwrap();
+        assert_eq!(m.storage, "sqlite3");
+        assert_eq!(m.files, ["run_0.db3", "run_1.db3"]);
+        assert_eq!(m.compression, Compression::None);
         let text = "rosbag2_bagfile_information:\n  storage_identifier: 'mcap'\n  \
                     relative_file_paths: [\"a_0.mcap\", a_1.mcap]\n";
-        let (storage, files) = parse_metadata(text).unwrap();
-        assert_eq!(storage, "mcap");
-        assert_eq!(files, ["a_0.mcap", "a_1.mcap"]);
+        let m = parse_metadata(text).unwrap();
+        assert_eq!(m.storage, "mcap");
+        assert_eq!(m.files, ["a_0.mcap", "a_1.mcap"]);
+        let zstd = |mode: &str| {
+            let text = format!(
+                "rosbag2_bagfile_information:\n  relative_file_paths:\n  - x.db3.zstd\n  \
+                 compression_format: zstd\n  compression_mode: {mode}\n"
+            );
+            parse_metadata(&text).map(|m| m.compression)
+        };
+        assert_eq!(zstd("FILE"), Ok(Compression::File));
+        assert_eq!(zstd("MESSAGE"), Ok(Compression::Message));
+        assert_eq!(zstd("\"\""), Ok(Compression::None));
+        let text = "rosbag2_bagfile_information:\n  relative_file_paths: [a]\n  \
+                    compression_format: lz4\n  compression_mode: FILE\n";
+        assert!(parse_metadata(text).unwrap_err().contains("`lz4`"));
         // Lists at the key's own indentation are YAML too.
         let text = "rosbag2_bagfile_information:\n  relative_file_paths:\n  - x.db3\n  files:\n";
-        assert_eq!(parse_metadata(text).unwrap().1, ["x.db3"]);
+        assert_eq!(parse_metadata(text).unwrap().files, ["x.db3"]);
         assert!(parse_metadata("foo: 1\n").is_err());
         assert!(parse_metadata("rosbag2_bagfile_information:\n  version: 5\n").is_err());
     }

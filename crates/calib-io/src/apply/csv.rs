@@ -4,11 +4,15 @@
 //! quotes) so that each record's raw bytes, and the raw span of each field, are known: the
 //! `csv` crate hands out unquoted fields, from which the original bytes cannot be rebuilt. The
 //! field syntax accepted is the [`CsvReader`](crate::csv_log::CsvReader)'s: surrounding spaces,
-//! a UTF-8 byte order mark, blank lines, quoted fields.
+//! a UTF-8 byte order mark, blank lines, quoted fields, and its dialects
+//! ([`crate::csv_log::dialect`]): the separator (`,` `;` tab) and the lines before the header are
+//! found as the reader finds them, and copied as they are, so the output keeps the input's
+//! dialect.
 
 use super::Range;
 use crate::Error;
 use crate::atomic::AtomicFile;
+use crate::csv_log::dialect::{self, Dialect, SNIFF_BYTES};
 use crate::csv_log::parse_f64;
 use crate::error::csv_error;
 use crate::limits::{LineLimit, line_too_long};
@@ -16,7 +20,7 @@ use calib_core::AngleUnit;
 use calib_core::correction::Correction;
 use std::borrow::Cow;
 use std::fs::File;
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Read, Seek, Write};
 use std::ops::Range as Span;
 use std::path::{Path, PathBuf};
 
@@ -34,22 +38,35 @@ struct Records {
     line: u64,
     /// Lines the current record spans.
     lines: u64,
+    /// The field separator.
+    separator: u8,
 }
 
 impl Records {
-    fn open(path: &Path) -> Result<Self, Error> {
-        let file = File::open(path).map_err(|source| Error::Io {
+    /// Opens `path`; its dialect (separator, records before the header) from its start.
+    fn open(path: &Path) -> Result<(Self, Dialect), Error> {
+        let io = |source| Error::Io {
             path: path.to_path_buf(),
             source,
-        })?;
-        Ok(Records {
+        };
+        let mut file = File::open(path).map_err(io)?;
+        let mut head = Vec::with_capacity(SNIFF_BYTES);
+        (&mut file)
+            .take(SNIFF_BYTES as u64)
+            .read_to_end(&mut head)
+            .map_err(io)?;
+        let dialect = dialect::sniff(&head);
+        file.rewind().map_err(io)?;
+        let records = Records {
             path: path.to_path_buf(),
             input: BufReader::with_capacity(1 << 16, LineLimit::new(file)),
             record: Vec::new(),
             fields: Vec::new(),
             line: 0,
             lines: 1,
-        })
+            separator: dialect.separator,
+        };
+        Ok((records, dialect))
     }
 
     /// Reads the next record; `false` at the end of the file. A blank line is a record with no
@@ -106,7 +123,7 @@ impl Records {
         for (i, &b) in self.record[..end].iter().enumerate() {
             match b {
                 b'"' => quoted = !quoted,
-                b',' if !quoted => {
+                b if b == self.separator && !quoted => {
                     self.fields.push(start..i);
                     start = i + 1;
                 }
@@ -149,7 +166,19 @@ fn walk(
     channel: &str,
     mut each: impl FnMut(&Records, Option<(usize, f64)>) -> Result<(), Error>,
 ) -> Result<(), Error> {
-    let mut records = Records::open(path)?;
+    let (mut records, dialect) = Records::open(path)?;
+    // The lines before the header (instrument, date, …) are copied as they are: `skip`
+    // records, not counting blank lines (which the dialect's reader passes over).
+    let mut skipped = 0;
+    while skipped < dialect.skip {
+        if !records.next()? {
+            break;
+        }
+        if !records.fields.is_empty() {
+            skipped += 1;
+        }
+        each(&records, None)?;
+    }
     // The header is the first record that is not a blank line.
     loop {
         if !records.next()? {
@@ -175,14 +204,14 @@ fn walk(
         })
         .collect();
     each(&records, None)?;
-    let column = names
-        .iter()
-        .position(|n| n == channel && n != "t" && n != "session")
+    let time = dialect::time_column(&names, None, None).map(|(i, _)| i);
+    let is_channel = |i: usize| Some(i) != time && names[i] != "session";
+    let column = (0..names.len())
+        .find(|&i| names[i] == channel && is_channel(i))
         .ok_or_else(|| {
-            let channels: Vec<&str> = names
-                .iter()
-                .map(String::as_str)
-                .filter(|n| *n != "t" && *n != "session")
+            let channels: Vec<&str> = (0..names.len())
+                .filter(|&i| is_channel(i))
+                .map(|i| names[i].as_str())
                 .collect();
             records.error(
                 Some(channel),

@@ -9,7 +9,7 @@
 
 use super::Range;
 use crate::atomic::AtomicFile;
-use crate::mcap_log::cdr::JointState;
+use crate::mcap_log::cdr::{JointFormat, JointState};
 use crate::mcap_log::json::field_spans;
 use crate::mcap_log::read::{Encoding, read_summary};
 use crate::mcap_log::records::{Checked, StreamError};
@@ -166,7 +166,13 @@ fn walk(
                             .into(),
                     ));
                 }
-                hit = find(topic.encoding, data, channel)
+                // A qualified name `TOPIC/NAME` names the joint or field `NAME` of that topic
+                // only; a short name, the one of any topic carrying it.
+                let member = channel
+                    .strip_prefix(topic.name.as_str())
+                    .and_then(|rest| rest.strip_prefix('/'))
+                    .unwrap_or(channel);
+                hit = find(topic.encoding, data, member)
                     .map_err(|m| mcap_error(path, Some(messages), Some(&topic.name), m))?;
                 if hit.is_some() {
                     match &carrier {
@@ -205,12 +211,18 @@ fn find<'d>(
 ) -> Result<Option<Hit<'d>>, String> {
     match encoding {
         // A scalar topic's channel is the topic itself, refused by the caller.
-        None | Some(Encoding::Scalar(_)) => Ok(None),
-        Some(Encoding::JointState) => {
-            let message = JointState::parse(data).map_err(|e| e.to_string())?;
+        None | Some(Encoding::Scalar(_) | Encoding::Field) => Ok(None),
+        Some(Encoding::JointState(format)) => {
+            let message = JointState::parse_as(data, format).map_err(|e| e.to_string())?;
             let Some(index) = message.joint(channel) else {
                 return Ok(None);
             };
+            if format == JointFormat::Dynamic {
+                return Err(format!(
+                    "joint `{channel}` is carried by DynamicJointState messages, which calib \
+                     apply does not rewrite; correct a JointState or JSON channel"
+                ));
+            }
             let value = message.positions().nth(index).ok_or_else(|| {
                 format!(
                     "the JointState message names {} joints but has {} positions, none for \

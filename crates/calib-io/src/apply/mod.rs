@@ -38,7 +38,8 @@ use std::path::Path;
 /// What to correct and how.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ApplyOptions {
-    /// The channel: a CSV column, a JointState joint name or a JSON field.
+    /// The channel: a CSV column, or a JointState joint or JSON field by its name (on whichever
+    /// topic carries it) or as `TOPIC/NAME` (on that topic only).
     pub channel: String,
     /// The unit of CSV readings and JSON fields (degrees if `None`); JointState positions are
     /// radians by definition.

@@ -1,25 +1,38 @@
-//! A hand-written CDR codec for ROS 2 `sensor_msgs/msg/JointState`.
+//! Hand-written decoders of the joint-state messages calib reads: ROS 2
+//! `sensor_msgs/msg/JointState` and `control_msgs/msg/DynamicJointState` in CDR, ROS 1
+//! `sensor_msgs/JointState` in the ROS 1 wire format, and the `std_msgs` scalars (CDR).
 //!
-//! Layout (OMG CDR as ROS 2 `rmw` writes it): a 4-byte encapsulation header (`00 01`
+//! **CDR** (OMG CDR as ROS 2 `rmw` writes it): a 4-byte encapsulation header (`00 01`
 //! little-endian, `00 00` big-endian, then two option bytes), then the fields, each aligned to its
 //! own size counted from the end of that header. Strings are a `u32` length that includes the
 //! trailing NUL, then the bytes and the NUL; sequences are a `u32` count then the elements.
 //!
+//! **ROS 1** (what `mcap convert` makes of a ROS 1 bag: message encoding `ros1`, schema encoding
+//! `ros1msg`): no encapsulation header, little-endian, no alignment padding at all; strings are a
+//! `u32` length *without* a NUL, then the bytes; the header starts with `uint32 seq` and its stamp
+//! is `uint32 secs, uint32 nsecs`.
+//!
 //! ```text
-//! JointState = Header header { Time stamp { int32 sec; uint32 nanosec }; string frame_id }
-//!              string[] name; float64[] position; float64[] velocity; float64[] effort
+//! JointState        = Header header { [uint32 seq (ROS 1)] Time stamp { sec; nanosec }; string frame_id }
+//!                     string[] name; float64[] position; float64[] velocity; float64[] effort
+//! DynamicJointState = Header header; string[] joint_names;
+//!                     InterfaceValue[] interface_values { string[] interface_names; float64[] values }
 //! ```
 //!
-//! The decoder borrows from the message and allocates nothing: it checks every length against the
-//! bytes that remain before using it, so a corrupt length can neither panic nor make it allocate.
-//! It is hand-written rather than serde-based because it is the hot loop of reading a log (see
-//! `benches/ingest_mcap.rs`), and because comparing a message's `name` block byte for byte with
-//! the first message's is how the reader checks cheaply that the joints did not change.
+//! A DynamicJointState's channels are its `joint_names`; each joint's reading is the value of its
+//! `position` interface (a joint without one carries no reading in that message).
+//!
+//! The decoder borrows from the message and allocates nothing for JointState: it checks every
+//! length against the bytes that remain before using it, so a corrupt length can neither panic
+//! nor make it allocate. It is hand-written rather than serde-based because it is the hot loop of
+//! reading a log (see `benches/ingest_mcap.rs`), and because comparing a message's `name` block
+//! byte for byte with the first message's is how the reader checks cheaply that the joints did
+//! not change.
 
 use std::fmt;
 
 /// Bytes of the encapsulation header; alignment is counted from its end.
-const ORIGIN: usize = 4;
+pub(super) const ORIGIN: usize = 4;
 
 /// What is wrong with a CDR message.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -43,6 +56,14 @@ pub(crate) enum CdrError {
         count: u32,
         /// Bytes left in the message after it.
         remaining: usize,
+    },
+    /// A DynamicJointState's counts disagree: joints and their interface values, or an
+    /// interface's names and values.
+    Mismatch {
+        /// Names counted.
+        names: usize,
+        /// Values counted.
+        values: usize,
     },
     /// A joint name is not UTF-8.
     NameNotUtf8 {
@@ -74,6 +95,11 @@ impl fmt::Display for CdrError {
                 "the CDR message is truncated or corrupt: `{field}` claims {count} \
                  entries or bytes but only {remaining} bytes remain"
             ),
+            CdrError::Mismatch { names, values } => write!(
+                f,
+                "the DynamicJointState message has {names} names but {values} values; the \
+                 publisher must give one value per name"
+            ),
             CdrError::NameNotUtf8 { index } => {
                 write!(
                     f,
@@ -84,24 +110,52 @@ impl fmt::Display for CdrError {
     }
 }
 
-/// A bounds-checked reader of CDR primitives.
-struct Cursor<'a> {
+/// The wire formats of joint-state messages calib reads (see the [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum JointFormat {
+    /// `sensor_msgs/msg/JointState`, CDR.
+    Cdr,
+    /// `sensor_msgs/JointState`, ROS 1 wire format.
+    Ros1,
+    /// `control_msgs/msg/DynamicJointState`, CDR: the `position` interface of each joint.
+    Dynamic,
+}
+
+/// A bounds-checked reader of CDR (or, `packed`, ROS 1) primitives.
+pub(super) struct Cursor<'a> {
     buf: &'a [u8],
     pos: usize,
-    big_endian: bool,
+    pub(super) big_endian: bool,
+    /// Where alignment is counted from: the end of the CDR encapsulation header.
+    origin: usize,
+    /// ROS 1: no alignment padding, strings without their NUL.
+    packed: bool,
 }
 
 impl<'a> Cursor<'a> {
-    fn align(&mut self, n: usize) {
-        let rel = self.pos - ORIGIN;
-        self.pos = ORIGIN + rel.div_ceil(n) * n;
+    pub(super) fn cdr(buf: &'a [u8], pos: usize, big_endian: bool) -> Self {
+        Cursor {
+            buf,
+            pos,
+            big_endian,
+            origin: ORIGIN,
+            packed: false,
+        }
     }
 
-    fn remaining(&self) -> usize {
+    pub(super) fn align(&mut self, n: usize) {
+        if self.packed {
+            return;
+        }
+        let rel = self.pos - self.origin;
+        self.pos = self.origin + rel.div_ceil(n) * n;
+    }
+
+    pub(super) fn remaining(&self) -> usize {
         self.buf.len().saturating_sub(self.pos)
     }
 
-    fn take(&mut self, n: usize, field: &'static str) -> Result<&'a [u8], CdrError> {
+    pub(super) fn take(&mut self, n: usize, field: &'static str) -> Result<&'a [u8], CdrError> {
         let bytes = self
             .pos
             .checked_add(n)
@@ -115,7 +169,7 @@ impl<'a> Cursor<'a> {
         Ok(bytes)
     }
 
-    fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
+    pub(super) fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
         self.align(4);
         let b: [u8; 4] = self.take(4, field)?.try_into().unwrap_or_default();
         Ok(if self.big_endian {
@@ -127,7 +181,11 @@ impl<'a> Cursor<'a> {
 
     /// A sequence count, checked against the bytes left: each element takes at least
     /// `min_size` bytes.
-    fn count(&mut self, field: &'static str, min_size: usize) -> Result<usize, CdrError> {
+    pub(super) fn count(
+        &mut self,
+        field: &'static str,
+        min_size: usize,
+    ) -> Result<usize, CdrError> {
         let count = self.u32(field)?;
         let remaining = self.remaining();
         if (count as usize).saturating_mul(min_size) > remaining {
@@ -141,10 +199,11 @@ impl<'a> Cursor<'a> {
     }
 
     /// A string's bytes without the trailing NUL.
-    fn string(&mut self, field: &'static str) -> Result<&'a [u8], CdrError> {
+    pub(super) fn string(&mut self, field: &'static str) -> Result<&'a [u8], CdrError> {
         let len = self.count(field, 1)?;
         let bytes = self.take(len, field)?;
-        // The length counts the NUL; tolerate writers that omit it (or write length 0).
+        // The length counts the NUL; tolerate writers that omit it (or write length 0). ROS 1
+        // strings have none.
         Ok(bytes.strip_suffix(&[0]).unwrap_or(bytes))
     }
 
@@ -167,13 +226,60 @@ impl<'a> Cursor<'a> {
         }
         self.take(count * 8, field)
     }
+
+    fn f64_at(&self, b: &[u8]) -> f64 {
+        let b: [u8; 8] = b.try_into().unwrap_or_default();
+        if self.big_endian {
+            f64::from_be_bytes(b)
+        } else {
+            f64::from_le_bytes(b)
+        }
+    }
+
+    /// The header stamp `(sec, nanosec)` and `frame_id` of a ROS 2 or (`packed`) ROS 1 header.
+    fn header(&mut self) -> Result<(i64, u32), CdrError> {
+        let sec = if self.packed {
+            self.u32("header.seq")?;
+            // ROS 1 `time`: unsigned seconds.
+            i64::from(self.u32("header.stamp.secs")?)
+        } else {
+            i64::from(self.u32("header.stamp.sec")? as i32)
+        };
+        let nanosec = self.u32("header.stamp.nanosec")?;
+        self.string("header.frame_id")?;
+        Ok((sec, nanosec))
+    }
 }
 
-/// A decoded JointState, borrowing from the message.
-#[derive(Debug, Clone, Copy)]
+/// The CDR encapsulation header's byte order: `true` for big-endian.
+pub(super) fn encapsulation(data: &[u8]) -> Result<bool, CdrError> {
+    let header = data.get(..ORIGIN).ok_or(CdrError::Truncated {
+        field: "encapsulation header",
+        offset: 0,
+        len: data.len(),
+    })?;
+    match [header[0], header[1]] {
+        [0, 0] => Ok(true),
+        [0, 1] => Ok(false),
+        other => Err(CdrError::Encapsulation(other)),
+    }
+}
+
+/// Where a message's joint positions are.
+#[derive(Debug, Clone)]
+enum Positions<'a> {
+    /// `float64[] position`: the raw elements.
+    Raw(&'a [u8]),
+    /// DynamicJointState: each joint's `position` interface value, NaN where it has none.
+    Interfaces(Vec<f64>),
+}
+
+/// A decoded joint-state message (JointState in CDR or ROS 1, or DynamicJointState), borrowing
+/// from the message.
+#[derive(Debug, Clone)]
 pub(crate) struct JointState<'a> {
     /// `header.stamp.sec`.
-    pub sec: i32,
+    pub sec: i64,
     /// `header.stamp.nanosec`.
     pub nanosec: u32,
     /// Number of joint names.
@@ -184,33 +290,36 @@ pub(crate) struct JointState<'a> {
     /// The whole message, and where `name_block` starts in it.
     data: &'a [u8],
     name_start: usize,
-    /// The raw `position` elements, and where they start in the message.
-    positions: &'a [u8],
+    positions: Positions<'a>,
+    /// Where the raw `position` elements start in the message.
     positions_at: usize,
     big_endian: bool,
+    packed: bool,
 }
 
 impl<'a> JointState<'a> {
-    /// Decodes a message, checking every field including `velocity` and `effort`.
+    /// Decodes a CDR `sensor_msgs/msg/JointState`, checking every field including `velocity`
+    /// and `effort`.
+    #[cfg(test)]
     pub fn parse(data: &'a [u8]) -> Result<Self, CdrError> {
-        let header = data.get(..ORIGIN).ok_or(CdrError::Truncated {
-            field: "encapsulation header",
-            offset: 0,
-            len: data.len(),
-        })?;
-        let big_endian = match [header[0], header[1]] {
-            [0, 0] => true,
-            [0, 1] => false,
-            other => return Err(CdrError::Encapsulation(other)),
+        Self::parse_as(data, JointFormat::Cdr)
+    }
+
+    /// Decodes a message of this format, checking every field.
+    pub fn parse_as(data: &'a [u8], format: JointFormat) -> Result<Self, CdrError> {
+        let mut c = match format {
+            JointFormat::Cdr | JointFormat::Dynamic => {
+                Cursor::cdr(data, ORIGIN, encapsulation(data)?)
+            }
+            JointFormat::Ros1 => Cursor {
+                buf: data,
+                pos: 0,
+                big_endian: false,
+                origin: 0,
+                packed: true,
+            },
         };
-        let mut c = Cursor {
-            buf: data,
-            pos: ORIGIN,
-            big_endian,
-        };
-        let sec = c.u32("header.stamp.sec")? as i32;
-        let nanosec = c.u32("header.stamp.nanosec")?;
-        c.string("header.frame_id")?;
+        let (sec, nanosec) = c.header()?;
         // Each name takes at least its 4-byte length.
         let name_count = c.count("name", 4)?;
         let name_start = c.pos;
@@ -218,10 +327,18 @@ impl<'a> JointState<'a> {
             c.string("name")?;
         }
         let name_block = &data[name_start..c.pos];
-        let positions = c.f64_seq("position")?;
-        let positions_at = c.pos - positions.len();
-        c.f64_seq("velocity")?;
-        c.f64_seq("effort")?;
+        let (positions, positions_at) = if format == JointFormat::Dynamic {
+            (
+                Positions::Interfaces(interface_positions(&mut c, name_count)?),
+                0,
+            )
+        } else {
+            let raw = c.f64_seq("position")?;
+            let at = c.pos - raw.len();
+            c.f64_seq("velocity")?;
+            c.f64_seq("effort")?;
+            (Positions::Raw(raw), at)
+        };
         Ok(JointState {
             sec,
             nanosec,
@@ -231,7 +348,8 @@ impl<'a> JointState<'a> {
             name_start,
             positions,
             positions_at,
-            big_endian,
+            big_endian: c.big_endian,
+            packed: c.packed,
         })
     }
 
@@ -242,9 +360,13 @@ impl<'a> JointState<'a> {
 
     /// Overwrites `position[index]` of `data` — the message this was parsed from, or a copy of
     /// it — with `value` in the message's byte order; every other byte stays as it was. `false`
-    /// (and `data` untouched) if the message has no such position.
+    /// (and `data` untouched) if the message has no such position (a DynamicJointState has no
+    /// `position` array).
     pub fn set_position(&self, data: &mut [u8], index: usize, value: f64) -> bool {
-        if index >= self.position_count() || data.len() != self.data.len() {
+        if !matches!(self.positions, Positions::Raw(_))
+            || index >= self.position_count()
+            || data.len() != self.data.len()
+        {
             return false;
         }
         let at = self.positions_at + 8 * index;
@@ -262,6 +384,8 @@ impl<'a> JointState<'a> {
             buf: self.data,
             pos: self.name_start,
             big_endian: self.big_endian,
+            origin: if self.packed { 0 } else { ORIGIN },
+            packed: self.packed,
         };
         (0..self.name_count).map(move |index| {
             let bytes = c.string("name")?;
@@ -269,23 +393,67 @@ impl<'a> JointState<'a> {
         })
     }
 
-    /// Number of `position` entries.
+    /// Number of `position` entries (of joints, for a DynamicJointState).
     pub fn position_count(&self) -> usize {
-        self.positions.len() / 8
+        match &self.positions {
+            Positions::Raw(raw) => raw.len() / 8,
+            Positions::Interfaces(v) => v.len(),
+        }
     }
 
-    /// The positions, radians.
-    pub fn positions(&self) -> impl Iterator<Item = f64> + 'a {
+    /// The positions, radians; NaN for a DynamicJointState joint without a `position`
+    /// interface.
+    pub fn positions(&self) -> impl Iterator<Item = f64> + '_ {
         let big_endian = self.big_endian;
-        self.positions.chunks_exact(8).map(move |b| {
-            let b: [u8; 8] = b.try_into().unwrap_or_default();
-            if big_endian {
-                f64::from_be_bytes(b)
-            } else {
-                f64::from_le_bytes(b)
-            }
-        })
+        let (raw, interfaces): (&[u8], &[f64]) = match &self.positions {
+            Positions::Raw(raw) => (raw, &[]),
+            Positions::Interfaces(v) => (&[], v),
+        };
+        raw.chunks_exact(8)
+            .map(move |b| {
+                let b: [u8; 8] = b.try_into().unwrap_or_default();
+                if big_endian {
+                    f64::from_be_bytes(b)
+                } else {
+                    f64::from_le_bytes(b)
+                }
+            })
+            .chain(interfaces.iter().copied())
     }
+}
+
+/// The `position` interface value of each of `joints` joints from a DynamicJointState's
+/// `interface_values` (NaN where a joint has no `position` interface).
+fn interface_positions(c: &mut Cursor<'_>, joints: usize) -> Result<Vec<f64>, CdrError> {
+    // Each entry holds at least its two 4-byte counts.
+    let count = c.count("interface_values", 8)?;
+    if count != joints {
+        return Err(CdrError::Mismatch {
+            names: joints,
+            values: count,
+        });
+    }
+    let mut positions = vec![f64::NAN; count];
+    for position in &mut positions {
+        let names = c.count("interface_values.interface_names", 4)?;
+        let mut at = None;
+        for k in 0..names {
+            if c.string("interface_values.interface_names")? == b"position" {
+                at = Some(k);
+            }
+        }
+        let values = c.f64_seq("interface_values.values")?;
+        if values.len() / 8 != names {
+            return Err(CdrError::Mismatch {
+                names,
+                values: values.len() / 8,
+            });
+        }
+        if let Some(k) = at {
+            *position = c.f64_at(&values[8 * k..8 * k + 8]);
+        }
+    }
+    Ok(positions)
 }
 
 /// Encodes JointStates with fixed names, little-endian, rewriting only the stamp and positions of
@@ -400,17 +568,7 @@ impl Scalar {
             Scalar::Float32 | Scalar::Int32 | Scalar::UInt32 => 4,
             Scalar::UInt16 => 2,
         };
-        let mut c = Cursor {
-            buf: data,
-            pos: 0,
-            big_endian: false,
-        };
-        let header = c.take(ORIGIN, "encapsulation header")?;
-        c.big_endian = match [header[0], header[1]] {
-            [0, 0] => true,
-            [0, 1] => false,
-            other => return Err(CdrError::Encapsulation(other)),
-        };
+        let mut c = Cursor::cdr(data, ORIGIN, encapsulation(data)?);
         let bytes = c.take(size, "data")?;
         let mut b = [0u8; 8];
         if c.big_endian {
@@ -551,6 +709,92 @@ mod tests {
             (back.sec, back.nanosec, back.name_block),
             (7, 8, js.name_block)
         );
+    }
+
+    /// ROS 1: no encapsulation header and no padding (a 3-byte `frame_id` leaves the names
+    /// and positions off every boundary), the header with `seq`, unsigned seconds.
+    #[test]
+    fn ros1_joint_state_is_packed() {
+        let mut b = Vec::new();
+        for v in [7u32, 3_000_000_000, 5, 3] {
+            b.extend(v.to_le_bytes());
+        }
+        b.extend(b"enc");
+        b.extend(2u32.to_le_bytes());
+        b.extend(1u32.to_le_bytes());
+        b.extend(b"a");
+        b.extend(2u32.to_le_bytes());
+        b.extend(b"bb");
+        b.extend(2u32.to_le_bytes());
+        b.extend(0.5f64.to_le_bytes());
+        b.extend((-1.5f64).to_le_bytes());
+        b.extend(0u32.to_le_bytes());
+        b.extend(0u32.to_le_bytes());
+        let js = JointState::parse_as(&b, JointFormat::Ros1).unwrap();
+        assert_eq!((js.sec, js.nanosec), (3_000_000_000, 5));
+        assert_eq!(names(&js), ["a", "bb"]);
+        assert_eq!(js.positions().collect::<Vec<_>>(), [0.5, -1.5]);
+        let mut out = b.clone();
+        assert!(js.set_position(&mut out, 1, 2.0));
+        let back = JointState::parse_as(&out, JointFormat::Ros1).unwrap();
+        assert_eq!(back.positions().collect::<Vec<_>>(), [0.5, 2.0]);
+        for n in 0..b.len() {
+            assert!(
+                JointState::parse_as(&b[..n], JointFormat::Ros1).is_err(),
+                "{n}"
+            );
+        }
+    }
+
+    /// DynamicJointState: each joint's `position` interface, wherever it is among the
+    /// interfaces; NaN for a joint without one; counts that disagree are errors.
+    #[test]
+    fn dynamic_joint_state_reads_the_position_interface() {
+        let message = |interfaces: &[&[(&str, f64)]]| {
+            let mut w = Writer {
+                buf: vec![0, 1, 0, 0],
+            };
+            w.u32(1);
+            w.u32(2);
+            w.string("base");
+            w.u32(interfaces.len() as u32);
+            for k in 0..interfaces.len() {
+                w.string(["j1", "j2", "j3"][k]);
+            }
+            w.u32(interfaces.len() as u32);
+            for joint in interfaces {
+                w.u32(joint.len() as u32);
+                for (name, _) in *joint {
+                    w.string(name);
+                }
+                w.u32(joint.len() as u32);
+                if !joint.is_empty() {
+                    w.align(8);
+                }
+                for (_, v) in *joint {
+                    w.buf.extend(v.to_le_bytes());
+                }
+            }
+            w.buf
+        };
+        let data = message(&[
+            &[("position", 1.25), ("velocity", 9.0)],
+            &[("effort", 3.0), ("position", -0.5)],
+            &[("velocity", 2.0)],
+        ]);
+        let js = JointState::parse_as(&data, JointFormat::Dynamic).unwrap();
+        assert_eq!((js.sec, js.nanosec), (1, 2));
+        assert_eq!(names(&js), ["j1", "j2", "j3"]);
+        let p: Vec<f64> = js.positions().collect();
+        assert_eq!(&p[..2], [1.25, -0.5]);
+        assert!(p[2].is_nan());
+        assert!(!js.set_position(&mut data.clone(), 0, 0.0));
+        for n in 0..data.len() {
+            assert!(
+                JointState::parse_as(&data[..n], JointFormat::Dynamic).is_err(),
+                "{n}"
+            );
+        }
     }
 
     #[test]

@@ -48,6 +48,7 @@
 pub(crate) mod cdr;
 pub(crate) mod chunks;
 pub(crate) mod json;
+pub(crate) mod msgdef;
 pub(crate) mod read;
 pub(crate) mod records;
 mod write;
@@ -57,6 +58,9 @@ pub use write::{DEFAULT_TOPIC, McapWriter};
 
 /// The ROS 2 type name of joint states.
 pub const JOINT_STATE_SCHEMA: &str = "sensor_msgs/msg/JointState";
+
+/// The ROS 2 type name of `ros2_control`'s joint states with all their interfaces.
+pub const DYNAMIC_JOINT_STATE_SCHEMA: &str = "control_msgs/msg/DynamicJointState";
 
 /// The `ros2msg` definition of `sensor_msgs/msg/JointState` with its dependencies, as rosbag2
 /// stores it in the schema record.

@@ -54,11 +54,12 @@ use calib_core::{AngleUnit, Channel, Sample};
 use mcap::McapError;
 use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 
-use super::JOINT_STATE_SCHEMA;
-use super::cdr::{JointState, Scalar};
+use super::cdr::{JointFormat, JointState, Scalar};
 use super::chunks;
 use super::json;
+use super::msgdef::{Definition, Plan};
 use super::records::{self, StreamError};
+use super::{DYNAMIC_JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA};
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::naming::{ChannelName, names_of};
 use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource, Truncation};
@@ -223,18 +224,16 @@ fn stream(mut file: File, len: u64, skip_damaged: bool) -> io::Result<(Stream, A
     ))
 }
 
-/// The stream of the whole file: its chunks decompressed on worker threads where the summary
-/// lists at least [`PARALLEL_CHUNKS`] of them (see [`super::chunks`]), else the streaming reader.
-/// With the first, a second handle on the file for the streaming reader to take over with.
+/// The stream of the whole file: with `parallel`, its chunks decompressed on worker threads (see
+/// [`super::chunks`]) and a second handle on the file for the streaming reader to take over
+/// with; else (or if no thread can be started) the streaming reader.
 fn main_stream(
     file: File,
     len: u64,
     skip_damaged: bool,
-    chunks: usize,
+    parallel: bool,
 ) -> io::Result<(Stream, Arc<AtomicU64>, Option<File>)> {
-    let spare = (chunks >= PARALLEL_CHUNKS)
-        .then(|| file.try_clone().ok())
-        .flatten();
+    let spare = parallel.then(|| file.try_clone().ok()).flatten();
     if let Some(spare) = spare {
         let consumed = Arc::new(AtomicU64::new(0));
         let workers = chunks::workers();
@@ -274,10 +273,14 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
 /// How a topic's messages are decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Encoding {
-    JointState,
+    /// Joint positions by joint name: JointState (CDR or ROS 1) or DynamicJointState.
+    JointState(JointFormat),
     Json,
     /// A `std_msgs` scalar (CDR): one channel, named after the topic.
     Scalar(Scalar),
+    /// Numeric fields named by path (`TOPIC.field.path`), read through the message definition
+    /// (see [`super::msgdef`]); added by [`Registry::read_fields`], never met by type.
+    Field,
 }
 
 impl Encoding {
@@ -288,10 +291,17 @@ impl Encoding {
 
     /// The encoding of a channel with this message encoding and schema name, if calib reads it.
     pub(crate) fn from_names(message_encoding: &str, schema: &str) -> Option<Self> {
+        let joint_state = schema == JOINT_STATE_SCHEMA || schema == "sensor_msgs/JointState";
         match message_encoding {
             // ROS 1 style names appear in bags converted with older tools.
-            "cdr" if schema == JOINT_STATE_SCHEMA || schema == "sensor_msgs/JointState" => {
-                Some(Encoding::JointState)
+            "cdr" if joint_state => Some(Encoding::JointState(JointFormat::Cdr)),
+            // `mcap convert` of a ROS 1 bag.
+            "ros1" if joint_state => Some(Encoding::JointState(JointFormat::Ros1)),
+            "cdr"
+                if schema == DYNAMIC_JOINT_STATE_SCHEMA
+                    || schema == "control_msgs/DynamicJointState" =>
+            {
+                Some(Encoding::JointState(JointFormat::Dynamic))
             }
             "json" => Some(Encoding::Json),
             "cdr" => Scalar::of_type(schema).map(Encoding::Scalar),
@@ -313,10 +323,15 @@ pub(crate) struct Topic {
     pub(crate) offset: usize,
     /// JointState: whether messages carry different joint sets.
     pub(crate) subset: bool,
-    /// JointState: name blocks other than the first message's, with the channel of each name.
+    /// JointState: name blocks other than the first message's, with the channel of each name
+    /// ([`NO_POSITION`] for a joint that has no channel).
     layouts: Vec<(Vec<u8>, Vec<usize>)>,
-    /// Radians per unit of a JSON value.
+    /// DynamicJointState: joints met without a `position` interface, which are not channels.
+    no_position: Vec<String>,
+    /// Radians per unit of a JSON, scalar or field value.
     scale: f64,
+    /// Field paths: the walk that reads them.
+    plan: Option<Box<Plan>>,
     /// JSON: which channels a message has given, reused between messages.
     seen: Vec<bool>,
     pub(crate) stats: TopicStats,
@@ -337,6 +352,8 @@ pub(crate) struct Registry {
     pub(crate) topics: Vec<Topic>,
     pub(crate) ignored: Vec<IgnoredTopic>,
     pub(crate) ignored_stats: Vec<TopicStats>,
+    /// The schema encoding and text of each skipped topic, for field paths.
+    definitions: Vec<Option<(String, Vec<u8>)>>,
 }
 
 /// What a channel ID resolves to when first seen.
@@ -389,6 +406,15 @@ impl Registry {
             self.slots.resize(id + 1, Slot::Unknown);
         }
         let Some(encoding) = Encoding::of(channel) else {
+            // A topic whose fields are read by path: first met after they were added.
+            if let Some(k) = self
+                .topics
+                .iter()
+                .position(|t| t.encoding == Encoding::Field && t.name == channel.topic)
+            {
+                self.slots[id] = Slot::Topic(k);
+                return Ok(Resolved::Topic(k));
+            }
             let k = self.ignore(channel);
             self.slots[id] = Slot::Ignored(k);
             return Ok(Resolved::Ignored(k));
@@ -418,7 +444,111 @@ impl Registry {
             message_encoding: channel.message_encoding.clone(),
         });
         self.ignored_stats.push(TopicStats::default());
+        self.definitions.push(
+            channel
+                .schema
+                .as_ref()
+                .map(|s| (s.encoding.clone(), s.data.to_vec())),
+        );
         self.ignored.len() - 1
+    }
+
+    /// Reads the names among `wanted` of the form `TOPIC.field.path` whose `TOPIC` is a topic
+    /// calib skips otherwise (see [`read_fields`](Self::read_fields)); other names are left
+    /// for [`crate::naming::resolve`] to judge. The error names the topic.
+    pub(crate) fn read_wanted_fields(
+        &mut self,
+        wanted: &[String],
+        scale: f64,
+    ) -> Result<(), (String, String)> {
+        let mut by_topic: Vec<(&str, Vec<String>)> = Vec::new();
+        for name in wanted {
+            let Some((topic, path)) = name.split_once('.') else {
+                continue;
+            };
+            if path.is_empty() || !self.ignored.iter().any(|t| t.topic == topic) {
+                continue;
+            }
+            match by_topic.iter_mut().find(|(t, _)| *t == topic) {
+                Some((_, names)) if names.contains(name) => {}
+                Some((_, names)) => names.push(name.clone()),
+                None => by_topic.push((topic, vec![name.clone()])),
+            }
+        }
+        for (topic, names) in by_topic {
+            self.read_fields(topic, &names, scale)
+                .map_err(|m| (topic.to_string(), m))?;
+        }
+        Ok(())
+    }
+
+    /// Reads the numeric fields `names` (`TOPIC.field.path`, all of topic `topic`, which calib
+    /// skips otherwise) through the message definition the file carries for it: the topic moves
+    /// from the skipped ones to those read. The error says why the topic or a path cannot be
+    /// read.
+    fn read_fields(&mut self, topic: &str, names: &[String], scale: f64) -> Result<(), String> {
+        let Some(k) = self.ignored.iter().position(|t| t.topic == topic) else {
+            return Err("the file has no such topic".into());
+        };
+        let skipped = &self.ignored[k];
+        let text = match &self.definitions[k] {
+            Some((encoding, text))
+                if encoding == "ros2msg" && skipped.message_encoding == "cdr" =>
+            {
+                text
+            }
+            other => {
+                return Err(format!(
+                    "its messages are `{}` with a schema of encoding `{}`; calib reads fields \
+                     by path only from CDR messages whose file carries their `ros2msg` message \
+                     definition (as rosbag2 writes MCAP)",
+                    skipped.message_encoding,
+                    other.as_ref().map_or("none", |(e, _)| e.as_str())
+                ));
+            }
+        };
+        let text = std::str::from_utf8(text)
+            .map_err(|_| "its message definition is not UTF-8 text".to_string())?;
+        let definition = Definition::parse(&skipped.schema, text).map_err(|e| {
+            format!(
+                "its message definition ({}) does not parse: {e}; the recording's schema \
+                 record is damaged or not a ros2msg text",
+                skipped.schema
+            )
+        })?;
+        let paths: Vec<String> = names
+            .iter()
+            .map(|n| n[topic.len() + 1..].to_string())
+            .collect();
+        let plan = definition.plan(&paths)?;
+        let skipped = self.ignored.remove(k);
+        self.ignored_stats.remove(k);
+        self.definitions.remove(k);
+        let new = self.topics.len();
+        for slot in &mut self.slots {
+            match *slot {
+                Slot::Ignored(j) if j == k => *slot = Slot::Topic(new),
+                Slot::Ignored(j) if j > k => *slot = Slot::Ignored(j - 1),
+                _ => {}
+            }
+        }
+        self.topics.push(Topic {
+            name: skipped.topic,
+            schema: skipped.schema,
+            message_encoding: skipped.message_encoding,
+            encoding: Encoding::Field,
+            name_block: Vec::new(),
+            names: names.to_vec(),
+            offset: 0,
+            subset: false,
+            layouts: Vec::new(),
+            no_position: Vec::new(),
+            scale,
+            plan: Some(Box::new(plan)),
+            seen: Vec::new(),
+            stats: TopicStats::default(),
+        });
+        Ok(())
     }
 }
 
@@ -532,19 +662,12 @@ impl McapReader {
                     .into(),
             ));
         }
-        let mut registry = Registry {
-            slots: Vec::new(),
-            topics: Vec::new(),
-            ignored: Vec::new(),
-            ignored_stats: Vec::new(),
-        };
+        let mut registry = Registry::default();
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
         let summary = records::read_summary(&mut file, len);
-        let chunk_count = summary
+        let parallel = summary
             .as_ref()
-            .map_or(0, |s| s.chunks)
-            .checked_sub(parallel_chunks)
-            .map_or(0, |_| PARALLEL_CHUNKS);
+            .is_some_and(|s| s.chunks >= parallel_chunks);
         let expected = summary.map(|summary| expected_topics(&summary, &mut registry));
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut messages = 0u64;
@@ -600,6 +723,9 @@ impl McapReader {
                 None => File::open(path).map_err(io)?,
             };
         }
+        registry
+            .read_wanted_fields(&opts.fields, scale)
+            .map_err(|(topic, m)| mcap_error(path, None, Some(&topic), m))?;
         if registry.topics.is_empty() {
             if !skipped.is_empty() {
                 let list: Vec<String> = skipped.iter().map(|c| c.to_string()).collect();
@@ -678,8 +804,10 @@ impl McapReader {
         let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
         for topic in &registry.topics {
             let unit = match topic.encoding {
-                Encoding::JointState => AngleUnit::Rad,
-                Encoding::Json | Encoding::Scalar(_) => opts.unit.unwrap_or(AngleUnit::Deg),
+                Encoding::JointState(_) => AngleUnit::Rad,
+                Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
+                    opts.unit.unwrap_or(AngleUnit::Deg)
+                }
             };
             for _ in &topic.names {
                 all_channels.push(Channel {
@@ -689,7 +817,7 @@ impl McapReader {
             }
         }
         let (stream, consumed, reopen) =
-            main_stream(file, len, opts.skip_damaged, chunk_count).map_err(io)?;
+            main_stream(file, len, opts.skip_damaged, parallel).map_err(io)?;
         let width = all_channels.len();
         let mut reader = McapReader {
             path: path.to_path_buf(),
@@ -987,6 +1115,9 @@ fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<S
     topics
 }
 
+/// The layout entry of a DynamicJointState joint without a `position` interface: no channel.
+const NO_POSITION: usize = usize::MAX;
+
 /// A topic's channels from its first message.
 pub(crate) fn first_message(
     message: &mcap::Message,
@@ -1003,21 +1134,36 @@ pub(crate) fn first_message(
         offset: 0,
         subset: false,
         layouts: Vec::new(),
+        no_position: Vec::new(),
+        plan: None,
         scale,
         seen: Vec::new(),
         stats: TopicStats::default(),
     };
     match encoding {
-        Encoding::JointState => {
-            let js = JointState::parse(&message.data).map_err(|e| e.to_string())?;
-            for name in js.names() {
+        Encoding::JointState(format) => {
+            let js = JointState::parse_as(&message.data, format).map_err(|e| e.to_string())?;
+            for (name, position) in js.names().zip(js.positions()) {
                 let name = name.map_err(|e| e.to_string())?;
-                if topic.names.iter().any(|n| n == name) {
+                if topic
+                    .names
+                    .iter()
+                    .chain(&topic.no_position)
+                    .any(|n| n == name)
+                {
                     return Err(repeated_joint(name));
                 }
-                topic.names.push(name.to_string());
+                if format == JointFormat::Dynamic && position.is_nan() {
+                    topic.no_position.push(name.to_string());
+                } else {
+                    topic.names.push(name.to_string());
+                }
             }
-            topic.name_block = js.name_block.to_vec();
+            // The fast path takes the message's joints as the channels in order; with joints
+            // left out, every message goes through its layout.
+            if topic.no_position.is_empty() {
+                topic.name_block = js.name_block.to_vec();
+            }
         }
         Encoding::Json => {
             json::for_each_field(&message.data, |key, value| {
@@ -1032,16 +1178,24 @@ pub(crate) fn first_message(
             kind.decode(&message.data).map_err(|e| e.to_string())?;
             topic.names.push(topic.name.clone());
         }
+        // Added by name ([`Registry::read_fields`]), not from a first message.
+        Encoding::Field => {}
     }
     if topic.names.is_empty() {
         return Err(match encoding {
-            Encoding::JointState => "the topic's first JointState message names no joints; \
+            Encoding::JointState(JointFormat::Dynamic) => "the topic's first DynamicJointState \
+                                                           message has no joint with a \
+                                                           `position` interface"
+                .into(),
+            Encoding::JointState(_) => "the topic's first JointState message names no joints; \
                                      publish the encoders' names and positions"
                 .into(),
-            Encoding::Json | Encoding::Scalar(_) => "the topic's first JSON message has no \
+            Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
+                "the topic's first JSON message has no \
                                                      numeric field; publish one numeric field \
                                                      per encoder"
-                .into(),
+                    .into()
+            }
         });
     }
     Ok(topic)
@@ -1059,7 +1213,8 @@ impl Topic {
     /// channel is the topic itself.
     pub(crate) fn channel_names(&self) -> impl Iterator<Item = (Option<&str>, &str)> {
         let topic = match self.encoding {
-            Encoding::Scalar(_) => None,
+            // Named in full: the topic itself, or `TOPIC.field.path`.
+            Encoding::Scalar(_) | Encoding::Field => None,
             _ => Some(self.name.as_str()),
         };
         self.names.iter().map(move |n| (topic, n.as_str()))
@@ -1067,11 +1222,28 @@ impl Topic {
 
     /// Adds the joints of a later message the topic's first did not name (peek pass).
     pub(crate) fn learn(&mut self, message: &mcap::Message) -> Result<(), String> {
-        if self.encoding != Encoding::JointState {
+        let Encoding::JointState(format) = self.encoding else {
+            return Ok(());
+        };
+        let js = JointState::parse_as(&message.data, format).map_err(|e| e.to_string())?;
+        if js.name_block == self.name_block.as_slice() {
             return Ok(());
         }
-        let js = JointState::parse(&message.data).map_err(|e| e.to_string())?;
-        if js.name_block == self.name_block.as_slice() {
+        if format == JointFormat::Dynamic {
+            // Joints without a `position` interface are not channels; a joint with one that the
+            // first message lacked is a channel of its own series.
+            for (name, position) in js.names().zip(js.positions()) {
+                let name = name.map_err(|e| e.to_string())?;
+                let known = self.names.iter().any(|n| n == name);
+                if position.is_nan() {
+                    if !known && !self.no_position.iter().any(|n| n == name) {
+                        self.no_position.push(name.to_string());
+                    }
+                } else if !known {
+                    self.names.push(name.to_string());
+                    self.subset = true;
+                }
+            }
             return Ok(());
         }
         let mut names = Vec::with_capacity(js.name_count);
@@ -1104,7 +1276,12 @@ impl Topic {
         let mut layout = Vec::with_capacity(js.name_count);
         for name in js.names() {
             let name = name.map_err(|e| e.to_string())?;
-            let Some(i) = self.names.iter().position(|n| n == name) else {
+            let Some(i) = self.names.iter().position(|n| n == name).or_else(|| {
+                self.no_position
+                    .iter()
+                    .any(|n| n == name)
+                    .then_some(NO_POSITION)
+            }) else {
                 return Err(format!(
                     "joint `{name}` is new: the topic's joints [{}] were gathered from its \
                      first messages when the file was opened; calib needs every joint to \
@@ -1112,7 +1289,7 @@ impl Topic {
                     self.names.join(", ")
                 ));
             };
-            if layout.contains(&i) {
+            if i != NO_POSITION && layout.contains(&i) {
                 return Err(repeated_joint(name));
             }
             layout.push(i);
@@ -1135,8 +1312,9 @@ pub(crate) fn decode(
     out: &mut [f64],
 ) -> Result<(i64, bool), (Option<String>, String)> {
     match topic.encoding {
-        Encoding::JointState => {
-            let js = JointState::parse(&message.data).map_err(|e| (None, e.to_string()))?;
+        Encoding::JointState(format) => {
+            let js =
+                JointState::parse_as(&message.data, format).map_err(|e| (None, e.to_string()))?;
             if js.position_count() != js.name_count {
                 return Err((
                     None,
@@ -1166,17 +1344,34 @@ pub(crate) fn decode(
                     Ok(())
                 }
             };
+            // A DynamicJointState joint without a `position` interface carries no reading.
+            let dynamic = format == JointFormat::Dynamic;
+            let mut missing = false;
+            let mut put = |i: usize, rad: f64| {
+                if dynamic && rad.is_nan() {
+                    missing = true;
+                    return Ok(());
+                }
+                put(i, rad)
+            };
             let full = if let Some(layout) = layout {
                 for (&i, rad) in layout.iter().zip(js.positions()) {
-                    put(i, rad)?;
+                    if i != NO_POSITION {
+                        put(i, rad)?;
+                    }
                 }
-                layout.len() == names.len() && layout.iter().copied().eq(0..layout.len())
+                layout
+                    .iter()
+                    .copied()
+                    .filter(|&i| i != NO_POSITION)
+                    .eq(0..names.len())
             } else {
                 for (i, rad) in js.positions().enumerate() {
                     put(i, rad)?;
                 }
                 js.name_count == names.len()
             };
+            let full = full && !missing;
             if js.nanosec >= 1_000_000_000 {
                 return Err((
                     None,
@@ -1190,7 +1385,7 @@ pub(crate) fn decode(
             let stamp = if time == TimeSource::Log || (js.sec == 0 && js.nanosec == 0) {
                 log_time_ns(message.log_time).map_err(|m| (None, m))?
             } else {
-                i64::from(js.sec) * 1_000_000_000 + i64::from(js.nanosec)
+                js.sec * 1_000_000_000 + i64::from(js.nanosec)
             };
             Ok((stamp, full))
         }
@@ -1204,6 +1399,33 @@ pub(crate) fn decode(
                 return Err((None, problem));
             }
             out[0] = rad;
+            Ok((stamp, true))
+        }
+        Encoding::Field => {
+            let Some(plan) = topic.plan.as_deref() else {
+                return Err((None, "the topic's fields were never named".into()));
+            };
+            let header = plan
+                .read(&message.data, out)
+                .map_err(|e| (None, e.to_string()))?;
+            for (i, slot) in out.iter_mut().enumerate() {
+                let v = *slot;
+                let rad = v * topic.scale;
+                if let Some(problem) = crate::limits::reading_problem(v, v, rad) {
+                    return Err((Some(topic.names[i].clone()), problem));
+                }
+                *slot = rad;
+            }
+            let stamp = match header {
+                Some((sec, nanosec))
+                    if time == TimeSource::Header
+                        && (sec, nanosec) != (0, 0)
+                        && nanosec < 1_000_000_000 =>
+                {
+                    sec * 1_000_000_000 + i64::from(nanosec)
+                }
+                _ => log_time_ns(message.log_time).map_err(|m| (None, m))?,
+            };
             Ok((stamp, true))
         }
         Encoding::Json => {
