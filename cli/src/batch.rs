@@ -15,7 +15,9 @@
 use crate::exit::{self, Failed};
 use crate::input::file_stem;
 use anyhow::Context;
+use calib_core::ChannelReport;
 use rayon::prelude::*;
+use schemars::JsonSchema;
 use serde::Serialize;
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
@@ -58,7 +60,7 @@ pub struct BatchArgs {
 }
 
 /// What `--max-pp` judges.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum GateOn {
     /// The calibrated map's peak-to-peak: the sensor's error without correction.
@@ -76,7 +78,7 @@ fn positive_arcsec(s: &str) -> Result<f64, String> {
 }
 
 /// The figures of one calibrated channel that the gates judge.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 pub struct ChannelFigures {
     /// The channel's name, as in the report.
     pub channel: String,
@@ -84,6 +86,17 @@ pub struct ChannelFigures {
     pub peak_to_peak_before_arcsec: f64,
     /// Peak-to-peak left after correction, arcsec, where the method measures it.
     pub peak_to_peak_after_arcsec: Option<f64>,
+}
+
+impl ChannelFigures {
+    /// The figures of channel `name` from its entry in the report.
+    pub fn of(name: &str, ch: &ChannelReport) -> Self {
+        ChannelFigures {
+            channel: name.to_string(),
+            peak_to_peak_before_arcsec: ch.peak_to_peak_arcsec,
+            peak_to_peak_after_arcsec: ch.after_correction.as_ref().map(|a| a.peak_to_peak_arcsec),
+        }
+    }
 }
 
 /// What calibrating one log into one folder gave.
@@ -102,7 +115,7 @@ pub struct Outcome {
 }
 
 /// The verdict on one log.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
 enum Status {
     Pass,
@@ -111,23 +124,30 @@ enum Status {
 }
 
 /// One log's line in `summary.json`.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, JsonSchema)]
 struct LogResult {
+    /// The log, as given.
     log: String,
     /// The log's output folder, relative to the output folder (`.` with one log).
     output: String,
+    /// `pass`, `fail` (a gate failed) or `error` (not calibrated).
     status: Status,
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    /// Every calibrated channel, in report order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     channels: Vec<ChannelFigures>,
-    #[serde(skip_serializing_if = "Option::is_none")]
+    /// RMS of the fit's residuals, arcsec, for methods that fit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     residual_rms_arcsec: Option<f64>,
+    /// The report's warnings.
     warnings: Vec<String>,
     /// The gates that failed, one line each.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     gate_failures: Vec<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
+    /// Why the log could not be calibrated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     error: Option<String>,
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    /// The files written, relative to `output`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     files: Vec<String>,
     #[serde(skip)]
     exit_code: u8,
@@ -136,23 +156,37 @@ struct LogResult {
 }
 
 /// The gates as they were set, for `summary.json`.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, JsonSchema)]
 struct Gates {
+    /// `--max-pp`, arcsec.
     max_pp_arcsec: Option<f64>,
+    /// What `--max-pp` judges: `before` or `after` correction.
     gate_on: GateOn,
+    /// `--max-residual`, arcsec.
     max_residual_arcsec: Option<f64>,
+    /// `--fail-on-warning`.
     fail_on_warning: bool,
 }
 
-/// `summary.json`.
-#[derive(Debug, Serialize)]
-struct Summary<'a> {
+/// `summary.json`: the verdict on every log of a run.
+#[derive(Debug, Serialize, JsonSchema)]
+pub(crate) struct Summary<'a> {
+    /// The version of this file's shape (`calib_core::report::SCHEMA_VERSION`, shared with
+    /// report.json).
+    schema_version: u32,
+    /// Version of calib that wrote it.
     calib_version: &'static str,
+    /// The method.
     method: &'a str,
+    /// The gates as they were set.
     gates: Gates,
+    /// Logs calibrated that passed the gates.
     passed: usize,
+    /// Logs calibrated that failed a gate.
     failed: usize,
+    /// Logs that could not be calibrated.
     errors: usize,
+    /// Every log, in input order.
     logs: &'a [LogResult],
 }
 
@@ -229,6 +263,7 @@ where
         count(Status::Error),
     );
     let summary = Summary {
+        schema_version: calib_core::report::SCHEMA_VERSION,
         calib_version: env!("CARGO_PKG_VERSION"),
         method,
         gates: Gates {

@@ -93,11 +93,8 @@ pub fn open_selected(
 
 /// The alignment of a log read, for report.json's `details.alignment`; `None` where every
 /// channel was read at the clock's own stamps with nothing dropped.
-pub fn alignment_detail(reader: &LogReader) -> Option<serde_json::Value> {
-    reader
-        .alignment()
-        .filter(|a| !a.is_exact())
-        .and_then(|a| serde_json::to_value(a).ok())
+pub fn alignment_detail(reader: &LogReader) -> Option<Alignment> {
+    reader.alignment().filter(|a| !a.is_exact())
 }
 
 /// Summary lines on how the channels were aligned on the clock; empty where nothing was
@@ -227,28 +224,7 @@ pub fn channel(reader: &LogReader, path: &Path, name: &str) -> anyhow::Result<us
         .with_context(|| format!("{}", path.display()))
 }
 
-/// A channel name as a file name: a leading `/` is dropped and characters other than letters,
-/// digits, `-`, `_` and `.` become `_` (`/sensor_a/joint_states/encoder` →
-/// `sensor_a_joint_states_encoder`; JointState names such as `arm/joint1` stay usable).
-pub fn file_stem(channel: &str) -> String {
-    let s: String = channel
-        .strip_prefix('/')
-        .unwrap_or(channel)
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if s.is_empty() || s.starts_with('.') {
-        format!("_{s}")
-    } else {
-        s
-    }
-}
+pub use calib_core::report::file_stem;
 
 /// The command line that is running, arguments quoted where the shell would need it, for
 /// reports: what produced a table should be reproducible from the report alone. The program is

@@ -10,7 +10,10 @@ mod commands;
 mod document;
 mod exit;
 mod input;
+mod method;
 mod output;
+#[cfg(test)]
+mod schema;
 mod summary;
 mod ui;
 

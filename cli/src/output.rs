@@ -2,7 +2,6 @@
 //! `--plots` files), together or not at all.
 
 use crate::exit::Usage;
-use crate::input::file_stem;
 use anyhow::Context;
 use calib_core::ErrorMap;
 use calib_report::Document;
@@ -105,10 +104,7 @@ fn report_stale(dir: &Path) {
     }
 }
 
-/// The table file name of a channel: `<channel>.csv`, made safe as a file name.
-pub fn table_name(channel: &str) -> String {
-    format!("{}.csv", file_stem(channel))
-}
+pub use calib_core::report::table_name;
 
 /// Writes one table per `(channel, map, standard uncertainty)`, `report.json` and the document
 /// as `report.html` into `dir`; returns the names of the files written. See [`write_outputs`].

@@ -7,6 +7,9 @@ use std::fmt::Write;
 pub struct TextTable {
     header: Vec<String>,
     rows: Vec<Vec<String>>,
+    min_widths: Vec<usize>,
+    indented: bool,
+    align_first: bool,
 }
 
 impl TextTable {
@@ -15,14 +18,35 @@ impl TextTable {
         TextTable {
             header: header.iter().map(|h| h.to_string()).collect(),
             rows: Vec::new(),
+            min_widths: Vec::new(),
+            indented: true,
+            align_first: false,
         }
+    }
+    /// The table without the two-space indent of its lines.
+    pub fn flush_left(mut self) -> Self {
+        self.indented = false;
+        self
+    }
+    /// The table with its first column right-aligned too when it holds numbers (by default it
+    /// names the rows and is left-aligned).
+    pub fn align_first_column(mut self) -> Self {
+        self.align_first = true;
+        self
+    }
+    /// The table with columns at least these widths (characters), so that its layout stays put
+    /// from run to run while its cells fit; a wider cell widens its column.
+    pub fn min_widths(mut self, widths: &[usize]) -> Self {
+        self.min_widths = widths.to_vec();
+        self
     }
     /// Adds a row.
     pub fn row(&mut self, cells: Vec<String>) {
         self.rows.push(cells);
     }
-    /// The table, each line indented by two spaces, columns two apart; a column whose cells all
-    /// start like a number is right-aligned (except the first), others left-aligned.
+    /// The table, each line indented by two spaces (unless [`TextTable::flush_left`]), columns
+    /// two apart; a column whose cells all start like a number (or `—`, `∞`) is right-aligned
+    /// (except the first, unless [`TextTable::align_first_column`]), others left-aligned.
     pub fn render(&self) -> String {
         let n = self.header.len();
         let width = |c: usize| {
@@ -32,11 +56,13 @@ impl TextTable {
                 .map(|s| s.chars().count())
                 .max()
                 .unwrap_or(0)
+                .max(self.min_widths.get(c).copied().unwrap_or(0))
         };
         let widths: Vec<usize> = (0..n).map(width).collect();
         let number_like = |cell: &str| {
             let first = cell.split_whitespace().next().unwrap_or("");
             first == "—"
+                || first == "∞"
                 || first
                     .trim_end_matches(['″', '°', '%'])
                     .parse::<f64>()
@@ -44,7 +70,7 @@ impl TextTable {
         };
         let right: Vec<bool> = (0..n)
             .map(|c| {
-                c > 0
+                (c > 0 || self.align_first)
                     && self
                         .rows
                         .iter()
@@ -64,6 +90,7 @@ impl TextTable {
                     let _ = write!(line, "  {cell}{}", " ".repeat(pad));
                 }
             }
+            let line = if self.indented { &line } else { &line[2..] };
             let _ = writeln!(o, "{}", line.trim_end());
         }
         o
@@ -109,6 +136,18 @@ pub fn ending(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn minimum_widths_hold_until_a_cell_is_wider() {
+        let mut t = TextTable::new(&["head", "angle"]).min_widths(&[6, 8]);
+        t.row(vec!["h1".into(), "0.5".into()]);
+        assert_eq!(t.render(), "  head       angle\n  h1           0.5\n");
+        t.row(vec!["a_long_name".into(), "1.25".into()]);
+        assert_eq!(
+            t.render(),
+            "  head            angle\n  h1                0.5\n  a_long_name      1.25\n"
+        );
+    }
 
     #[test]
     fn columns_align_by_characters() {

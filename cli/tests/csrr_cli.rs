@@ -338,7 +338,7 @@ fn max_order_too_high_for_the_sample_density() {
             "`a` and `b`",
             "order 150",
             "samples per revolution",
-            "sparsest session has",
+            "densest session has",
             "lower --max-order",
         ],
     );

@@ -5,7 +5,7 @@
 //! little-endian length and that many bytes (the last one takes what is left).
 #![no_main]
 
-use calib_fuzz::{Layout, check_sample, options, scratch, wrap_messages};
+use calib_fuzz::{Layout, check_sample, options, payloads, scratch, wrap_messages};
 use calib_io::mcap_log::McapReader;
 use libfuzzer_sys::fuzz_target;
 
@@ -13,15 +13,7 @@ fuzz_target!(|data: &[u8]| {
     let [flags, layout, rest @ ..] = data else {
         return;
     };
-    let mut payloads = Vec::new();
-    let mut rest = rest;
-    while let [lo, hi, tail @ ..] = rest {
-        let n = usize::from(u16::from_le_bytes([*lo, *hi])).min(tail.len());
-        let (payload, tail) = tail.split_at(n);
-        payloads.push(payload);
-        rest = tail;
-    }
-    let file = wrap_messages(&Layout::from_byte(*layout), &payloads);
+    let file = wrap_messages(&Layout::from_byte(*layout), &payloads(rest));
     let path = scratch("mcap", &file);
     let Ok(reader) = McapReader::open(&path, &options(*flags)) else {
         return;

@@ -133,3 +133,50 @@ pub fn wrap_messages(layout: &Layout, payloads: &[&[u8]]) -> Vec<u8> {
     writer.finish().expect("finish");
     writer.into_inner().into_inner()
 }
+
+/// The topic [`wrap_with_definition`] writes its messages on.
+pub const PROBE_TOPIC: &str = "/probe";
+
+/// A well-formed MCAP file holding `payloads` as CDR messages 10 ms apart on [`PROBE_TOPIC`],
+/// of a type calib does not know, described by the `ros2msg` text `definition`.
+pub fn wrap_with_definition(definition: &[u8], payloads: &[&[u8]]) -> Vec<u8> {
+    let options = WriteOptions::new()
+        .profile("ros2")
+        .compression(None)
+        .use_chunks(false);
+    let mut writer: Writer<Cursor<Vec<u8>>> =
+        options.create(Cursor::new(Vec::new())).expect("writer");
+    let schema = writer
+        .add_schema("fuzz_msgs/msg/Probe", "ros2msg", definition)
+        .expect("schema");
+    let channel = writer
+        .add_channel(schema, PROBE_TOPIC, "cdr", &BTreeMap::new())
+        .expect("channel");
+    for (i, payload) in payloads.iter().enumerate() {
+        let log_time = 1_700_000_000_000_000_000 + i as u64 * 10_000_000;
+        let header = MessageHeader {
+            channel_id: channel,
+            sequence: i as u32,
+            log_time,
+            publish_time: log_time,
+        };
+        writer
+            .write_to_known_channel(&header, payload)
+            .expect("write");
+    }
+    writer.finish().expect("finish");
+    writer.into_inner().into_inner()
+}
+
+/// Splits the rest of an input into payloads: each a 2-byte little-endian length and that many
+/// bytes (the last one takes what is left).
+pub fn payloads(mut rest: &[u8]) -> Vec<&[u8]> {
+    let mut payloads = Vec::new();
+    while let [lo, hi, tail @ ..] = rest {
+        let n = usize::from(u16::from_le_bytes([*lo, *hi])).min(tail.len());
+        let (payload, tail) = tail.split_at(n);
+        payloads.push(payload);
+        rest = tail;
+    }
+    payloads
+}

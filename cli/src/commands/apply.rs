@@ -7,7 +7,7 @@ use calib_core::AngleUnit;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::correction::Wrapping;
 use calib_io::LogFormat;
-use calib_io::apply::{ApplyOptions, MapRef, apply_map};
+use calib_io::apply::{Applied, ApplyOptions, MapRef, apply_map};
 use calib_io::table::AnyTable;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -68,8 +68,48 @@ pub struct Args {
     pub wrap: Wrap,
 }
 
-/// Runs `calib apply`.
+/// Runs `calib apply`: checks the arguments, corrects the log, says what was done.
 pub fn run(args: &Args) -> anyhow::Result<String> {
+    let (name, format) = validate(args)?;
+    let table = calib_io::table::read_any_table(&args.table)
+        .with_context(|| format!("cannot read the table {}", args.table.display()))?;
+    let reader = open_log(&args.log, args.unit)?;
+    channel(&reader, &args.log, &name).with_context(|| {
+        if args.channel.is_none() {
+            format!(
+                "the channel is named after the table {}; name it with --channel",
+                args.table.display()
+            )
+        } else {
+            "choose the channel with --channel".to_string()
+        }
+    })?;
+    let notes = reader.notes();
+    drop(reader);
+
+    let opts = ApplyOptions {
+        channel: name.clone(),
+        unit: args.unit,
+        wrapping: match args.wrap {
+            Wrap::Auto => None,
+            Wrap::Positive => Some(Wrapping::Positive),
+            Wrap::Signed => Some(Wrapping::Signed),
+            Wrap::None => Some(Wrapping::Unwrapped),
+        },
+        skip_damaged: crate::ui::skip_damaged(),
+    };
+    let map = match &table {
+        AnyTable::Turn(t) => MapRef::Turn(&t.map),
+        AnyTable::Range(t) => MapRef::Range(&t.map),
+    };
+    let done = apply_map(&args.log, &args.output, map, &opts)
+        .with_context(|| format!("cannot correct {}", args.log.display()))?;
+    Ok(render_summary(args, &name, format, &table, &done, &notes))
+}
+
+/// The channel to correct and the log's format, once the paths are checked: the table exists,
+/// the log is a CSV or MCAP file, and the output is another file of the same format.
+fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
     if !args.table.exists() {
         return Err(Usage(format!(
             "{}: no such table; check the path",
@@ -112,42 +152,21 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    let table = calib_io::table::read_any_table(&args.table)
-        .with_context(|| format!("cannot read the table {}", args.table.display()))?;
-    let reader = open_log(&args.log, args.unit)?;
-    channel(&reader, &args.log, &name).with_context(|| {
-        if args.channel.is_none() {
-            format!(
-                "the channel is named after the table {}; name it with --channel",
-                args.table.display()
-            )
-        } else {
-            "choose the channel with --channel".to_string()
-        }
-    })?;
-    let warnings = reader.notes();
-    drop(reader);
+    Ok((name, format))
+}
 
-    let opts = ApplyOptions {
-        channel: name.clone(),
-        unit: args.unit,
-        wrapping: match args.wrap {
-            Wrap::Auto => None,
-            Wrap::Positive => Some(Wrapping::Positive),
-            Wrap::Signed => Some(Wrapping::Signed),
-            Wrap::None => Some(Wrapping::Unwrapped),
-        },
-        skip_damaged: crate::ui::skip_damaged(),
-    };
-    let map = match &table {
-        AnyTable::Turn(t) => MapRef::Turn(&t.map),
-        AnyTable::Range(t) => MapRef::Range(&t.map),
-    };
-    let done = apply_map(&args.log, &args.output, map, &opts)
-        .with_context(|| format!("cannot correct {}", args.log.display()))?;
-
+/// What `calib apply` did: readings corrected, their range and wrapping, what was copied,
+/// and the warnings.
+fn render_summary(
+    args: &Args,
+    name: &str,
+    format: LogFormat,
+    table: &AnyTable,
+    done: &Applied,
+    notes: &[String],
+) -> String {
     let mut o = String::new();
-    let (points, pp, span) = match &table {
+    let (points, pp, span) = match table {
         AnyTable::Turn(t) => (t.map.len(), t.map.peak_to_peak(), None),
         AnyTable::Range(t) => (
             t.map.len(),
@@ -221,7 +240,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             list.join("; ")
         );
     }
-    for w in warnings {
+    for w in notes {
         let _ = writeln!(o, "note: {w}; copied unchanged");
     }
     if let Some((lo, hi)) = span.filter(|_| done.outside > 0) {
@@ -235,7 +254,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             short(hi)
         );
     }
-    Ok(o)
+    o
 }
 
 /// `x` with at most 6 decimals, trailing zeros dropped (`360`, `6.283185`, `-0.5`).

@@ -1,5 +1,6 @@
 //! `calib compare`: load two maps → En comparison → render; exit 3 (a gate) when a point fails.
 
+use crate::summary::TextTable;
 use anyhow::Context as _;
 use calib_core::compare::{self, Comparison, MapPoint};
 use calib_io::points::PointTable;
@@ -109,7 +110,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         )
     })?;
     let csv_path = args.output.join("compare.csv");
-    calib_io::atomic::write_atomic(&csv_path, render_csv(&c).as_bytes())?;
+    calib_io::atomic::write_atomic(
+        &csv_path,
+        calib_io::compare::render_compare_csv(&c).as_bytes(),
+    )?;
     let stdout = if args.json {
         serde_json::to_string_pretty(&c)? + "\n"
     } else {
@@ -214,27 +218,6 @@ fn with_expanded(
         .collect()
 }
 
-/// `compare.csv`.
-pub fn render_csv(c: &Comparison) -> String {
-    let mut s = String::from(
-        "angle_deg,error1_arcsec,error2_arcsec,difference_arcsec,U1_arcsec,U2_arcsec,En\n",
-    );
-    for p in &c.points {
-        let _ = writeln!(
-            s,
-            "{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.4}",
-            p.angle_deg,
-            p.error1_arcsec,
-            p.error2_arcsec,
-            p.difference_arcsec,
-            p.expanded1_arcsec,
-            p.expanded2_arcsec,
-            p.en
-        );
-    }
-    s
-}
-
 fn render_summary(args: &Args, c: &Comparison, csv_path: &Path) -> String {
     let mut s = String::new();
     let interpolated = c.points.iter().filter(|p| p.interpolated).count();
@@ -263,24 +246,29 @@ fn render_summary(args: &Args, c: &Comparison, csv_path: &Path) -> String {
     );
     if c.failures > 0 {
         let _ = writeln!(s, "points that fail (En > 1):");
-        let _ = writeln!(
-            s,
-            "  {:>10}  {:>10}  {:>10}  {:>10}  {:>8}  {:>8}  {:>6}",
-            "angle °", "error1 ″", "error2 ″", "Δ ″", "U1 ″", "U2 ″", "En"
-        );
+        let mut table = TextTable::new(&[
+            "angle °",
+            "error1 ″",
+            "error2 ″",
+            "Δ ″",
+            "U1 ″",
+            "U2 ″",
+            "En",
+        ])
+        .min_widths(&[10, 10, 10, 10, 8, 8, 6])
+        .align_first_column();
         for p in c.points.iter().filter(|p| p.en > 1.0) {
-            let _ = writeln!(
-                s,
-                "  {:>10.4}  {:>10.4}  {:>10.4}  {:>+10.4}  {:>8.4}  {:>8.4}  {:>6.3}",
-                p.angle_deg,
-                p.error1_arcsec,
-                p.error2_arcsec,
-                p.difference_arcsec,
-                p.expanded1_arcsec,
-                p.expanded2_arcsec,
-                p.en
-            );
+            table.row(vec![
+                format!("{:.4}", p.angle_deg),
+                format!("{:.4}", p.error1_arcsec),
+                format!("{:.4}", p.error2_arcsec),
+                format!("{:+.4}", p.difference_arcsec),
+                format!("{:.4}", p.expanded1_arcsec),
+                format!("{:.4}", p.expanded2_arcsec),
+                format!("{:.3}", p.en),
+            ]);
         }
+        s += &table.render();
     }
     let _ = writeln!(s, "wrote {}", csv_path.display());
     s

@@ -1,20 +1,18 @@
 //! `calib csrr`: self-calibration of two coaxial sensors.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
-use crate::document::csrr::{self as document, Comparisons};
+use crate::batch::{ChannelFigures, Outcome};
+use crate::document::csrr as document;
 use crate::exit::Usage;
-use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
+use crate::input::{alignment_detail, alignment_text};
+use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_tables_and_report};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
 use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions, Method};
 use calib_core::segment::SegmentOptions;
-use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report, SessionReport};
-use calib_io::prefetch::Prefetch;
+use calib_core::{ErrorMap, Report};
 use calib_report::trace::Trace;
-use serde_json::json;
-use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -56,13 +54,6 @@ pub enum MethodArg {
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
-    #[arg(required = true, value_name = "LOG")]
-    pub logs: Vec<PathBuf>,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
-    pub output: PathBuf,
     /// Channel of sensor A (the rotor turned between sessions).
     #[arg(long, default_value = "a")]
     pub a: String,
@@ -79,16 +70,16 @@ pub struct Args {
     /// The solver.
     #[arg(long, value_enum, default_value_t = MethodArg::Joint)]
     pub method: MethodArg,
-    /// Highest harmonic order fitted (default: from the samples per revolution, 40 % of the
-    /// sparsest session's).
+    /// Highest harmonic order tested (default: 40 % of the samples per revolution of the densest
+    /// session, at most 2000). Only orders whose amplitude stands above the noise are kept
+    /// (chi-square of A's or B's pair of coefficients above 2·ln(2M/0.01) for M orders tested:
+    /// for noise alone a 1 % chance that any passes), so a high value costs time, not accuracy;
+    /// orders above it that the residual still holds are warned about (joint method).
     #[arg(long)]
     pub max_order: Option<usize>,
     /// Points of the output tables (default: enough for linear interpolation to 0.01″, ≥ 3600).
     #[arg(long)]
     pub points: Option<usize>,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
-    #[arg(long, value_parser = parse_unit)]
-    pub unit: Option<AngleUnit>,
     /// Largest drift of the relative angle within one session, degrees; must exceed the
     /// peak-to-peak of the two sensors' errors.
     #[arg(long, default_value_t = 1.0)]
@@ -105,16 +96,9 @@ pub struct Args {
     /// Benchmark readings of A and B for `--method paper`, degrees.
     #[arg(long, num_args = 2, value_names = ["A_DEG", "B_DEG"], default_values_t = [0.0, 0.0])]
     pub benchmarks: Vec<f64>,
-    /// Print report.json on standard output instead of the summary (summary.json with several
-    /// logs).
-    #[arg(long)]
-    pub json: bool,
-    /// Pipelines and gates.
+    /// Logs, output, unit, output form, gates, timing.
     #[command(flatten)]
-    pub batch: BatchArgs,
-    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
-    #[command(flatten)]
-    pub input: LogArgs,
+    pub common: MethodArgs,
 }
 
 /// Runs `calib csrr`.
@@ -156,26 +140,20 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.max_order == Some(0) {
         return Err(Usage("--max-order must be at least 1".into()).into());
     }
-    if args.truth.is_some() && args.logs.len() > 1 {
+    if args.truth.is_some() && args.common.logs.len() > 1 {
         return Err(
             Usage("--truth DIR holds the truth of one log: give one log with it".into()).into(),
         );
     }
-    batch::run(
-        "csrr",
-        &args.logs,
-        &args.output,
-        &args.batch,
-        args.json,
-        |log, out| calibrate(args, log, out),
-    )
+    args.common
+        .run("csrr", |log, out| calibrate(args, log, out))
 }
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut names = vec![args.a.as_str(), args.b.as_str()];
     names.extend(args.reference.as_deref());
-    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = args.common.open(log, &names)?;
     let (ia, ib) = (0, 1);
     let ir = args.reference.as_ref().map(|_| 2);
     let opts = CsrrOptions {
@@ -210,14 +188,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         crate::input::Travel::default(),
         crate::input::Travel::default(),
     );
-    let bar = crate::ui::reading(log);
-    // Decoding runs ahead on a second thread while this one segments and bins.
-    let mut samples = Prefetch::new(reader);
-    for (n, sample) in samples.by_ref().enumerate() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
-        if n as u64 % crate::ui::TICK == 0 {
-            bar.inc(crate::ui::TICK);
-        }
+    let reader = for_each_sample(log, reader, |s| {
         trace.push(s.t, s.values[ia], s.values[ib]);
         travel_a.push(s.values[ia]);
         travel_b.push(s.values[ib]);
@@ -227,9 +198,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             }
             None => csrr.push(s.t, s.values[ia], s.values[ib], s.session),
         }
-    }
-    bar.finish_and_clear();
-    let reader = samples.finish();
+    })?;
     let solving = crate::ui::working("solving");
     let cal = csrr.finish();
     solving.finish_and_clear();
@@ -261,24 +230,18 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             None => err,
         }
     })?;
-    let mut warnings = reader.warnings(log);
-    warnings.extend(cal.warnings.iter().cloned());
-
-    let mut report = build_report(args, log, &cal, warnings);
-    if let Some(a) = alignment_detail(&reader) {
-        report.details.insert("alignment".to_string(), a);
-    }
-    let json = calib_io::report::render_json(&report)?;
-    let comparisons = Comparisons {
-        truth: truth.as_ref().map(|(a, b)| (a, b)),
-    };
-    let doc = document::document(
-        (&args.a, &args.b),
-        &cal,
-        &report,
-        &trace.trace,
-        &comparisons,
+    let truth = truth.as_ref().map(|(a, b)| (a, b));
+    let section = cal
+        .report_section((&args.a, &args.b), args.reference.as_deref(), truth)
+        .with_alignment(alignment_detail(&reader));
+    let report = Report::new(
+        section,
+        vec![log.display().to_string()],
+        Some(crate::input::command_line()),
+        reader.warnings(log),
     );
+    let json = calib_io::report::render_json(&report)?;
+    let doc = document::document((&args.a, &args.b), &cal, &report, &trace.trace, truth);
     let files = write_tables_and_report(
         out,
         &[
@@ -296,20 +259,14 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         &json,
         &doc,
     )?;
-    let text = if args.json {
+    let text = if args.common.json {
         json
     } else {
-        alignment_text(reader.alignment().as_ref())
-            + &render_summary(args, out, &cal, &report, &comparisons)
+        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
     };
-    let channels = [(&args.a, true), (&args.b, false)]
+    let channels = [&args.a, &args.b]
         .into_iter()
-        .map(|(name, a)| ChannelFigures {
-            channel: name.clone(),
-            peak_to_peak_before_arcsec: report.channels[name].peak_to_peak_arcsec,
-            peak_to_peak_after_arcsec: document::after_correction(&cal, &comparisons, a)
-                .map(|(_, pp)| pp),
-        })
+        .map(|name| ChannelFigures::of(name, &report.channels[name]))
         .collect();
     Ok(Outcome {
         text,
@@ -354,113 +311,7 @@ impl TraceRecorder {
     }
 }
 
-fn build_report(args: &Args, log: &Path, cal: &Calibration, warnings: Vec<String>) -> Report {
-    let mut channels = BTreeMap::new();
-    channels.insert(
-        args.a.clone(),
-        ChannelReport::of_map(&table_name(&args.a), &cal.a, 10),
-    );
-    channels.insert(
-        args.b.clone(),
-        ChannelReport::of_map(&table_name(&args.b), &cal.b, 10),
-    );
-    let sessions = cal
-        .sessions
-        .iter()
-        .map(|s| SessionReport {
-            index: s.index,
-            start_s: s.start_s,
-            end_s: s.end_s,
-            revolutions: s.revolutions,
-            relative_rotation_deg: s.relative_rotation.to_degrees(),
-        })
-        .collect();
-    let mut details = BTreeMap::new();
-    details.insert("solver".to_string(), json!(cal.method));
-    details.insert("max_order".to_string(), json!(cal.max_order));
-    if let Some((ua, ub)) = &cal.uncertainty {
-        details.insert(
-            "uncertainty".to_string(),
-            json!({
-                args.a.clone(): crate::document::uncertainty_json(ua),
-                args.b.clone(): crate::document::uncertainty_json(ub),
-            }),
-        );
-    }
-    details.insert(
-        "excluded_orders".to_string(),
-        json!(
-            cal.excluded
-                .iter()
-                .map(|e| json!({"order": e.order, "observability": e.observability}))
-                .collect::<Vec<_>>()
-        ),
-    );
-    if let Some(adv) = cal.advice {
-        details.insert(
-            "advice".to_string(),
-            json!({
-                "extra_relative_rotation_deg": adv.extra_rotation.to_degrees(),
-                "min_observability_after": adv.min_observability,
-            }),
-        );
-    }
-    if let Some(r) = cal.residual_rms {
-        details.insert("residual_rms_arcsec".to_string(), json!(r * ARCSEC_PER_RAD));
-        details.insert("iterations".to_string(), json!(cal.iterations));
-    }
-    details.insert(
-        "segments".to_string(),
-        json!(cal.segmentation.segments.len()),
-    );
-    if !cal.paper_points.is_empty() {
-        details.insert(
-            "paper_points".to_string(),
-            json!(
-                cal.paper_points
-                    .iter()
-                    .map(|p| json!({
-                        "delta_deg": p.delta.to_degrees(),
-                        "a_angle_deg": p.a_angle.to_degrees(),
-                        "a_error_arcsec": p.a_error * ARCSEC_PER_RAD,
-                        "b_angle_deg": p.b_angle.to_degrees(),
-                        "b_error_arcsec": p.b_error * ARCSEC_PER_RAD,
-                    }))
-                    .collect::<Vec<_>>()
-            ),
-        );
-    }
-    if let (Some(r), Some(name)) = (&cal.reference, &args.reference) {
-        details.insert(
-            "reference".to_string(),
-            json!({
-                "channel": name,
-                "a_max_difference_arcsec": r.a_max_diff_arcsec,
-                "b_max_difference_arcsec": r.b_max_diff_arcsec,
-                "sampling_nonuniformity": r.eps_theta,
-                "effective_range": r.effective_range,
-            }),
-        );
-    }
-    Report {
-        calib_version: env!("CARGO_PKG_VERSION").to_string(),
-        method: "csrr".to_string(),
-        inputs: vec![log.display().to_string()],
-        command_line: Some(crate::input::command_line()),
-        channels,
-        sessions,
-        warnings,
-        details,
-    }
-}
-
-fn render_summary(
-    args: &Args,
-    out: &Path,
-    cal: &Calibration,
-    report: &Report,
-    cmp: &Comparisons,
-) -> String {
+fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -> String {
     let mut o = String::new();
     let method = match cal.method {
         Method::Joint => "joint least squares",
@@ -562,7 +413,7 @@ fn render_summary(
     }
     o += &key_values(&facts);
     let mut t = TextTable::new(&["channel", "p-p before", "→ after", "rms", "largest orders"]);
-    for (name, a) in [(&args.a, true), (&args.b, false)] {
+    for name in [&args.a, &args.b] {
         let ch = &report.channels[name];
         let top: Vec<String> = ch
             .harmonics
@@ -570,8 +421,9 @@ fn render_summary(
             .take(3)
             .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
             .collect();
-        let after = document::after_correction(cal, cmp, a)
-            .map_or("—".to_string(), |(_, v)| format!("{v:.3}″"));
+        let after = ch.after_correction.as_ref().map_or("—".to_string(), |a| {
+            format!("{:.3}″", a.peak_to_peak_arcsec)
+        });
         t.row(vec![
             name.clone(),
             format!("{:.3}″", ch.peak_to_peak_arcsec),
@@ -581,7 +433,11 @@ fn render_summary(
         ]);
     }
     let _ = writeln!(o, "\n{}", t.render().trim_end());
-    if cmp.truth.is_none() && cal.reference.is_none() {
+    if report
+        .channels
+        .values()
+        .all(|c| c.after_correction.is_none())
+    {
         let _ = writeln!(
             o,
             "  (→ after: the error left after correction, known with --truth DIR or --ref NAME)"

@@ -106,19 +106,40 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let topics = reader.topics();
     let alignment = reader.alignment();
     if args.json {
-        let value = serde_json::json!({
-            "log": args.log,
-            "topics": topics,
-            "alignment": alignment,
-            "inspection": result,
-            "warnings": warnings,
-        });
-        return Ok(calib_io::report::render_json(&value)?);
+        let json = InspectJson {
+            schema_version: calib_core::report::SCHEMA_VERSION,
+            log: args.log.display().to_string(),
+            topics,
+            alignment,
+            inspection: result,
+            warnings,
+        };
+        // Through a `Value`: its keys are written in alphabetical order at every depth.
+        return Ok(calib_io::report::render_json(&serde_json::to_value(
+            &json,
+        )?)?);
     }
     Ok(
         render(&args.log, &result, &render_topics(&topics), &warnings)
             + &alignment_text(alignment.as_ref()),
     )
+}
+
+/// `calib inspect --json`.
+#[derive(Debug, serde::Serialize, schemars::JsonSchema)]
+pub struct InspectJson {
+    /// The version of this output's shape (as report.json's).
+    pub schema_version: u32,
+    /// The log, as given.
+    pub log: String,
+    /// The log's topics (MCAP and rosbag2; none for CSV), read or not.
+    pub topics: Vec<TopicInfo>,
+    /// How the channels were aligned on one clock (`null` for one channel or CSV).
+    pub alignment: Option<calib_core::report::Alignment>,
+    /// What the log holds: timing, channels, segments.
+    pub inspection: Inspection,
+    /// What the user should know about the log.
+    pub warnings: Vec<String>,
 }
 
 /// Width the channel lists of the topic table are wrapped at.

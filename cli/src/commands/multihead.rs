@@ -1,20 +1,19 @@
 //! `calib multihead`: self-calibration of one scale read by several heads.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
-use crate::output::{table_name, write_tables_and_report};
+use crate::input::{alignment_detail, alignment_text};
+use crate::method::{MethodArgs, for_each_sample};
+use crate::output::write_tables_and_report;
+use crate::summary::TextTable;
 use anyhow::Context;
+use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::multihead::{
     Head, Method, Multihead, MultiheadCalibration, MultiheadOptions, Readings,
 };
-use calib_core::{AngleUnit, ChannelReport, ErrorMap, Report};
-use calib_io::prefetch::Prefetch;
-use serde_json::json;
-use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The method, as chosen on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -59,17 +58,10 @@ pub enum MethodArg {
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
-    #[arg(required = true, value_name = "LOG")]
-    pub logs: Vec<PathBuf>,
     /// The heads as NAME@DEG (nominal angle in degrees), comma-separated or repeated; the first
     /// is the head whose map is written.
     #[arg(long, required = true, value_delimiter = ',', value_name = "NAME@DEG")]
     pub heads: Vec<String>,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
-    pub output: PathBuf,
     /// The method.
     #[arg(long, value_enum, default_value_t = MethodArg::Joint)]
     pub method: MethodArg,
@@ -85,22 +77,13 @@ pub struct Args {
     /// Points of the output table (default: enough for linear interpolation to 0.01″, ≥ 3600).
     #[arg(long)]
     pub points: Option<usize>,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
-    #[arg(long, value_parser = parse_unit)]
-    pub unit: Option<AngleUnit>,
     /// Orders whose observability (0 blind … 1 as seen by equally spaced heads) is below this
     /// are left out of the map (joint method).
     #[arg(long, default_value_t = 0.01)]
     pub min_observability: f64,
-    /// Print report.json on standard output instead of the summary.
-    #[arg(long)]
-    pub json: bool,
-    /// Pipelines and gates.
+    /// Logs, output, unit, output form, gates, timing.
     #[command(flatten)]
-    pub batch: BatchArgs,
-    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
-    #[command(flatten)]
-    pub input: LogArgs,
+    pub common: MethodArgs,
 }
 
 /// One `NAME@DEG` of `--heads`.
@@ -210,14 +193,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     };
     // Head and set problems concern the command line, whatever the log holds.
     Multihead::new(heads.clone(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
-    batch::run(
-        "multihead",
-        &args.logs,
-        &args.output,
-        &args.batch,
-        args.json,
-        |log, out| calibrate(args, &heads, &opts, log, out),
-    )
+    args.common.run("multihead", |log, out| {
+        calibrate(args, &heads, &opts, log, out)
+    })
 }
 
 /// Calibrates one log into the folder `out`.
@@ -230,21 +208,17 @@ fn calibrate(
 ) -> anyhow::Result<Outcome> {
     let mut mh = Multihead::new(heads.to_vec(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
     let names: Vec<&str> = heads.iter().map(|h| h.name.as_str()).collect();
-    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = args.common.open(log, &names)?;
     let columns: Vec<usize> = (0..names.len()).collect();
     let mut readings = vec![0.0; columns.len()];
     let mut travel = crate::input::Travel::default();
-    // Decoding runs ahead on a second thread.
-    let mut samples = Prefetch::new(reader);
-    for sample in samples.by_ref() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
+    let reader = for_each_sample(log, reader, |s| {
         for (r, &c) in readings.iter_mut().zip(&columns) {
             *r = s.values[c];
         }
         travel.push(readings[0]);
         mh.push(&readings);
-    }
-    let reader = samples.finish();
+    })?;
     let cal = mh.finish().map_err(|e| {
         let hint = travel.no_whole_turn(
             log,
@@ -267,14 +241,14 @@ fn calibrate(
                 .join(", ")
         )
     })?;
-    let mut warnings = reader.warnings(log);
-    warnings.extend(cal.warnings.iter().cloned());
-
     let first = &heads[0].name;
-    let mut report = build_report(log, heads, &cal, warnings);
-    if let Some(a) = alignment_detail(&reader) {
-        report.details.insert("alignment".to_string(), a);
-    }
+    let report = Report::new(
+        cal.report_section(heads)
+            .with_alignment(alignment_detail(&reader)),
+        vec![log.display().to_string()],
+        Some(crate::input::command_line()),
+        reader.warnings(log),
+    );
     let json = calib_io::report::render_json(&report)?;
     let files = write_tables_and_report(
         out,
@@ -282,7 +256,7 @@ fn calibrate(
         &json,
         &crate::document::multihead::document(first, &cal, &report),
     )?;
-    let text = if args.json {
+    let text = if args.common.json {
         json
     } else {
         alignment_text(reader.alignment().as_ref())
@@ -290,11 +264,7 @@ fn calibrate(
     };
     Ok(Outcome {
         text,
-        channels: vec![ChannelFigures {
-            channel: first.clone(),
-            peak_to_peak_before_arcsec: report.channels[first].peak_to_peak_arcsec,
-            peak_to_peak_after_arcsec: None,
-        }],
+        channels: vec![ChannelFigures::of(first, &report.channels[first])],
         residual_rms_arcsec: cal.residual_rms.map(|r| r * ARCSEC_PER_RAD),
         warnings: report.warnings,
         files,
@@ -312,92 +282,6 @@ fn readings_name(r: Option<Readings>) -> &'static str {
 /// A set's heads by name.
 fn set_names(set: &[usize], heads: &[Head]) -> Vec<String> {
     set.iter().map(|&j| heads[j].name.clone()).collect()
-}
-
-fn build_report(
-    log: &Path,
-    heads: &[Head],
-    cal: &MultiheadCalibration,
-    warnings: Vec<String>,
-) -> Report {
-    let first = &heads[0].name;
-    let mut channels = BTreeMap::new();
-    channels.insert(
-        first.clone(),
-        ChannelReport::of_map(&table_name(first), &cal.map, 10),
-    );
-    let arcsec = |v: Option<f64>| v.map(|v| v * ARCSEC_PER_RAD);
-    let mut details = BTreeMap::new();
-    details.insert("solver".to_string(), json!(cal.method));
-    details.insert(
-        "heads".to_string(),
-        json!(
-            heads
-                .iter()
-                .zip(&cal.heads)
-                .map(|(given, est)| json!({
-                    "name": est.name,
-                    "nominal_deg": given.nominal.to_degrees(),
-                    "nominal_from_first_deg": est.nominal.to_degrees(),
-                    "angle_error_arcsec": est.angle_error * ARCSEC_PER_RAD,
-                    "readings": est.readings,
-                    "residual_rms_arcsec": arcsec(est.residual_rms),
-                    "noise_rms_arcsec": arcsec(est.noise_rms),
-                }))
-                .collect::<Vec<_>>()
-        ),
-    );
-    details.insert("max_order".to_string(), json!(cal.max_order));
-    details.insert(
-        "uncertainty".to_string(),
-        json!({ heads[0].name.clone(): crate::document::uncertainty_json(&cal.uncertainty) }),
-    );
-    details.insert("bins_per_revolution".to_string(), json!(cal.bins));
-    details.insert(
-        "blind_orders".to_string(),
-        json!(cal.blind.iter().map(|e| e.order).collect::<Vec<_>>()),
-    );
-    details.insert(
-        "ill_conditioned_orders".to_string(),
-        json!(cal.ill_conditioned),
-    );
-    details.insert(
-        "residual_rms_arcsec".to_string(),
-        json!(arcsec(cal.residual_rms)),
-    );
-    details.insert("iterations".to_string(), json!(cal.iterations));
-    details.insert("samples".to_string(), json!(cal.samples));
-    details.insert("skipped_samples".to_string(), json!(cal.skipped));
-    details.insert("revolutions".to_string(), json!(cal.revolutions));
-    if !cal.sets.is_empty() {
-        let points = cal.map.len();
-        details.insert(
-            "sets".to_string(),
-            json!(
-                cal.sets
-                    .iter()
-                    .map(|s| {
-                        let map = ErrorMap::from_series(&s.series, points);
-                        json!({
-                            "heads": set_names(&s.heads, heads),
-                            "blind_to_multiples_of": s.heads.len(),
-                            "peak_to_peak_arcsec": map.peak_to_peak() * ARCSEC_PER_RAD,
-                        })
-                    })
-                    .collect::<Vec<_>>()
-            ),
-        );
-    }
-    Report {
-        calib_version: env!("CARGO_PKG_VERSION").to_string(),
-        method: "multihead".to_string(),
-        inputs: vec![log.display().to_string()],
-        command_line: Some(crate::input::command_line()),
-        channels,
-        sessions: Vec::new(),
-        warnings,
-        details,
-    }
 }
 
 /// Orders as `84, 168, …` (the first 12, then how many more), or `none`.
@@ -440,11 +324,16 @@ fn render_summary(
         o,
         "\nheads (angles from `{first}`; angle error = actual − nominal, estimated)"
     );
-    let _ = writeln!(
-        o,
-        "  {:<12} {:>12} {:>16} {:>13}  readings",
-        "head", "nominal °", "angle error ″", "residual ″"
-    );
+    // The widths keep the layout of earlier versions while names fit; longer names widen the
+    // column instead of pushing the rest of their row out of line.
+    let mut table = TextTable::new(&[
+        "head",
+        "nominal °",
+        "angle error ″",
+        "residual ″",
+        "readings",
+    ])
+    .min_widths(&[12, 11, 15, 12, 0]);
     for h in &cal.heads {
         let (error, residual) = match h.residual_rms {
             Some(r) => (
@@ -453,16 +342,15 @@ fn render_summary(
             ),
             None => ("0 (origin)".to_string(), "—".to_string()),
         };
-        let _ = writeln!(
-            o,
-            "  {:<12} {:>12.6} {:>16} {:>13}  {}",
-            h.name,
-            h.nominal.to_degrees(),
+        table.row(vec![
+            h.name.clone(),
+            format!("{:.6}", h.nominal.to_degrees()),
             error,
             residual,
-            readings_name(h.readings)
-        );
+            readings_name(h.readings).to_string(),
+        ]);
     }
+    o += &table.render();
     if !cal.sets.is_empty() {
         let _ = writeln!(o, "\nEDA sets (each blind to multiples of its head count)");
         for (i, s) in cal.sets.iter().enumerate() {

@@ -1,21 +1,19 @@
 //! `calib reference`: cross-calibration of an encoder against a better reference encoder.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{LogArgs, alignment_detail, alignment_text, open_selected, parse_unit};
+use crate::input::{alignment_detail, alignment_text};
+use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_outputs};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
+use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
     ReferenceCal, ReferenceCalibration, ReferenceOptions, TableMap, Targets,
 };
-use calib_core::{AngleUnit, ChannelReport, Report};
-use calib_io::prefetch::Prefetch;
-use serde_json::json;
-use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Calibrate an encoder (the DUT) against a better reference encoder on the same shaft.
 ///
@@ -51,10 +49,6 @@ use std::path::{Path, PathBuf};
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
-    #[arg(required = true, value_name = "LOG")]
-    pub logs: Vec<PathBuf>,
     /// Channel of the encoder to calibrate (device under test).
     #[arg(long)]
     pub dut: String,
@@ -64,15 +58,9 @@ pub struct Args {
     /// The reference's stated standard uncertainty, arcseconds (combined into u_arcsec).
     #[arg(long, default_value_t = 0.0)]
     pub ref_u: f64,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
-    pub output: PathBuf,
     /// Points of the output table.
     #[arg(long, default_value_t = 3600)]
     pub points: usize,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
-    #[arg(long, value_parser = parse_unit)]
-    pub unit: Option<AngleUnit>,
     /// Speed below which the DUT counts as stopped, degrees per second.
     #[arg(long, default_value_t = 1.0)]
     pub min_speed: f64,
@@ -94,16 +82,9 @@ pub struct Args {
     /// approach: backlash settles).
     #[arg(long, default_value_t = 1.0)]
     pub approach: f64,
-    /// Print report.json on standard output instead of the summary (summary.json with several
-    /// logs).
-    #[arg(long)]
-    pub json: bool,
-    /// Pipelines and gates.
+    /// Logs, output, unit, output form, gates, timing.
     #[command(flatten)]
-    pub batch: BatchArgs,
-    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
-    #[command(flatten)]
-    pub input: LogArgs,
+    pub common: MethodArgs,
 }
 
 /// `--targets`: a count (`20`) or a comma-separated list of degrees (`15,30.5,45`).
@@ -156,22 +137,15 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    batch::run(
-        "reference",
-        &args.logs,
-        &args.output,
-        &args.batch,
-        args.json,
-        |log, out| calibrate(args, log, out),
-    )
+    args.common
+        .run("reference", |log, out| calibrate(args, log, out))
 }
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let names = [args.dut.as_str(), args.reference.as_str()];
-    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = args.common.open(log, &names)?;
     let (id, ir) = (0, 1);
-    let bar = crate::ui::reading(log);
     let mut cal = ReferenceCal::new(ReferenceOptions {
         points: args.points,
         min_speed: args.min_speed.to_radians(),
@@ -181,17 +155,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         max_gap: args.bridge_gap.to_radians(),
         targets: args.targets.clone(),
     });
-    // Decoding runs ahead on a second thread.
-    let mut samples = Prefetch::new(reader);
-    for (n, sample) in samples.by_ref().enumerate() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
-        if n as u64 % crate::ui::TICK == 0 {
-            bar.inc(crate::ui::TICK);
-        }
-        cal.push(s.t, s.values[id], s.values[ir]);
-    }
-    let reader = samples.finish();
-    bar.finish_and_clear();
+    let reader = for_each_sample(log, reader, |s| cal.push(s.t, s.values[id], s.values[ir]))?;
     let cal = cal.finish().with_context(|| {
         format!(
             "{}: DUT `{}`, reference `{}`",
@@ -200,13 +164,13 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             args.reference
         )
     })?;
-    let mut warnings = reader.warnings(log);
-    warnings.extend(cal.warnings.iter().cloned());
-
-    let mut report = build_report(args, log, &cal, warnings);
-    if let Some(a) = alignment_detail(&reader) {
-        report.details.insert("alignment".to_string(), a);
-    }
+    let report = Report::new(
+        cal.report_section(&args.dut, &args.reference, args.ref_u)
+            .with_alignment(alignment_detail(&reader)),
+        vec![log.display().to_string()],
+        Some(crate::input::command_line()),
+        reader.warnings(log),
+    );
     let json = calib_io::report::render_json(&report)?;
     let doc = crate::document::reference::document(&args.dut, &args.reference, &cal, &report);
     let table = match &cal.map {
@@ -222,147 +186,18 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         ],
         &doc,
     )?;
-    let text = if args.json {
+    let text = if args.common.json {
         json
     } else {
         alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
     };
     Ok(Outcome {
         text,
-        channels: vec![ChannelFigures {
-            channel: args.dut.clone(),
-            peak_to_peak_before_arcsec: report.channels[&args.dut].peak_to_peak_arcsec,
-            peak_to_peak_after_arcsec: peak_to_peak_after(&cal),
-        }],
+        channels: vec![ChannelFigures::of(&args.dut, &report.channels[&args.dut])],
         residual_rms_arcsec: None,
         warnings: report.warnings,
         files,
     })
-}
-
-/// What the correction leaves of the DUT's error, arcsec: the peak-to-peak, over the grid points
-/// and both directions, of each direction's mean deviation minus the map (the map is the mean of
-/// the two directions, so this is the hysteresis a single table cannot correct).
-fn peak_to_peak_after(cal: &ReferenceCalibration) -> Option<f64> {
-    let residuals =
-        cal.up
-            .iter()
-            .zip(&cal.down)
-            .zip(cal.map.values())
-            .flat_map(|((up, down), map)| {
-                [up, down]
-                    .into_iter()
-                    .filter(|p| p.n > 0)
-                    .map(move |p| p.mean - map)
-            });
-    let (lo, hi) = residuals.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-        (lo.min(v), hi.max(v))
-    });
-    (hi >= lo).then_some((hi - lo) * ARCSEC_PER_RAD)
-}
-
-fn build_report(
-    args: &Args,
-    log: &Path,
-    cal: &ReferenceCalibration,
-    warnings: Vec<String>,
-) -> Report {
-    let mut channels = BTreeMap::new();
-    channels.insert(
-        args.dut.clone(),
-        match &cal.map {
-            TableMap::Turn(m) => ChannelReport::of_map(&table_name(&args.dut), m, 10),
-            // A range has no Fourier series: harmonics need a whole turn.
-            TableMap::Range(m) => ChannelReport {
-                table: table_name(&args.dut),
-                points: m.len(),
-                peak_to_peak_arcsec: m.peak_to_peak() * ARCSEC_PER_RAD,
-                rms_arcsec: m.rms() * ARCSEC_PER_RAD,
-                harmonics: Vec::new(),
-            },
-        },
-    );
-    let iso: serde_json::Map<String, serde_json::Value> = cal
-        .iso
-        .arcsec()
-        .into_iter()
-        .map(|(k, v)| (format!("{k}_arcsec"), json!(v)))
-        .collect();
-    let u_max = cal.u.iter().fold(0.0f64, |m, u| m.max(*u)) * ARCSEC_PER_RAD;
-    let mut details = BTreeMap::new();
-    details.insert("reference".to_string(), json!(args.reference));
-    details.insert("reference_u_arcsec".to_string(), json!(args.ref_u));
-    details.insert("revolutions".to_string(), json!(cal.revolutions));
-    details.insert(
-        "min_passes".to_string(),
-        json!({"increasing": cal.min_passes.0, "decreasing": cal.min_passes.1}),
-    );
-    details.insert("max_u_arcsec".to_string(), json!(u_max));
-    details.insert("iso230_2".to_string(), serde_json::Value::Object(iso));
-    details.insert(
-        "range".to_string(),
-        cal.map.range().map_or(serde_json::Value::Null, |(lo, hi)| {
-            json!({"start_deg": lo.to_degrees(), "end_deg": hi.to_degrees(), "span_deg": (hi - lo).to_degrees()})
-        }),
-    );
-    details.insert(
-        "gap".to_string(),
-        cal.gap.map_or(serde_json::Value::Null, |g| {
-            json!({
-                "from_deg": g.from.to_degrees(),
-                "to_deg": g.to.to_degrees(),
-                "size_deg": g.size.to_degrees(),
-                "points": g.points,
-                "bridged": "linear interpolation",
-            })
-        }),
-    );
-    details.insert(
-        "repeat_spread_deg".to_string(),
-        json!(cal.repeat_spread.map(f64::to_degrees)),
-    );
-    details.insert("iso230_2_targets".to_string(), target_table(cal));
-    Report {
-        calib_version: env!("CARGO_PKG_VERSION").to_string(),
-        method: "reference".to_string(),
-        inputs: vec![log.display().to_string()],
-        command_line: Some(crate::input::command_line()),
-        channels,
-        sessions: Vec::new(),
-        warnings,
-        details,
-    }
-}
-
-/// The per-target statistics of ISO 230-2, arcsec (`null` where a direction has no data).
-fn target_table(cal: &ReferenceCalibration) -> serde_json::Value {
-    let a = |v: f64| v * ARCSEC_PER_RAD;
-    let side = |p: &calib_core::reference_cal::PointStats| {
-        json!({
-            "passes": p.n,
-            "mean_arcsec": (p.n > 0).then(|| a(p.mean)),
-            "s_arcsec": p.s.map(a),
-            "repeatability_arcsec": p.s.map(|s| a(4.0 * s)),
-        })
-    };
-    cal.targets
-        .iter()
-        .map(|t| {
-            let both = t.up.n > 0 && t.down.n > 0;
-            json!({
-                "target_deg": t.angle.to_degrees(),
-                "increasing": side(&t.up),
-                "decreasing": side(&t.down),
-                "mean_bidirectional_arcsec": match (t.up.n, t.down.n) {
-                    (0, 0) => None,
-                    (0, _) => Some(a(t.down.mean)),
-                    (_, 0) => Some(a(t.up.mean)),
-                    _ => Some(a(0.5 * (t.up.mean + t.down.mean))),
-                },
-                "reversal_arcsec": both.then(|| a(t.up.mean - t.down.mean)),
-            })
-        })
-        .collect()
 }
 
 fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &Report) -> String {

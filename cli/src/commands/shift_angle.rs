@@ -3,10 +3,11 @@
 use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context as _;
-use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::Report;
+use calib_core::report::shift_angle::Spread;
 use calib_core::shift_angle::{self, Method, ShiftAngleResult};
 use calib_core::uncertainty::{self, BudgetResult};
-use calib_core::{ChannelReport, ErrorMap, Report};
+use calib_io::shift_angle::deg;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -126,12 +127,19 @@ fn calibrate(
     };
     let result =
         shift_angle::calibrate(&readings, method).with_context(|| format!("{}", path.display()))?;
-    let report = build_report(args, path, &readings, &result, budget)?;
-    let report_json = serde_json::to_string_pretty(&report)? + "\n";
+    let mut inputs = vec![path.display().to_string()];
+    inputs.extend(args.budget.iter().map(|b| b.display().to_string()));
+    let report = Report::new(
+        result.report_section(&readings, budget),
+        inputs,
+        Some(crate::input::command_line()),
+        Vec::new(),
+    );
+    let report_json = calib_io::report::render_json(&report)?;
 
-    check_values(&result).with_context(|| format!("{}", path.display()))?;
-    let encoder_csv = render_encoder(&result, budget);
-    let polygon_csv = render_polygon(&result);
+    calib_io::shift_angle::check_values(&result).with_context(|| format!("{}", path.display()))?;
+    let encoder_csv = calib_io::shift_angle::render_encoder(&result, budget);
+    let polygon_csv = calib_io::shift_angle::render_polygon(&result);
     let doc = crate::document::shift_angle::document(&readings, &result, budget, &report);
     let files = crate::output::write_outputs(
         out,
@@ -152,11 +160,7 @@ fn calibrate(
         channels: report
             .channels
             .iter()
-            .map(|(name, c)| ChannelFigures {
-                channel: name.clone(),
-                peak_to_peak_before_arcsec: c.peak_to_peak_arcsec,
-                peak_to_peak_after_arcsec: None,
-            })
+            .map(|(name, c)| ChannelFigures::of(name, c))
             .collect(),
         residual_rms_arcsec: Some(result.residuals.rms_arcsec),
         warnings: report.warnings,
@@ -164,226 +168,7 @@ fn calibrate(
     })
 }
 
-fn opt(v: Option<f64>) -> String {
-    v.map(|v| format!("{v:.6}")).unwrap_or_default()
-}
-
-/// Degrees with at most 9 decimals, trailing zeros trimmed (shifts are usually whole or tenths).
-fn deg(v: f64) -> String {
-    let s = format!("{v:.9}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.into() }
-}
-
-/// `encoder.csv`.
-pub fn render_encoder(result: &ShiftAngleResult, budget: Option<&BudgetResult>) -> String {
-    let mut s = String::from("angle_deg,error_arcsec,correction_arcsec,u_arcsec");
-    s += if budget.is_some() {
-        ",expanded_uncertainty_arcsec\n"
-    } else {
-        "\n"
-    };
-    for p in &result.points {
-        let u = match budget {
-            Some(b) => Some(b.combined_standard_uncertainty),
-            None => p.u_arcsec,
-        };
-        let _ = write!(
-            s,
-            "{},{:.6},{:.6},{}",
-            deg(p.angle_deg),
-            p.error_arcsec,
-            -p.error_arcsec,
-            opt(u)
-        );
-        match budget {
-            Some(b) => {
-                let _ = writeln!(s, ",{:.6}", b.expanded_uncertainty);
-            }
-            None => s.push('\n'),
-        }
-    }
-    s
-}
-
-/// Refuses a result with a value no table may hold (non-finite, or beyond
-/// [`calib_io::table::MAX_TABLE_ARCSEC`]): extreme readings solve to numbers no encoder or
-/// polygon has, and a wrong table is worse than none.
-fn check_values(result: &ShiftAngleResult) -> anyhow::Result<()> {
-    let limit = calib_io::table::MAX_TABLE_ARCSEC;
-    let bad = |v: f64| !v.is_finite() || v.abs() > limit;
-    for p in &result.points {
-        if bad(p.error_arcsec) || p.u_arcsec.is_some_and(bad) {
-            anyhow::bail!(
-                "the encoder's error at {:.6}° solves to {}″ (u {:?}), not a finite value within \
-                 ±{limit}″: check the readings' unit (arcseconds) and values; no table was written",
-                p.angle_deg,
-                p.error_arcsec,
-                p.u_arcsec
-            );
-        }
-    }
-    for f in &result.polygon {
-        if bad(f.pitch_deviation_arcsec) || f.u_arcsec.is_some_and(bad) {
-            anyhow::bail!(
-                "face {}'s pitch deviation solves to {}″ (u {:?}), not a finite value within \
-                 ±{limit}″: check the readings' unit (arcseconds) and values; no table was written",
-                f.face,
-                f.pitch_deviation_arcsec,
-                f.u_arcsec
-            );
-        }
-    }
-    Ok(())
-}
-
-/// `polygon.csv`.
-pub fn render_polygon(result: &ShiftAngleResult) -> String {
-    let mut s = String::from("face,pitch_deviation_arcsec,u_arcsec\n");
-    for f in &result.polygon {
-        let _ = writeln!(
-            s,
-            "{},{:.6},{}",
-            f.face,
-            f.pitch_deviation_arcsec,
-            opt(f.u_arcsec)
-        );
-    }
-    s
-}
-
-/// Whether the points lie on the uniform grid `i·360/N` (then the map has harmonics).
-fn uniform_map(result: &ShiftAngleResult) -> Option<ErrorMap> {
-    let n = result.points.len();
-    let step = 360.0 / n as f64;
-    let uniform = result
-        .points
-        .iter()
-        .enumerate()
-        .all(|(i, p)| (p.angle_deg - i as f64 * step).abs() < 1e-6);
-    uniform.then(|| {
-        ErrorMap::new(
-            result
-                .points
-                .iter()
-                .map(|p| p.error_arcsec / ARCSEC_PER_RAD)
-                .collect(),
-        )
-    })
-}
-
-fn build_report(
-    args: &Args,
-    path: &Path,
-    readings: &shift_angle::Readings,
-    result: &ShiftAngleResult,
-    budget: Option<&BudgetResult>,
-) -> anyhow::Result<Report> {
-    let mut warnings = Vec::new();
-    let channel = match uniform_map(result) {
-        Some(map) => ChannelReport::of_map("encoder.csv", &map, 10),
-        None => {
-            warnings.push(
-                "the measured angles are not a uniform grid over the circle (shifts not evenly spaced over one pitch): no harmonics in the report".to_string(),
-            );
-            let values: Vec<f64> = result.points.iter().map(|p| p.error_arcsec).collect();
-            let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let min = values.iter().copied().fold(f64::INFINITY, f64::min);
-            ChannelReport {
-                table: "encoder.csv".into(),
-                points: values.len(),
-                peak_to_peak_arcsec: max - min,
-                rms_arcsec: (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64)
-                    .sqrt(),
-                harmonics: Vec::new(),
-            }
-        }
-    };
-    let res = &result.residuals;
-    if let Some(sigma) = res.sigma_arcsec
-        && res.max_abs_arcsec > 5.0 * sigma
-    {
-        warnings.push(format!(
-            "the reading at shift {}°, start face {}, step {} deviates from the fit by {:.4}″ ({:.1} σ̂): check it",
-            deg(res.max_at_shift_deg),
-            res.max_at_start_face,
-            res.max_at_step,
-            res.max_abs_arcsec,
-            res.max_abs_arcsec / sigma
-        ));
-    }
-    if res.dof == 0 {
-        warnings.push(
-            "the readings have no redundancy (0 residual degrees of freedom): no fit uncertainties and no check of the measurement".into(),
-        );
-    }
-    let max_u_fit = result
-        .points
-        .iter()
-        .filter_map(|p| p.u_arcsec)
-        .fold(None, |m: Option<f64>, u| Some(m.map_or(u, |m| m.max(u))));
-    match (budget, max_u_fit) {
-        (None, None) => warnings.push(
-            "encoder.csv has no uncertainties: the paper's method gives none per point; pass --budget FILE or use the joint method".into(),
-        ),
-        (Some(b), Some(u)) if u > b.combined_standard_uncertainty => warnings.push(format!(
-            "the fit's standard uncertainty reaches {u:.4}″, more than the budget's u_c = {:.4}″: the budget may underestimate the measurement's noise",
-            b.combined_standard_uncertainty
-        )),
-        _ => {}
-    }
-    let n = readings.faces();
-    let mut details = std::collections::BTreeMap::new();
-    let mut put = |k: &str, v: serde_json::Value| {
-        details.insert(k.to_string(), v);
-    };
-    put("estimator", serde_json::to_value(result.method)?);
-    put("faces", n.into());
-    put("pitch_deg", (360.0 / n as f64).into());
-    put("readings", readings.len().into());
-    put(
-        "shifts_deg",
-        readings
-            .shifts()
-            .iter()
-            .map(|s| s.shift_deg)
-            .collect::<Vec<_>>()
-            .into(),
-    );
-    put(
-        "blind_harmonic_orders",
-        format!(
-            "multiples of {n} (orders {n}, {}, …): removed by the closure of each shift (eq. 2)",
-            2 * n
-        )
-        .into(),
-    );
-    put("polygon", serde_json::to_value(&result.polygon)?);
-    put("setup_errors", serde_json::to_value(&result.setup_errors)?);
-    put("residuals", serde_json::to_value(result.residuals)?);
-    put("sin_fit", serde_json::to_value(&result.sin_fit)?);
-    if let Some(u) = max_u_fit {
-        put("max_u_fit_arcsec", u.into());
-    }
-    if let Some(b) = budget {
-        put("budget", serde_json::to_value(b)?);
-    }
-    let mut inputs = vec![path.display().to_string()];
-    if let Some(b) = &args.budget {
-        inputs.push(b.display().to_string());
-    }
-    Ok(Report {
-        calib_version: env!("CARGO_PKG_VERSION").to_string(),
-        method: "shift-angle".into(),
-        inputs,
-        command_line: Some(crate::input::command_line()),
-        channels: [("encoder".to_string(), channel)].into_iter().collect(),
-        sessions: Vec::new(),
-        warnings,
-        details,
-    })
-}
-
+/// The summary: what was measured and fitted, then the encoder's map and the polygon.
 fn render_summary(
     out: &Path,
     readings: &shift_angle::Readings,
@@ -391,14 +176,36 @@ fn render_summary(
     budget: Option<&BudgetResult>,
     report: &Report,
 ) -> String {
-    let n = readings.faces();
-    let shifts = readings.shifts();
-    let mut s = String::new();
     let estimator = match result.method {
         Method::Joint => "joint least-squares fit",
         Method::Paper => "the paper's two steps",
     };
-    let _ = writeln!(s, "shift-angle calibration ({estimator})\n");
+    let mut s = format!("shift-angle calibration ({estimator})\n\n");
+    s += &key_values(&summary_facts(readings, result, budget));
+    let table = summary_table(readings.faces(), result, report);
+    let _ = writeln!(s, "\n{}", table.render().trim_end());
+    s += &ending(
+        &report.warnings,
+        out,
+        &[
+            "encoder.csv".into(),
+            "polygon.csv".into(),
+            "report.json".into(),
+        ],
+        "encoder map with its uncertainty band, pitch deviations, fit residuals",
+    );
+    s
+}
+
+/// The facts above the summary's table: the readings, the fit, the blind orders, the sin-fit
+/// check and the budget.
+fn summary_facts(
+    readings: &shift_angle::Readings,
+    result: &ShiftAngleResult,
+    budget: Option<&BudgetResult>,
+) -> Vec<(&'static str, String)> {
+    let n = readings.faces();
+    let shifts = readings.shifts();
     let r = &result.residuals;
     let mut facts = vec![
         (
@@ -434,18 +241,14 @@ fn render_summary(
         ),
     ];
     let sf = &result.sin_fit;
-    let worst = sf
-        .shifts
-        .iter()
-        .map(|x| x.difference_arcsec.abs())
-        .fold(0.0, f64::max);
     facts.push((
         "sin-fit check",
         format!(
-            "A = {:.4}″, B = {:.4} rad from S = {}°; max |U_fit − U| = {worst:.1e}″",
+            "A = {:.4}″, B = {:.4} rad from S = {}°; max |U_fit − U| = {:.1e}″",
             sf.amplitude_arcsec,
             sf.phase_rad,
-            deg(sf.reference_shift_deg)
+            deg(sf.reference_shift_deg),
+            result.sin_fit_worst_difference()
         ),
     ));
     if let Some(b) = budget {
@@ -463,17 +266,16 @@ fn render_summary(
             ),
         ));
     }
-    s += &key_values(&facts);
-    let us: Vec<f64> = result.points.iter().filter_map(|p| p.u_arcsec).collect();
-    let u_range = |v: &[f64]| {
-        if v.is_empty() {
-            "—".to_string()
-        } else {
-            let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = v.iter().copied().fold(0.0, f64::max);
-            format!("{lo:.4}…{hi:.4}″")
-        }
-    };
+    facts
+}
+
+/// The range of standard uncertainties, or `—` for none.
+fn u_range(spread: Option<Spread>) -> String {
+    spread.map_or("—".to_string(), |u| format!("{:.4}…{:.4}″", u.min, u.max))
+}
+
+/// The summary's table: the encoder's map (from the report) and the polygon of `faces` faces.
+fn summary_table(faces: usize, result: &ShiftAngleResult, report: &Report) -> TextTable {
     let mut t = TextTable::new(&["", "points", "p-p", "rms", "fit u", "largest"]);
     if let Some(enc) = report.channels.get("encoder") {
         let top: Vec<String> = enc
@@ -487,40 +289,19 @@ fn render_summary(
             format!("{} points", enc.points),
             format!("{:.4}″", enc.peak_to_peak_arcsec),
             format!("{:.4}″", enc.rms_arcsec),
-            u_range(&us),
+            u_range(result.point_u_spread()),
             top.join(", "),
         ]);
     }
-    let betas: Vec<f64> = result
-        .polygon
-        .iter()
-        .map(|f| f.pitch_deviation_arcsec)
-        .collect();
-    let (bmin, bmax) = betas
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| {
-            (lo.min(*b), hi.max(*b))
-        });
-    let beta_rms = (betas.iter().map(|b| b * b).sum::<f64>() / betas.len().max(1) as f64).sqrt();
-    let bu: Vec<f64> = result.polygon.iter().filter_map(|f| f.u_arcsec).collect();
-    t.row(vec![
-        "polygon β".into(),
-        format!("{n} faces"),
-        format!("{:.4}″", bmax - bmin),
-        format!("{beta_rms:.4}″"),
-        u_range(&bu),
-        format!("{bmin:+.4}″ … {bmax:+.4}″ (Σβ = 0)"),
-    ]);
-    let _ = writeln!(s, "\n{}", t.render().trim_end());
-    s += &ending(
-        &report.warnings,
-        out,
-        &[
-            "encoder.csv".into(),
-            "polygon.csv".into(),
-            "report.json".into(),
-        ],
-        "encoder map with its uncertainty band, pitch deviations, fit residuals",
-    );
-    s
+    if let Some(beta) = result.pitch_spread() {
+        t.row(vec![
+            "polygon β".into(),
+            format!("{faces} faces"),
+            format!("{:.4}″", beta.max - beta.min),
+            format!("{:.4}″", beta.rms),
+            u_range(result.face_u_spread()),
+            format!("{:+.4}″ … {:+.4}″ (Σβ = 0)", beta.min, beta.max),
+        ]);
+    }
+    t
 }

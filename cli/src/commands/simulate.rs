@@ -3,7 +3,6 @@
 use crate::exit::Usage;
 use crate::output::table_name;
 use anyhow::Context;
-use calib_core::simulate::Scenario;
 use calib_io::LogWriter;
 use calib_io::limits::MAX_SIMULATED_SAMPLES;
 use std::fmt::Write;
@@ -44,18 +43,13 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    let text = std::fs::read_to_string(&args.scenario)
-        .with_context(|| format!("cannot read the scenario {}", args.scenario.display()))?;
-    let scenario: Scenario = toml::from_str(&text).map_err(|e| {
-        Usage(format!(
-            "{}: {}",
-            args.scenario.display(),
-            e.to_string().trim_end()
-        ))
+    let scenario = calib_io::scenario::read_scenario(&args.scenario).map_err(|e| match e {
+        calib_io::Error::Io { source, .. } => anyhow::Error::new(source).context(format!(
+            "cannot read the scenario {}",
+            args.scenario.display()
+        )),
+        e => Usage(e.to_string()).into(),
     })?;
-    scenario
-        .validate()
-        .map_err(|e| Usage(format!("{}: {e}", args.scenario.display())))?;
     crate::input::check_points(Some(args.points))?;
     calib_io::LogFormat::for_output(&args.output).map_err(|e| Usage(e.to_string()))?;
 

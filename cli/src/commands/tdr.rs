@@ -1,22 +1,17 @@
 //! `calib tdr`: self-calibration of one encoder from a free spin-down (coast-down) log.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{
-    LogArgs, alignment_detail, alignment_text, command_line, open_selected, parse_unit,
-};
-use crate::output::{table_name, write_tables_and_report};
+use crate::input::{alignment_detail, alignment_text, command_line};
+use crate::method::{MethodArgs, for_each_sample};
+use crate::output::write_tables_and_report;
 use anyhow::Context;
+use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::tdr::{
-    FALSE_ORDER_PROBABILITY, Tdr, TdrCalibration, TdrOptions, significance_threshold,
-};
-use calib_core::{AngleUnit, ChannelReport, Report};
-use calib_io::prefetch::Prefetch;
-use serde_json::json;
-use std::collections::BTreeMap;
+use calib_core::report::tdr::rpm;
+use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
 use std::fmt::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
 const MAX_ORDER: usize = 1000;
@@ -63,19 +58,12 @@ const MAX_DEGREE: usize = 60;
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
-    #[arg(required = true, value_name = "LOG")]
-    pub logs: Vec<PathBuf>,
     /// Channel of the encoder to calibrate.
     #[arg(long)]
     pub channel: String,
     /// Channel of a reference encoder on the same shaft, to check the map against.
     #[arg(long = "ref")]
     pub reference: Option<String>,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
-    pub output: PathBuf,
     /// Highest harmonic order tested. Default: 0.4 × the samples per revolution where the coast
     /// is slowest (at most 500). Only orders that stand above the noise are kept in the map.
     #[arg(long)]
@@ -93,18 +81,9 @@ pub struct Args {
     /// Points of the output table.
     #[arg(long, default_value_t = 3600)]
     pub points: usize,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
-    #[arg(long, value_parser = parse_unit)]
-    pub unit: Option<AngleUnit>,
-    /// Print report.json on standard output instead of the summary.
-    #[arg(long)]
-    pub json: bool,
-    /// Pipelines and gates.
+    /// Logs, output, unit, output form, gates, timing.
     #[command(flatten)]
-    pub batch: BatchArgs,
-    /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
-    #[command(flatten)]
-    pub input: LogArgs,
+    pub common: MethodArgs,
 }
 
 /// Runs `calib tdr`.
@@ -143,21 +122,14 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    batch::run(
-        "tdr",
-        &args.logs,
-        &args.output,
-        &args.batch,
-        args.json,
-        |log, out| calibrate(args, log, out),
-    )
+    args.common.run("tdr", |log, out| calibrate(args, log, out))
 }
 
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut names = vec![args.channel.as_str()];
     names.extend(args.reference.as_deref());
-    let reader = open_selected(log, args.unit, &args.input, &names)?;
+    let reader = args.common.open(log, &names)?;
     let ic = 0;
     let ir = args.reference.as_ref().map(|_| 1);
     let mut tdr = Tdr::new(TdrOptions {
@@ -169,17 +141,13 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         ..TdrOptions::default()
     });
     let mut travel = crate::input::Travel::default();
-    // Decoding runs ahead on a second thread.
-    let mut samples = Prefetch::new(reader);
-    for sample in samples.by_ref() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
+    let reader = for_each_sample(log, reader, |s| {
         travel.push(s.values[ic]);
         match ir {
             Some(ir) => tdr.push_with_reference(s.t, s.values[ic], s.values[ir]),
             None => tdr.push(s.t, s.values[ic]),
         }
-    }
-    let reader = samples.finish();
+    })?;
     let cal = tdr.finish().map_err(|e| {
         let hint = travel.no_whole_turn(
             log,
@@ -193,13 +161,17 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         }
     });
     let cal = cal.with_context(|| format!("{}: channel `{}`", log.display(), args.channel))?;
-    let mut warnings = reader.warnings(log);
-    warnings.extend(cal.warnings.iter().cloned());
-
-    let mut report = build_report(args, log, &cal, warnings);
-    if let Some(a) = alignment_detail(&reader) {
-        report.details.insert("alignment".to_string(), a);
-    }
+    let report = Report::new(
+        cal.report_section(
+            &args.channel,
+            args.reference.as_deref(),
+            args.max_drag_order,
+        )
+        .with_alignment(alignment_detail(&reader)),
+        vec![log.display().to_string()],
+        Some(command_line()),
+        reader.warnings(log),
+    );
     let json = calib_io::report::render_json(&report)?;
     let files = write_tables_and_report(
         out,
@@ -207,148 +179,21 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         &json,
         &crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, &report),
     )?;
-    let text = if args.json {
+    let text = if args.common.json {
         json
     } else {
         alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
     };
-    // After correction: what the reference still sees of the corrected encoder.
-    let after = cal
-        .reference
-        .as_ref()
-        .map(|r| cal.map.minus(&r.map).peak_to_peak() * ARCSEC_PER_RAD);
     Ok(Outcome {
         text,
-        channels: vec![ChannelFigures {
-            channel: args.channel.clone(),
-            peak_to_peak_before_arcsec: report.channels[&args.channel].peak_to_peak_arcsec,
-            peak_to_peak_after_arcsec: after,
-        }],
+        channels: vec![ChannelFigures::of(
+            &args.channel,
+            &report.channels[&args.channel],
+        )],
         residual_rms_arcsec: Some(cal.residual_rms * ARCSEC_PER_RAD),
         warnings: report.warnings,
         files,
     })
-}
-
-fn rpm(rad_s: f64) -> f64 {
-    rad_s * 60.0 / std::f64::consts::TAU
-}
-
-fn build_report(args: &Args, log: &Path, cal: &TdrCalibration, warnings: Vec<String>) -> Report {
-    let mut channels = BTreeMap::new();
-    channels.insert(
-        args.channel.clone(),
-        ChannelReport::of_map(&table_name(&args.channel), &cal.map, 10),
-    );
-    let m = &cal.motion;
-    let (_, _, decel_start) = m.eval(m.t_start);
-    let (_, _, decel_end) = m.eval(m.t_end);
-    let mut details = BTreeMap::new();
-    details.insert(
-        "motion".to_string(),
-        json!({
-            "model": "Chebyshev series of time",
-            "degree": m.degree,
-            "start_s": m.t_start,
-            "end_s": m.t_end,
-            "speed_start_rpm": rpm(cal.speed_start),
-            "speed_end_rpm": rpm(cal.speed_end),
-            "acceleration_start_rad_s2": decel_start * cal.direction,
-            "acceleration_end_rad_s2": decel_end * cal.direction,
-            "direction": if cal.direction > 0.0 { "increasing" } else { "decreasing" },
-        }),
-    );
-    details.insert("revolutions".to_string(), json!(cal.revolutions));
-    details.insert("samples_used".to_string(), json!(cal.samples_used));
-    details.insert("max_order".to_string(), json!(cal.max_order));
-    details.insert(
-        "orders".to_string(),
-        json!({
-            "max_order_tested": cal.max_order,
-            "samples_per_revolution_densest": cal.samples_per_revolution_densest,
-            "kept": cal.orders,
-            "rule": format!(
-                "an order is kept when its coefficients' chi-square against their covariance exceeds 2·ln(M/α) = {:.2} (M = {} orders tested, α = {})",
-                significance_threshold(cal.max_order),
-                cal.max_order,
-                FALSE_ORDER_PROBABILITY
-            ),
-            "residual_structure": cal.unresolved.iter().map(|h| {
-                let h = h.to_report();
-                json!({"order": h.order, "amplitude_arcsec": h.amplitude_arcsec, "phase_deg": h.phase_deg})
-            }).collect::<Vec<_>>(),
-        }),
-    );
-    details.insert(
-        "uncertainty".to_string(),
-        json!({ args.channel.clone(): crate::document::uncertainty_json(&cal.uncertainty) }),
-    );
-    details.insert(
-        "residual_rms_arcsec".to_string(),
-        json!(cal.residual_rms * ARCSEC_PER_RAD),
-    );
-    let dependence: Vec<_> = cal
-        .speed_dependence
-        .iter()
-        .map(|s| {
-            let h = s.harmonic.to_report();
-            json!({
-                "order": h.order,
-                "amplitude_arcsec": h.amplitude_arcsec,
-                "phase_deg": h.phase_deg,
-                "u_arcsec": s.u * ARCSEC_PER_RAD,
-            })
-        })
-        .collect();
-    let separated: Vec<_> = cal
-        .drag
-        .iter()
-        .map(|d| {
-            let h = d.deceleration.to_report();
-            json!({
-                "order": h.order,
-                "deceleration_rad_s2": d.deceleration.amplitude,
-                "phase_deg": h.phase_deg,
-                "imprint_arcsec": d.imprint * ARCSEC_PER_RAD,
-                "u_imprint_arcsec": d.u_imprint * ARCSEC_PER_RAD,
-            })
-        })
-        .collect();
-    let sep = &cal.drag_separation;
-    details.insert(
-        "drag".to_string(),
-        json!({
-            "ambiguity": cal.ambiguity,
-            "separated": sep.separated,
-            "inverse_square_speed_variation": sep.variation,
-            "separation_noise_gain": sep.noise_gain,
-            "max_drag_order": args.max_drag_order,
-            "terms": separated,
-            "mean_inverse_square_speed_s2": cal.drag_gain,
-            "map_shift_arcsec_per_rad_s2_over_order_squared": cal.drag_gain * ARCSEC_PER_RAD,
-            "speed_dependent_orders": dependence,
-        }),
-    );
-    if let (Some(name), Some(r)) = (&args.reference, &cal.reference) {
-        details.insert(
-            "reference".to_string(),
-            json!({
-                "channel": name,
-                "max_difference_arcsec": r.max_abs_diff_arcsec,
-                "rms_difference_arcsec": r.rms_diff_arcsec,
-            }),
-        );
-    }
-    Report {
-        calib_version: env!("CARGO_PKG_VERSION").to_string(),
-        method: "tdr".to_string(),
-        inputs: vec![log.display().to_string()],
-        command_line: Some(command_line()),
-        channels,
-        sessions: Vec::new(),
-        warnings,
-        details,
-    }
 }
 
 fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report) -> String {

@@ -1,5 +1,6 @@
 //! `calib uncertainty`: load a budget → combine (GUM) → render.
 
+use crate::summary::TextTable;
 use anyhow::Context as _;
 use calib_core::uncertainty::{self, BudgetResult};
 use std::fmt::Write as _;
@@ -65,33 +66,22 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 
 /// The human table.
 pub fn render(r: &BudgetResult) -> String {
-    let width = r
-        .components
-        .iter()
-        .map(|c| c.name.chars().count())
-        .max()
-        .unwrap_or(0)
-        .max(9);
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "{:<width$}  {:>10}  {:>8}  {:>10}  {:>6}  {:>6}",
-        "component", "u(x_i) ″", "c_i", "|c_i|u ″", "ν_i", "share"
-    );
+    let mut table = TextTable::new(&["component", "u(x_i) ″", "c_i", "|c_i|u ″", "ν_i", "share"])
+        .min_widths(&[0, 10, 8, 10, 6, 6])
+        .flush_left();
     for c in &r.components {
-        let _ = writeln!(
-            s,
-            "{:<width$}  {:>10.4}  {:>8.4}  {:>10.4}  {:>6}  {:>5.1}%",
-            c.name,
-            c.standard_uncertainty,
-            c.sensitivity,
-            c.contribution,
+        table.row(vec![
+            c.name.clone(),
+            format!("{:.4}", c.standard_uncertainty),
+            format!("{:.4}", c.sensitivity),
+            format!("{:.4}", c.contribution),
             c.dof
                 .map(|d| format!("{d:.0}"))
                 .unwrap_or_else(|| "∞".into()),
-            c.variance_fraction * 100.0
-        );
+            format!("{:.1}%", c.variance_fraction * 100.0),
+        ]);
     }
+    let mut s = table.render();
     let _ = writeln!(
         s,
         "combined standard uncertainty  u_c   = {:.4}″",

@@ -4,37 +4,19 @@ use super::{harmonics_table, num, provenance};
 use calib_core::ErrorMap;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::csrr::{Calibration, Method, observability};
+use calib_core::csrr::{Calibration, Method};
+use calib_core::report::csrr::ILL_CONDITIONED;
 use calib_report::plots::{self, MapLayers, OrderMarks, TimelinePanel};
 use calib_report::trace::Trace;
 use calib_report::{Document, Section, Span, Table};
 
-/// Observability below which a fitted order counts as ill-conditioned (noise amplified more
-/// than about 3×).
-pub const ILL_CONDITIONED: f64 = 0.1;
+/// The truth maps of A and B, where given (`--truth`).
+type Truth<'a> = Option<(&'a ErrorMap, &'a ErrorMap)>;
 
-/// What the report compares each map with: a truth (from `--truth`) or the reference encoder.
-pub struct Comparisons<'a> {
-    /// The truth maps of A and B, where given.
-    pub truth: Option<(&'a ErrorMap, &'a ErrorMap)>,
-}
-
-/// The fitted orders whose observability is below [`ILL_CONDITIONED`] (not left out).
-pub fn ill_conditioned(cal: &Calibration) -> Vec<usize> {
-    if cal.method != Method::Joint {
-        return Vec::new();
-    }
-    let deltas: Vec<f64> = cal.sessions.iter().map(|s| s.absolute_rotation).collect();
-    let weights: Vec<f64> = cal.sessions.iter().map(|s| s.samples as f64).collect();
-    (1..=cal.max_order)
-        .filter(|h| !cal.excluded.iter().any(|e| e.order == *h))
-        .filter(|&h| observability(h, &deltas, &weights) < ILL_CONDITIONED)
-        .collect()
-}
-
-/// The comparison of channel A (`a = true`) or B: its truth, else what the reference says.
-fn comparison(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option<(String, Vec<(f64, f64)>)> {
-    if let Some((ta, tb)) = cmp.truth {
+/// What the figure of channel A (`a = true`) or B compares the map with: its truth, else what
+/// the reference says.
+fn comparison(cal: &Calibration, truth: Truth, a: bool) -> Option<(String, Vec<(f64, f64)>)> {
+    if let Some((ta, tb)) = truth {
         return Some(("truth".into(), plots::map_points(if a { ta } else { tb })));
     }
     let r = cal.reference.as_ref()?;
@@ -51,20 +33,6 @@ fn comparison(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option<(String, 
     ))
 }
 
-/// The peak-to-peak of comparison − map for channel A or B, arcsec (the error left after
-/// correction), with the comparison's name.
-pub fn after_correction(cal: &Calibration, cmp: &Comparisons, a: bool) -> Option<(String, f64)> {
-    let (name, pts) = comparison(cal, cmp, a)?;
-    let map = if a { &cal.a } else { &cal.b };
-    let res = MapLayers::of(map).compared_with(&name, pts).residual()?;
-    let (lo, hi) = res
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.1), hi.max(p.1))
-        });
-    (lo <= hi).then_some((name, hi - lo))
-}
-
 /// The document. `trace` holds three channels: A's and B's rotation (revolutions, unwrapped)
 /// and their relative angle (degrees).
 pub fn document(
@@ -72,7 +40,7 @@ pub fn document(
     cal: &Calibration,
     report: &Report,
     trace: &Trace,
-    cmp: &Comparisons,
+    truth: Truth,
 ) -> Document {
     let (na, nb) = names;
     let mut doc = Document::new(
@@ -80,7 +48,7 @@ pub fn document(
         provenance(report),
     );
     doc.warnings = report.warnings.clone();
-    doc.push(summary(names, cal, report, cmp));
+    doc.push(summary(names, cal, report));
     doc.push(sessions(names, cal, trace));
     for (name, map, a) in [(na, &cal.a, true), (nb, &cal.b, false)] {
         let mut layers = MapLayers::of(map);
@@ -92,7 +60,7 @@ pub fn document(
             let (band_name, band) = super::uncertainty_band(map, u);
             layers = layers.with_band(&band_name, band);
         }
-        if let Some((label, pts)) = comparison(cal, cmp, a) {
+        if let Some((label, pts)) = comparison(cal, truth, a) {
             layers = layers.compared_with(&label, pts);
         }
         let mut s = Section::new(&format!("Sensor {name}")).figure(plots::error_map(
@@ -152,7 +120,7 @@ pub fn document(
     doc
 }
 
-fn summary(names: (&str, &str), cal: &Calibration, report: &Report, cmp: &Comparisons) -> Section {
+fn summary(names: (&str, &str), cal: &Calibration, report: &Report) -> Section {
     let solver = match cal.method {
         Method::Joint => "joint least squares",
         Method::Paper => "paper (eqs. 4–7)",
@@ -192,11 +160,13 @@ fn summary(names: (&str, &str), cal: &Calibration, report: &Report, cmp: &Compar
             "after correction, peak to peak (″)",
         ],
     );
-    for (name, a) in [(names.0, true), (names.1, false)] {
+    for name in [names.0, names.1] {
         if let Some(ch) = report.channels.get(name) {
-            let after = after_correction(cal, cmp, a)
-                .map_or("— (no truth or reference)".to_string(), |(n, v)| {
-                    format!("{} ({n})", num(v, 3))
+            let after = ch
+                .after_correction
+                .as_ref()
+                .map_or("— (no truth or reference)".to_string(), |a| {
+                    format!("{} ({})", num(a.peak_to_peak_arcsec, 3), a.against)
                 });
             channels = channels.row([
                 name.to_string(),
@@ -270,7 +240,7 @@ fn sessions(names: (&str, &str), cal: &Calibration, trace: &Trace) -> Section {
 fn spectrum(names: (&str, &str), cal: &Calibration) -> Section {
     let marks = OrderMarks {
         blind: cal.excluded.iter().map(|e| e.order).collect(),
-        ill_conditioned: ill_conditioned(cal),
+        ill_conditioned: cal.ill_conditioned_orders(),
         ill_conditioned_name: format!("ill-conditioned (observability < {ILL_CONDITIONED})"),
     };
     let max = cal.max_order.max(1);

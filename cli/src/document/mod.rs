@@ -91,20 +91,3 @@ pub fn uncertainty_table(name: &str, u: &calib_core::uncertainty::MapUncertainty
         num(u.max() * arcsec, 4),
     ])
 }
-
-/// `report.json`'s view of a map's uncertainty: summary figures and the budget (arcsec).
-pub fn uncertainty_json(u: &calib_core::uncertainty::MapUncertainty) -> serde_json::Value {
-    let arcsec = calib_core::angle::ARCSEC_PER_RAD;
-    serde_json::json!({
-        "u_max_arcsec": u.max() * arcsec,
-        "u_rms_arcsec": u.rms() * arcsec,
-        "u_median_arcsec": u.median() * arcsec,
-        "combination": "root sum of squares of independent components, unit sensitivities (GUM 5.1.2)",
-        "components": u.components.iter().map(|c| serde_json::json!({
-            "name": c.name,
-            "type": c.evaluation,
-            "u_rms_arcsec": c.rms() * arcsec,
-            "u_max_arcsec": c.u.iter().copied().fold(0.0, f64::max) * arcsec,
-        })).collect::<Vec<_>>(),
-    })
-}

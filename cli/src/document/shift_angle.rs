@@ -1,14 +1,13 @@
 //! The report of `calib shift-angle`.
 
 use super::{harmonics_table, num, provenance};
-use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::Report;
 use calib_core::shift_angle::{Method, Readings, ShiftAngleResult};
 use calib_core::uncertainty::BudgetResult;
-use calib_core::{ErrorMap, Report};
 use calib_report::plots::{self, MapLayers, OrderMarks};
 use calib_report::{Document, Section, Table};
 
-/// The document.
+/// The document: summary, encoder map, polygon, fit residuals.
 pub fn document(
     readings: &Readings,
     result: &ShiftAngleResult,
@@ -22,13 +21,20 @@ pub fn document(
     );
     doc.warnings = report.warnings.clone();
     doc.push(summary(readings, result, budget, report));
+    doc.push(encoder(n, result, budget, report));
+    doc.push(polygon(result));
+    doc.push(residuals(result));
+    doc
+}
 
+/// The encoder's map with its uncertainty band: the budget's expanded uncertainty where given,
+/// else twice the fit's standard uncertainty (none for the paper's method).
+fn encoder_layers(result: &ShiftAngleResult, budget: Option<&BudgetResult>) -> MapLayers {
     let points: Vec<(f64, f64)> = result
         .points
         .iter()
         .map(|p| (p.angle_deg, p.error_arcsec))
         .collect();
-    let mut layers = MapLayers::of_points(points.clone());
     let band = match budget {
         Some(b) => Some((
             format!(
@@ -44,25 +50,38 @@ pub fn document(
             .collect::<Option<Vec<f64>>>()
             .map(|u| ("2u (fit, k = 2)".to_string(), u)),
     };
-    if let Some((name, half)) = band {
-        layers = layers.with_band(
+    let layers = MapLayers::of_points(points.clone());
+    match band {
+        Some((name, half)) => layers.with_band(
             &name,
             points.iter().zip(half).map(|(p, h)| (p.0, h)).collect(),
-        );
+        ),
+        None => layers,
     }
+}
+
+/// The encoder's error: its map, and where the points are a uniform grid its zoom, spectrum
+/// (orders that are multiples of the `n` faces blind) and harmonics.
+fn encoder(
+    n: usize,
+    result: &ShiftAngleResult,
+    budget: Option<&BudgetResult>,
+    report: &Report,
+) -> Section {
+    let layers = encoder_layers(result, budget);
     let mut enc = Section::new("Encoder error")
         .text(&format!(
             "The encoder's error α (reading − true angle, zero mean) at each of the {} measured \
              angles.",
-            points.len()
+            result.points.len()
         ))
         .figure(plots::error_map("map-encoder", "encoder", &layers));
     let uniform = report
         .channels
         .get("encoder")
-        .filter(|c| !c.harmonics.is_empty());
-    if let Some(ch) = uniform {
-        let map = ErrorMap::new(points.iter().map(|p| p.1 / ARCSEC_PER_RAD).collect());
+        .filter(|c| !c.harmonics.is_empty())
+        .zip(result.uniform_map());
+    if let Some((ch, map)) = uniform {
         if let Some(z) = plots::dominant_order(&map)
             .and_then(|h| plots::zoom("zoom-encoder", "encoder", &layers, h))
         {
@@ -80,8 +99,11 @@ pub fn document(
             ))
             .table(harmonics_table("the encoder", ch));
     }
-    doc.push(enc);
+    enc
+}
 
+/// The polygon's pitch deviations, as bars and a table.
+fn polygon(result: &ShiftAngleResult) -> Section {
     let beta: Vec<(usize, f64)> = result
         .polygon
         .iter()
@@ -100,19 +122,21 @@ pub fn document(
             ])
         },
     );
-    doc.push(
-        Section::new("Polygon")
-            .figure(plots::bar_chart(
-                "polygon",
-                "Pitch deviations of the polygon",
-                "Each face's pitch angle minus 360°/n, calibrated together with the encoder.",
-                "face",
-                "pitch deviation β (″)",
-                &beta,
-            ))
-            .table(table),
-    );
+    Section::new("Polygon")
+        .figure(plots::bar_chart(
+            "polygon",
+            "Pitch deviations of the polygon",
+            "Each face's pitch angle minus 360°/n, calibrated together with the encoder.",
+            "face",
+            "pitch deviation β (″)",
+            &beta,
+        ))
+        .table(table)
+}
 
+/// The residuals of every reading, one series per start face (or one for all beyond four), and
+/// the sin-fit check.
+fn residuals(result: &ShiftAngleResult) -> Section {
     let mut by_face: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for r in &result.reading_residuals {
         let name = format!("start face {}", r.start_face);
@@ -129,7 +153,22 @@ pub fn document(
         .iter()
         .map(|(n, v)| (n.as_str(), v.clone()))
         .collect();
-    let sin = result.sin_fit.shifts.iter().fold(
+    Section::new("Fit residuals")
+        .figure(plots::scatter(
+            "residuals",
+            "Residuals of the fit, per reading",
+            "Autocollimator reading minus the fitted model, at the encoder angle of the reading: \
+             noise should look the same everywhere; a lone outlier is a misread. A shift read \
+             from one start face only has no redundancy: its readings fit exactly (residual 0).",
+            ("encoder angle (°)", "residual (″)"),
+            &series,
+        ))
+        .table(sin_fit_table(result))
+}
+
+/// The sin-fit check of the paper's section 3.1, per shift.
+fn sin_fit_table(result: &ShiftAngleResult) -> Table {
+    result.sin_fit.shifts.iter().fold(
         Table::new(
             &format!(
                 "Sin-fit check (section 3.1): A = {} ″, B = {} rad fitted at S = {}°",
@@ -156,21 +195,7 @@ pub fn document(
                 num(s.residual_rms_arcsec, 4),
             ])
         },
-    );
-    doc.push(
-        Section::new("Fit residuals")
-            .figure(plots::scatter(
-                "residuals",
-                "Residuals of the fit, per reading",
-                "Autocollimator reading minus the fitted model, at the encoder angle of the reading: \
-                 noise should look the same everywhere; a lone outlier is a misread. A shift read \
-                 from one start face only has no redundancy: its readings fit exactly (residual 0).",
-                ("encoder angle (°)", "residual (″)"),
-                &series,
-            ))
-            .table(sin),
-    );
-    doc
+    )
 }
 
 fn summary(

@@ -15,15 +15,22 @@
 //! (linear in the samples) from the cost of the solve (independent of them once binned).
 //! Before timing, each case runs once and prints what it solved (sessions, bins, iterations).
 //!
+//! Then the stages one by one (`csrr-stages/samples=…/…`, through the hidden
+//! `calib_core::csrr::stages`): `binning` (segmentation and binning of every sample), `stencils`
+//! (one build of the NUFFT interpolation stencils of every bin's two readings), `solve` (the
+//! joint Gauss–Newton solve of the binned sessions) and `uncertainty` (the tables from the solved
+//! series and their uncertainty), at the order the end-to-end case fitted.
+//!
 //! ```text
 //! cargo bench -p calib-core --bench csrr
 //! cargo bench -p calib-core --bench csrr -- 'samples=1e5'    # the small log only
+//! cargo bench -p calib-core --bench csrr -- 'csrr-stages'    # the stages only
 //! ```
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use calib_core::csrr::{Calibration, Csrr, CsrrOptions};
+use calib_core::csrr::{Calibration, Csrr, CsrrOptions, stages};
 use calib_core::simulate::Scenario;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
@@ -98,8 +105,32 @@ fn calibrate(readings: &[(f64, f64, f64)], max_order: Option<usize>) -> Calibrat
     csrr.finish().expect("the bench scenario calibrates")
 }
 
-/// Benches one log at its automatic maximum order and at `low_order`.
+/// Benches one log's stages at `max_order`.
+fn bench_stages(c: &mut Criterion, label: &str, readings: &[(f64, f64, f64)], max_order: usize) {
+    let binned = stages::bin(readings);
+    eprintln!("{label}: {} bins", binned.bins());
+    let mut group = c.benchmark_group(format!("csrr-stages/samples={label}"));
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(5));
+    group.bench_function("binning", |b| b.iter(|| stages::bin(black_box(readings))));
+    group.bench_function(format!("stencils/orders={max_order}"), |b| {
+        b.iter(|| stages::stencils(black_box(&binned), max_order))
+    });
+    group.bench_function(format!("solve/orders={max_order}"), |b| {
+        b.iter(|| stages::solve(black_box(&binned), max_order))
+    });
+    let solved = stages::solve(&binned, max_order).expect("the bench scenario solves");
+    group.bench_function(format!("uncertainty/orders={max_order}"), |b| {
+        b.iter(|| stages::uncertainty(black_box(&solved)))
+    });
+    group.finish();
+}
+
+/// Benches one log at its automatic maximum order and at `low_order`, end to end, then its
+/// stages at the automatic order.
 fn bench_log(c: &mut Criterion, label: &str, readings: &[(f64, f64, f64)], low_order: usize) {
+    let mut auto_order = low_order;
     for max_order in [None, Some(low_order)] {
         // One untimed run: names the case by the order actually fitted, and shows what it did.
         let start = Instant::now();
@@ -130,7 +161,11 @@ fn bench_log(c: &mut Criterion, label: &str, readings: &[(f64, f64, f64)], low_o
             b.iter(|| calibrate(black_box(readings), max_order))
         });
         group.finish();
+        if max_order.is_none() {
+            auto_order = cal.max_order;
+        }
     }
+    bench_stages(c, label, readings, auto_order);
 }
 
 fn csrr(c: &mut Criterion) {

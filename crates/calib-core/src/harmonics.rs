@@ -59,7 +59,9 @@ impl Harmonic {
 }
 
 /// A harmonic as `report.json` writes it.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct HarmonicReport {
     /// Cycles per revolution.
     pub order: usize,

@@ -26,7 +26,7 @@ const NOMINAL_WINDOW: usize = 257;
 const LISTED: usize = 20;
 
 /// Per-channel findings.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct ChannelStats {
     /// Name.
     pub name: String,
@@ -47,7 +47,7 @@ pub struct ChannelStats {
 }
 
 /// One order of the speed variation over a revolution.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct SpeedHarmonic {
     /// Cycles per revolution.
     pub order: usize,
@@ -58,7 +58,7 @@ pub struct SpeedHarmonic {
 }
 
 /// A time-stamp event: a gap or a step backwards.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct StampEvent {
     /// 0-based index of the sample after the event.
     pub index: u64,
@@ -69,7 +69,7 @@ pub struct StampEvent {
 }
 
 /// Everything `inspect` found.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct Inspection {
     /// Samples.
     pub samples: u64,

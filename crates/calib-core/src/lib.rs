@@ -8,7 +8,8 @@
 //! - [`sample`]: [`Sample`]s of named [`Channel`]s.
 //! - [`ErrorMap`]: a sensor's error over one revolution of its own reading; [`FourierSeries`] and
 //!   [`Harmonic`]s in the convention `amplitude·cos(h·θ + phase)`.
-//! - [`Report`]: what `report.json` holds.
+//! - [`Report`]: what `report.json` holds, assembled by [`Report::new`] from a method result's
+//!   `report_section` ([`report`], one module per method).
 //! - [`shift_angle`]: cross-calibration of an encoder with a polygon and an autocollimator at
 //!   every angle (Hsieh, Watanabe, Hsu 2022), by the paper's steps or one constrained fit.
 //! - [`uncertainty`]: GUM budgets — combined and expanded uncertainty, Welch–Satterthwaite.

@@ -45,7 +45,7 @@ impl Default for SegmentOptions {
 }
 
 /// What a segment of the log is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SegmentKind {
     /// Neither sensor moves.
@@ -57,7 +57,7 @@ pub enum SegmentKind {
 }
 
 /// A segment of the log.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct Segment {
     /// Its kind.
     pub kind: SegmentKind,

@@ -276,7 +276,17 @@ impl Readings {
 }
 
 /// Which estimator [`calibrate`] uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    schemars::JsonSchema,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// One constrained least-squares fit of all unknowns (see the module docs).
@@ -302,7 +312,9 @@ pub struct EncoderPoint {
 }
 
 /// One polygon face's pitch deviation.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct PolygonFace {
     /// The face `k`, 1-based.
     pub face: usize,
@@ -313,7 +325,9 @@ pub struct PolygonFace {
 }
 
 /// The setup error of one start face at one shift.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct SetupError {
     /// The shift, degrees.
     pub shift_deg: f64,
@@ -326,7 +340,9 @@ pub struct SetupError {
 }
 
 /// The residuals `ε − model` of an estimate: a check of the measurement.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct Residuals {
     /// Root mean square over all readings, arcsec.
     pub rms_arcsec: f64,
@@ -360,7 +376,9 @@ pub struct ReadingResidual {
 }
 
 /// The sin-fit check of section 3.1 for one shift.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct SinFitShift {
     /// The shift, degrees.
     pub shift_deg: f64,
@@ -378,7 +396,7 @@ pub struct SinFitShift {
 
 /// The sin-fit diagnostic: `α(θ) + U = A·sin(2θ + B) + U_fit`, `A`, `B` fitted at the reference
 /// (first) shift and held fixed for the others; `θ` in radians of encoder angle.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 pub struct SinFit {
     /// The shift where `A` and `B` were fitted, degrees.
     pub reference_shift_deg: f64,

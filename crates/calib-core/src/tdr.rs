@@ -412,6 +412,143 @@ impl Tdr {
         let (i0, i1) = (coast.first, coast.end);
         let t = &self.t[i0..i1];
         let r = &self.r[i0..i1];
+        let mut warnings = self.coast_warnings(&coast);
+        let densest = TAU / (coast.slowest_speed * median_step(t));
+        let (max_degree, h) = self.sizes(&coast, t.len(), densest, &mut warnings)?;
+        let y0 = r[0];
+        let y: Vec<f64> = r.iter().map(|v| v - y0).collect();
+        let span = (t[0], t[t.len() - 1]);
+        let underdetermined = TdrError::Underdetermined {
+            unknowns: max_degree + 1 + 2 * h,
+            samples: t.len(),
+        };
+
+        // 1. Which orders the data hold: every order to h, the motion at its highest degree.
+        let mut screen =
+            screen_orders(t, r, &y, span, max_degree, h, None).ok_or(underdetermined)?;
+        let screen_motion = TdrMotion {
+            degree: max_degree,
+            t_start: span.0,
+            t_end: span.1,
+            angle_origin: y0,
+            coefficients: screen.motion.clone(),
+        };
+        let speeds = SpeedSpread::of(&screen_motion, t);
+
+        // 2. Drag: the orders to max_drag_order fitted jointly with the map (eq. 3).
+        let hd = self.opts.max_drag_order.min(h);
+        let separable =
+            speeds.noise_gain * speeds.noise_gain <= MAX_DRAG_VARIANCE_INFLATION && hd >= 1;
+        let weights = |orders: Vec<usize>| DragWeights {
+            orders,
+            motion: screen_motion.clone(),
+            gain: speeds.drag_gain,
+        };
+        let (drag_orders, speed_dependence) = if hd >= 1 {
+            let tested: Vec<usize> = (1..=hd).collect();
+            let basis = Basis {
+                t0: span.0,
+                t1: span.1,
+                degree: max_degree,
+                orders: union(&screen.kept, &tested),
+                drag: Some(weights(tested)),
+            };
+            significant_drag(&basis, t, r, &y, separable)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        let too_narrow = !separable && hd >= 1;
+        warnings.extend(drag_warnings(
+            &coast,
+            &speeds,
+            too_narrow,
+            &speed_dependence,
+        ));
+
+        // 2b. Unseparated drag inflates the screening's noise estimate and hides small orders:
+        // screen again with the drag found.
+        if !drag_orders.is_empty() {
+            let drag = Some(weights(drag_orders.clone()));
+            if let Some(again) = screen_orders(t, r, &y, span, max_degree, h, drag) {
+                screen.kept = again.kept;
+                screen.dropped = again.dropped;
+            }
+        }
+
+        // 3. The final fit: the kept orders (and the drag's), the motion's degree by BIC.
+        let orders = union(&screen.kept, &drag_orders);
+        let mut basis = Basis {
+            t0: span.0,
+            t1: span.1,
+            degree: max_degree,
+            orders: orders.clone(),
+            drag: (!drag_orders.is_empty()).then(|| weights(drag_orders.clone())),
+        };
+        let degree = match self.opts.motion_degree {
+            Some(p) => p,
+            None => motion_degree_by_bic(&basis, t, r, &y),
+        };
+        basis.degree = degree;
+        let fit = Fit::new(&basis, t, r, &y).ok_or(TdrError::Underdetermined {
+            unknowns: basis.len(),
+            samples: t.len(),
+        })?;
+        let residual_rms = (fit.rss / t.len() as f64).sqrt();
+
+        let (series, motion) = series_and_motion(&basis, &fit, h, y0);
+        let map = ErrorMap::from_series(&series, self.opts.points);
+        let drag = drag_terms(&basis, &fit, speeds.drag_gain);
+
+        // 4. What the model leaves: periodic structure in the residual above the orders fitted.
+        let top = ((0.5 * densest) as usize).max(2 * h).min(4 * h.max(8));
+        let unresolved = residual_orders(&basis, t, r, &y, &fit, h + 1..=top);
+        warnings.extend(unresolved_warning(&unresolved, h));
+
+        let uncertainty = map_uncertainty(
+            &basis,
+            &fit,
+            &series,
+            &unresolved,
+            screen.dropped,
+            self.opts.points,
+        );
+        let seen = union(
+            &orders,
+            &unresolved.iter().map(|u| u.order).collect::<Vec<_>>(),
+        );
+        let reference = self.reference_check(i0..i1, &seen, &map, &mut warnings);
+
+        Ok(TdrCalibration {
+            map,
+            series,
+            max_order: h,
+            orders,
+            unresolved,
+            speed_start: motion.eval(span.0).1.abs(),
+            speed_end: motion.eval(span.1).1.abs(),
+            motion,
+            residual_rms,
+            samples_used: t.len(),
+            revolutions: coast.revolutions,
+            samples_per_revolution_densest: densest,
+            direction: coast.direction,
+            drag_gain: speeds.drag_gain,
+            drag_separation: DragSeparation {
+                variation: speeds.variation,
+                noise_gain: speeds.noise_gain,
+                separated: separable,
+            },
+            drag,
+            speed_dependence,
+            reference,
+            uncertainty,
+            warnings,
+            ambiguity: DRAG_AMBIGUITY,
+        })
+    }
+
+    /// Warnings about the samples and the coast found: skipped samples, a driven plateau.
+    fn coast_warnings(&self, coast: &Coast) -> Vec<String> {
         let mut warnings = Vec::new();
         if self.skipped > 0 {
             warnings.push(format!(
@@ -425,9 +562,20 @@ impl Tdr {
                 coast.plateau_s
             ));
         }
-        let step = median_step(t);
-        let densest = TAU / (coast.slowest_speed * step);
+        warnings
+    }
 
+    /// The motion's highest degree and the highest order tested, given or from the coast
+    /// (`densest`: its samples per revolution at the slow end), with a warning where a given
+    /// one is beyond what the coast supports; an error where the unknowns exceed a quarter of
+    /// the `samples`.
+    fn sizes(
+        &self,
+        coast: &Coast,
+        samples: usize,
+        densest: f64,
+        warnings: &mut Vec<String>,
+    ) -> Result<(usize, usize), TdrError> {
         let max_degree = match self.opts.motion_degree {
             Some(p) => {
                 if p as f64 > coast.revolutions / 2.0 {
@@ -441,7 +589,7 @@ impl Tdr {
             None => ((coast.revolutions / 2.0).floor() as usize).clamp(2, 30),
         };
         // At most a quarter as many unknowns as samples.
-        let room = (t.len() / 4).saturating_sub(max_degree + 1) / 2;
+        let room = (samples / 4).saturating_sub(max_degree + 1) / 2;
         let h = match self.opts.max_order {
             Some(h) => {
                 if (h as f64) > 0.5 * densest {
@@ -455,281 +603,235 @@ impl Tdr {
                 .clamp(1, MAX_DEFAULT_ORDER.min(room.max(1))),
         };
         let unknowns = max_degree + 1 + 2 * h;
-        if 4 * unknowns > t.len() {
-            return Err(TdrError::Underdetermined {
-                unknowns,
-                samples: t.len(),
-            });
+        if 4 * unknowns > samples {
+            return Err(TdrError::Underdetermined { unknowns, samples });
         }
-        let y0 = r[0];
-        let y: Vec<f64> = r.iter().map(|v| v - y0).collect();
-        let span = (t[0], t[t.len() - 1]);
+        Ok((max_degree, h))
+    }
 
-        // 1. Which orders the data hold: every order to h, the motion at its highest degree.
-        let mut screen = screen_orders(t, r, &y, span, max_degree, h, None).ok_or(
-            TdrError::Underdetermined {
-                unknowns,
-                samples: t.len(),
-            },
-        )?;
-        let screen_motion = TdrMotion {
-            degree: max_degree,
-            t_start: span.0,
-            t_end: span.1,
-            angle_origin: y0,
-            coefficients: screen.motion,
-        };
-        let speed = |m: &TdrMotion, t: f64| m.eval(t).1.abs();
-        let drag_gain = t
-            .iter()
-            .map(|&ti| speed(&screen_motion, ti).powi(-2))
-            .sum::<f64>()
-            / t.len() as f64;
-        let mean_w2 = t
-            .iter()
-            .map(|&ti| speed(&screen_motion, ti).powi(-4))
-            .sum::<f64>()
-            / t.len() as f64;
-        let variation = (mean_w2 / (drag_gain * drag_gain) - 1.0).max(0.0).sqrt();
-        let noise_gain = (1.0 + 1.0 / (variation * variation).max(1e-300)).sqrt();
-
-        // 2. Drag: the orders to max_drag_order fitted jointly with the map (eq. 3).
-        let hd = self.opts.max_drag_order.min(h);
-        let separable = noise_gain * noise_gain <= MAX_DRAG_VARIANCE_INFLATION && hd >= 1;
-        let mut drag_orders = Vec::new();
-        let mut speed_dependence = Vec::new();
-        let mut drag = Vec::new();
-        if hd >= 1 {
-            let tested: Vec<usize> = (1..=hd).collect();
-            let basis = Basis {
-                t0: span.0,
-                t1: span.1,
-                degree: max_degree,
-                orders: union(&screen.kept, &tested),
-                drag: Some(DragWeights {
-                    orders: tested.clone(),
-                    motion: screen_motion.clone(),
-                    gain: drag_gain,
-                }),
-            };
-            if let Some(fit) = Fit::new(&basis, t, r, &y) {
-                let threshold = significance_threshold(hd);
-                let first = basis.drag_column(0);
-                for (i, &k) in tested.iter().enumerate() {
-                    let (c, s) = (first + 2 * i, first + 2 * i + 1);
-                    let (p, q) = (fit.beta[c], fit.beta[s]);
-                    let chi2 = fit.chi_square(c, s);
-                    let imprint = Harmonic::from_coefficients(k, p, q);
-                    if chi2 < threshold || imprint.amplitude * ARCSEC_PER_RAD < MATERIAL_ARCSEC {
-                        continue;
-                    }
-                    let u =
-                        fit.sigma * (0.5 * (fit.covariance(c, c) + fit.covariance(s, s))).sqrt();
-                    if separable {
-                        drag_orders.push(k);
-                    } else {
-                        speed_dependence.push(SpeedDependence {
-                            harmonic: imprint,
-                            u,
-                        });
-                    }
-                }
-            }
-        }
-        if !separable && hd >= 1 {
-            let start = 60.0 / TAU * coast.peak_speed;
-            warnings.push(format!(
-                "the coast's speed range is too narrow to separate angle-dependent drag from encoder error: 1/ω² varies by {:.1} % (RMS) over it, at least 10 % is needed (the separation would multiply the noise by {noise_gain:.0}); let the shaft coast down to about {:.0} r/min or below (17 % under its {start:.0} r/min start), or trust the map only on an air bearing",
-                100.0 * variation,
-                0.83 * start
-            ));
-        }
-        if !speed_dependence.is_empty() {
-            let list: Vec<String> = speed_dependence
-                .iter()
-                .map(|s| {
-                    format!(
-                        "order {} {:.3}″ ± {:.3}″",
-                        s.harmonic.order,
-                        s.harmonic.amplitude * ARCSEC_PER_RAD,
-                        s.u * ARCSEC_PER_RAD
-                    )
-                })
-                .collect();
-            warnings.push(format!(
-                "the map changes with speed as angle-dependent drag would make it ({}): part of these orders is likely the shaft's motion, not the encoder (see the ambiguity note)",
-                list.join(", ")
-            ));
-        }
-
-        // 2b. Unseparated drag inflates the screening's noise estimate and hides small orders:
-        // screen again with the drag found.
-        if !drag_orders.is_empty() {
-            let weights = DragWeights {
-                orders: drag_orders.clone(),
-                motion: screen_motion.clone(),
-                gain: drag_gain,
-            };
-            if let Some(again) = screen_orders(t, r, &y, span, max_degree, h, Some(weights)) {
-                screen.kept = again.kept;
-                screen.dropped = again.dropped;
-            }
-        }
-
-        // 3. The final fit: the kept orders (and the drag's), the motion's degree by BIC.
-        let orders = union(&screen.kept, &drag_orders);
-        let mut basis = Basis {
-            t0: span.0,
-            t1: span.1,
-            degree: max_degree,
-            orders: orders.clone(),
-            drag: (!drag_orders.is_empty()).then(|| DragWeights {
-                orders: drag_orders.clone(),
-                motion: screen_motion.clone(),
-                gain: drag_gain,
-            }),
-        };
-        let normal = basis.normal_equations(t, r, &y);
-        let tail: Vec<usize> = (max_degree + 1..basis.len()).collect();
-        let columns = |p: usize| -> Vec<usize> { (0..=p).chain(tail.iter().copied()).collect() };
-        let degree = match self.opts.motion_degree {
-            Some(p) => p,
-            None => {
-                // Nested fits: the residual sum of squares of degree p is that of the highest
-                // degree plus ‖A(β_max − β_p)‖² = δᵀ(AᵀA)δ, with no pass over the samples.
-                let all = columns(max_degree);
-                let n = t.len() as f64;
-                let mut best: Option<(f64, usize)> = None;
-                if let Some(full) = normal.solve(&all) {
-                    let rss_full = basis.rss(t, r, &y, &all, &full);
-                    for p in 2..=max_degree {
-                        let cols = columns(p);
-                        let Some(beta) = normal.solve(&cols) else {
-                            continue;
-                        };
-                        let mut delta = DVector::from_column_slice(&full);
-                        for (k, &c) in cols.iter().enumerate() {
-                            delta[c] -= beta[k];
-                        }
-                        let rss = rss_full + (delta.transpose() * &normal.g * &delta)[0].max(0.0);
-                        let bic = n * (rss / n).max(1e-300).ln() + cols.len() as f64 * n.ln();
-                        if best.is_none_or(|(b, _)| bic < b) {
-                            best = Some((bic, p));
-                        }
-                    }
-                }
-                best.map_or(max_degree, |(_, p)| p)
-            }
-        };
-        basis.degree = degree;
-        let fit = Fit::new(&basis, t, r, &y).ok_or(TdrError::Underdetermined {
-            unknowns: basis.len(),
-            samples: t.len(),
-        })?;
-        let residual_rms = (fit.rss / t.len() as f64).sqrt();
-
-        let mut series = FourierSeries::zeros(h);
-        for (i, &k) in orders.iter().enumerate() {
-            series.cos[k - 1] = fit.beta[degree + 1 + 2 * i];
-            series.sin[k - 1] = fit.beta[degree + 2 + 2 * i];
-        }
-        let map = ErrorMap::from_series(&series, self.opts.points);
-        let motion = TdrMotion {
-            degree,
-            t_start: span.0,
-            t_end: span.1,
-            angle_origin: y0,
-            coefficients: fit.beta[..=degree].to_vec(),
-        };
-        let (speed_start, speed_end) = (speed(&motion, span.0), speed(&motion, span.1));
-        if let Some(weights) = &basis.drag {
-            let first = basis.drag_column(0);
-            for (i, &k) in weights.orders.iter().enumerate() {
-                let (c, s) = (first + 2 * i, first + 2 * i + 1);
-                let imprint = Harmonic::from_coefficients(k, fit.beta[c], fit.beta[s]);
-                let hh = (k * k) as f64;
-                drag.push(DragTerm {
-                    deceleration: Harmonic {
-                        amplitude: imprint.amplitude * hh / drag_gain,
-                        ..imprint
-                    },
-                    imprint: imprint.amplitude,
-                    u_imprint: fit.sigma
-                        * (0.5 * (fit.covariance(c, c) + fit.covariance(s, s))).sqrt(),
-                });
-            }
-        }
-
-        // 4. What the model leaves: periodic structure in the residual above the orders fitted.
-        let top = ((0.5 * densest) as usize).max(2 * h).min(4 * h.max(8));
-        let unresolved = residual_orders(&basis, t, r, &y, &fit, h + 1..=top);
-        let material: Vec<&Harmonic> = unresolved
-            .iter()
-            .filter(|u| u.amplitude * ARCSEC_PER_RAD >= MATERIAL_ARCSEC)
-            .collect();
-        if !material.is_empty() {
-            let list: Vec<String> = material
-                .iter()
-                .take(6)
-                .map(|u| format!("order {} {:.3}″", u.order, u.amplitude * ARCSEC_PER_RAD))
-                .collect();
-            warnings.push(format!(
-                "the fit's residual still holds periodic structure above the highest order fitted ({h}): {}{} — the map leaves these out; raise --max-order to at least {}",
-                list.join(", "),
-                if material.len() > 6 { ", …" } else { "" },
-                material.iter().map(|u| u.order).max().unwrap_or(h)
-            ));
-        }
-
-        let uncertainty = map_uncertainty(
-            &basis,
-            &fit,
-            &series,
-            &unresolved,
-            screen.dropped,
-            self.opts.points,
-        );
-
+    /// The reference check over the coast's samples `range` at the orders `seen`, or `None`
+    /// without reference readings (or with some missing, which is warned about).
+    fn reference_check(
+        &self,
+        range: std::ops::Range<usize>,
+        seen: &[usize],
+        map: &ErrorMap,
+        warnings: &mut Vec<String>,
+    ) -> Option<ReferenceCheck> {
         let mixed = !self.reference.is_empty() && self.reference.len() != self.r.len();
         if mixed {
             warnings.push(
                 "a reference reading came with only some samples (push and push_with_reference mixed): the reference check is skipped".to_string(),
             );
         }
-        let reference = (!self.reference.is_empty() && !mixed).then(|| {
-            let d: Vec<f64> = (i0..i1).map(|i| self.r[i] - self.reference[i]).collect();
-            let seen: Vec<usize> = unresolved.iter().map(|u| u.order).collect();
-            reference_check(t, r, &d, &union(&orders, &seen), &map)
-        });
-
-        Ok(TdrCalibration {
-            map,
-            series,
-            max_order: h,
-            orders,
-            unresolved,
-            motion,
-            residual_rms,
-            samples_used: t.len(),
-            revolutions: coast.revolutions,
-            speed_start,
-            speed_end,
-            samples_per_revolution_densest: densest,
-            direction: coast.direction,
-            drag_gain,
-            drag_separation: DragSeparation {
-                variation,
-                noise_gain,
-                separated: separable,
-            },
-            drag,
-            speed_dependence,
-            reference,
-            uncertainty,
-            warnings,
-            ambiguity: DRAG_AMBIGUITY,
+        (!self.reference.is_empty() && !mixed).then(|| {
+            let d: Vec<f64> = range
+                .clone()
+                .map(|i| self.r[i] - self.reference[i])
+                .collect();
+            reference_check(&self.t[range.clone()], &self.r[range], &d, seen, map)
         })
     }
+}
+
+/// How widely the coast sweeps `1/ω²`, from the screening's motion: the drag's gain `⟨ω⁻²⟩`,
+/// the relative RMS variation `cv` of `ω⁻²` and the noise gain `√(1 + 1/cv²)` of separating
+/// drag from the map (see [`MAX_DRAG_VARIANCE_INFLATION`]).
+struct SpeedSpread {
+    drag_gain: f64,
+    variation: f64,
+    noise_gain: f64,
+}
+
+impl SpeedSpread {
+    fn of(motion: &TdrMotion, t: &[f64]) -> Self {
+        let speed = |t: f64| motion.eval(t).1.abs();
+        let drag_gain = t.iter().map(|&ti| speed(ti).powi(-2)).sum::<f64>() / t.len() as f64;
+        let mean_w2 = t.iter().map(|&ti| speed(ti).powi(-4)).sum::<f64>() / t.len() as f64;
+        let variation = (mean_w2 / (drag_gain * drag_gain) - 1.0).max(0.0).sqrt();
+        let noise_gain = (1.0 + 1.0 / (variation * variation).max(1e-300)).sqrt();
+        SpeedSpread {
+            drag_gain,
+            variation,
+            noise_gain,
+        }
+    }
+}
+
+/// The drag orders of `basis` (fitted jointly with the map) that pass the significance rule
+/// and are material: where the coast separates drag (`separable`) the orders to fit as drag,
+/// else the speed dependence found, to be warned about.
+fn significant_drag(
+    basis: &Basis,
+    t: &[f64],
+    r: &[f64],
+    y: &[f64],
+    separable: bool,
+) -> (Vec<usize>, Vec<SpeedDependence>) {
+    let (mut drag_orders, mut speed_dependence) = (Vec::new(), Vec::new());
+    let (Some(fit), Some(weights)) = (Fit::new(basis, t, r, y), &basis.drag) else {
+        return (drag_orders, speed_dependence);
+    };
+    let threshold = significance_threshold(weights.orders.len());
+    let first = basis.drag_column(0);
+    for (i, &k) in weights.orders.iter().enumerate() {
+        let (c, s) = (first + 2 * i, first + 2 * i + 1);
+        let (p, q) = (fit.beta[c], fit.beta[s]);
+        let chi2 = fit.chi_square(c, s);
+        let imprint = Harmonic::from_coefficients(k, p, q);
+        if chi2 < threshold || imprint.amplitude * ARCSEC_PER_RAD < MATERIAL_ARCSEC {
+            continue;
+        }
+        let u = fit.sigma * (0.5 * (fit.covariance(c, c) + fit.covariance(s, s))).sqrt();
+        if separable {
+            drag_orders.push(k);
+        } else {
+            speed_dependence.push(SpeedDependence {
+                harmonic: imprint,
+                u,
+            });
+        }
+    }
+    (drag_orders, speed_dependence)
+}
+
+/// Warnings about drag: a coast `too_narrow` in speed to separate it, and the map's orders that
+/// change with speed as drag would make them.
+fn drag_warnings(
+    coast: &Coast,
+    speeds: &SpeedSpread,
+    too_narrow: bool,
+    speed_dependence: &[SpeedDependence],
+) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if too_narrow {
+        let start = 60.0 / TAU * coast.peak_speed;
+        warnings.push(format!(
+            "the coast's speed range is too narrow to separate angle-dependent drag from encoder error: 1/ω² varies by {:.1} % (RMS) over it, at least 10 % is needed (the separation would multiply the noise by {:.0}); let the shaft coast down to about {:.0} r/min or below (17 % under its {start:.0} r/min start), or trust the map only on an air bearing",
+            100.0 * speeds.variation,
+            speeds.noise_gain,
+            0.83 * start
+        ));
+    }
+    if !speed_dependence.is_empty() {
+        let list: Vec<String> = speed_dependence
+            .iter()
+            .map(|s| {
+                format!(
+                    "order {} {:.3}″ ± {:.3}″",
+                    s.harmonic.order,
+                    s.harmonic.amplitude * ARCSEC_PER_RAD,
+                    s.u * ARCSEC_PER_RAD
+                )
+            })
+            .collect();
+        warnings.push(format!(
+            "the map changes with speed as angle-dependent drag would make it ({}): part of these orders is likely the shaft's motion, not the encoder (see the ambiguity note)",
+            list.join(", ")
+        ));
+    }
+    warnings
+}
+
+/// The motion's degree, 2 to `basis.degree`, with the least BIC.
+///
+/// Nested fits: the residual sum of squares of degree p is that of the highest degree plus
+/// ‖A(β_max − β_p)‖² = δᵀ(AᵀA)δ, with no pass over the samples.
+fn motion_degree_by_bic(basis: &Basis, t: &[f64], r: &[f64], y: &[f64]) -> usize {
+    let max_degree = basis.degree;
+    let normal = basis.normal_equations(t, r, y);
+    let tail: Vec<usize> = (max_degree + 1..basis.len()).collect();
+    let columns = |p: usize| -> Vec<usize> { (0..=p).chain(tail.iter().copied()).collect() };
+    let all = columns(max_degree);
+    let n = t.len() as f64;
+    let mut best: Option<(f64, usize)> = None;
+    if let Some(full) = normal.solve(&all) {
+        let rss_full = basis.rss(t, r, y, &all, &full);
+        for p in 2..=max_degree {
+            let cols = columns(p);
+            let Some(beta) = normal.solve(&cols) else {
+                continue;
+            };
+            let mut delta = DVector::from_column_slice(&full);
+            for (k, &c) in cols.iter().enumerate() {
+                delta[c] -= beta[k];
+            }
+            let rss = rss_full + (delta.transpose() * &normal.g * &delta)[0].max(0.0);
+            let bic = n * (rss / n).max(1e-300).ln() + cols.len() as f64 * n.ln();
+            if best.is_none_or(|(b, _)| bic < b) {
+                best = Some((bic, p));
+            }
+        }
+    }
+    best.map_or(max_degree, |(_, p)| p)
+}
+
+/// The map's series (orders `1..=h`, those not in `basis` zero) and the motion (`y0` its angle
+/// origin) of the final fit.
+fn series_and_motion(basis: &Basis, fit: &Fit, h: usize, y0: f64) -> (FourierSeries, TdrMotion) {
+    let degree = basis.degree;
+    let mut series = FourierSeries::zeros(h);
+    for (i, &k) in basis.orders.iter().enumerate() {
+        series.cos[k - 1] = fit.beta[degree + 1 + 2 * i];
+        series.sin[k - 1] = fit.beta[degree + 2 + 2 * i];
+    }
+    let motion = TdrMotion {
+        degree,
+        t_start: basis.t0,
+        t_end: basis.t1,
+        angle_origin: y0,
+        coefficients: fit.beta[..=degree].to_vec(),
+    };
+    (series, motion)
+}
+
+/// The drag terms of the final fit: each order's imprint, and the deceleration
+/// `h²·imprint/⟨ω⁻²⟩` that makes it (eq. 2).
+fn drag_terms(basis: &Basis, fit: &Fit, drag_gain: f64) -> Vec<DragTerm> {
+    let Some(weights) = &basis.drag else {
+        return Vec::new();
+    };
+    let first = basis.drag_column(0);
+    weights
+        .orders
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| {
+            let (c, s) = (first + 2 * i, first + 2 * i + 1);
+            let imprint = Harmonic::from_coefficients(k, fit.beta[c], fit.beta[s]);
+            let hh = (k * k) as f64;
+            DragTerm {
+                deceleration: Harmonic {
+                    amplitude: imprint.amplitude * hh / drag_gain,
+                    ..imprint
+                },
+                imprint: imprint.amplitude,
+                u_imprint: fit.sigma * (0.5 * (fit.covariance(c, c) + fit.covariance(s, s))).sqrt(),
+            }
+        })
+        .collect()
+}
+
+/// The warning about material periodic structure left in the residual above order `h`.
+fn unresolved_warning(unresolved: &[Harmonic], h: usize) -> Option<String> {
+    let material: Vec<&Harmonic> = unresolved
+        .iter()
+        .filter(|u| u.amplitude * ARCSEC_PER_RAD >= MATERIAL_ARCSEC)
+        .collect();
+    if material.is_empty() {
+        return None;
+    }
+    let list: Vec<String> = material
+        .iter()
+        .take(6)
+        .map(|u| format!("order {} {:.3}″", u.order, u.amplitude * ARCSEC_PER_RAD))
+        .collect();
+    Some(format!(
+        "the fit's residual still holds periodic structure above the highest order fitted ({h}): {}{} — the map leaves these out; raise --max-order to at least {}",
+        list.join(", "),
+        if material.len() > 6 { ", …" } else { "" },
+        material.iter().map(|u| u.order).max().unwrap_or(h)
+    ))
 }
 
 /// The coast found in a log: sample range `[first, end)` and its figures.

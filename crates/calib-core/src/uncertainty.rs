@@ -98,7 +98,7 @@ pub struct Budget {
 }
 
 /// One component's share of the result.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 pub struct Contribution {
     /// The component's name.
     pub name: String,
@@ -115,7 +115,7 @@ pub struct Contribution {
 }
 
 /// The result of [`evaluate`].
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 pub struct BudgetResult {
     /// Coverage probability.
     pub level: f64,
@@ -257,7 +257,9 @@ pub fn evaluate(budget: &Budget) -> Result<BudgetResult, UncertaintyError> {
 }
 
 /// How a component of a map's uncertainty was evaluated (GUM 4.2 and 4.3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub enum Evaluation {
     /// Type A: from the statistics of the data (the fit's residual).
     #[serde(rename = "A")]

@@ -79,50 +79,7 @@ pub struct AlignOptions {
     pub max_gap_s: Option<f64>,
 }
 
-/// How one channel was aligned to the clock.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct ChannelAlignment {
-    /// The channel.
-    pub channel: String,
-    /// Median of (the channel's sample nearest to a clock stamp − that stamp), seconds, over the
-    /// first 65,536 samples emitted; `None` if none was.
-    pub median_offset_s: Option<f64>,
-    /// The maximum gap used, seconds.
-    pub max_gap_s: f64,
-    /// Samples emitted with this channel's reading at exactly the clock's stamp.
-    pub exact: u64,
-    /// Samples emitted with this channel's reading interpolated.
-    pub interpolated: u64,
-    /// Clock samples dropped because this channel could not be aligned there (a gap, or before
-    /// its first or after its last sample).
-    pub dropped: u64,
-    /// Samples of this channel not used because their stamp did not increase.
-    pub out_of_order: u64,
-}
-
-/// How a log's channels were aligned to the clock (its first selected channel).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct Alignment {
-    /// The clock channel.
-    pub clock: String,
-    /// Samples of the clock channel read.
-    pub clock_samples: u64,
-    /// Samples emitted.
-    pub samples: u64,
-    /// Every other selected channel, in the order selected.
-    pub channels: Vec<ChannelAlignment>,
-}
-
-impl Alignment {
-    /// Whether every channel was read at the clock's exact stamps with nothing dropped.
-    pub fn is_exact(&self) -> bool {
-        self.clock_samples == self.samples
-            && self
-                .channels
-                .iter()
-                .all(|c| c.interpolated == 0 && c.dropped == 0 && c.out_of_order == 0)
-    }
-}
+pub use calib_core::report::{Alignment, ChannelAlignment};
 
 struct ClockEntry {
     ns: i64,

@@ -15,7 +15,10 @@
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
 //! - [`report`]: `report.json` and other JSON outputs.
 //! - [`readings`]: shift-angle readings (`shift_deg,start_face,step,reading_arcsec`).
+//! - [`shift_angle`]: the shift-angle method's `encoder.csv` and `polygon.csv`.
+//! - [`compare`]: `compare.csv`, two error maps point by point.
 //! - [`budget`]: GUM uncertainty budgets (TOML).
+//! - [`scenario`]: simulation scenarios (TOML).
 //! - [`points`]: tolerant reader of error tables on any grid, for comparisons.
 //! - [`limits`]: the range of readings and time stamps readers accept.
 //!
@@ -42,6 +45,7 @@ pub mod align;
 pub mod apply;
 pub mod atomic;
 pub mod budget;
+pub mod compare;
 pub mod csv_log;
 pub mod error;
 pub mod export;
@@ -54,6 +58,8 @@ pub mod prefetch;
 pub mod readings;
 pub mod report;
 pub mod rosbag;
+pub mod scenario;
+pub mod shift_angle;
 pub mod table;
 
 pub use error::Error;

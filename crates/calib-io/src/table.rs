@@ -50,6 +50,7 @@ use crate::atomic::AtomicFile;
 use crate::csv_log::{
     csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, wrong_width,
 };
+use crate::error::csv_error;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::{ErrorMap, RangeMap};
 use csv::ByteRecord;
@@ -364,18 +365,49 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
     } else {
         csv_reader(file)
     };
+    let columns = read_columns(path, &mut reader)?;
+    let rows = read_rows(path, &mut reader, &columns)?;
+    match marker {
+        Some((lo, hi, marker_line)) => {
+            range_grid(path, rows, (lo, hi), marker_line).map(AnyTable::Range)
+        }
+        None => turn_grid(path, rows).map(AnyTable::Turn),
+    }
+}
+
+/// A table's columns as its header names them.
+struct Columns {
+    names: Vec<String>,
+    header_line: u64,
+    angle: usize,
+    error: usize,
+    correction: usize,
+    u: Option<usize>,
+}
+
+/// A table's rows as read, before the grid is checked: positions (for line numbers), angles in
+/// degrees, errors and uncertainties in radians.
+struct Rows {
+    header_line: u64,
+    positions: Vec<csv::Position>,
+    angles: Vec<f64>,
+    errors: Vec<f64>,
+    u: Option<Vec<f64>>,
+}
+
+/// Reads the header: the three columns of [`HEADER`] in any order, optionally [`U_COLUMN`],
+/// nothing else.
+fn read_columns<R: std::io::Read>(
+    path: &Path,
+    reader: &mut csv::Reader<R>,
+) -> Result<Columns, Error> {
     let mut record = ByteRecord::new();
-    let err = |line: u64, column: Option<&str>, message: String| Error::Csv {
-        path: path.to_path_buf(),
-        line,
-        channel: column.map(str::to_string),
-        message,
-    };
     if !reader
         .read_byte_record(&mut record)
         .map_err(|e| from_csv(path, e))?
     {
-        return Err(err(
+        return Err(csv_error(
+            path,
             1,
             None,
             format!("the file is empty; a correction table starts with the header `{HEADER}`"),
@@ -390,7 +422,8 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
             "angle_deg" | "error_arcsec" | "correction_arcsec" | "u_arcsec"
         )
     }) {
-        return Err(err(
+        return Err(csv_error(
+            path,
             header_line,
             Some(unknown),
             format!(
@@ -399,12 +432,13 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
             ),
         ));
     }
-    let (Some(angle_col), Some(error_col), Some(corr_col)) = (
+    let (Some(angle), Some(error), Some(correction)) = (
         column("angle_deg"),
         column("error_arcsec"),
         column("correction_arcsec"),
     ) else {
-        return Err(err(
+        return Err(csv_error(
+            path,
             header_line,
             None,
             format!(
@@ -414,20 +448,44 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
             ),
         ));
     };
-    let u_col = column(U_COLUMN);
+    let u = column(U_COLUMN);
+    Ok(Columns {
+        names,
+        header_line,
+        angle,
+        error,
+        correction,
+        u,
+    })
+}
 
+/// Reads every row, checking each: numbers in every field, finite values at most
+/// [`MAX_TABLE_ARCSEC`] in magnitude, non-negative uncertainties, `correction = −error` within
+/// the rounding of the two fields as written; and at least 2 rows.
+fn read_rows<R: std::io::Read>(
+    path: &Path,
+    reader: &mut csv::Reader<R>,
+    columns: &Columns,
+) -> Result<Rows, Error> {
+    let names = &columns.names;
+    let err =
+        |line: u64, column: Option<&str>, message: String| csv_error(path, line, column, message);
     // Tables are small (one row per grid point), and the grid can only be checked once N is
     // known, so they are read whole.
-    let mut positions = Vec::new();
-    let mut angles = Vec::new();
-    let mut errors = Vec::new();
-    let mut u = u_col.map(|_| Vec::new());
+    let mut rows = Rows {
+        header_line: columns.header_line,
+        positions: Vec::new(),
+        angles: Vec::new(),
+        errors: Vec::new(),
+        u: columns.u.map(|_| Vec::new()),
+    };
+    let mut record = ByteRecord::new();
     while reader
         .read_byte_record(&mut record)
         .map_err(|e| from_csv(path, e))?
     {
         if record.len() != names.len() {
-            return Err(wrong_width(path, &record, &names));
+            return Err(wrong_width(path, &record, names));
         }
         let line = || line_of(path, &record);
         let number = |col: usize| -> Result<f64, Error> {
@@ -459,11 +517,11 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
             }
             Ok(v)
         };
-        let angle = number(angle_col)?;
-        let e = arcsec(error_col)?;
-        let c = arcsec(corr_col)?;
-        let slack = half_unit(record.get(error_col).unwrap_or_default())
-            + half_unit(record.get(corr_col).unwrap_or_default())
+        let angle = number(columns.angle)?;
+        let e = arcsec(columns.error)?;
+        let c = arcsec(columns.correction)?;
+        let slack = half_unit(record.get(columns.error).unwrap_or_default())
+            + half_unit(record.get(columns.correction).unwrap_or_default())
             // Decimal-to-binary conversion of the two fields.
             + 1e-12 * (e.abs() + c.abs());
         if (c + e).abs() > slack {
@@ -476,7 +534,7 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
                 ),
             ));
         }
-        if let (Some(u), Some(col)) = (u.as_mut(), u_col) {
+        if let (Some(u), Some(col)) = (rows.u.as_mut(), columns.u) {
             let v = arcsec(col)?;
             if v < 0.0 {
                 return Err(err(
@@ -488,22 +546,21 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
             u.push(v / ARCSEC_PER_RAD);
         }
         // Rows always have positions; the default only satisfies the type.
-        positions.push(
+        rows.positions.push(
             record
                 .position()
                 .cloned()
                 .unwrap_or_else(csv::Position::new),
         );
-        angles.push(angle);
-        errors.push(e / ARCSEC_PER_RAD);
+        rows.angles.push(angle);
+        rows.errors.push(e / ARCSEC_PER_RAD);
     }
-
-    let n = angles.len();
+    let n = rows.angles.len();
     if n < 2 {
         return Err(err(
-            positions
+            rows.positions
                 .first()
-                .map_or(header_line + 1, |p| line_at(path, p) + 1),
+                .map_or(rows.header_line + 1, |p| line_at(path, p) + 1),
             None,
             format!(
                 "the table has {n} row{}; a correction table needs at least 2 grid points",
@@ -511,50 +568,69 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
             ),
         ));
     }
-    if let Some((lo, hi, marker_line)) = marker {
-        let at = |i: usize| lo + (hi - lo) * i as f64 / (n - 1) as f64;
-        if let Some(i) = (0..n).find(|&i| (angles[i] - at(i)).abs() > RANGE_GRID_TOLERANCE_DEG) {
-            let message = if i == 0 || i == n - 1 {
-                format!(
-                    "the {} row is at {}° but the range line (line {marker_line}) puts that end at {}°: rows are \
-                     missing or the range line is wrong; a range table has one row per grid point \
-                     angle_deg = LO + i·(HI − LO)/(N−1), i = 0..N−1, both ends included",
-                    if i == 0 { "first" } else { "last" },
-                    angles[i],
-                    at(i)
-                )
-            } else {
-                format!(
-                    "angle {}° is off the range table's uniform grid: row {} of {n} must be at {}° within \
-                     {RANGE_GRID_TOLERANCE_DEG}° (the grid from {lo}° to {hi}°, both ends included)",
-                    angles[i],
-                    i + 1,
-                    at(i)
-                )
-            };
-            return Err(err(
-                line_at(path, &positions[i]),
-                Some("angle_deg"),
-                message,
-            ));
-        }
-        let step = (hi - lo) / (n - 1) as f64;
-        let map = RangeMap::new(lo.to_radians(), step.to_radians(), errors)
-            .map_err(|e| err(marker_line, None, e.to_string()))?;
-        return Ok(AnyTable::Range(RangeTable { map, u }));
-    }
-    if let Some(i) = (0..n).find(|&i| (angles[i] - grid_deg(i, n)).abs() > GRID_TOLERANCE_DEG) {
-        let (row, message) = off_grid(&angles, i);
-        return Err(err(
-            line_at(path, &positions[row]),
+    Ok(rows)
+}
+
+/// A range table from its rows, which must lie on the grid from `lo` to `hi` (degrees, both
+/// ends included) that the range line (at `marker_line`) gives.
+fn range_grid(
+    path: &Path,
+    rows: Rows,
+    (lo, hi): (f64, f64),
+    marker_line: u64,
+) -> Result<RangeTable, Error> {
+    let angles = &rows.angles;
+    let n = angles.len();
+    let at = |i: usize| lo + (hi - lo) * i as f64 / (n - 1) as f64;
+    if let Some(i) = (0..n).find(|&i| (angles[i] - at(i)).abs() > RANGE_GRID_TOLERANCE_DEG) {
+        let message = if i == 0 || i == n - 1 {
+            format!(
+                "the {} row is at {}° but the range line (line {marker_line}) puts that end at {}°: rows are \
+                 missing or the range line is wrong; a range table has one row per grid point \
+                 angle_deg = LO + i·(HI − LO)/(N−1), i = 0..N−1, both ends included",
+                if i == 0 { "first" } else { "last" },
+                angles[i],
+                at(i)
+            )
+        } else {
+            format!(
+                "angle {}° is off the range table's uniform grid: row {} of {n} must be at {}° within \
+                 {RANGE_GRID_TOLERANCE_DEG}° (the grid from {lo}° to {hi}°, both ends included)",
+                angles[i],
+                i + 1,
+                at(i)
+            )
+        };
+        return Err(csv_error(
+            path,
+            line_at(path, &rows.positions[i]),
             Some("angle_deg"),
             message,
         ));
     }
-    Ok(AnyTable::Turn(CorrectionTable {
-        map: ErrorMap::new(errors),
-        u,
-    }))
+    let step = (hi - lo) / (n - 1) as f64;
+    let map = RangeMap::new(lo.to_radians(), step.to_radians(), rows.errors)
+        .map_err(|e| csv_error(path, marker_line, None, e.to_string()))?;
+    Ok(RangeTable { map, u: rows.u })
+}
+
+/// A whole-turn table from its rows, which must lie on the grid `i·360/N` from 0.
+fn turn_grid(path: &Path, rows: Rows) -> Result<CorrectionTable, Error> {
+    let angles = &rows.angles;
+    let n = angles.len();
+    if let Some(i) = (0..n).find(|&i| (angles[i] - grid_deg(i, n)).abs() > GRID_TOLERANCE_DEG) {
+        let (row, message) = off_grid(angles, i);
+        return Err(csv_error(
+            path,
+            line_at(path, &rows.positions[row]),
+            Some("angle_deg"),
+            message,
+        ));
+    }
+    Ok(CorrectionTable {
+        map: ErrorMap::new(rows.errors),
+        u: rows.u,
+    })
 }
 
 /// Why `angles` are not the grid `i·360/N`, given that row `first` is the first off it: the

@@ -154,6 +154,43 @@ fn main() {
         &messages(0, 0, &[joint_state(0, 0, &["a"], &[1.0], false)]),
     );
 
+    // A field read by path through its definition: a header, a nested array and the field.
+    let definition = "std_msgs/Header header\nfloat64 position\nfuzz_msgs/Extra[] extra\n\
+        ================================================================================\n\
+        MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n\
+        ================================================================================\n\
+        MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n\
+        ================================================================================\n\
+        MSG: fuzz_msgs/Extra\nstring name\nfloat32 value\n";
+    let probe = |i: u32| {
+        let mut out = vec![0, 1, 0, 0];
+        out.extend(1i32.to_le_bytes());
+        out.extend((i * 10_000_000).to_le_bytes());
+        out.extend(2u32.to_le_bytes());
+        out.extend(b"m\0");
+        out.extend([0, 0]);
+        out.extend((0.01 * f64::from(i)).to_le_bytes());
+        out.extend(1u32.to_le_bytes());
+        out.extend(2u32.to_le_bytes());
+        out.extend(b"x\0");
+        out.extend([0, 0]);
+        out.extend((0.5f32 * i as f32).to_le_bytes());
+        out
+    };
+    for (name, path) in [("position", "position"), ("nested", "extra[0].value")] {
+        let mut input = vec![0];
+        input.extend(definition.as_bytes());
+        input.push(0);
+        input.extend(path.as_bytes());
+        input.push(0);
+        for i in 0..4 {
+            let payload = probe(i);
+            input.extend((payload.len() as u16).to_le_bytes());
+            input.extend(payload);
+        }
+        write("msgdef", name, &input);
+    }
+
     // Shift-angle readings: the test data, and a small complete set for 3 faces.
     write(
         "readings",

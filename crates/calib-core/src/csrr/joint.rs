@@ -54,7 +54,7 @@
 //! ([`super::observability`]); such orders are left out of both maps and reported.
 
 use super::nufft::{GridTransform, Stencils};
-use super::observability::observability;
+use super::observability::{coefficient_variance, observability};
 use super::{CsrrError, SessionData};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
@@ -74,6 +74,9 @@ pub(crate) struct JointOptions {
     pub max_iterations: usize,
     /// Gauss–Newton steps at most (default 8).
     pub max_steps: usize,
+    /// After the fit, the residual is searched for periodic structure at the orders above
+    /// `max_order` up to this one ([`JointSolution::unresolved`]; default 0: not searched).
+    pub check_up_to: usize,
 }
 
 impl JointOptions {
@@ -85,6 +88,7 @@ impl JointOptions {
             tolerance: 1e-10,
             max_iterations: 2000,
             max_steps: 8,
+            check_up_to: 0,
         }
     }
 }
@@ -96,6 +100,17 @@ pub struct ExcludedOrder {
     pub order: usize,
     /// Its observability `q_h` (0: blind).
     pub observability: f64,
+}
+
+/// Periodic structure left in the residual at an order above the fitted ones.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct UnresolvedOrder {
+    /// The order.
+    pub order: usize,
+    /// The amplitude that sensor A's error would have there, rad.
+    pub a: f64,
+    /// The amplitude that sensor B's error would have there, rad.
+    pub b: f64,
 }
 
 /// The joint solve's result.
@@ -118,6 +133,9 @@ pub(crate) struct JointSolution {
     /// leaves out the spread inside the bins, which for steep errors is mostly the errors'
     /// own change across a bin, not noise.
     pub noise_rms: f64,
+    /// Orders above `max_order` (up to [`JointOptions::check_up_to`]) where the residual holds
+    /// periodic structure that passes the significance rule (see [`solve`]), ascending.
+    pub unresolved: Vec<UnresolvedOrder>,
     /// Conjugate-gradient iterations taken, over all steps.
     pub iterations: usize,
     /// Gauss–Newton steps taken.
@@ -166,37 +184,59 @@ impl SeriesEval {
     }
 
     /// `θ` with `θ + ε(θ) = r` for every `r`, by Newton's method (`|ε′| < 1` for any sensor whose
-    /// reading increases with the angle), and `1/(1 + ε′(θ))` there.
-    fn invert(&self, readings: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    /// reading increases with the angle), from the guess in `theta` (overwritten). Returns the
+    /// stencils at the final `θ` (which the step's operator reuses) and `1/(1 + ε′(θ))` there.
+    ///
+    /// Newton stops when no point moved by more than [`NEWTON_TOLERANCE`] (the next update would
+    /// be of the order of its square), or after [`NEWTON_STEPS`] updates. From the previous
+    /// Gauss–Newton step's `θ` that takes one update once the series settle, so a step builds
+    /// two sets of stencils per sensor instead of seven.
+    fn invert(&self, readings: &[f64], theta: &mut [f64]) -> (Stencils, Vec<f64>) {
         let grid = self.value.len();
-        let mut theta = readings.to_vec();
         let mut e = vec![0.0; theta.len()];
         let mut de = vec![0.0; theta.len()];
-        for _ in 0..6 {
+        let mut settled = false;
+        let mut updates = 0;
+        loop {
             let st = Stencils::new(theta.iter().copied(), grid);
-            st.gather(&self.value, &mut e);
-            st.gather(&self.slope, &mut de);
-            for j in 0..theta.len() {
-                theta[j] -= (theta[j] + e[j] - readings[j]) / (1.0 + de[j]).max(0.05);
+            st.gather2((&self.value, &self.slope), (&mut e, &mut de));
+            if settled || updates == NEWTON_STEPS {
+                let scale = de.iter().map(|d| 1.0 / (1.0 + d).max(0.05)).collect();
+                return (st, scale);
             }
+            let mut largest = 0.0f64;
+            for (((t, &r), &e), &de) in theta.iter_mut().zip(readings).zip(&e).zip(&de) {
+                let update = (*t + e - r) / (1.0 + de).max(0.05);
+                *t -= update;
+                largest = largest.max(update.abs());
+            }
+            updates += 1;
+            settled = largest <= NEWTON_TOLERANCE;
         }
-        let st = Stencils::new(theta.iter().copied(), grid);
-        st.gather(&self.slope, &mut de);
-        let scale = de.iter().map(|d| 1.0 / (1.0 + d).max(0.05)).collect();
-        (theta, scale)
     }
 }
+
+/// Newton's updates in [`SeriesEval::invert`] stop below this, rad (2·10⁻⁹″).
+const NEWTON_TOLERANCE: f64 = 1e-14;
+
+/// At most this many Newton updates per inversion: from the readings themselves (`θ = r`), the
+/// first update leaves an error of about `ε″·ε²/2` and each further one squares it, so for
+/// errors of ±680″ at order 84 (the steepest bundled case) three suffice.
+const NEWTON_STEPS: usize = 8;
 
 /// One Gauss–Newton step's linear operator `A` and its weighted transpose.
 struct Step<'a> {
     orders: &'a [usize],
-    sessions: usize,
-    session_of: &'a [u32],
+    /// Bins `sessions[k]` belong to session `k` (bins are grouped by session).
+    sessions: &'a [std::ops::Range<usize>],
     n: &'a [f64],
     at_a: Stencils,
     at_b: Stencils,
     scale_a: Vec<f64>,
     scale_b: Vec<f64>,
+    /// `n·scale_a` and `−n·scale_b`, the weights of [`Step::transpose_weighted`].
+    weight_a: Vec<f64>,
+    weight_b: Vec<f64>,
     fft: &'a mut GridTransform,
     grid_buf: Vec<f64>,
     ea: Vec<f64>,
@@ -205,7 +245,7 @@ struct Step<'a> {
 
 impl Step<'_> {
     fn len(&self) -> usize {
-        4 * self.orders.len() + self.sessions
+        4 * self.orders.len() + self.sessions.len()
     }
 
     /// `r = A·u` (per bin, unweighted).
@@ -222,9 +262,13 @@ impl Step<'_> {
         );
         self.at_b.gather(&self.grid_buf, &mut self.eb);
         let deltas = &u[4 * l..];
-        for (j, rj) in r.iter_mut().enumerate() {
-            *rj = self.scale_a[j] * self.ea[j] - self.scale_b[j] * self.eb[j]
-                + deltas[self.session_of[j] as usize];
+        for (range, &delta) in self.sessions.iter().zip(deltas) {
+            let r = &mut r[range.clone()];
+            let (sa, ea) = (&self.scale_a[range.clone()], &self.ea[range.clone()]);
+            let (sb, eb) = (&self.scale_b[range.clone()], &self.eb[range.clone()]);
+            for ((((rj, &sa), &ea), &sb), &eb) in r.iter_mut().zip(sa).zip(ea).zip(sb).zip(eb) {
+                *rj = sa * ea - sb * eb + delta;
+            }
         }
     }
 
@@ -233,25 +277,28 @@ impl Step<'_> {
         let l = self.orders.len();
         let (ga, rest) = g.split_at_mut(2 * l);
         let (gb, gd) = rest.split_at_mut(2 * l);
-        for j in 0..r.len() {
-            self.ea[j] = self.n[j] * r[j] * self.scale_a[j];
+        for ((e, &w), &r) in self.ea.iter_mut().zip(&self.weight_a).zip(r) {
+            *e = w * r;
         }
-        self.grid_buf.iter_mut().for_each(|v| *v = 0.0);
+        self.grid_buf.fill(0.0);
         self.at_a.scatter(&self.ea, &mut self.grid_buf);
         let (gac, gas) = ga.split_at_mut(l);
         self.fft
             .analyze_transpose(&mut self.grid_buf, self.orders, gac, gas);
-        for j in 0..r.len() {
-            self.eb[j] = -self.n[j] * r[j] * self.scale_b[j];
+        for ((e, &w), &r) in self.eb.iter_mut().zip(&self.weight_b).zip(r) {
+            *e = w * r;
         }
-        self.grid_buf.iter_mut().for_each(|v| *v = 0.0);
+        self.grid_buf.fill(0.0);
         self.at_b.scatter(&self.eb, &mut self.grid_buf);
         let (gbc, gbs) = gb.split_at_mut(l);
         self.fft
             .analyze_transpose(&mut self.grid_buf, self.orders, gbc, gbs);
-        gd.iter_mut().for_each(|v| *v = 0.0);
-        for j in 0..r.len() {
-            gd[self.session_of[j] as usize] += self.n[j] * r[j];
+        for (range, gd) in self.sessions.iter().zip(gd) {
+            *gd = self.n[range.clone()]
+                .iter()
+                .zip(&r[range.clone()])
+                .map(|(n, r)| n * r)
+                .sum();
         }
     }
 }
@@ -353,10 +400,30 @@ fn conjugate_gradient(
     (opts.max_iterations, false)
 }
 
+/// Points of the uniform grid for series up to `max_order`: at least 16 per period of the highest
+/// order (the `nufft` module's accuracy), a power of two for the FFT.
+pub(crate) fn grid_points(max_order: usize) -> usize {
+    (16 * max_order).max(64).next_power_of_two()
+}
+
 /// Solves the joint CSRR equation for the binned sessions. See the module docs.
+///
+/// Every observable order up to [`JointOptions::max_order`] is fitted, or, with
+/// `refit = (orders, previous)`, the observable ones among `orders`, starting from `previous`'s
+/// coefficients and rotations (a fit of more orders to the same data: one or two Gauss–Newton
+/// steps then suffice). Then, if [`JointOptions::check_up_to`] is above the highest
+/// order, the residual `r_j` is projected per session on the orders above it,
+/// `z_k(h) = (2/W_k)·Σ_{j∈k} n_j r_j e^{−ihθ_j}` (by scatter and FFT, as in the solve), and
+/// `z_k = α − β·e^{−ihΔ_k}` is solved for the complex amplitudes `α, β` that sensor A's and B's
+/// errors would have at order `h` — the same 2×2 block as the fit's, whose inverse gives each
+/// amplitude the variance `2σ²W/(W² − |S_h|²)` per coefficient
+/// ([`super::observability::coefficient_variance`]). An order whose `α` or `β` passes the
+/// significance rule ([`crate::tdr::significance_threshold`] over the `2M` amplitudes of the `M`
+/// orders searched) is reported.
 pub(crate) fn solve(
     sessions: &[SessionData],
     opts: &JointOptions,
+    refit: Option<(&[usize], &JointSolution)>,
 ) -> Result<JointSolution, CsrrError> {
     if sessions.len() < 2 {
         return Err(CsrrError::TooFewSessions {
@@ -383,7 +450,7 @@ pub(crate) fn solve(
                 order: h,
                 observability: q,
             });
-        } else {
+        } else if refit.is_none_or(|(o, _)| o.contains(&h)) {
             orders.push(h);
         }
     }
@@ -393,7 +460,7 @@ pub(crate) fn solve(
         });
     }
 
-    let grid = (16 * opts.max_order).max(64).next_power_of_two();
+    let grid = grid_points(*orders.last().expect("not empty"));
     let bins: Vec<_> = sessions.iter().flat_map(|s| s.bins.iter()).collect();
     let m = bins.len();
     let xs: Vec<f64> = bins.iter().map(|b| b.x).collect();
@@ -401,12 +468,23 @@ pub(crate) fn solve(
     let d: Vec<f64> = bins.iter().map(|b| b.d).collect();
     let n: Vec<f64> = bins.iter().map(|b| b.n).collect();
     let mut session_of: Vec<u32> = Vec::with_capacity(m);
+    let mut ranges = Vec::with_capacity(k_count);
     for (k, s) in sessions.iter().enumerate() {
+        ranges.push(session_of.len()..session_of.len() + s.bins.len());
         session_of.extend(std::iter::repeat_n(k as u32, s.bins.len()));
     }
     let precond = Preconditioner::new(&orders, &centred, &weights);
     let l = orders.len();
     let (mut ca, mut sa, mut cb, mut sb) = (vec![0.0; l], vec![0.0; l], vec![0.0; l], vec![0.0; l]);
+    if let Some((_, previous)) = refit {
+        for (i, &h) in orders.iter().enumerate() {
+            ca[i] = previous.a.cos[h - 1];
+            sa[i] = previous.a.sin[h - 1];
+            cb[i] = previous.b.cos[h - 1];
+            sb[i] = previous.b.sin[h - 1];
+        }
+        deltas.clone_from(&previous.deltas);
+    }
     let mut eval_a = SeriesEval::new(orders.clone(), grid);
     let mut eval_b = SeriesEval::new(orders.clone(), grid);
     let mut iterations = 0;
@@ -415,11 +493,14 @@ pub(crate) fn solve(
     let mut residual = vec![0.0; m];
     let mut du = vec![0.0; 4 * l + k_count];
     let mut fft = GridTransform::new(grid);
+    // Each step's inversion starts from the last step's angles.
+    let mut theta_a = xs.clone();
+    let mut theta_b = ys.clone();
     while steps < opts.max_steps {
         eval_a.load(&ca, &sa);
         eval_b.load(&cb, &sb);
-        let (theta_a, scale_a) = eval_a.invert(&xs);
-        let (theta_b, scale_b) = eval_b.invert(&ys);
+        let (at_a, scale_a) = eval_a.invert(&xs, &mut theta_a);
+        let (at_b, scale_b) = eval_b.invert(&ys, &mut theta_b);
         for j in 0..m {
             let model =
                 (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
@@ -427,11 +508,12 @@ pub(crate) fn solve(
         }
         let mut step = Step {
             orders: &orders,
-            sessions: k_count,
-            session_of: &session_of,
+            sessions: &ranges,
             n: &n,
-            at_a: Stencils::new(theta_a.iter().copied(), grid),
-            at_b: Stencils::new(theta_b.iter().copied(), grid),
+            at_a,
+            at_b,
+            weight_a: n.iter().zip(&scale_a).map(|(n, s)| n * s).collect(),
+            weight_b: n.iter().zip(&scale_b).map(|(n, s)| -n * s).collect(),
             scale_a,
             scale_b,
             fft: &mut fft,
@@ -468,26 +550,28 @@ pub(crate) fn solve(
     // Residual of the final model, per sample: between-bin part plus the spread inside bins.
     eval_a.load(&ca, &sa);
     eval_b.load(&cb, &sb);
-    let (theta_a, _) = eval_a.invert(&xs);
-    let (theta_b, _) = eval_b.invert(&ys);
+    eval_a.invert(&xs, &mut theta_a);
+    eval_b.invert(&ys, &mut theta_b);
     let total: f64 = n.iter().sum();
     let within: f64 = sessions
         .iter()
         .flat_map(|s| &s.bins)
         .map(|b| b.d_var_sum)
         .sum();
-    let between: f64 = (0..m)
-        .map(|j| {
-            let model =
-                (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
-            n[j] * (d[j] - model).powi(2)
-        })
-        .sum();
+    for j in 0..m {
+        let model = (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
+        residual[j] = d[j] - model;
+    }
+    let between: f64 = n.iter().zip(&residual).map(|(n, r)| n * r * r).sum();
     let residual_rms = ((between + within) / total).sqrt();
     let noise_rms = (between / m.saturating_sub(4 * l + k_count).max(1) as f64).sqrt();
     if !residual_rms.is_finite() {
         return Err(CsrrError::NotFinite);
     }
+
+    let unresolved = residual_structure(
+        opts, &ranges, &theta_a, &n, &residual, &deltas, &weights, noise_rms,
+    );
 
     let mut a = FourierSeries::zeros(opts.max_order);
     let mut b = FourierSeries::zeros(opts.max_order);
@@ -504,10 +588,94 @@ pub(crate) fn solve(
         excluded,
         residual_rms,
         noise_rms,
+        unresolved,
         iterations,
         steps,
         converged,
     })
+}
+
+/// The orders above the fitted ones that the residual holds (see [`solve`]).
+#[allow(clippy::too_many_arguments)]
+fn residual_structure(
+    opts: &JointOptions,
+    ranges: &[std::ops::Range<usize>],
+    theta: &[f64],
+    n: &[f64],
+    residual: &[f64],
+    deltas: &[f64],
+    weights: &[f64],
+    sigma: f64,
+) -> Vec<UnresolvedOrder> {
+    let (lo, hi) = (opts.max_order + 1, opts.check_up_to);
+    if hi < lo || sigma <= 0.0 {
+        return Vec::new();
+    }
+    let grid = grid_points(hi);
+    let mut fft = GridTransform::new(grid);
+    let mut q = vec![0.0; grid];
+    let tested: Vec<usize> = (lo..=hi).collect();
+    // z[k][i]: session k's projection on order tested[i], as (re, im).
+    let z: Vec<Vec<(f64, f64)>> = ranges
+        .iter()
+        .zip(weights)
+        .map(|(range, &w)| {
+            let st = Stencils::new(theta[range.clone()].iter().copied(), grid);
+            let values: Vec<f64> = n[range.clone()]
+                .iter()
+                .zip(&residual[range.clone()])
+                .map(|(n, r)| n * r)
+                .collect();
+            q.fill(0.0);
+            st.scatter(&values, &mut q);
+            let (mut c, mut s) = (vec![0.0; tested.len()], vec![0.0; tested.len()]);
+            fft.analyze_transpose(&mut q, &tested, &mut c, &mut s);
+            c.iter()
+                .zip(&s)
+                .map(|(c, s)| (2.0 * c / w, -2.0 * s / w))
+                .collect()
+        })
+        .collect();
+    let centred: Vec<f64> = deltas.iter().map(|d| d - deltas[0]).collect();
+    let threshold = crate::tdr::significance_threshold(2 * tested.len());
+    let w: f64 = weights.iter().sum();
+    let mut found = Vec::new();
+    for (i, &h) in tested.iter().enumerate() {
+        if observability(h, &centred, weights) < opts.min_observability {
+            continue;
+        }
+        // Weighted least squares of z_k = α − β·u_k, u_k = e^{−ihΔ_k}:
+        // [[W, −S], [−S̄, W]]·[α; β] = [Σ W_k z_k; −Σ W_k ū_k z_k], S = Σ W_k u_k.
+        let (mut s, mut p, mut r) = ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0));
+        for (k, &wk) in weights.iter().enumerate() {
+            let (sn, cs) = (h as f64 * centred[k]).sin_cos();
+            let u = (cs, -sn);
+            let zk = z[k][i];
+            s = (s.0 + wk * u.0, s.1 + wk * u.1);
+            p = (p.0 + wk * zk.0, p.1 + wk * zk.1);
+            // −ū·z = −(u.0 − i u.1)(z.0 + i z.1)
+            r = (
+                r.0 - wk * (u.0 * zk.0 + u.1 * zk.1),
+                r.1 - wk * (u.0 * zk.1 - u.1 * zk.0),
+            );
+        }
+        let det = w * w - s.0 * s.0 - s.1 * s.1;
+        // α = (W·P + S·R)/det, β = (S̄·P + W·R)/det
+        let alpha = (
+            (w * p.0 + s.0 * r.0 - s.1 * r.1) / det,
+            (w * p.1 + s.0 * r.1 + s.1 * r.0) / det,
+        );
+        let beta = (
+            (s.0 * p.0 + s.1 * p.1 + w * r.0) / det,
+            (s.0 * p.1 - s.1 * p.0 + w * r.1) / det,
+        );
+        let var = coefficient_variance(h, &centred, weights, sigma);
+        let (a, b) = (alpha.0.hypot(alpha.1), beta.0.hypot(beta.1));
+        if a * a / var > threshold || b * b / var > threshold {
+            found.push(UnresolvedOrder { order: h, a, b });
+        }
+    }
+    found
 }
 
 /// The map of an error given as a function of the true angle, `ε(θ)`, as a function of the
@@ -515,13 +683,14 @@ pub(crate) fn solve(
 /// whatever orders the reading-domain map holds.
 pub(crate) fn reading_map(series: &FourierSeries, points: usize) -> ErrorMap {
     let orders: Vec<usize> = (1..=series.max_order()).collect();
-    let grid = (16 * series.max_order()).max(64).next_power_of_two();
+    let grid = grid_points(series.max_order());
     let mut eval = SeriesEval::new(orders, grid);
     eval.load(&series.cos, &series.sin);
     let n = points.max(1);
     let readings: Vec<f64> = (0..n)
         .map(|i| std::f64::consts::TAU * i as f64 / n as f64)
         .collect();
-    let (theta, _) = eval.invert(&readings);
+    let mut theta = readings.clone();
+    eval.invert(&readings, &mut theta);
     ErrorMap::new(readings.iter().zip(&theta).map(|(r, t)| r - t).collect())
 }

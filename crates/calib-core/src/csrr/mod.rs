@@ -26,6 +26,8 @@ pub(crate) mod nufft;
 mod observability;
 pub mod paper;
 mod reference;
+#[doc(hidden)]
+pub mod stages;
 
 pub use observability::observability;
 pub use reference::{EffectiveRange, EpsHarmonic, ReferenceCheck};
@@ -36,7 +38,7 @@ use crate::harmonics::FourierSeries;
 use crate::segment::{SegmentOptions, Segmentation, Segmenter, SessionSink};
 use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation_uncertainty};
 use bins::{Bin, SessionBinner};
-use joint::{ExcludedOrder, JointOptions};
+use joint::{ExcludedOrder, JointOptions, UnresolvedOrder};
 use paper::{PaperAccumulator, PaperPoint};
 use reference::ReferenceAccumulator;
 
@@ -95,7 +97,7 @@ pub enum CsrrError {
     },
     /// The requested order needs denser sampling.
     #[error(
-        "order {requested} needs at least {needed} samples per revolution, but the sparsest session has {available:.0}; \
+        "order {requested} needs at least {needed} samples per revolution, but the densest session has {available:.0}; \
          lower --max-order or record more slowly / at a higher sample rate"
     )]
     TooFewSamplesPerRevolution {
@@ -103,7 +105,7 @@ pub enum CsrrError {
         requested: usize,
         /// Samples per revolution it needs.
         needed: usize,
-        /// Samples per revolution of the sparsest session.
+        /// Samples per revolution of the densest session.
         available: f64,
     },
     /// The paper method needs more sessions.
@@ -123,7 +125,17 @@ pub enum CsrrError {
 }
 
 /// Which solver.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
     /// Joint least squares of both maps and all Δ_k ([`joint`]).
@@ -138,7 +150,9 @@ pub enum Method {
 pub struct CsrrOptions {
     /// The solver.
     pub method: Method,
-    /// Highest order fitted (joint method); chosen from the sampling density when `None`.
+    /// Highest order fitted (joint method); chosen from the sampling density when `None`
+    /// ([`auto_max_order`] of the densest session's samples per revolution). Only the orders
+    /// that stand above the noise are kept in the maps.
     pub max_order: Option<usize>,
     /// Session detection.
     pub segments: SegmentOptions,
@@ -221,8 +235,14 @@ pub struct Calibration {
     pub segmentation: Segmentation,
     /// Highest order fitted.
     pub max_order: usize,
-    /// Orders left out of the maps.
+    /// The orders the maps hold (joint method): those up to `max_order` that stand above the
+    /// noise by the significance rule (`docs/uncertainty.md`), ascending.
+    pub orders: Vec<usize>,
+    /// Orders left out of the maps because the relative rotations cannot see them.
     pub excluded: Vec<ExcludedOrder>,
+    /// Orders above `max_order` where the fit's residual still holds periodic structure above
+    /// the noise (joint method), ascending.
+    pub unresolved: Vec<UnresolvedOrder>,
     /// What to record to reveal them.
     pub advice: Option<Advice>,
     /// RMS of the fit residual, rad (joint method).
@@ -355,16 +375,37 @@ fn samples_needed(order: usize) -> usize {
     (order * 5).div_ceil(2)
 }
 
-/// The maximum order the sampling density supports: 40 % of the sparsest session's samples per
-/// revolution (2.5 samples per period of the highest order), at most 2000.
+/// The maximum order the sampling density supports: 40 % of the samples per revolution where
+/// the data are densest (2.5 samples per period of the highest order), at most 2000. Orders that
+/// hold nothing above the noise are dropped by the significance rule, so a high limit costs
+/// computing time, not accuracy.
 pub fn auto_max_order(samples_per_rev: f64) -> usize {
     ((0.4 * samples_per_rev).floor() as usize).clamp(1, 2000)
 }
 
+/// The largest error linear interpolation of a CSRR table may add between its points, arcsec.
+pub const MAX_INTERPOLATION_ARCSEC: f64 = 0.01;
+
+/// The joint method's tables are not made denser than needed for this interpolation error,
+/// arcsec, however small the fit's noise (noise-free data would ask for the largest table).
+pub const MIN_INTERPOLATION_ARCSEC: f64 = 0.001;
+
 /// Grid points for a table of `series` such that periodic linear interpolation between them errs
-/// by at most 0.01″: the error of linear interpolation of `A cos(hθ)` on a step `δ` is at most
-/// `A·(hδ)²/8`. At least 3600 points (0.1°), and a multiple of 3600 so 0.1° steps stay on the grid.
+/// by at most [`MAX_INTERPOLATION_ARCSEC`] (see [`table_points_within`]).
 pub fn table_points(series: &FourierSeries) -> usize {
+    table_points_within(series, MAX_INTERPOLATION_ARCSEC)
+}
+
+/// Grid points for a table of `series` such that periodic linear interpolation between them errs
+/// by at most `tolerance_arcsec`: the error of linear interpolation of `A cos(hθ)` on a step `δ`
+/// is at most `A·(hδ)²/8`. At least 3600 points (0.1°), a multiple of 3600 so 0.1° steps stay on
+/// the grid, at most 1,843,200 (3600·2⁹, within the table limit of 3.6 million).
+///
+/// The joint method asks for the fit's noise `u_fit` (within 0.001–0.01″), so that reading
+/// the table between its points adds no more than the fit's own uncertainty: with the orders
+/// chosen by significance the maps are accurate to a few thousandths of an arcsecond, and a
+/// 0.01″ interpolation error would dominate their `u`.
+pub fn table_points_within(series: &FourierSeries, tolerance_arcsec: f64) -> usize {
     let curvature: f64 = series
         .harmonics()
         .iter()
@@ -372,9 +413,9 @@ pub fn table_points(series: &FourierSeries) -> usize {
         .sum::<f64>()
         * ARCSEC_PER_RAD;
     let mut points = 3600;
-    while points < 3_600_000 {
+    while points < 1_843_200 {
         let step = std::f64::consts::TAU / points as f64;
-        if curvature * step * step / 8.0 <= 0.01 {
+        if curvature * step * step / 8.0 <= tolerance_arcsec {
             break;
         }
         points *= 2;
@@ -411,24 +452,23 @@ fn finish_joint(
             found: sessions.len(),
         });
     }
-    let sparsest = sessions
-        .iter()
-        .map(|s| s.samples as f64 / s.revolutions.max(1e-9))
-        .fold(f64::INFINITY, f64::min);
+    let densest = densest_samples_per_rev(&sessions);
     let max_order = match opts.max_order {
-        Some(h) if samples_needed(h) as f64 > sparsest => {
+        Some(h) if samples_needed(h) as f64 > densest => {
             return Err(CsrrError::TooFewSamplesPerRevolution {
                 requested: h,
                 needed: samples_needed(h),
-                available: sparsest,
+                available: densest,
             });
         }
         Some(h) => h.max(1),
-        None => auto_max_order(sparsest),
+        None => auto_max_order(densest),
     };
     let mut jopts = JointOptions::with_max_order(max_order);
     jopts.min_observability = opts.min_observability;
-    let sol = joint::solve(&sessions, &jopts)?;
+    jopts.check_up_to = residual_check_order(densest);
+    let weights: Vec<f64> = sessions.iter().map(|s| s.samples as f64).collect();
+    let (sol, screen) = fit_significant(&sessions, &jopts, &weights)?;
     if !sol.converged {
         warnings.push(format!(
             "the solver stopped after {} steps and {} iterations before reaching its tolerance; the maps may be inaccurate \
@@ -436,7 +476,6 @@ fn finish_joint(
             sol.steps, sol.iterations
         ));
     }
-    let weights: Vec<f64> = sessions.iter().map(|s| s.samples as f64).collect();
     let centred: Vec<f64> = sol.deltas.iter().map(|d| d - sol.deltas[0]).collect();
     let advice = (!sol.excluded.is_empty()).then(|| {
         let (extra_rotation, min_observability) =
@@ -463,92 +502,272 @@ fn finish_joint(
             adv.extra_rotation.to_degrees()
         ));
     }
-    let points = opts
-        .points
-        .unwrap_or_else(|| table_points(&sol.a).max(table_points(&sol.b)));
-    let a = joint::reading_map(&sol.a, points);
-    let b = joint::reading_map(&sol.b, points);
-    let a_series = a.series();
-    let b_series = b.series();
-    let fitted: Vec<usize> = (1..=max_order)
-        .filter(|h| sol.excluded.iter().all(|e| e.order != *h))
-        .collect();
-    let u_fit = fit_noise(&fitted, &centred, &weights, sol.noise_rms);
-    let uncertainty = Some((
-        map_uncertainty(u_fit, &a_series, points),
-        map_uncertainty(u_fit, &b_series, points),
-    ));
+    if let Some(w) = unresolved_warning(&sol.unresolved, max_order) {
+        warnings.push(w);
+    }
+    let maps = joint_maps(&sol, &screen, opts.points);
     Ok(Calibration {
         method: Method::Joint,
-        a_series,
-        b_series,
+        a_series: maps.a_series,
+        b_series: maps.b_series,
         true_angle_series: Some((sol.a, sol.b)),
-        a,
-        b,
+        a: maps.a,
+        b: maps.b,
         sessions: summaries(&sessions, &sol.deltas),
         segmentation,
         max_order,
+        orders: screen.kept,
         excluded: sol.excluded,
+        unresolved: sol.unresolved,
         advice,
         residual_rms: Some(sol.residual_rms),
         iterations: sol.iterations,
         paper_points: Vec::new(),
         reference: None,
-        uncertainty,
+        uncertainty: Some(maps.uncertainty),
         warnings,
     })
 }
 
-/// The standard uncertainty, at any angle, that the noise of the readings leaves in either
-/// sensor's map, propagated through the joint fit by its per-order block structure (the
-/// preconditioner of [`joint`]): for uniformly spread readings the normal matrix of order `h`'s
-/// four coefficients is `½[[W·I, −R_h], [−R_hᵀ, W·I]]`, whose inverse has `2W/(W² − |Z_h|²)` on
-/// its diagonal, `Z_h = Σ_k W_k e^{ihΔ_k}` and `W = Σ_k W_k` (samples per session). With `σ` the
-/// residual per sample, each coefficient of order `h` has the variance `σ²·2W/(W² − |Z_h|²)`, the
-/// cosine and sine are uncorrelated within a sensor, so the map's variance at any angle is
-/// (`σ` from the bins' residuals, [`joint::JointSolution::noise_rms`])
-///
-/// `u_fit² = Σ_h 2σ²W/(W² − |Z_h|²)`,
-///
-/// the same at every angle. Poorly observable orders (small `1 − |Z_h|/W`) weigh more; excluded
-/// (blind) orders are not in the maps and not in the sum — they are warnings, not uncertainty.
-fn fit_noise(orders: &[usize], deltas: &[f64], weights: &[f64], sigma: f64) -> f64 {
-    let w: f64 = weights.iter().sum();
-    let var: f64 = orders
-        .iter()
-        .map(|&h| {
-            let (mut c, mut s) = (0.0, 0.0);
-            for (&d, &wk) in deltas.iter().zip(weights) {
-                let (sn, cs) = (h as f64 * d).sin_cos();
-                c += wk * cs;
-                s += wk * sn;
-            }
-            2.0 * w / (w * w - c * c - s * s)
-        })
-        .sum();
-    sigma * var.sqrt()
+/// The joint fit of the orders that stand above the noise: every observable order up to the
+/// highest is fitted, screened by the significance rule ([`screen_orders`]), and the kept
+/// orders fitted again alone, from the first fit's values. The solution's iterations and steps
+/// count both fits.
+fn fit_significant(
+    sessions: &[SessionData],
+    jopts: &JointOptions,
+    weights: &[f64],
+) -> Result<(joint::JointSolution, Screen), CsrrError> {
+    let screening = joint::solve(sessions, jopts, None)?;
+    let screen = screen_orders(&screening, weights);
+    if screen.kept.len() == screen.tested {
+        return Ok((screening, screen));
+    }
+    let mut sol = if screen.kept.is_empty() {
+        // Nothing stands above the noise: both maps are zero.
+        let mut sol = screening.clone();
+        sol.a = FourierSeries::zeros(jopts.max_order);
+        sol.b = FourierSeries::zeros(jopts.max_order);
+        sol
+    } else {
+        joint::solve(sessions, jopts, Some((&screen.kept, &screening)))?
+    };
+    if !screen.kept.is_empty() {
+        sol.iterations += screening.iterations;
+        sol.steps += screening.steps;
+        sol.converged &= screening.converged;
+    }
+    Ok((sol, screen))
 }
 
-/// The budget of one CSRR map of `points` points: the fit's noise `u_fit` (Type A, propagated
-/// through the joint fit's per-order blocks: see `docs/uncertainty.md`) and
-/// the linear interpolation of the table between its points
-/// ([`interpolation_uncertainty`], Type B).
-pub fn map_uncertainty(u_fit: f64, series: &FourierSeries, points: usize) -> MapUncertainty {
-    MapUncertainty::combine(
-        points,
-        vec![
-            MapComponent {
-                name: "noise of the readings propagated through the joint fit".into(),
-                evaluation: Evaluation::TypeA,
-                u: vec![u_fit],
-            },
-            MapComponent {
-                name: "linear interpolation between table points".into(),
-                evaluation: Evaluation::TypeB,
-                u: vec![interpolation_uncertainty(&series.harmonics(), points)],
-            },
-        ],
-    )
+/// Samples per revolution of the densest session.
+fn densest_samples_per_rev(sessions: &[SessionData]) -> f64 {
+    sessions
+        .iter()
+        .map(|s| s.samples as f64 / s.revolutions.max(1e-9))
+        .fold(0.0, f64::max)
+}
+
+/// The highest order the residual is searched up to for structure above the fitted orders:
+/// half the densest session's samples per revolution (its Nyquist limit), at most 4000.
+fn residual_check_order(samples_per_rev: f64) -> usize {
+    ((0.5 * samples_per_rev).floor() as usize).min(4000)
+}
+
+/// The warning for periodic structure left in the residual above the fitted orders, if any is
+/// large enough to matter ([`crate::tdr::MATERIAL_ARCSEC`]).
+fn unresolved_warning(unresolved: &[UnresolvedOrder], max_order: usize) -> Option<String> {
+    let mut large: Vec<&UnresolvedOrder> = unresolved
+        .iter()
+        .filter(|u| u.a.max(u.b) * ARCSEC_PER_RAD >= crate::tdr::MATERIAL_ARCSEC)
+        .collect();
+    let highest = large.iter().map(|u| u.order).max()?;
+    large.sort_by(|p, q| q.a.max(q.b).total_cmp(&p.a.max(p.b)));
+    let listed: Vec<String> = large
+        .iter()
+        .take(8)
+        .map(|u| {
+            format!(
+                "{} (A {:.3}″, B {:.3}″)",
+                u.order,
+                u.a * ARCSEC_PER_RAD,
+                u.b * ARCSEC_PER_RAD
+            )
+        })
+        .collect();
+    let more = large.len().saturating_sub(8);
+    Some(format!(
+        "the fit's residual holds periodic structure above the noise at {} order(s) above the highest fitted ({max_order}), \
+         missing from the maps: {}{}; fit them with --max-order {highest} or more",
+        large.len(),
+        listed.join(", "),
+        if more > 0 {
+            format!(" and {more} more")
+        } else {
+            String::new()
+        },
+    ))
+}
+
+/// The significance screening of a fit of every observable order.
+struct Screen {
+    /// Observable orders fitted.
+    tested: usize,
+    /// Orders kept, ascending: A's or B's pair of coefficients passes the significance rule.
+    kept: Vec<usize>,
+    /// The variance of each coefficient of each kept order, rad².
+    kept_variance: Vec<f64>,
+    /// RMS over the circle of what the dropped orders hold in A's and B's errors, rad.
+    dropped: (f64, f64),
+}
+
+/// The significance rule for CSRR (`docs/uncertainty.md`): order `h`, fitted with all the
+/// observable orders up to the highest, is kept when sensor A's or sensor B's coefficients
+/// `x = (a_h, b_h)` stand above the noise, `|x|²/v_h > 2·ln(2M/α)` — the rule of
+/// [`crate::tdr`] ([`crate::tdr::significance_threshold`], `α` =
+/// [`crate::tdr::FALSE_ORDER_PROBABILITY`]) over the `2M` pairs of the `M` orders tested, with
+/// `v_h = σ²·2W/(W² − |S_h|²)` the variance of each coefficient from the fit's per-order block
+/// ([`observability::coefficient_variance`], `σ` the noise per sample from the bins' residuals).
+/// For noise alone the chance that any order is kept is below `α`.
+///
+/// What the dropped orders hold together is estimated per sensor from `P = Σ_dropped (|x|² −
+/// 2v_h)`, the unbiased estimate of their power, and `s_P` its standard deviation
+/// (`var |x|² = 4v² + 4v·|μ|²` per order): when `P > 2·s_P` they hold more than their noise
+/// and the RMS over the circle `sqrt(½·P)` enters the budget; otherwise nothing. Unlike
+/// [`crate::tdr`]'s `sqrt(½·(P + s_P))`, no margin is added when `P` is noise: over the ~1000
+/// orders a CSRR fit tests, `s_P` alone is several times the kept orders' noise, and `u` would
+/// no longer be a standard uncertainty (it would cover > 99.99 % of the points within `2u`).
+fn screen_orders(fit: &joint::JointSolution, weights: &[f64]) -> Screen {
+    let centred: Vec<f64> = fit.deltas.iter().map(|d| d - fit.deltas[0]).collect();
+    let fitted: Vec<usize> = (1..=fit.a.max_order())
+        .filter(|h| fit.excluded.iter().all(|e| e.order != *h))
+        .collect();
+    let threshold = crate::tdr::significance_threshold(2 * fitted.len());
+    let mut kept = Vec::new();
+    let mut kept_variance = Vec::new();
+    let mut power = [(0.0, 0.0); 2];
+    for &h in &fitted {
+        let v = observability::coefficient_variance(h, &centred, weights, fit.noise_rms);
+        let xa = fit.a.cos[h - 1].powi(2) + fit.a.sin[h - 1].powi(2);
+        let xb = fit.b.cos[h - 1].powi(2) + fit.b.sin[h - 1].powi(2);
+        // σ = 0 (noise-free data): every order stands above the noise.
+        if v.is_nan() || v <= 0.0 || xa.max(xb) > threshold * v {
+            kept.push(h);
+            kept_variance.push(v.max(0.0));
+        } else {
+            for (p, x) in power.iter_mut().zip([xa, xb]) {
+                let excess = x - 2.0 * v;
+                p.0 += excess;
+                // var |x|² = 4v² + 4v|μ|² for a pair of variance v each and mean μ.
+                p.1 += 4.0 * v * v + 4.0 * v * excess.max(0.0);
+            }
+        }
+    }
+    // Only power the dropped orders hold together beyond their noise (P > 2·s_P) is counted.
+    let rms = |(p, var): (f64, f64)| {
+        if p > 2.0 * f64::sqrt(var) {
+            (p / 2.0).sqrt()
+        } else {
+            0.0
+        }
+    };
+    Screen {
+        tested: fitted.len(),
+        kept,
+        kept_variance,
+        dropped: (rms(power[0]), rms(power[1])),
+    }
+}
+
+/// The tables of a joint solution and their uncertainties.
+struct JointMaps {
+    a: ErrorMap,
+    b: ErrorMap,
+    a_series: FourierSeries,
+    b_series: FourierSeries,
+    uncertainty: (MapUncertainty, MapUncertainty),
+}
+
+/// Both sensors' tables on `points` points (chosen by [`table_points`] when `None`) from the
+/// joint solution, with their uncertainties.
+fn joint_maps(sol: &joint::JointSolution, screen: &Screen, points: Option<usize>) -> JointMaps {
+    let u_fit = screen.kept_variance.iter().sum::<f64>().sqrt();
+    let points = points.unwrap_or_else(|| {
+        let tolerance =
+            (u_fit * ARCSEC_PER_RAD).clamp(MIN_INTERPOLATION_ARCSEC, MAX_INTERPOLATION_ARCSEC);
+        table_points_within(&sol.a, tolerance).max(table_points_within(&sol.b, tolerance))
+    });
+    let a = joint::reading_map(&sol.a, points);
+    let b = joint::reading_map(&sol.b, points);
+    let a_series = a.series();
+    let b_series = b.series();
+    let missing = |amplitude: fn(&UnresolvedOrder) -> f64| {
+        sol.unresolved
+            .iter()
+            .map(|u| amplitude(u).powi(2) / 2.0)
+            .sum::<f64>()
+            .sqrt()
+    };
+    let uncertainty = (
+        map_uncertainty(
+            [u_fit, screen.dropped.0, missing(|u| u.a)],
+            &a_series,
+            points,
+        ),
+        map_uncertainty(
+            [u_fit, screen.dropped.1, missing(|u| u.b)],
+            &b_series,
+            points,
+        ),
+    );
+    JointMaps {
+        a,
+        b,
+        a_series,
+        b_series,
+        uncertainty,
+    }
+}
+
+/// The budget of one CSRR map of `points` points from its components
+/// `[u_fit, u_dropped, u_missing]`, rad, each the same at every angle (the last two left out
+/// when zero):
+///
+/// - the fit's noise `u_fit`: the kept orders' coefficients have the variance `v_h`
+///   ([`observability::coefficient_variance`]; cosine and sine uncorrelated within a sensor),
+///   so `u_fit² = Σ_kept v_h` (Type A). Poorly observable orders (small `1 − |S_h|/W`) weigh
+///   more; excluded (blind) orders are not in the maps and not in the sum — they are warnings,
+///   not uncertainty;
+/// - what the orders below the significance threshold hold (Type A, see [`screen_orders`]);
+/// - periodic structure the residual holds above the fitted orders, of amplitude `A` at each
+///   such order: RMS `A/√2` (Type A);
+/// - the linear interpolation of the table between its points ([`interpolation_uncertainty`],
+///   Type B).
+///
+/// See `docs/uncertainty.md`.
+pub fn map_uncertainty(u: [f64; 3], series: &FourierSeries, points: usize) -> MapUncertainty {
+    let names = [
+        "noise of the readings propagated through the joint fit",
+        "orders below the significance threshold, left out of the map",
+        "periodic structure in the residual above the orders fitted",
+    ];
+    let mut components: Vec<MapComponent> = names
+        .iter()
+        .zip(u)
+        .enumerate()
+        .filter(|&(i, (_, u))| i == 0 || u > 0.0)
+        .map(|(_, (name, u))| MapComponent {
+            name: (*name).into(),
+            evaluation: Evaluation::TypeA,
+            u: vec![u],
+        })
+        .collect();
+    components.push(MapComponent {
+        name: "linear interpolation between table points".into(),
+        evaluation: Evaluation::TypeB,
+        u: vec![interpolation_uncertainty(&series.harmonics(), points)],
+    });
+    MapUncertainty::combine(points, components)
 }
 
 fn finish_paper(
@@ -615,7 +834,9 @@ fn finish_paper(
         sessions,
         segmentation,
         max_order: resolvable,
+        orders: Vec::new(),
         excluded: Vec::new(),
+        unresolved: Vec::new(),
         advice: None,
         residual_rms: None,
         iterations: 0,

@@ -26,6 +26,27 @@ pub fn observability(order: usize, deltas: &[f64], weights: &[f64]) -> f64 {
     (1.0 - c.hypot(s) / w).max(0.0)
 }
 
+/// The variance of each of the four coefficients (cosine and sine of A and of B) of order `h`
+/// in the joint fit, `σ²·2W/(W² − |S_h|²)` with `σ` the noise per sample (rad): the diagonal of
+/// the inverse of the 2×2 (complex) block `½[[W, −S̄], [−S, W]]` above, scaled by `σ²`. Within
+/// a sensor the cosine and the sine are uncorrelated. It is the variance for readings spread
+/// uniformly over the circle, which the joint solver's preconditioner also assumes.
+pub(crate) fn coefficient_variance(
+    order: usize,
+    deltas: &[f64],
+    weights: &[f64],
+    sigma: f64,
+) -> f64 {
+    let w: f64 = weights.iter().sum();
+    let (mut c, mut s) = (0.0, 0.0);
+    for (&d, &wk) in deltas.iter().zip(weights) {
+        let (sn, cs) = (order as f64 * d).sin_cos();
+        c += wk * cs;
+        s += wk * sn;
+    }
+    sigma * sigma * 2.0 * w / (w * w - c * c - s * s)
+}
+
 /// The extra relative rotation (rad, in `[0, 2π)`, on a 0.1° grid) that, recorded as one more
 /// session of average weight, maximizes the smallest observability over orders `1..=max_order`.
 /// Returns the rotation and the smallest observability it would give.

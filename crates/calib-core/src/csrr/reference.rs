@@ -346,7 +346,9 @@ impl SessionSink for ReferenceAccumulator {
 }
 
 /// One order of the sampling non-uniformity.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct EpsHarmonic {
     /// Cycles per revolution.
     pub order: usize,
@@ -355,7 +357,9 @@ pub struct EpsHarmonic {
 }
 
 /// The paper's effective-range indicator at one order.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct EffectiveRange {
     /// Cycles per revolution.
     pub order: usize,

@@ -78,7 +78,7 @@ pub const PEEK_WINDOW: u64 = 4096;
 const LAYOUT_CACHE: usize = 64;
 
 /// A topic of the file, as `calib inspect` lists it.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct TopicInfo {
     /// The topic.
     pub topic: String,

@@ -1,0 +1,226 @@
+//! The report section of a CSRR calibration ([`crate::csrr`]).
+
+use super::{
+    AfterCorrection, ChannelReport, Details, ReportSection, SessionReport, UncertaintyReport,
+    arcsec,
+};
+
+use crate::csrr::{Calibration, EffectiveRange, EpsHarmonic, Method, observability};
+use crate::error_map::ErrorMap;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Observability below which a fitted order counts as ill-conditioned: the joint solve
+/// amplifies the noise at that order by about `1/√o_h`, more than 3× below 0.1.
+pub const ILL_CONDITIONED: f64 = 0.1;
+
+/// `details` of `calib csrr`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CsrrDetails {
+    /// The solver: `joint` or `paper`.
+    pub solver: Method,
+    /// Highest harmonic order fitted.
+    pub max_order: usize,
+    /// Segments the log was cut into (moving, stopped, sessions).
+    pub segments: usize,
+    /// Orders left out: the sessions' relative rotations cannot separate them.
+    pub excluded_orders: Vec<ExcludedOrderReport>,
+    /// Fitted orders whose observability is below 0.1 ([`ILL_CONDITIONED`]; joint solver).
+    pub ill_conditioned_orders: Vec<usize>,
+    /// Where one more session would help most.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub advice: Option<AdviceReport>,
+    /// RMS of the joint fit's residual per sample, arcsec (joint solver).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub residual_rms_arcsec: Option<f64>,
+    /// Solver iterations (joint solver; written with the residual).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<usize>,
+    /// The standard uncertainty of each map, by channel (joint solver).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<BTreeMap<String, UncertaintyReport>>,
+    /// The paper solver's map points, one per session.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub paper_points: Vec<PaperPointReport>,
+    /// The check against a reference encoder on B's shaft, where one was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<CsrrReferenceReport>,
+    /// How the channels were aligned on one clock, where anything was interpolated or dropped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alignment: Option<super::Alignment>,
+}
+
+/// An order left out of the maps.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ExcludedOrderReport {
+    /// The order.
+    pub order: usize,
+    /// Its observability (0 blind … 1 ideal).
+    pub observability: f64,
+}
+
+/// The relative rotation of one more session that would raise the worst observability most.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AdviceReport {
+    /// The relative rotation, degrees.
+    pub extra_relative_rotation_deg: f64,
+    /// The worst observability with it.
+    pub min_observability_after: f64,
+}
+
+/// One map point of the paper solver.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PaperPointReport {
+    /// The session's relative rotation Δ, degrees.
+    pub delta_deg: f64,
+    /// A's reading at the point, degrees.
+    pub a_angle_deg: f64,
+    /// A's error there, arcsec.
+    pub a_error_arcsec: f64,
+    /// B's reading at the point, degrees.
+    pub b_angle_deg: f64,
+    /// B's error there, arcsec.
+    pub b_error_arcsec: f64,
+}
+
+/// What a reference encoder on B's shaft says about the calibration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CsrrReferenceReport {
+    /// The reference's channel.
+    pub channel: String,
+    /// Largest |A's map − A against the reference|, mean removed, arcsec.
+    pub a_max_difference_arcsec: f64,
+    /// The same for B.
+    pub b_max_difference_arcsec: f64,
+    /// The largest orders of the sampling non-uniformity ε_θ.
+    pub sampling_nonuniformity: Vec<EpsHarmonic>,
+    /// The paper's effective-range indicator at those orders.
+    pub effective_range: Vec<EffectiveRange>,
+}
+
+impl Calibration {
+    /// The fitted orders whose observability is below [`ILL_CONDITIONED`] (left in the maps;
+    /// their noise is amplified). Empty for the paper solver, which fits no orders.
+    pub fn ill_conditioned_orders(&self) -> Vec<usize> {
+        if self.method != Method::Joint {
+            return Vec::new();
+        }
+        let deltas: Vec<f64> = self.sessions.iter().map(|s| s.absolute_rotation).collect();
+        let weights: Vec<f64> = self.sessions.iter().map(|s| s.samples as f64).collect();
+        (1..=self.max_order)
+            .filter(|h| !self.excluded.iter().any(|e| e.order == *h))
+            .filter(|&h| observability(h, &deltas, &weights) < ILL_CONDITIONED)
+            .collect()
+    }
+
+    /// What correcting A's map (`a = true`) or B's leaves of the check: the truth where given,
+    /// else the reference encoder's measurement of the error (see [`AfterCorrection`]).
+    pub fn after_correction(
+        &self,
+        truth: Option<(&ErrorMap, &ErrorMap)>,
+        a: bool,
+    ) -> Option<AfterCorrection> {
+        let map = if a { &self.a } else { &self.b };
+        if let Some((ta, tb)) = truth {
+            let t = if a { ta } else { tb };
+            let check: Vec<(f64, f64)> = (0..t.len())
+                .map(|i| (t.grid_angle(i), t.values()[i]))
+                .collect();
+            return AfterCorrection::of_map("truth", map, &check);
+        }
+        let r = self.reference.as_ref()?;
+        let check = if a {
+            &r.a_vs_reference
+        } else {
+            &r.b_vs_reference
+        };
+        AfterCorrection::of_map("reference", map, check)
+    }
+
+    /// The report section of channels `a` and `b`: their maps, each with what correction
+    /// leaves of the `truth` maps (where given) or of the `reference` channel's check.
+    pub fn report_section(
+        &self,
+        (a, b): (&str, &str),
+        reference: Option<&str>,
+        truth: Option<(&ErrorMap, &ErrorMap)>,
+    ) -> ReportSection {
+        let mut channels = BTreeMap::new();
+        for (name, map, is_a) in [(a, &self.a, true), (b, &self.b, false)] {
+            let mut ch = ChannelReport::of_map(&crate::report::table_name(name), map, 10);
+            ch.after_correction = self.after_correction(truth, is_a);
+            channels.insert(name.to_string(), ch);
+        }
+        let sessions = self
+            .sessions
+            .iter()
+            .map(|s| SessionReport {
+                index: s.index,
+                start_s: s.start_s,
+                end_s: s.end_s,
+                revolutions: s.revolutions,
+                relative_rotation_deg: s.relative_rotation.to_degrees(),
+            })
+            .collect();
+        let details = CsrrDetails {
+            solver: self.method,
+            max_order: self.max_order,
+            segments: self.segmentation.segments.len(),
+            excluded_orders: self
+                .excluded
+                .iter()
+                .map(|e| ExcludedOrderReport {
+                    order: e.order,
+                    observability: e.observability,
+                })
+                .collect(),
+            ill_conditioned_orders: self.ill_conditioned_orders(),
+            advice: self.advice.map(|adv| AdviceReport {
+                extra_relative_rotation_deg: adv.extra_rotation.to_degrees(),
+                min_observability_after: adv.min_observability,
+            }),
+            residual_rms_arcsec: self.residual_rms.map(arcsec),
+            iterations: self.residual_rms.map(|_| self.iterations),
+            uncertainty: self.uncertainty.as_ref().map(|(ua, ub)| {
+                BTreeMap::from([
+                    (a.to_string(), UncertaintyReport::of(ua)),
+                    (b.to_string(), UncertaintyReport::of(ub)),
+                ])
+            }),
+            paper_points: self
+                .paper_points
+                .iter()
+                .map(|p| PaperPointReport {
+                    delta_deg: p.delta.to_degrees(),
+                    a_angle_deg: p.a_angle.to_degrees(),
+                    a_error_arcsec: arcsec(p.a_error),
+                    b_angle_deg: p.b_angle.to_degrees(),
+                    b_error_arcsec: arcsec(p.b_error),
+                })
+                .collect(),
+            reference: self.reference.as_ref().zip(reference).map(|(r, name)| {
+                CsrrReferenceReport {
+                    channel: name.to_string(),
+                    a_max_difference_arcsec: r.a_max_diff_arcsec,
+                    b_max_difference_arcsec: r.b_max_diff_arcsec,
+                    sampling_nonuniformity: r.eps_theta.clone(),
+                    effective_range: r.effective_range.clone(),
+                }
+            }),
+            alignment: None,
+        };
+        ReportSection {
+            method: "csrr",
+            channels,
+            sessions,
+            warnings: self.warnings.clone(),
+            details: Details::Csrr(details),
+        }
+    }
+}

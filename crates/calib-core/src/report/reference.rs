@@ -1,0 +1,253 @@
+//! The report section of a calibration against a reference encoder ([`crate::reference_cal`]).
+
+use super::{AfterCorrection, ChannelReport, Details, ReportSection, arcsec, table_name};
+use crate::reference_cal::{PointStats, ReferenceCalibration, TableMap};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// `details` of `calib reference`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceDetails {
+    /// The reference's channel.
+    pub reference: String,
+    /// The reference's own standard uncertainty as given (`--ref-u`), arcsec.
+    pub reference_u_arcsec: f64,
+    /// Revolutions (or, over a range, passes' travel in revolutions) of the run.
+    pub revolutions: f64,
+    /// The fewest passes over any grid point, per direction.
+    pub min_passes: MinPasses,
+    /// Largest standard uncertainty of the table, arcsec.
+    pub max_u_arcsec: f64,
+    /// The figures of ISO 230-2 over the targets, arcsec (`null` where a direction has none).
+    pub iso230_2: Iso230_2Report,
+    /// The per-target statistics of ISO 230-2.
+    pub iso230_2_targets: Vec<TargetReport>,
+    /// The range a range table covers (`null` for a whole turn).
+    pub range: Option<RangeReport>,
+    /// The part of a whole turn never reached and bridged (`null` if none).
+    pub gap: Option<GapReport>,
+    /// Largest difference between passes at the same reading (the follow check), degrees.
+    pub repeat_spread_deg: Option<f64>,
+    /// How the channels were aligned on one clock, where anything was interpolated or dropped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alignment: Option<super::Alignment>,
+}
+
+/// Passes per direction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MinPasses {
+    /// Increasing readings.
+    pub increasing: u32,
+    /// Decreasing readings.
+    pub decreasing: u32,
+}
+
+/// The figures of ISO 230-2, arcsec (as [`crate::reference_cal::Iso230_2`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Iso230_2Report {
+    /// Unidirectional systematic deviation E↑ (increasing readings).
+    pub systematic_up_arcsec: Option<f64>,
+    /// Unidirectional systematic deviation E↓ (decreasing readings).
+    pub systematic_down_arcsec: Option<f64>,
+    /// Bidirectional systematic deviation E.
+    pub systematic_arcsec: Option<f64>,
+    /// Mean bidirectional positional deviation M.
+    pub mean_bidirectional_arcsec: Option<f64>,
+    /// Reversal value B = max |B_i| (needs both directions).
+    pub reversal_arcsec: Option<f64>,
+    /// Mean reversal value, increasing minus decreasing.
+    pub mean_reversal_arcsec: Option<f64>,
+    /// Unidirectional repeatability R↑ = max 4 s_i↑.
+    pub repeatability_up_arcsec: Option<f64>,
+    /// Unidirectional repeatability R↓ = max 4 s_i↓.
+    pub repeatability_down_arcsec: Option<f64>,
+    /// Bidirectional repeatability R.
+    pub repeatability_arcsec: Option<f64>,
+    /// Unidirectional accuracy A↑.
+    pub accuracy_up_arcsec: Option<f64>,
+    /// Unidirectional accuracy A↓.
+    pub accuracy_down_arcsec: Option<f64>,
+    /// Bidirectional accuracy A.
+    pub accuracy_arcsec: Option<f64>,
+}
+
+/// One target of ISO 230-2.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TargetReport {
+    /// The target, degrees of the DUT's reading.
+    pub target_deg: f64,
+    /// Passes with increasing readings.
+    pub increasing: DirectionReport,
+    /// Passes with decreasing readings.
+    pub decreasing: DirectionReport,
+    /// Mean of both directions' means (or the one there is), arcsec.
+    pub mean_bidirectional_arcsec: Option<f64>,
+    /// Increasing minus decreasing mean, arcsec (both directions needed).
+    pub reversal_arcsec: Option<f64>,
+}
+
+/// One direction at one target.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DirectionReport {
+    /// Passes.
+    pub passes: u32,
+    /// Mean deviation, arcsec.
+    pub mean_arcsec: Option<f64>,
+    /// Standard deviation of the passes, arcsec.
+    pub s_arcsec: Option<f64>,
+    /// Repeatability `4s`, arcsec.
+    pub repeatability_arcsec: Option<f64>,
+}
+
+/// A range table's range, degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RangeReport {
+    /// First grid point.
+    pub start_deg: f64,
+    /// Last grid point.
+    pub end_deg: f64,
+    /// `end − start`.
+    pub span_deg: f64,
+}
+
+/// A gap bridged in a whole-turn map.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GapReport {
+    /// Where it starts, degrees.
+    pub from_deg: f64,
+    /// Where it ends, degrees (may exceed 360 across the wrap).
+    pub to_deg: f64,
+    /// Its size, degrees.
+    pub size_deg: f64,
+    /// Grid points inside it.
+    pub points: usize,
+    /// How it was bridged.
+    pub bridged: String,
+}
+
+impl DirectionReport {
+    fn of(p: &PointStats) -> Self {
+        DirectionReport {
+            passes: p.n,
+            mean_arcsec: (p.n > 0).then(|| arcsec(p.mean)),
+            s_arcsec: p.s.map(arcsec),
+            repeatability_arcsec: p.s.map(|s| arcsec(4.0 * s)),
+        }
+    }
+}
+
+impl ReferenceCalibration {
+    /// What the correction leaves of the DUT's error, measured in each direction (see
+    /// [`AfterCorrection`]): the check points are each direction's mean deviation at each grid
+    /// point. The map is the mean of the two directions, so this is the hysteresis a single
+    /// table cannot correct.
+    pub fn after_correction(&self) -> Option<AfterCorrection> {
+        let pairs = self
+            .up
+            .iter()
+            .zip(&self.down)
+            .zip(self.map.values())
+            .flat_map(|((up, down), &map)| {
+                [up, down]
+                    .into_iter()
+                    .filter(|p| p.n > 0)
+                    .map(move |p| (p.mean, map))
+            });
+        AfterCorrection::from_pairs("each direction", pairs)
+    }
+
+    /// The report section of the DUT channel `dut` against the `reference` channel, whose own
+    /// standard uncertainty was given as `reference_u_arcsec`.
+    pub fn report_section(
+        &self,
+        dut: &str,
+        reference: &str,
+        reference_u_arcsec: f64,
+    ) -> ReportSection {
+        let mut ch = match &self.map {
+            TableMap::Turn(m) => ChannelReport::of_map(&table_name(dut), m, 10),
+            // A range has no Fourier series: harmonics need a whole turn.
+            TableMap::Range(m) => ChannelReport {
+                table: table_name(dut),
+                points: m.len(),
+                peak_to_peak_arcsec: arcsec(m.peak_to_peak()),
+                rms_arcsec: arcsec(m.rms()),
+                harmonics: Vec::new(),
+                after_correction: None,
+            },
+        };
+        ch.after_correction = self.after_correction();
+        let iso = &self.iso;
+        let a = |v: Option<f64>| v.map(arcsec);
+        let details = ReferenceDetails {
+            reference: reference.to_string(),
+            reference_u_arcsec,
+            revolutions: self.revolutions,
+            min_passes: MinPasses {
+                increasing: self.min_passes.0,
+                decreasing: self.min_passes.1,
+            },
+            max_u_arcsec: arcsec(self.u.iter().fold(0.0f64, |m, u| m.max(*u))),
+            iso230_2: Iso230_2Report {
+                systematic_up_arcsec: a(iso.systematic_up),
+                systematic_down_arcsec: a(iso.systematic_down),
+                systematic_arcsec: a(iso.systematic),
+                mean_bidirectional_arcsec: a(iso.mean_bidirectional),
+                reversal_arcsec: a(iso.reversal),
+                mean_reversal_arcsec: a(iso.mean_reversal),
+                repeatability_up_arcsec: a(iso.repeatability_up),
+                repeatability_down_arcsec: a(iso.repeatability_down),
+                repeatability_arcsec: a(iso.repeatability),
+                accuracy_up_arcsec: a(iso.accuracy_up),
+                accuracy_down_arcsec: a(iso.accuracy_down),
+                accuracy_arcsec: a(iso.accuracy),
+            },
+            iso230_2_targets: self
+                .targets
+                .iter()
+                .map(|t| TargetReport {
+                    target_deg: t.angle.to_degrees(),
+                    increasing: DirectionReport::of(&t.up),
+                    decreasing: DirectionReport::of(&t.down),
+                    mean_bidirectional_arcsec: match (t.up.n, t.down.n) {
+                        (0, 0) => None,
+                        (0, _) => Some(arcsec(t.down.mean)),
+                        (_, 0) => Some(arcsec(t.up.mean)),
+                        _ => Some(arcsec(0.5 * (t.up.mean + t.down.mean))),
+                    },
+                    reversal_arcsec: (t.up.n > 0 && t.down.n > 0)
+                        .then(|| arcsec(t.up.mean - t.down.mean)),
+                })
+                .collect(),
+            range: self.map.range().map(|(lo, hi)| RangeReport {
+                start_deg: lo.to_degrees(),
+                end_deg: hi.to_degrees(),
+                span_deg: (hi - lo).to_degrees(),
+            }),
+            gap: self.gap.map(|g| GapReport {
+                from_deg: g.from.to_degrees(),
+                to_deg: g.to.to_degrees(),
+                size_deg: g.size.to_degrees(),
+                points: g.points,
+                bridged: "linear interpolation".to_string(),
+            }),
+            repeat_spread_deg: self.repeat_spread.map(f64::to_degrees),
+            alignment: None,
+        };
+        ReportSection {
+            method: "reference",
+            channels: BTreeMap::from([(dut.to_string(), ch)]),
+            sessions: Vec::new(),
+            warnings: self.warnings.clone(),
+            details: Details::Reference(details),
+        }
+    }
+}
