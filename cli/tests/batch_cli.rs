@@ -400,3 +400,50 @@ fn shift_angle_and_reference_take_several_inputs_too() {
     assert_eq!(summary["logs"][1]["status"], "error");
     assert!(out.join("r/ref/b.csv").is_file());
 }
+
+/// A log of several zstd chunks, whose chunks are decompressed on worker threads: alone, and in a
+/// batch with another log with one and two jobs, its tables and report are the same bytes (the
+/// report but for its command line).
+#[test]
+fn a_log_of_several_chunks_gives_the_same_bytes_alone_and_in_a_batch_with_any_jobs() {
+    let dir = tempfile::tempdir().unwrap();
+    let logs = dir.path().join("logs");
+    std::fs::create_dir_all(&logs).unwrap();
+    // 4 kHz: about 45 000 messages, 1 MiB chunks of about 10 000.
+    let big = simulate_quick(&logs, "big.mcap", &[("rate_hz", "rate_hz = 4000.0")]);
+    simulate_quick(&logs, "small.mcap", &[]);
+    let bytes = std::fs::read(&big).unwrap();
+    let (mut at, mut chunks) = (8, 0);
+    while bytes[at] != 0x0F {
+        chunks += usize::from(bytes[at] == 0x06);
+        at += 9 + u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+    }
+    assert!(chunks >= 3, "{chunks} chunks");
+
+    let o = calib_in(dir.path(), &["csrr", "logs/big.mcap", "-o", "alone", "-q"]);
+    expect_exit(&o, 0);
+    let outputs = |folder: &Path| {
+        let mut report = read_json(&folder.join("report.json"));
+        report["command_line"] = Value::Null;
+        let table = |f: &str| std::fs::read(folder.join(f)).unwrap();
+        (table("a.csv"), table("b.csv"), report)
+    };
+    let alone = outputs(&dir.path().join("alone"));
+    for jobs in ["1", "2"] {
+        let out = format!("jobs{jobs}");
+        let args = [
+            "csrr",
+            "logs/big.mcap",
+            "logs/small.mcap",
+            "-o",
+            &out,
+            "--jobs",
+            jobs,
+        ];
+        expect_exit(&calib_in(dir.path(), &args), 0);
+        assert!(
+            outputs(&dir.path().join(&out).join("big")) == alone,
+            "--jobs {jobs}"
+        );
+    }
+}

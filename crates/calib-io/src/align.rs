@@ -274,6 +274,9 @@ pub(crate) struct Aligner {
     finished: bool,
     clock_samples: u64,
     emitted: u64,
+    /// The decision for each series on the clock sample being popped, kept between samples so
+    /// that popping allocates nothing but the sample's values.
+    decisions: Vec<Decision>,
 }
 
 impl Aligner {
@@ -288,6 +291,7 @@ impl Aligner {
             finished: false,
             clock_samples: 0,
             emitted: 0,
+            decisions: Vec::new(),
         }
     }
 
@@ -325,7 +329,8 @@ impl Aligner {
         loop {
             let front = self.clock.front()?;
             let force = self.finished || self.clock.len() > ALIGN_QUEUE;
-            let mut decisions = Vec::with_capacity(self.series.len());
+            let decisions = &mut self.decisions;
+            decisions.clear();
             for series in &self.series {
                 match series.decide(front.ns, self.finished) {
                     Decision::Wait if !force => return None,
@@ -337,7 +342,7 @@ impl Aligner {
             let complete = !decisions.iter().any(|d| matches!(d, Decision::Drop));
             let mut values = Vec::with_capacity(self.selected.len());
             values.push(entry.value);
-            for (series, decision) in self.series.iter_mut().zip(decisions) {
+            for (series, decision) in self.series.iter_mut().zip(decisions.drain(..)) {
                 match decision {
                     Decision::Drop => series.dropped += 1,
                     Decision::Exact(v) if complete => {

@@ -25,6 +25,12 @@ pub const MAX_SIMULATED_SAMPLES: u64 = 50_000_000;
 /// reading it whole would take as much memory as it is long.
 pub const MAX_CSV_LINE_BYTES: usize = 1 << 20;
 
+/// The largest MCAP chunk decompressed on a worker thread, bytes, compressed or decompressed
+/// (16 MiB, sixteen times the chunks the `mcap` and ROS 2 writers close by default). Larger chunks
+/// are read by the streaming reader, which holds only part of a chunk at a time: a file claiming
+/// huge chunks costs no memory for them, and reads the same either way.
+pub const MAX_PARALLEL_CHUNK_BYTES: usize = 16 << 20;
+
 /// The limits as the command line's `--help` lists them.
 pub fn help_text() -> String {
     format!(

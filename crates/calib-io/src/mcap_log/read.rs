@@ -33,6 +33,12 @@
 //! stream stops at the data end record, so a damaged or missing summary does not stop reading
 //! the data.
 //!
+//! Where the summary's chunk index lists [`PARALLEL_CHUNKS`] chunks or more, each lying within
+//! the data section, the chunks are decompressed and checked on worker threads instead, and
+//! their records handed on in the same order ([`super::chunks`]); at the first irregularity the
+//! streaming reader reads the file again from its start, skipping the messages already handed
+//! on, so that every message, error and recovery is the streaming reader's.
+//!
 //! # Truncation
 //! [`Truncation::byte_offset`] is where reading stopped (see the [`mcap_log`](super) docs): the
 //! larger of the first incomplete top-level record's start and the bytes handed to the stream
@@ -49,6 +55,7 @@ use mcap::McapError;
 use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 
 use super::cdr::{JointFormat, JointState, Scalar};
+use super::chunks;
 use super::json;
 use super::msgdef::{Definition, Plan};
 use super::records::{self, StreamError};
@@ -56,6 +63,10 @@ use super::{DYNAMIC_JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA};
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::naming::{ChannelName, names_of};
 use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource, Truncation};
+
+/// Chunks a file's summary must list for them to be read on worker threads: a file of one chunk
+/// gains nothing from it, and a small log should not pay for starting threads.
+pub const PARALLEL_CHUNKS: usize = 2;
 
 /// Messages the peek pass reads on after every topic has shown itself, gathering the joints of
 /// topics whose messages carry subsets of them: several hundred messages of each of a few
@@ -167,6 +178,11 @@ pub struct McapReader {
     done: bool,
     /// An error was yielded: the iteration is over.
     failed: bool,
+    /// Reading chunks in parallel: the file, for the streaming reader to take over with.
+    reopen: Option<File>,
+    skip_damaged: bool,
+    /// Messages the streaming reader skips after taking over: those handed on already.
+    skip: u64,
 }
 
 /// Read buffer of the stream: large enough that reading costs few system calls, small against
@@ -206,6 +222,27 @@ fn stream(mut file: File, len: u64, skip_damaged: bool) -> io::Result<(Stream, A
         records::Stream::new(source, options, skip_damaged),
         consumed,
     ))
+}
+
+/// The stream of the whole file: with `parallel`, its chunks decompressed on worker threads (see
+/// [`super::chunks`]) and a second handle on the file for the streaming reader to take over
+/// with; else (or if no thread can be started) the streaming reader.
+fn main_stream(
+    file: File,
+    len: u64,
+    skip_damaged: bool,
+    parallel: bool,
+) -> io::Result<(Stream, Arc<AtomicU64>, Option<File>)> {
+    let spare = parallel.then(|| file.try_clone().ok()).flatten();
+    if let Some(spare) = spare {
+        let consumed = Arc::new(AtomicU64::new(0));
+        let workers = chunks::workers();
+        if let Some(chunked) = chunks::Chunked::new(spare, len, Arc::clone(&consumed), workers) {
+            return Ok((records::Stream::chunked(chunked), consumed, Some(file)));
+        }
+    }
+    let (stream, consumed) = stream(file, len, skip_damaged)?;
+    Ok((stream, consumed, None))
 }
 
 /// The file's summary as the `mcap` crate reads it (chunk indexes and statistics, which `calib
@@ -582,6 +619,16 @@ impl McapReader {
     /// Errors if the file cannot be read, is empty, is not MCAP, holds no JointState or JSON
     /// topic, names the same channel on two topics, or its first message of a topic is bad.
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
+        Self::open_with(path, opts, PARALLEL_CHUNKS)
+    }
+
+    /// [`open`](Self::open), reading the chunks on worker threads where the summary lists at
+    /// least `parallel_chunks` of them.
+    pub(crate) fn open_with(
+        path: &Path,
+        opts: &ReadOptions,
+        parallel_chunks: usize,
+    ) -> Result<Self, Error> {
         let io = |source| Error::Io {
             path: path.to_path_buf(),
             source,
@@ -617,8 +664,11 @@ impl McapReader {
         }
         let mut registry = Registry::default();
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
-        let expected = records::read_summary(&mut file, len)
-            .map(|summary| expected_topics(&summary, &mut registry));
+        let summary = records::read_summary(&mut file, len);
+        let parallel = summary
+            .as_ref()
+            .is_some_and(|s| s.chunks >= parallel_chunks);
+        let expected = summary.map(|summary| expected_topics(&summary, &mut registry));
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut messages = 0u64;
         let mut damage = None;
@@ -668,7 +718,10 @@ impl McapReader {
                 }
             }
             skipped = peek.damaged().to_vec();
-            file = peek.into_inner().file.into_inner();
+            file = match peek.into_inner() {
+                Some(source) => source.file.into_inner(),
+                None => File::open(path).map_err(io)?,
+            };
         }
         registry
             .read_wanted_fields(&opts.fields, scale)
@@ -763,7 +816,8 @@ impl McapReader {
                 });
             }
         }
-        let (stream, consumed) = stream(file, len, opts.skip_damaged).map_err(io)?;
+        let (stream, consumed, reopen) =
+            main_stream(file, len, opts.skip_damaged, parallel).map_err(io)?;
         let width = all_channels.len();
         let mut reader = McapReader {
             path: path.to_path_buf(),
@@ -784,6 +838,9 @@ impl McapReader {
             diagnostics: ReadDiagnostics::default(),
             done: false,
             failed: false,
+            reopen,
+            skip_damaged: opts.skip_damaged,
+            skip: 0,
         };
         let all: Vec<usize> = (0..width).collect();
         reader.select(&all, AlignOptions::default());
@@ -897,6 +954,24 @@ impl McapReader {
         Ok(self.aligner.pop())
     }
 
+    /// Hands reading over from the chunks read in parallel to the streaming reader, from the
+    /// start of the file, which skips the messages handed on already (see [`super::chunks`]).
+    fn take_over(&mut self) -> Result<(), Error> {
+        let io = |source| Error::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let file = match self.reopen.take() {
+            Some(file) => file,
+            None => File::open(&self.path).map_err(io)?,
+        };
+        let (stream, consumed) = stream(file, self.len, self.skip_damaged).map_err(io)?;
+        *self.stream = stream;
+        self.consumed = consumed;
+        self.skip = self.index;
+        Ok(())
+    }
+
     /// Records where reading stopped if the data section is cut short; whether it is.
     fn note_truncation(&mut self) -> bool {
         // Reading stopped at the first incomplete record, or inside it (a chunk cut short)
@@ -928,7 +1003,10 @@ impl Iterator for McapReader {
             return None;
         }
         loop {
-            if let Some(sample) = self.aligner.pop() {
+            // The fast path leaves the aligner empty.
+            if !self.fast
+                && let Some(sample) = self.aligner.pop()
+            {
                 return Some(Ok(sample));
             }
             if self.done {
@@ -939,7 +1017,19 @@ impl Iterator for McapReader {
                     // Chunks are held until checked: where this message's bytes ended is where
                     // the reader was when it gave the message, not where the check got to.
                     self.consumed_at_last = self.stream.consumed_at_last();
+                    if self.skip > 0 {
+                        self.skip -= 1;
+                        continue;
+                    }
                     message
+                }
+                Some(Err(StreamError::Fallback)) => {
+                    if let Err(e) = self.take_over() {
+                        self.finish();
+                        self.failed = true;
+                        return Some(Err(e));
+                    }
+                    continue;
                 }
                 None => {
                     self.finish();
@@ -977,7 +1067,9 @@ impl Iterator for McapReader {
             };
             let index = self.index;
             self.index += 1;
-            match self.step(&message, index) {
+            let stepped = self.step(&message, index);
+            self.stream.recycle(message);
+            match stepped {
                 Ok(Some(sample)) => return Some(Ok(sample)),
                 Ok(None) => {}
                 Err(e) => {

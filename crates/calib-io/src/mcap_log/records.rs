@@ -30,6 +30,11 @@ use mcap::records::{Record, op};
 use mcap::sans_io::{ChunkSpan, LinearReadEvent, LinearReader, LinearReaderOptions};
 use mcap::{McapError, Message};
 
+use super::chunks::{Chunked, Fallback};
+
+/// Length of a message record's header: channel ID, sequence, log time, publish time.
+const MESSAGE_HEADER: usize = 2 + 4 + 8 + 8;
+
 /// Why the stream stopped.
 #[derive(Debug)]
 pub(crate) enum StreamError {
@@ -42,6 +47,9 @@ pub(crate) enum StreamError {
     /// The data section does not match its CRC, though every chunk matched its own: a record
     /// outside the chunks is damaged.
     DataCrc,
+    /// Chunks read in parallel met what only the streaming reader handles exactly: read the
+    /// file again with it (see [`super::chunks`]).
+    Fallback,
 }
 
 impl fmt::Display for StreamError {
@@ -54,6 +62,7 @@ impl fmt::Display for StreamError {
                 "the data section does not match the CRC recorded in its data end record: a \
                  record outside the chunks is damaged",
             ),
+            StreamError::Fallback => f.write_str("the file must be read again record by record"),
         }
     }
 }
@@ -292,41 +301,99 @@ impl<R: Read> Checked<R> {
     }
 }
 
+/// Where a [`Stream`]'s records come from. Unboxed: the stream itself lives boxed.
+#[allow(clippy::large_enum_variant)]
+enum Records<R> {
+    /// The streaming reader, and the record it last handed on.
+    Linear(Checked<R>, Vec<u8>),
+    /// Chunks decompressed on worker threads.
+    Chunked(Chunked),
+}
+
 /// A stream of messages from an MCAP file's data section, to its data end record.
 pub(crate) struct Stream<R> {
-    records: Checked<R>,
+    records: Records<R>,
     channels: ChannelAccumulator<'static>,
+    /// The channels added so far by ID: a vector lookup per message.
+    by_id: Vec<Option<Arc<mcap::Channel<'static>>>>,
+    /// `Checked::consumed_at_last` when the last message was handed on.
+    consumed_at_message: u64,
+    /// A message's data buffer given back by the caller, to hold the next one's.
+    spare: Vec<u8>,
     done: bool,
 }
 
 impl<R: Read> Stream<R> {
+    /// The streaming reader over `source` (see [`Checked`]).
     pub(crate) fn new(source: R, options: LinearReaderOptions, skip_damaged: bool) -> Self {
+        Self::over(Records::Linear(
+            Checked::new(source, options, skip_damaged),
+            Vec::new(),
+        ))
+    }
+
+    /// Chunks decompressed on worker threads ([`Chunked`]); its [`Fallback`] is the stream's
+    /// [`StreamError::Fallback`].
+    pub(crate) fn chunked(chunked: Chunked) -> Self {
+        Self::over(Records::Chunked(chunked))
+    }
+
+    fn over(records: Records<R>) -> Self {
         Stream {
-            records: Checked::new(source, options, skip_damaged),
+            records,
             channels: ChannelAccumulator::default(),
+            by_id: Vec::new(),
+            consumed_at_message: 0,
+            spare: Vec::new(),
             done: false,
         }
     }
 
-    pub(crate) fn into_inner(self) -> R {
-        self.records.into_inner()
+    /// The source of the streaming reader (`None` for chunks read in parallel).
+    pub(crate) fn into_inner(self) -> Option<R> {
+        match self.records {
+            Records::Linear(checked, _) => Some(checked.into_inner()),
+            Records::Chunked(_) => None,
+        }
     }
 
     /// The damaged chunks left out so far.
     pub(crate) fn damaged(&self) -> &[crate::DamagedChunk] {
-        &self.records.damaged
+        match &self.records {
+            Records::Linear(checked, _) => &checked.damaged,
+            Records::Chunked(_) => &[],
+        }
     }
 
-    /// The bytes read from the source when the reader gave the last record handed on.
+    /// The bytes read from the source when the reader gave the last message handed on (of the
+    /// streaming reader: where a truncated file's readable data ends).
     pub(crate) fn consumed_at_last(&self) -> u64 {
-        self.records.consumed_at_last
+        self.consumed_at_message
+    }
+
+    /// Takes back a message handed on, whose data buffer then holds the next message's: no
+    /// allocation per message.
+    pub(crate) fn recycle(&mut self, message: Message<'static>) {
+        if let Cow::Owned(data) = message.data {
+            self.spare = data;
+        }
     }
 
     fn next_message(&mut self) -> Option<Result<Message<'static>, StreamError>> {
         loop {
-            let (opcode, data) = match self.records.next_record()? {
-                Ok(record) => record,
-                Err(e) => return Some(Err(e)),
+            // With the streaming reader, where it was when it gave the record.
+            let (opcode, data, consumed) = match &mut self.records {
+                Records::Linear(checked, last) => match checked.next_record()? {
+                    Ok((opcode, data)) => {
+                        *last = data;
+                        (opcode, last.as_slice(), Some(checked.consumed_at_last))
+                    }
+                    Err(e) => return Some(Err(e)),
+                },
+                Records::Chunked(chunked) => match chunked.next_record() {
+                    Ok((opcode, data)) => (opcode, data, None),
+                    Err(Fallback) => return Some(Err(StreamError::Fallback)),
+                },
             };
             match opcode {
                 // The summary after it is read separately; its damage must not cost the data.
@@ -334,10 +401,38 @@ impl<R: Read> Stream<R> {
                 op::SCHEMA | op::CHANNEL | op::MESSAGE => {}
                 _ => continue,
             }
-            if let Err(e) = check(opcode, &data) {
+            if let Err(e) = check(opcode, data) {
                 return Some(Err(e));
             }
-            let record = match mcap::parse_record(opcode, &data) {
+            // A message's header, read here as `mcap::parse_record` reads it, without its
+            // per-field parsing (a message too short for one goes there for its error): channel
+            // ID, sequence, log time, publish time.
+            if opcode == op::MESSAGE && data.len() >= MESSAGE_HEADER {
+                let u64_at =
+                    |i: usize| u64::from_le_bytes(data[i..i + 8].try_into().unwrap_or_default());
+                let id = u16::from_le_bytes([data[0], data[1]]);
+                let sequence = u32::from_le_bytes(data[2..6].try_into().unwrap_or_default());
+                let channel = self.by_id.get(usize::from(id)).cloned().flatten();
+                let Some(channel) = channel.or_else(|| self.channels.get(id)) else {
+                    return Some(Err(McapError::UnknownChannel(sequence, id).into()));
+                };
+                if let Some(consumed) = consumed {
+                    self.consumed_at_message = consumed;
+                }
+                return Some(Ok(Message {
+                    channel,
+                    sequence,
+                    log_time: u64_at(6),
+                    publish_time: u64_at(14),
+                    data: Cow::Owned({
+                        let mut buffer = std::mem::take(&mut self.spare);
+                        buffer.clear();
+                        buffer.extend_from_slice(&data[MESSAGE_HEADER..]);
+                        buffer
+                    }),
+                }));
+            }
+            let record = match mcap::parse_record(opcode, data) {
                 Ok(record) => record,
                 Err(e) => return Some(Err(e.into())),
             };
@@ -345,22 +440,17 @@ impl<R: Read> Stream<R> {
                 Record::Schema { header, data } => self
                     .channels
                     .add_schema(header, Cow::Owned(data.into_owned())),
-                Record::Channel(channel) => self.channels.add_channel(channel),
-                Record::Message { header, data } => {
-                    let Some(channel) = self.channels.get(header.channel_id) else {
-                        return Some(Err(McapError::UnknownChannel(
-                            header.sequence,
-                            header.channel_id,
-                        )
-                        .into()));
-                    };
-                    return Some(Ok(Message {
-                        channel,
-                        sequence: header.sequence,
-                        log_time: header.log_time,
-                        publish_time: header.publish_time,
-                        data: Cow::Owned(data.into_owned()),
-                    }));
+                Record::Channel(channel) => {
+                    let id = channel.id;
+                    let added = self.channels.add_channel(channel);
+                    if added.is_ok() {
+                        let slot = usize::from(id);
+                        if self.by_id.len() <= slot {
+                            self.by_id.resize(slot + 1, None);
+                        }
+                        self.by_id[slot] = self.channels.get(id);
+                    }
+                    added
                 }
                 _ => Ok(()),
             };
@@ -391,6 +481,9 @@ pub(crate) struct Summary {
     pub channels: HashMap<u16, Arc<mcap::Channel<'static>>>,
     /// Messages per channel ID, if the summary has statistics.
     pub message_counts: Option<std::collections::BTreeMap<u16, u64>>,
+    /// Chunks its chunk indexes list, each within the data section; 0 if any lies outside it
+    /// (then the index is not to be trusted, and the file is read by the streaming reader).
+    pub chunks: usize,
 }
 
 /// The length of the footer record: opcode, length, summary start, summary offset start, CRC.
@@ -422,7 +515,9 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
     let mut summary = Summary {
         channels: HashMap::new(),
         message_counts: None,
+        chunks: 0,
     };
+    let mut chunk_index_ok = true;
     let mut accumulator = ChannelAccumulator::default();
     let mut ids = Vec::new();
     let mut left = end - start;
@@ -433,6 +528,22 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
         let n = u64::from_le_bytes(head[1..].try_into().unwrap_or_default());
         left = left.checked_sub(9)?.checked_sub(n)?;
         let opcode = head[0];
+        if opcode == op::CHUNK_INDEX {
+            // Start and end time, then the chunk's offset and length: the chunk must lie between
+            // the magic and the summary.
+            let mut fixed = [0u8; 32];
+            let within = n >= 32 && file.read_exact(&mut fixed).is_ok() && {
+                let u64_at =
+                    |i: usize| u64::from_le_bytes(fixed[i..i + 8].try_into().unwrap_or_default());
+                let (offset, length) = (u64_at(16), u64_at(24));
+                offset >= magic && offset.checked_add(length).is_some_and(|end| end <= start)
+            };
+            chunk_index_ok &= within;
+            summary.chunks += 1;
+            let rest = if n >= 32 { n - 32 } else { n };
+            io::copy(&mut (&mut file).take(rest), &mut io::sink()).ok()?;
+            continue;
+        }
         if !matches!(opcode, op::SCHEMA | op::CHANNEL | op::STATISTICS) {
             io::copy(&mut (&mut file).take(n), &mut io::sink()).ok()?;
             continue;
@@ -457,6 +568,9 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
     }
     for id in ids {
         summary.channels.insert(id, accumulator.get(id)?);
+    }
+    if !chunk_index_ok {
+        summary.chunks = 0;
     }
     Some(summary)
 }

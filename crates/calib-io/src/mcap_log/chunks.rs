@@ -1,0 +1,571 @@
+//! Reading a chunked MCAP file's chunks on worker threads, several at a time.
+//!
+//! A chunk's records depend on nothing before it, so its bytes can be checked and decompressed
+//! anywhere. [`Chunked`] walks the top-level records of the data section on the reader's thread
+//! (reading their bytes and the data section's CRC-32 as it goes), hands each chunk to one of
+//! [`workers`] threads in turn, and hands the records on in file order: from a chunk once its
+//! worker has decompressed it, checked it against the CRC its header records and checked that its
+//! records fill it exactly. Decompression, about a third of reading a zstd log, thereby runs beside
+//! the decoding of the messages.
+//!
+//! # Only where it changes nothing
+//! The records handed on are exactly those the streaming reader
+//! ([`Checked`](super::records::Checked)) hands on, in the same order; it is used only where
+//! that is certain. At the first thing the streaming reader treats in any special way — a chunk
+//! whose CRC does not match, that cannot be decompressed, whose records do not fill it, of another
+//! compression than zstd or none, larger than [`MAX_PARALLEL_CHUNK_BYTES`]; a record running past
+//! the end of the file; a data section CRC that does not match; a footer before the data end
+//! record — it reports [`Fallback`], and the caller reads the file again with the streaming
+//! reader, skipping the messages it has already handed on. Damaged files pay one more read of
+//! what came before the damage; every message, error and recovery stays the streaming reader's.
+//!
+//! # Memory
+//! At most [`AHEAD`] chunks per worker are in flight, each at most [`MAX_PARALLEL_CHUNK_BYTES`]
+//! compressed and decompressed; their buffers are reused from chunk to chunk.
+
+use std::collections::VecDeque;
+use std::fs::File;
+use std::io::{self, BufReader, Read, Seek, SeekFrom, Write};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::thread::JoinHandle;
+
+use mcap::records::op;
+
+use crate::limits::MAX_PARALLEL_CHUNK_BYTES;
+
+/// Chunks decompressed ahead per worker: one being handed on while the next is decompressed.
+pub const AHEAD: usize = 2;
+
+/// Read buffer of the walk over the top-level records (chunks are read past it).
+const READ_BUFFER: usize = 64 * 1024;
+
+/// Length of a record's opcode and length prefix.
+const PREFIX: usize = 9;
+
+/// Worker threads: as many as the machine has cores, at most two (the reader's own thread
+/// decodes the messages beside them).
+pub fn workers() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get().min(2))
+}
+
+/// The walk met something only the streaming reader handles exactly (see the module docs).
+#[derive(Debug)]
+pub(crate) struct Fallback;
+
+/// A chunk record's body for a worker, and a buffer to decompress it into.
+struct Job {
+    body: Vec<u8>,
+    out: Vec<u8>,
+}
+
+/// A worker's result: the buffers back, `out` holding the chunk's records if `ok`.
+struct Done {
+    body: Vec<u8>,
+    out: Vec<u8>,
+    ok: bool,
+}
+
+struct Worker {
+    jobs: SyncSender<Job>,
+    done: Receiver<Done>,
+    thread: JoinHandle<()>,
+}
+
+/// What the walk found next in the data section, in file order.
+enum Planned {
+    /// A chunk, sent to the next worker in turn.
+    Chunk,
+    /// A top-level schema, channel or message record.
+    Record(u8, Vec<u8>),
+    /// The data end record, its CRC matched.
+    End(Vec<u8>),
+    Fallback,
+}
+
+/// The data section's records, chunks decompressed on worker threads (see the module docs).
+pub(crate) struct Chunked {
+    file: BufReader<File>,
+    len: u64,
+    /// Offset of the next top-level record.
+    pos: u64,
+    /// CRC-32 of the bytes before `pos`.
+    crc: crc32fast::Hasher,
+    /// Bytes walked, shared with the reader (where the walk has got to).
+    consumed: Arc<AtomicU64>,
+    workers: Vec<Worker>,
+    plan: VecDeque<Planned>,
+    /// Chunks sent to the workers and not yet taken back.
+    in_flight: usize,
+    /// Chunks sent so far: the next one goes to worker `sent % workers`.
+    sent: usize,
+    /// Chunks taken back so far: the next one comes from worker `taken % workers`.
+    taken: usize,
+    /// The walk has planned the data end or a fallback: nothing follows.
+    walked: bool,
+    /// The records of the chunk being handed on, and the offset of the next one.
+    current: Vec<u8>,
+    at: usize,
+    /// The top-level record last handed on.
+    record: Vec<u8>,
+    /// Buffers to reuse for chunk bodies and decompressed chunks.
+    spare: Vec<Vec<u8>>,
+}
+
+/// A little-endian `u64` at `at`, if the bytes are there.
+fn u64_at(bytes: &[u8], at: usize) -> Option<u64> {
+    let b = bytes.get(at..at.checked_add(8)?)?;
+    Some(u64::from_le_bytes(b.try_into().ok()?))
+}
+
+fn u32_at(bytes: &[u8], at: usize) -> Option<u32> {
+    let b = bytes.get(at..at.checked_add(4)?)?;
+    Some(u32::from_le_bytes(b.try_into().ok()?))
+}
+
+/// Whether `records` is a sequence of whole records, none longer than the file (the streaming
+/// reader's record length limit).
+fn tiles(mut records: &[u8], file_len: u64) -> bool {
+    while !records.is_empty() {
+        let Some(n) = u64_at(records, 1).filter(|&n| n <= file_len) else {
+            return false;
+        };
+        let next = usize::try_from(n)
+            .ok()
+            .and_then(|n| n.checked_add(PREFIX))
+            .and_then(|end| records.get(end..));
+        match next {
+            Some(next) => records = next,
+            None => return false,
+        }
+    }
+    true
+}
+
+/// Decompresses the chunk record `body` into `out`; true if its records are exactly what the
+/// streaming reader hands on without error: the header is whole, the compression zstd or none,
+/// the records decompress to the size the header gives, match its CRC (if it records one) and
+/// fill it exactly.
+fn decode_chunk(
+    body: &[u8],
+    file_len: u64,
+    zstd: &mut Option<zstd::bulk::Decompressor<'static>>,
+    out: &mut Vec<u8>,
+) -> Option<()> {
+    // Start and end time, uncompressed size, CRC, compression (u32-prefixed), compressed size.
+    let uncompressed_size = u64_at(body, 16)?;
+    let crc = u32_at(body, 24)?;
+    let name_len = usize::try_from(u32_at(body, 28)?).ok()?;
+    let name_end = 32usize.checked_add(name_len)?;
+    let compression = body.get(32..name_end)?;
+    let compressed_size = usize::try_from(u64_at(body, name_end)?).ok()?;
+    let data_start = name_end + 8;
+    let data = body.get(data_start..data_start.checked_add(compressed_size)?)?;
+    out.clear();
+    match compression {
+        b"" => out.extend_from_slice(data),
+        b"zstd" => {
+            let size = usize::try_from(uncompressed_size)
+                .ok()
+                .filter(|&n| n <= MAX_PARALLEL_CHUNK_BYTES)?;
+            out.reserve(size);
+            let decompressor = match zstd {
+                Some(d) => d,
+                None => zstd.insert(zstd::bulk::Decompressor::new().ok()?),
+            };
+            let written = decompressor.decompress_to_buffer(data, out).ok()?;
+            (written == size).then_some(())?;
+        }
+        _ => return None,
+    }
+    (crc == 0 || crc32fast::hash(out) == crc).then_some(())?;
+    tiles(out, file_len).then_some(())
+}
+
+fn work(jobs: Receiver<Job>, done: SyncSender<Done>, file_len: u64) {
+    let mut zstd = None;
+    while let Ok(mut job) = jobs.recv() {
+        let ok = decode_chunk(&job.body, file_len, &mut zstd, &mut job.out).is_some();
+        let result = Done {
+            body: job.body,
+            out: job.out,
+            ok,
+        };
+        // The reader has gone: stop.
+        if done.send(result).is_err() {
+            return;
+        }
+    }
+}
+
+/// Hashes what is written to it.
+struct Hashing<'a>(&'a mut crc32fast::Hasher);
+
+impl Write for Hashing<'_> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.0.update(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Chunked {
+    /// Walks `file` (of `len` bytes) from its start with `workers` worker threads; `None` if it
+    /// does not start with the MCAP magic or no thread can be started.
+    pub(crate) fn new(
+        mut file: File,
+        len: u64,
+        consumed: Arc<AtomicU64>,
+        workers: usize,
+    ) -> Option<Self> {
+        file.seek(SeekFrom::Start(0)).ok()?;
+        let mut file = BufReader::with_capacity(READ_BUFFER, file);
+        let mut magic = [0u8; 8];
+        file.read_exact(&mut magic).ok()?;
+        (magic == mcap::MAGIC).then_some(())?;
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(&magic);
+        let mut pool = Vec::with_capacity(workers);
+        for i in 0..workers.max(1) {
+            let (jobs, job_rx) = sync_channel::<Job>(AHEAD);
+            let (done_tx, done) = sync_channel::<Done>(AHEAD);
+            let thread = std::thread::Builder::new()
+                .name(format!("calib-chunks-{i}"))
+                .spawn(move || work(job_rx, done_tx, len))
+                .ok()?;
+            pool.push(Worker { jobs, done, thread });
+        }
+        consumed.store(magic.len() as u64, Ordering::Relaxed);
+        Some(Chunked {
+            file,
+            len,
+            pos: magic.len() as u64,
+            crc,
+            consumed,
+            workers: pool,
+            plan: VecDeque::new(),
+            in_flight: 0,
+            sent: 0,
+            taken: 0,
+            walked: false,
+            current: Vec::new(),
+            at: 0,
+            record: Vec::new(),
+            spare: Vec::new(),
+        })
+    }
+
+    /// Reads the body of a record of `n` bytes (checked to lie within the file) into a buffer.
+    fn read_body(&mut self, n: u64) -> Option<Vec<u8>> {
+        let mut body = self.spare.pop().unwrap_or_default();
+        body.clear();
+        let read = (&mut self.file).take(n).read_to_end(&mut body).ok()?;
+        (read as u64 == n).then_some(body)
+    }
+
+    /// Walks to the next top-level record that is handed on; `None` where the streaming reader
+    /// must take over.
+    fn walk(&mut self) -> Option<Planned> {
+        loop {
+            let mut head = [0u8; PREFIX];
+            self.file.read_exact(&mut head).ok()?;
+            let opcode = head[0];
+            let n = u64_at(&head, 1)?;
+            let end = self
+                .pos
+                .checked_add(PREFIX as u64)?
+                .checked_add(n)
+                .filter(|&end| end <= self.len)?;
+            let planned = match opcode {
+                op::DATA_END => {
+                    let body = self.read_body(n)?;
+                    let saved = u32_at(&body, 0)?;
+                    let calculated = self.crc.clone().finalize();
+                    (saved == 0 || saved == calculated).then_some(())?;
+                    Some(Planned::End(body))
+                }
+                // The streaming reader reads on past a footer in the data section.
+                op::FOOTER => return None,
+                op::CHUNK => {
+                    (n <= MAX_PARALLEL_CHUNK_BYTES as u64).then_some(())?;
+                    let body = self.read_body(n)?;
+                    self.crc.update(&head);
+                    self.crc.update(&body);
+                    let out = self.spare.pop().unwrap_or_default();
+                    let worker = &self.workers[self.sent % self.workers.len()];
+                    worker.jobs.send(Job { body, out }).ok()?;
+                    self.sent += 1;
+                    self.in_flight += 1;
+                    Some(Planned::Chunk)
+                }
+                op::SCHEMA | op::CHANNEL | op::MESSAGE => {
+                    let body = self.read_body(n)?;
+                    self.crc.update(&head);
+                    self.crc.update(&body);
+                    Some(Planned::Record(opcode, body))
+                }
+                // Message indexes, attachments, metadata: read only for the CRC.
+                _ => {
+                    self.crc.update(&head);
+                    let mut hashing = Hashing(&mut self.crc);
+                    let hashed = io::copy(&mut (&mut self.file).take(n), &mut hashing).ok()?;
+                    (hashed == n).then_some(())?;
+                    None
+                }
+            };
+            self.pos = end;
+            self.consumed.store(end, Ordering::Relaxed);
+            if planned.is_some() {
+                return planned;
+            }
+        }
+    }
+
+    /// The next record (opcode and body), in the order the streaming reader hands them on, up
+    /// to the data end record; [`Fallback`] where the streaming reader must take over.
+    pub(crate) fn next_record(&mut self) -> Result<(u8, &[u8]), Fallback> {
+        enum From {
+            Chunk(usize, usize),
+            Record,
+        }
+        let (opcode, from) = loop {
+            if self.at < self.current.len() {
+                // The worker checked that the records fill the chunk.
+                let at = self.at;
+                let n = u64_at(&self.current, at + 1).and_then(|n| usize::try_from(n).ok());
+                let start = at + PREFIX;
+                let end = n.and_then(|n| start.checked_add(n)).ok_or(Fallback)?;
+                self.at = end;
+                break (self.current[at], From::Chunk(start, end));
+            }
+            while !self.walked && self.in_flight < AHEAD * self.workers.len() {
+                let planned = self.walk().unwrap_or(Planned::Fallback);
+                self.walked = matches!(planned, Planned::End(_) | Planned::Fallback);
+                self.plan.push_back(planned);
+            }
+            match self.plan.pop_front() {
+                Some(Planned::Chunk) => {
+                    let worker = &self.workers[self.taken % self.workers.len()];
+                    let done = worker.done.recv().map_err(|_| Fallback)?;
+                    self.taken += 1;
+                    self.in_flight -= 1;
+                    self.spare.push(done.body);
+                    let emptied = std::mem::replace(&mut self.current, done.out);
+                    self.spare.push(emptied);
+                    self.at = 0;
+                    if !done.ok {
+                        self.walked = true;
+                        self.plan.clear();
+                        return Err(Fallback);
+                    }
+                }
+                Some(Planned::Record(opcode, body)) => {
+                    let emptied = std::mem::replace(&mut self.record, body);
+                    self.spare.push(emptied);
+                    break (opcode, From::Record);
+                }
+                Some(Planned::End(body)) => {
+                    self.record = body;
+                    break (op::DATA_END, From::Record);
+                }
+                Some(Planned::Fallback) | None => return Err(Fallback),
+            }
+        };
+        Ok(match from {
+            From::Chunk(start, end) => (opcode, &self.current[start..end]),
+            From::Record => (opcode, &self.record[..]),
+        })
+    }
+}
+
+impl Drop for Chunked {
+    fn drop(&mut self) {
+        // Closing both channels stops each worker after the chunk it is decompressing.
+        for worker in std::mem::take(&mut self.workers) {
+            let Worker { jobs, done, thread } = worker;
+            drop(jobs);
+            drop(done);
+            let _ = thread.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ReadOptions;
+    use crate::mcap_log::read::McapReader;
+    use crate::mcap_log::{DEFAULT_TOPIC, McapWriter};
+    use calib_core::{AngleUnit, Channel, Sample};
+    use std::path::Path;
+
+    /// A JointState log of three joints, `n` messages in 1 MiB zstd chunks (about 10 000
+    /// messages each).
+    fn log(path: &Path, n: usize) {
+        let channels: Vec<Channel> = ["a", "b", "c"]
+            .iter()
+            .map(|name| Channel {
+                name: name.to_string(),
+                unit: AngleUnit::Rad,
+            })
+            .collect();
+        let mut writer = McapWriter::create(path, &channels, DEFAULT_TOPIC).unwrap();
+        for i in 0..n {
+            let x = i as f64 * 1e-3;
+            let sample = Sample {
+                t: 1.0 + x,
+                values: vec![x, x.sin(), -x],
+                session: None,
+            };
+            writer.write(&sample).unwrap();
+        }
+        writer.finish().unwrap();
+    }
+
+    /// Offsets and lengths of the top-level chunk records of MCAP `bytes`.
+    fn chunk_records(bytes: &[u8]) -> Vec<(usize, usize)> {
+        let mut at = 8;
+        let mut found = Vec::new();
+        while at + PREFIX <= bytes.len() && bytes[at] != op::DATA_END {
+            let len = u64_at(bytes, at + 1).unwrap() as usize;
+            if bytes[at] == op::CHUNK {
+                found.push((at, PREFIX + len));
+            }
+            at += PREFIX + len;
+        }
+        found
+    }
+
+    /// Everything a reader yields, errors as text, and what it noticed.
+    fn read(path: &Path, opts: &ReadOptions, parallel_chunks: usize) -> (Vec<String>, String) {
+        let mut reader = McapReader::open_with(path, opts, parallel_chunks).unwrap();
+        let items = reader
+            .by_ref()
+            .map(|item| match item {
+                Ok(sample) => format!("{:?}", sample),
+                Err(e) => e.to_string(),
+            })
+            .collect();
+        let noticed = format!("{:?} {:?}", reader.diagnostics(), reader.alignment());
+        (items, noticed)
+    }
+
+    #[test]
+    fn chunks_read_in_parallel_hand_on_the_streaming_readers_records() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        log(&path, 40_000);
+        let len = std::fs::metadata(&path).unwrap().len();
+        let linear = |skip_damaged| {
+            let file = File::open(&path).unwrap();
+            let options = mcap::sans_io::LinearReaderOptions::default()
+                .with_skip_end_magic(true)
+                .with_record_length_limit(len as usize);
+            super::super::records::Checked::new(BufReader::new(file), options, skip_damaged)
+        };
+        for workers in [1, 2] {
+            let file = File::open(&path).unwrap();
+            let consumed = Arc::new(AtomicU64::new(0));
+            let mut chunked = Chunked::new(file, len, consumed, workers).unwrap();
+            let mut checked = linear(false);
+            let mut records = 0;
+            loop {
+                let (opcode, data) = chunked.next_record().expect("no fallback");
+                // The streaming reader also hands on the header and the message indexes, which
+                // the stream skips.
+                let expected = loop {
+                    let (opcode, data) = checked.next_record().unwrap().unwrap();
+                    if matches!(
+                        opcode,
+                        op::SCHEMA | op::CHANNEL | op::MESSAGE | op::DATA_END
+                    ) {
+                        break (opcode, data);
+                    }
+                };
+                assert_eq!((opcode, data), (expected.0, expected.1.as_slice()));
+                records += 1;
+                if opcode == op::DATA_END {
+                    break;
+                }
+            }
+            assert!(records > 40_000, "{records} records");
+        }
+        // The reader uses them, with the same samples.
+        assert!(chunk_records(&std::fs::read(&path).unwrap()).len() >= 3);
+        let opts = ReadOptions::default();
+        assert_eq!(read(&path, &opts, 2), read(&path, &opts, usize::MAX));
+    }
+
+    /// Damage in a later chunk: the streaming reader takes over and everything read — samples,
+    /// the error, the chunks skipped with `skip_damaged` — is the streaming reader's alone.
+    #[test]
+    fn damage_reads_exactly_as_the_streaming_reader_reads_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        log(&path, 40_000);
+        let good = std::fs::read(&path).unwrap();
+        let chunks = chunk_records(&good);
+        assert!(chunks.len() >= 3, "{} chunks", chunks.len());
+        let (at, len) = chunks[2];
+        for (name, offset) in [("data", at + len / 2), ("crc", at + 9 + 24)] {
+            let mut bytes = good.clone();
+            bytes[offset] ^= 0x10;
+            let bad = dir.path().join(format!("{name}.mcap"));
+            std::fs::write(&bad, &bytes).unwrap();
+            for skip_damaged in [false, true] {
+                let opts = ReadOptions {
+                    skip_damaged,
+                    ..ReadOptions::default()
+                };
+                let (items, noticed) = read(&bad, &opts, 2);
+                let streaming = read(&bad, &opts, usize::MAX);
+                assert!(
+                    streaming == (items.clone(), noticed.clone()),
+                    "{name}: {noticed}"
+                );
+                let errors = items.iter().filter(|i| !i.starts_with("Sample")).count();
+                assert_eq!(errors, usize::from(!skip_damaged), "{name}: {noticed}");
+                assert!(items.len() > 10_000, "{name}: {} items", items.len());
+            }
+        }
+    }
+
+    #[test]
+    fn chunks_are_checked_as_the_streaming_reader_checks_them() {
+        let mut zstd = None;
+        let mut out = Vec::new();
+        // An uncompressed chunk of one record (opcode 5, 2 bytes).
+        let records = [5u8, 2, 0, 0, 0, 0, 0, 0, 0, 0xAB, 0xCD];
+        let chunk = |crc: u32, records: &[u8], compressed_size: u64| {
+            let mut body = vec![0u8; 16];
+            body.extend_from_slice(&(records.len() as u64).to_le_bytes());
+            body.extend_from_slice(&crc.to_le_bytes());
+            body.extend_from_slice(&0u32.to_le_bytes());
+            body.extend_from_slice(&compressed_size.to_le_bytes());
+            body.extend_from_slice(records);
+            body
+        };
+        let crc = crc32fast::hash(&records);
+        let n = records.len() as u64;
+        assert!(decode_chunk(&chunk(crc, &records, n), 100, &mut zstd, &mut out).is_some());
+        assert_eq!(out, records);
+        // No CRC recorded: not checked.
+        assert!(decode_chunk(&chunk(0, &records, n), 100, &mut zstd, &mut out).is_some());
+        // A CRC that does not match; a record cut short; a size beyond the body; a record
+        // longer than the file.
+        assert!(decode_chunk(&chunk(crc ^ 1, &records, n), 100, &mut zstd, &mut out).is_none());
+        assert!(decode_chunk(&chunk(0, &records[..10], 10), 100, &mut zstd, &mut out).is_none());
+        assert!(decode_chunk(&chunk(0, &records, n + 1), 100, &mut zstd, &mut out).is_none());
+        let mut long = records;
+        long[1..9].copy_from_slice(&200u64.to_le_bytes());
+        assert!(decode_chunk(&chunk(0, &long, n), 100, &mut zstd, &mut out).is_none());
+        // Not whole: every prefix of the header.
+        let whole = chunk(crc, &records, n);
+        for cut in 0..40 {
+            assert!(decode_chunk(&whole[..cut], 100, &mut zstd, &mut out).is_none());
+        }
+    }
+}
