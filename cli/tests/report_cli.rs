@@ -88,7 +88,7 @@ fn csrr_report_shows_maps_against_the_truth_spectrum_and_timeline() {
         &[
             "p-p before",
             "→ after",
-            "orders fitted",
+            "kept above the noise",
             "report.html",
             "next: open",
         ],
