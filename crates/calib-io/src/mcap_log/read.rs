@@ -62,7 +62,7 @@ use super::records::{self, StreamError};
 use super::{DYNAMIC_JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA};
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::naming::{ChannelName, names_of};
-use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource, Truncation};
+use crate::{DamagedChunk, Error, ReadDiagnostics, ReadOptions, TimeSource, Truncation};
 
 /// Chunks a file's summary must list for them to be read on worker threads: a file of one chunk
 /// gains nothing from it, and a small log should not pay for starting threads.
@@ -633,35 +633,7 @@ impl McapReader {
             path: path.to_path_buf(),
             source,
         };
-        let mut file = File::open(path).map_err(io)?;
-        let len = file.metadata().map_err(io)?.len();
-        if len == 0 {
-            return Err(mcap_error(
-                path,
-                None,
-                None,
-                "the file is empty (0 bytes); was the recording stopped before it wrote anything?"
-                    .into(),
-            ));
-        }
-        let mut magic = [0u8; 8];
-        let got = file.read(&mut magic).map_err(io)?;
-        // A short first read is allowed by `Read`; finish it, stopping at the end of the file.
-        let got = got
-            + (&mut file)
-                .take(8 - got as u64)
-                .read(&mut magic[got..])
-                .map_err(io)?;
-        if !magic[..got].starts_with(mcap::MAGIC) {
-            return Err(mcap_error(
-                path,
-                None,
-                None,
-                "not an MCAP file (it does not start with the MCAP magic bytes); calib reads \
-                 MCAP logs from ROS 2 (rosbag2 with the mcap storage) or the mcap libraries"
-                    .into(),
-            ));
-        }
+        let (mut file, len) = open_mcap(path)?;
         let mut registry = Registry::default();
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
         let summary = records::read_summary(&mut file, len);
@@ -670,152 +642,18 @@ impl McapReader {
             .is_some_and(|s| s.chunks >= parallel_chunks);
         let expected = summary.map(|summary| expected_topics(&summary, &mut registry));
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
-        let mut messages = 0u64;
-        let mut damage = None;
-        let mut skipped = Vec::new();
+        let mut peek = Peek::default();
         if expected.as_ref().is_none_or(|e| !e.is_empty()) {
-            let (mut peek, _) = stream(file, len, opts.skip_damaged).map_err(io)?;
-            // Messages since every expected topic showed itself.
-            let mut after_all: Option<u64> = None;
-            for (index, message) in (&mut peek).enumerate() {
-                // Errors here are reported by the iteration, at the same message, unless no
-                // usable topic comes before them.
-                let message = match message {
-                    Ok(message) => message,
-                    Err(e) => {
-                        damage = Some((index as u64, e));
-                        break;
-                    }
-                };
-                messages += 1;
-                let index = index as u64;
-                let fail = |m| mcap_error(path, Some(index), Some(&message.channel.topic), m);
-                match registry.resolve(&message.channel).map_err(fail)? {
-                    Resolved::NewTopic(encoding) => {
-                        let topic = first_message(&message, encoding, scale).map_err(fail)?;
-                        registry.topics.push(topic);
-                        // Resolve again to record the channel ID's slot.
-                        registry.resolve(&message.channel).map_err(fail)?;
-                    }
-                    // A bad message is reported by the iteration, at the same message.
-                    Resolved::Topic(k) => {
-                        let _ = registry.topics[k].learn(&message);
-                    }
-                    Resolved::Ignored(_) => {}
-                }
-                if let Some(n) = &mut after_all {
-                    *n += 1;
-                } else if expected.as_ref().is_some_and(|e| {
-                    e.iter()
-                        .all(|t| registry.topics.iter().any(|k| &k.name == t))
-                }) {
-                    after_all = Some(0);
-                }
-                if after_all.is_some_and(|n| n >= PEEK_WINDOW)
-                    && !registry.topics.iter().any(|t| t.subset)
-                {
-                    break;
-                }
-            }
-            skipped = peek.damaged().to_vec();
-            file = match peek.into_inner() {
-                Some(source) => source.file.into_inner(),
-                None => File::open(path).map_err(io)?,
-            };
+            let (stream, _) = stream(file, len, opts.skip_damaged).map_err(io)?;
+            file = peek.learn_topics(path, stream, expected.as_deref(), &mut registry, scale)?;
         }
         registry
             .read_wanted_fields(&opts.fields, scale)
             .map_err(|(topic, m)| mcap_error(path, None, Some(&topic), m))?;
         if registry.topics.is_empty() {
-            if !skipped.is_empty() {
-                let list: Vec<String> = skipped.iter().map(|c| c.to_string()).collect();
-                return Err(mcap_error(
-                    path,
-                    None,
-                    None,
-                    format!(
-                        "no JointState or JSON message is left once the damaged chunks are \
-                         skipped (--skip-damaged): {}; repair the file or record again",
-                        list.join("; ")
-                    ),
-                ));
-            }
-            if let Some((index, e)) = damage {
-                if let StreamError::Damaged(_) = e {
-                    return Err(damaged_error(path, index, &e));
-                }
-                if !matches!(e, StreamError::Mcap(McapError::UnexpectedEof)) {
-                    return Err(mcap_error(
-                        path,
-                        Some(index),
-                        None,
-                        format!(
-                            "the file is damaged here ({e}) before any JointState or JSON \
-                             message; recover what is left with `mcap recover`"
-                        ),
-                    ));
-                }
-            }
-            // A file cut before its first usable message is cut, whatever else it holds: say so
-            // rather than that it holds no samples.
-            if let Some(at) = find_break(path) {
-                return Err(mcap_error(
-                    path,
-                    None,
-                    None,
-                    format!(
-                        "the file is cut short at byte {at} of {len}, before its first JointState \
-                         or JSON message (a recording that stopped early, or a partial copy); \
-                         copy the file again or record again"
-                    ),
-                ));
-            }
-            if messages == 0 && registry.ignored.is_empty() {
-                return Err(Error::Empty {
-                    path: path.to_path_buf(),
-                });
-            }
-            let found: Vec<String> = registry
-                .ignored
-                .iter()
-                .map(|t| format!("{} ({}, {})", t.topic, t.schema, t.message_encoding))
-                .collect();
-            return Err(mcap_error(
-                path,
-                None,
-                None,
-                format!(
-                    "no topic holds {JOINT_STATE_SCHEMA} (cdr), std_msgs scalar (cdr) or JSON \
-                     messages (found: {}); record the encoders as JointState or JSON",
-                    if found.is_empty() {
-                        "no topics".to_string()
-                    } else {
-                        found.join(", ")
-                    }
-                ),
-            ));
+            return Err(no_topic_error(path, len, peek, &registry));
         }
-        let mut offset = 0;
-        for topic in &mut registry.topics {
-            topic.offset = offset;
-            offset += topic.names.len();
-        }
-        let names = names_of(registry.topics.iter().flat_map(Topic::channel_names));
-        let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
-        for topic in &registry.topics {
-            let unit = match topic.encoding {
-                Encoding::JointState(_) => AngleUnit::Rad,
-                Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
-                    opts.unit.unwrap_or(AngleUnit::Deg)
-                }
-            };
-            for _ in &topic.names {
-                all_channels.push(Channel {
-                    name: names[all_channels.len()].display.clone(),
-                    unit,
-                });
-            }
-        }
+        let (names, all_channels) = lay_out_channels(&mut registry, opts);
         let (stream, consumed, reopen) =
             main_stream(file, len, opts.skip_damaged, parallel).map_err(io)?;
         let width = all_channels.len();
@@ -1079,6 +917,225 @@ impl Iterator for McapReader {
             }
         }
     }
+}
+
+/// Opens `path` and checks that it is an MCAP file: not empty, and starting with the magic.
+/// Returns the file and its length.
+fn open_mcap(path: &Path) -> Result<(File, u64), Error> {
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    if len == 0 {
+        return Err(mcap_error(
+            path,
+            None,
+            None,
+            "the file is empty (0 bytes); was the recording stopped before it wrote anything?"
+                .into(),
+        ));
+    }
+    let mut magic = [0u8; 8];
+    let got = file.read(&mut magic).map_err(io)?;
+    // A short first read is allowed by `Read`; finish it, stopping at the end of the file.
+    let got = got
+        + (&mut file)
+            .take(8 - got as u64)
+            .read(&mut magic[got..])
+            .map_err(io)?;
+    if !magic[..got].starts_with(mcap::MAGIC) {
+        return Err(mcap_error(
+            path,
+            None,
+            None,
+            "not an MCAP file (it does not start with the MCAP magic bytes); calib reads \
+             MCAP logs from ROS 2 (rosbag2 with the mcap storage) or the mcap libraries"
+                .into(),
+        ));
+    }
+    Ok((file, len))
+}
+
+/// What reading the first messages of a log found besides its topics.
+#[derive(Default)]
+struct Peek {
+    /// Messages read.
+    messages: u64,
+    /// The error that ended the reading, at that message's index.
+    damage: Option<(u64, StreamError)>,
+    /// Damaged chunks skipped (`--skip-damaged`).
+    skipped: Vec<DamagedChunk>,
+}
+
+impl Peek {
+    /// Reads messages until every expected topic has shown itself and [`PEEK_WINDOW`] more
+    /// messages have passed (all of them while a topic's messages carry subsets of its joints,
+    /// or when the file has no summary to say which topics to expect), learning each topic
+    /// from its first message. Returns the file, to be read again from its start.
+    fn learn_topics(
+        &mut self,
+        path: &Path,
+        mut peek: Stream,
+        expected: Option<&[String]>,
+        registry: &mut Registry,
+        scale: f64,
+    ) -> Result<File, Error> {
+        // Messages since every expected topic showed itself.
+        let mut after_all: Option<u64> = None;
+        for (index, message) in (&mut peek).enumerate() {
+            // Errors here are reported by the iteration, at the same message, unless no
+            // usable topic comes before them.
+            let message = match message {
+                Ok(message) => message,
+                Err(e) => {
+                    self.damage = Some((index as u64, e));
+                    break;
+                }
+            };
+            self.messages += 1;
+            let index = index as u64;
+            let fail = |m| mcap_error(path, Some(index), Some(&message.channel.topic), m);
+            match registry.resolve(&message.channel).map_err(fail)? {
+                Resolved::NewTopic(encoding) => {
+                    let topic = first_message(&message, encoding, scale).map_err(fail)?;
+                    registry.topics.push(topic);
+                    // Resolve again to record the channel ID's slot.
+                    registry.resolve(&message.channel).map_err(fail)?;
+                }
+                // A bad message is reported by the iteration, at the same message.
+                Resolved::Topic(k) => {
+                    let _ = registry.topics[k].learn(&message);
+                }
+                Resolved::Ignored(_) => {}
+            }
+            if let Some(n) = &mut after_all {
+                *n += 1;
+            } else if expected.is_some_and(|e| {
+                e.iter()
+                    .all(|t| registry.topics.iter().any(|k| &k.name == t))
+            }) {
+                after_all = Some(0);
+            }
+            if after_all.is_some_and(|n| n >= PEEK_WINDOW)
+                && !registry.topics.iter().any(|t| t.subset)
+            {
+                break;
+            }
+        }
+        self.skipped = peek.damaged().to_vec();
+        match peek.into_inner() {
+            Some(source) => Ok(source.file.into_inner()),
+            None => File::open(path).map_err(|source| Error::Io {
+                path: path.to_path_buf(),
+                source,
+            }),
+        }
+    }
+}
+
+/// Why a log of `len` bytes yields no channel: every usable message is in a skipped damaged
+/// chunk, the file is damaged or cut before its first usable message, it is empty, or none of
+/// its topics holds a type calib reads.
+fn no_topic_error(path: &Path, len: u64, peek: Peek, registry: &Registry) -> Error {
+    if !peek.skipped.is_empty() {
+        let list: Vec<String> = peek.skipped.iter().map(|c| c.to_string()).collect();
+        return mcap_error(
+            path,
+            None,
+            None,
+            format!(
+                "no JointState or JSON message is left once the damaged chunks are \
+                 skipped (--skip-damaged): {}; repair the file or record again",
+                list.join("; ")
+            ),
+        );
+    }
+    if let Some((index, e)) = peek.damage {
+        if let StreamError::Damaged(_) = e {
+            return damaged_error(path, index, &e);
+        }
+        if !matches!(e, StreamError::Mcap(McapError::UnexpectedEof)) {
+            return mcap_error(
+                path,
+                Some(index),
+                None,
+                format!(
+                    "the file is damaged here ({e}) before any JointState or JSON \
+                     message; recover what is left with `mcap recover`"
+                ),
+            );
+        }
+    }
+    // A file cut before its first usable message is cut, whatever else it holds: say so
+    // rather than that it holds no samples.
+    if let Some(at) = find_break(path) {
+        return mcap_error(
+            path,
+            None,
+            None,
+            format!(
+                "the file is cut short at byte {at} of {len}, before its first JointState \
+                 or JSON message (a recording that stopped early, or a partial copy); \
+                 copy the file again or record again"
+            ),
+        );
+    }
+    if peek.messages == 0 && registry.ignored.is_empty() {
+        return Error::Empty {
+            path: path.to_path_buf(),
+        };
+    }
+    let found: Vec<String> = registry
+        .ignored
+        .iter()
+        .map(|t| format!("{} ({}, {})", t.topic, t.schema, t.message_encoding))
+        .collect();
+    mcap_error(
+        path,
+        None,
+        None,
+        format!(
+            "no topic holds {JOINT_STATE_SCHEMA} (cdr), std_msgs scalar (cdr) or JSON \
+             messages (found: {}); record the encoders as JointState or JSON",
+            if found.is_empty() {
+                "no topics".to_string()
+            } else {
+                found.join(", ")
+            }
+        ),
+    )
+}
+
+/// Places each topic's joints in a sample's values, one after the other in the order the
+/// topics were found, and names them; returns the names and the channels with their units.
+fn lay_out_channels(
+    registry: &mut Registry,
+    opts: &ReadOptions,
+) -> (Vec<ChannelName>, Vec<Channel>) {
+    let mut offset = 0;
+    for topic in &mut registry.topics {
+        topic.offset = offset;
+        offset += topic.names.len();
+    }
+    let names = names_of(registry.topics.iter().flat_map(Topic::channel_names));
+    let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
+    for topic in &registry.topics {
+        let unit = match topic.encoding {
+            Encoding::JointState(_) => AngleUnit::Rad,
+            Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
+                opts.unit.unwrap_or(AngleUnit::Deg)
+            }
+        };
+        for _ in &topic.names {
+            all_channels.push(Channel {
+                name: names[all_channels.len()].display.clone(),
+                unit,
+            });
+        }
+    }
+    (names, all_channels)
 }
 
 /// The error for a damaged chunk or data section met after `index` messages.
