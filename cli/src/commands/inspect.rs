@@ -1,6 +1,7 @@
 //! `calib inspect`: what a log holds.
 
 use crate::input::{LogArgs, alignment_text, channel, open_log_with, parse_unit};
+use crate::summary::TextTable;
 use anyhow::Context;
 use calib_core::AngleUnit;
 use calib_core::inspect::{Inspection, Inspector};
@@ -234,30 +235,29 @@ fn render(path: &std::path::Path, r: &Inspection, topics: &str, warnings: &[Stri
         let _ = writeln!(o);
     }
     let _ = writeln!(o, "\nchannels");
-    let _ = writeln!(
-        o,
-        "  {:<16} {:>9} {:>14} {:>14} {:>11} {:>8}",
-        "name", "unit", "min", "max", "revs", "wrapped"
-    );
+    let mut channels = TextTable::new(&["name", "unit", "min", "max", "revs", "wrapped"]);
     for c in &r.channels {
-        let _ = writeln!(
-            o,
-            "  {:<16} {:>9} {:>14.6} {:>14.6} {:>11.3} {:>8}",
-            c.name,
-            c.unit,
-            c.min,
-            c.max,
-            c.revolutions,
-            if c.wrapped { "yes" } else { "no" }
-        );
+        channels.row(vec![
+            c.name.clone(),
+            c.unit.to_string(),
+            format!("{:.6}", c.min),
+            format!("{:.6}", c.max),
+            format!("{:.3}", c.revolutions),
+            if c.wrapped { "yes" } else { "no" }.to_string(),
+        ]);
     }
+    o.push_str(&channels.render());
     if let Some((a, b)) = &r.pair {
         let _ = writeln!(o, "\nsegments of {a} and {b}");
-        let _ = writeln!(
-            o,
-            "  {:<11} {:>10} {:>10} {:>9} {:>8} {:>12}  session",
-            "kind", "start s", "end s", "samples", "revs", "a−b deg"
-        );
+        let mut segments = TextTable::new(&[
+            "kind",
+            "start s",
+            "end s",
+            "samples",
+            "revs",
+            "a−b deg",
+            "session",
+        ]);
         for s in &r.segments {
             let kind = match s.kind {
                 SegmentKind::Stationary => "stationary",
@@ -277,12 +277,17 @@ fn render(path: &std::path::Path, r: &Inspection, topics: &str, warnings: &[Stri
                 (SegmentKind::Rotating, None) => "too short (< 1 rev)".to_string(),
                 _ => String::new(),
             };
-            let _ = writeln!(
-                o,
-                "  {:<11} {:>10.3} {:>10.3} {:>9} {:>8.3} {:>12}  {}",
-                kind, s.start_s, s.end_s, s.samples, s.revolutions, rel, session
-            );
+            segments.row(vec![
+                kind.to_string(),
+                format!("{:.3}", s.start_s),
+                format!("{:.3}", s.end_s),
+                s.samples.to_string(),
+                format!("{:.3}", s.revolutions),
+                rel,
+                session,
+            ]);
         }
+        o.push_str(&segments.render());
         let sessions = r
             .segments
             .iter()

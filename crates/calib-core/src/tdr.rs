@@ -436,44 +436,29 @@ impl Tdr {
         let speeds = SpeedSpread::of(&screen_motion, t);
 
         // 2. Drag: the orders to max_drag_order fitted jointly with the map (eq. 3).
-        let hd = self.opts.max_drag_order.min(h);
-        let separable =
-            speeds.noise_gain * speeds.noise_gain <= MAX_DRAG_VARIANCE_INFLATION && hd >= 1;
+        let coasting = Coasting {
+            t,
+            r,
+            y: &y,
+            span,
+            max_degree,
+            h,
+        };
+        let drag = self.drag_step(
+            &coasting,
+            &coast,
+            &mut screen,
+            screen_motion,
+            &speeds,
+            &mut warnings,
+        );
+        let (drag_orders, speed_dependence, separable) =
+            (drag.orders, drag.speed_dependence, drag.separable);
         let weights = |orders: Vec<usize>| DragWeights {
             orders,
-            motion: screen_motion.clone(),
+            motion: drag.motion.clone(),
             gain: speeds.drag_gain,
         };
-        let (drag_orders, speed_dependence) = if hd >= 1 {
-            let tested: Vec<usize> = (1..=hd).collect();
-            let basis = Basis {
-                t0: span.0,
-                t1: span.1,
-                degree: max_degree,
-                orders: union(&screen.kept, &tested),
-                drag: Some(weights(tested)),
-            };
-            significant_drag(&basis, t, r, &y, separable)
-        } else {
-            (Vec::new(), Vec::new())
-        };
-        let too_narrow = !separable && hd >= 1;
-        warnings.extend(drag_warnings(
-            &coast,
-            &speeds,
-            too_narrow,
-            &speed_dependence,
-        ));
-
-        // 2b. Unseparated drag inflates the screening's noise estimate and hides small orders:
-        // screen again with the drag found.
-        if !drag_orders.is_empty() {
-            let drag = Some(weights(drag_orders.clone()));
-            if let Some(again) = screen_orders(t, r, &y, span, max_degree, h, drag) {
-                screen.kept = again.kept;
-                screen.dropped = again.dropped;
-            }
-        }
 
         // 3. The final fit: the kept orders (and the drag's), the motion's degree by BIC.
         let orders = union(&screen.kept, &drag_orders);
@@ -545,6 +530,57 @@ impl Tdr {
             warnings,
             ambiguity: DRAG_AMBIGUITY,
         })
+    }
+
+    /// Step 2 of [`finish`](Self::finish): the drag orders up to `max_drag_order` fitted jointly
+    /// with the map (eq. 3) where the coast's speeds can separate them, the warnings about it,
+    /// and the orders screened again with the drag found (unseparated drag inflates the
+    /// screening's noise estimate and hides small orders).
+    fn drag_step(
+        &self,
+        c: &Coasting,
+        coast: &Coast,
+        screen: &mut Screen,
+        screen_motion: TdrMotion,
+        speeds: &SpeedSpread,
+        warnings: &mut Vec<String>,
+    ) -> DragStep {
+        let hd = self.opts.max_drag_order.min(c.h);
+        let separable =
+            speeds.noise_gain * speeds.noise_gain <= MAX_DRAG_VARIANCE_INFLATION && hd >= 1;
+        let weights = |orders: Vec<usize>| DragWeights {
+            orders,
+            motion: screen_motion.clone(),
+            gain: speeds.drag_gain,
+        };
+        let (orders, speed_dependence) = if hd >= 1 {
+            let tested: Vec<usize> = (1..=hd).collect();
+            let basis = Basis {
+                t0: c.span.0,
+                t1: c.span.1,
+                degree: c.max_degree,
+                orders: union(&screen.kept, &tested),
+                drag: Some(weights(tested)),
+            };
+            significant_drag(&basis, c.t, c.r, c.y, separable)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        let too_narrow = !separable && hd >= 1;
+        warnings.extend(drag_warnings(coast, speeds, too_narrow, &speed_dependence));
+        if !orders.is_empty() {
+            let drag = Some(weights(orders.clone()));
+            if let Some(again) = screen_orders(c.t, c.r, c.y, c.span, c.max_degree, c.h, drag) {
+                screen.kept = again.kept;
+                screen.dropped = again.dropped;
+            }
+        }
+        DragStep {
+            orders,
+            speed_dependence,
+            separable,
+            motion: screen_motion,
+        }
     }
 
     /// Warnings about the samples and the coast found: skipped samples, a driven plateau.
@@ -632,6 +668,29 @@ impl Tdr {
             reference_check(&self.t[range.clone()], &self.r[range], &d, seen, map)
         })
     }
+}
+
+/// The coast's samples as the fits take them: times, readings, readings from the first, the
+/// time span, the motion's highest degree and the highest order tested.
+struct Coasting<'a> {
+    t: &'a [f64],
+    r: &'a [f64],
+    y: &'a [f64],
+    span: (f64, f64),
+    max_degree: usize,
+    h: usize,
+}
+
+/// What [`Tdr::drag_step`] found.
+struct DragStep {
+    /// The drag orders that stand above the noise.
+    orders: Vec<usize>,
+    /// The speed-dependent parts of the orders, the signature of an angle-dependent drag.
+    speed_dependence: Vec<SpeedDependence>,
+    /// Whether the coast's speeds can separate drag from the encoder's error.
+    separable: bool,
+    /// The screening fit's motion, which the drag's weights follow.
+    motion: TdrMotion,
 }
 
 /// How widely the coast sweeps `1/ω²`, from the screening's motion: the drag's gain `⟨ω⁻²⟩`,
