@@ -41,10 +41,10 @@ use rusqlite::{Connection, OpenFlags};
 
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::mcap_log::read::{
-    Encoding, Registry, Resolved, Topic, TopicStats, decode, first_message, seconds,
+    Encoding, Registry, Resolved, TopicStats, decode, first_message, lay_out_channels, seconds,
 };
 use crate::mcap_log::{IgnoredTopic, JOINT_STATE_SCHEMA, PEEK_WINDOW, TopicInfo};
-use crate::naming::{ChannelName, names_of};
+use crate::naming::ChannelName;
 use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource};
 
 /// The first 16 bytes of every SQLite 3 database file.
@@ -862,27 +862,7 @@ impl BagReader {
                 ),
             ));
         }
-        let mut offset = 0;
-        for topic in &mut registry.topics {
-            topic.offset = offset;
-            offset += topic.names.len();
-        }
-        let names = names_of(registry.topics.iter().flat_map(Topic::channel_names));
-        let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
-        for topic in &registry.topics {
-            let unit = match topic.encoding {
-                Encoding::JointState(_) => AngleUnit::Rad,
-                Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
-                    opts.unit.unwrap_or(AngleUnit::Deg)
-                }
-            };
-            for _ in &topic.names {
-                all_channels.push(Channel {
-                    name: names[all_channels.len()].display.clone(),
-                    unit,
-                });
-            }
-        }
+        let (names, all_channels) = lay_out_channels(&mut registry, opts);
         let width = all_channels.len();
         let mut reader = BagReader {
             files,

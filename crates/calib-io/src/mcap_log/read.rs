@@ -1110,7 +1110,8 @@ fn no_topic_error(path: &Path, len: u64, peek: Peek, registry: &Registry) -> Err
 
 /// Places each topic's joints in a sample's values, one after the other in the order the
 /// topics were found, and names them; returns the names and the channels with their units.
-fn lay_out_channels(
+/// The bag reader lays out its topics the same way.
+pub(crate) fn lay_out_channels(
     registry: &mut Registry,
     opts: &ReadOptions,
 ) -> (Vec<ChannelName>, Vec<Channel>) {
