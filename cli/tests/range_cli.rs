@@ -45,37 +45,6 @@ ramp_s = 0.5
 pause_s = 0.5
 "#;
 
-/// A resolver against a motor's counter as a TwinCAT Scope export would give them (converted to
-/// calib's CSV): one sweep 0 → 358.5° → 0 at 100 Hz (10 ms), 36°/s; the resolver errs by ±15°
-/// (order 1) and 2° (order 2), 16-bit resolution (19.775″) with 5″ noise; the counter is exact to
-/// 0.01″. 1.5° of the turn is never reached.
-const RESOLVER: &str = r#"
-seed = 7
-rate_hz = 100.0
-wrap = true
-
-[[sensor]]
-name = "resolver"
-harmonics = [
-  { order = 1, amplitude_arcsec = 54000.0, phase_deg = 0.0 },
-  { order = 2, amplitude_arcsec = 7200.0, phase_deg = 30.0 },
-]
-quantization_arcsec = 19.775
-noise_arcsec = 5.0
-
-[[sensor]]
-name = "counter"
-quantization_arcsec = 0.01
-
-[sweep]
-from_deg = 0.0
-to_deg = 358.5
-cycles = 1
-speeds_deg_s = [36.0]
-ramp_s = 0.5
-pause_s = 0.5
-"#;
-
 fn read_json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
@@ -234,7 +203,7 @@ fn a_swept_joint_gives_a_range_table_matching_the_truth() {
 #[test]
 fn a_resolver_with_a_large_error_and_a_gap_is_measured() {
     let dir = tempfile::tempdir().unwrap();
-    let scenario = write(dir.path(), "resolver.toml", RESOLVER);
+    let scenario = write(dir.path(), "resolver.toml", RESOLVER_SWEEP);
     let log = simulate(&scenario, dir.path(), "resolver.csv");
     let out = dir.path().join("out");
     let o = calib(&[

@@ -16,35 +16,6 @@ use std::path::Path;
 const HEADS: &str = "h1@0,h2@360/7,h3@90,h4@720/7,h5@120,h6@1080/7,h7@180,h8@1440/7,h9@240,\
                      h10@1800/7,h11@270,h12@2160/7";
 
-/// A resolver against a counter, one sweep 0 → 358.5° → 0 (as in range_cli.rs): a whole turn
-/// with a gap bridged, one pass each way.
-const RESOLVER: &str = r#"
-seed = 7
-rate_hz = 100.0
-wrap = true
-
-[[sensor]]
-name = "resolver"
-harmonics = [
-  { order = 1, amplitude_arcsec = 54000.0, phase_deg = 0.0 },
-  { order = 2, amplitude_arcsec = 7200.0, phase_deg = 30.0 },
-]
-quantization_arcsec = 19.775
-noise_arcsec = 5.0
-
-[[sensor]]
-name = "counter"
-quantization_arcsec = 0.01
-
-[sweep]
-from_deg = 0.0
-to_deg = 358.5
-cycles = 1
-speeds_deg_s = [36.0]
-ramp_s = 0.5
-pause_s = 0.5
-"#;
-
 fn schema(name: &str) -> Value {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../docs")
@@ -168,7 +139,7 @@ fn tdr_report_matches_the_schema() {
 #[test]
 fn reference_report_matches_the_schema() {
     let dir = tempfile::tempdir().unwrap();
-    let scenario = write(dir.path(), "resolver.toml", RESOLVER);
+    let scenario = write(dir.path(), "resolver.toml", RESOLVER_SWEEP);
     let log = simulate(&scenario, dir.path(), "resolver.csv");
     let out = dir.path().join("out");
     expect_exit(

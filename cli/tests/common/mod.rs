@@ -177,3 +177,34 @@ pub fn handwritten_log(offsets: &[f64], b_of: impl Fn(f64) -> f64) -> String {
     }
     text
 }
+
+/// A resolver against a motor's counter as a TwinCAT Scope export would give them (converted to
+/// calib's CSV): one sweep 0 → 358.5° → 0 at 100 Hz (10 ms), 36°/s; the resolver errs by ±15°
+/// (order 1) and 2° (order 2), 16-bit resolution (19.775″) with 5″ noise; the counter is exact to
+/// 0.01″. 1.5° of the turn is never reached.
+pub const RESOLVER_SWEEP: &str = r#"
+seed = 7
+rate_hz = 100.0
+wrap = true
+
+[[sensor]]
+name = "resolver"
+harmonics = [
+  { order = 1, amplitude_arcsec = 54000.0, phase_deg = 0.0 },
+  { order = 2, amplitude_arcsec = 7200.0, phase_deg = 30.0 },
+]
+quantization_arcsec = 19.775
+noise_arcsec = 5.0
+
+[[sensor]]
+name = "counter"
+quantization_arcsec = 0.01
+
+[sweep]
+from_deg = 0.0
+to_deg = 358.5
+cycles = 1
+speeds_deg_s = [36.0]
+ramp_s = 0.5
+pause_s = 0.5
+"#;
