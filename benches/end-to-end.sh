@@ -15,6 +15,11 @@
 #   csrr       calib csrr LOG -o OUT -q
 #   reference  calib reference LOG --dut b --ref ref -o OUT -q
 #   apply      calib apply OUT/a.csv LOG --channel a -o LOG2   (reads, corrects, re-compresses)
+# Then on a second log, a coast for `calib tdr`: testdata/scenarios/spindown.toml (an air-bearing
+# spin-down from 600 r/min, two channels) recorded for COAST_S s at COAST_HZ (default 100 s at
+# 100 kHz: 10,000,001 samples, 600 → 80 r/min), the floor on it alternating REPEAT times with
+#   tdr        calib tdr COAST --channel enc -o OUT -q
+# (COAST_HZ=0 leaves it out.)
 # It prints each one's median wall and CPU time, its peak RSS, and the ratio of its median wall
 # time to the floor's. The log is read from the page cache (a first, unmeasured read warms it).
 set -euo pipefail
@@ -93,3 +98,36 @@ for name in "${names[@]}"; do
     'BEGIN{printf "%-10s %10.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
 done
 echo "# load after: $(uptime | sed 's/.*load/load/')"
+
+# The coast log for `calib tdr`, and tdr against the floor on that log.
+coast_hz=${COAST_HZ:-100000}
+coast_s=${COAST_S:-100}
+if [[ $coast_hz != 0 ]]; then
+  coast_scenario="$work/coast.toml"
+  coast="$work/coast.mcap"
+  sed -e "/^rate_hz/s/.*/rate_hz = $coast_hz.0/" -e "/^duration_s/s/.*/duration_s = $coast_s.0/" \
+    testdata/scenarios/spindown.toml > "$coast_scenario"
+  if [[ ! -s $coast ]] || ! cmp -s "$coast_scenario" "$coast.toml"; then
+    echo "simulating a ${coast_s} s coast at $coast_hz Hz → $coast" >&2
+    "$calib" simulate "$coast_scenario" -o "$coast" -q >&2
+    cp "$coast_scenario" "$coast.toml"
+  fi
+  "$floor" "$coast" >&2
+  : > "$work/floor-coast.txt"
+  : > "$work/tdr.txt"
+  for ((i = 1; i <= repeat; i++)); do
+    echo "coast round $i/$repeat ($(uptime | sed 's/.*load/load/'))" >&2
+    measure "$floor" "$coast" >> "$work/floor-coast.txt"
+    measure "$calib" tdr "$coast" --channel enc -o "$work/out-tdr" -q >> "$work/tdr.txt"
+  done
+  echo "# $(stat -c %s "$coast" | awk '{printf "%.0f MB", $1 / 1e6}') coast log, $repeat runs each"
+  floor_s=$(cut -d' ' -f1 "$work/floor-coast.txt" | median)
+  for name in floor-coast tdr; do
+    wall=$(cut -d' ' -f1 "$work/$name.txt" | median)
+    cpu=$(cut -d' ' -f2 "$work/$name.txt" | median)
+    rss=$(cut -d' ' -f3 "$work/$name.txt" | sort -g | tail -1)
+    awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$floor_s" \
+      'BEGIN{printf "%-11s %9.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
+  done
+  echo "# load after: $(uptime | sed 's/.*load/load/')"
+fi

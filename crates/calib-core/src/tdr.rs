@@ -416,7 +416,7 @@ impl Tdr {
         let densest = TAU / (coast.slowest_speed * median_step(t));
         let (max_degree, h) = self.sizes(&coast, t.len(), densest, &mut warnings)?;
         let y0 = r[0];
-        let y: Vec<f64> = r.iter().map(|v| v - y0).collect();
+        let y = Target::Readings { r, origin: y0 };
         let span = (t[0], t[t.len() - 1]);
         let underdetermined = TdrError::Underdetermined {
             unknowns: max_degree + 1 + 2 * h,
@@ -425,7 +425,7 @@ impl Tdr {
 
         // 1. Which orders the data hold: every order to h, the motion at its highest degree.
         let mut screen =
-            screen_orders(t, r, &y, span, max_degree, h, None).ok_or(underdetermined)?;
+            screen_orders(t, r, y, span, max_degree, h, None).ok_or(underdetermined)?;
         let screen_motion = TdrMotion {
             degree: max_degree,
             t_start: span.0,
@@ -439,7 +439,7 @@ impl Tdr {
         let coasting = Coasting {
             t,
             r,
-            y: &y,
+            y,
             span,
             max_degree,
             h,
@@ -471,10 +471,10 @@ impl Tdr {
         };
         let degree = match self.opts.motion_degree {
             Some(p) => p,
-            None => motion_degree_by_bic(&basis, t, r, &y),
+            None => motion_degree_by_bic(&basis, t, r, y),
         };
         basis.degree = degree;
-        let fit = Fit::new(&basis, t, r, &y).ok_or(TdrError::Underdetermined {
+        let fit = Fit::new(&basis, t, r, y).ok_or(TdrError::Underdetermined {
             unknowns: basis.len(),
             samples: t.len(),
         })?;
@@ -486,7 +486,7 @@ impl Tdr {
 
         // 4. What the model leaves: periodic structure in the residual above the orders fitted.
         let top = ((0.5 * densest) as usize).max(2 * h).min(4 * h.max(8));
-        let unresolved = residual_orders(&basis, t, r, &y, &fit, h + 1..=top);
+        let unresolved = residual_orders(&basis, t, r, y, &fit, h + 1..=top);
         warnings.extend(unresolved_warning(&unresolved, h));
 
         let uncertainty = map_uncertainty(
@@ -675,7 +675,7 @@ impl Tdr {
 struct Coasting<'a> {
     t: &'a [f64],
     r: &'a [f64],
-    y: &'a [f64],
+    y: Target<'a>,
     span: (f64, f64),
     max_degree: usize,
     h: usize,
@@ -724,7 +724,7 @@ fn significant_drag(
     basis: &Basis,
     t: &[f64],
     r: &[f64],
-    y: &[f64],
+    y: Target,
     separable: bool,
 ) -> (Vec<usize>, Vec<SpeedDependence>) {
     let (mut drag_orders, mut speed_dependence) = (Vec::new(), Vec::new());
@@ -796,7 +796,7 @@ fn drag_warnings(
 ///
 /// Nested fits: the residual sum of squares of degree p is that of the highest degree plus
 /// ‖A(β_max − β_p)‖² = δᵀ(AᵀA)δ, with no pass over the samples.
-fn motion_degree_by_bic(basis: &Basis, t: &[f64], r: &[f64], y: &[f64]) -> usize {
+fn motion_degree_by_bic(basis: &Basis, t: &[f64], r: &[f64], y: Target) -> usize {
     let max_degree = basis.degree;
     let normal = basis.normal_equations(t, r, y);
     let tail: Vec<usize> = (max_degree + 1..basis.len()).collect();
@@ -805,7 +805,7 @@ fn motion_degree_by_bic(basis: &Basis, t: &[f64], r: &[f64], y: &[f64]) -> usize
     let n = t.len() as f64;
     let mut best: Option<(f64, usize)> = None;
     if let Some(full) = normal.solve(&all) {
-        let rss_full = basis.rss(t, r, y, &all, &full);
+        let rss_full = basis.rss(t, r, y, &full);
         for p in 2..=max_degree {
             let cols = columns(p);
             let Some(beta) = normal.solve(&cols) else {
@@ -1060,8 +1060,85 @@ impl Basis {
         self.degree + 1 + 2 * self.orders.len() + 2 * i
     }
 
-    /// One row; `trig` is scratch for `(cos kr, sin kr)`, `k = 1..`.
-    fn row(&self, t: f64, r: f64, out: &mut [f64], trig: &mut Vec<(f64, f64)>) {
+    /// The highest harmonic order any column needs.
+    fn top(&self) -> usize {
+        self.orders.last().copied().unwrap_or(0).max(
+            self.drag
+                .as_ref()
+                .and_then(|d| d.orders.last().copied())
+                .unwrap_or(0),
+        )
+    }
+
+    /// The rows of the samples `(t, r)` (at most [`LANES`]) into `out`, one after the other;
+    /// `trig` is scratch for their `(cos kr, sin kr)`, `k = 1..`.
+    fn rows(&self, t: &[f64], r: &[f64], out: &mut [f64], trig: &mut Vec<(f64, f64)>) {
+        let (n, top) = (self.len(), self.top());
+        harmonics(r, top, trig);
+        for (j, row) in out.chunks_exact_mut(n).take(t.len()).enumerate() {
+            self.row(t[j], &trig[j * top..(j + 1) * top], row);
+        }
+    }
+
+    /// The rows of the samples `range` into `block.rows` and, given coefficients `beta`, their
+    /// residuals `y − Aβ` into `block.e` (each summing its row's terms in column order), on
+    /// the threads rayon has.
+    fn fill(
+        &self,
+        c: (&[f64], &[f64], Target),
+        beta: Option<&[f64]>,
+        range: std::ops::Range<usize>,
+        block: &mut Block,
+    ) {
+        let n = self.len();
+        block.rows.resize(range.len() * n, 0.0);
+        block.e.resize(range.len(), 0.0);
+        // Two halves, one per thread.
+        let half = range.len().div_ceil(2 * LANES) * LANES;
+        let (rows_a, rows_b) = block.rows.split_at_mut(half * n);
+        let (e_a, e_b) = block.e.split_at_mut(half);
+        rayon::join(
+            || self.fill_part(c, beta, range.start, rows_a, e_a),
+            || self.fill_part(c, beta, range.start + half, rows_b, e_b),
+        );
+    }
+
+    /// [`fill`](Self::fill) of the samples from `from` on, as many as `e` holds.
+    fn fill_part(
+        &self,
+        (t, r, y): (&[f64], &[f64], Target),
+        beta: Option<&[f64]>,
+        from: usize,
+        rows: &mut [f64],
+        e: &mut [f64],
+    ) {
+        let n = self.len();
+        let mut trig = Vec::new();
+        for (g, (rows, e)) in rows
+            .chunks_mut(LANES * n)
+            .zip(e.chunks_mut(LANES))
+            .enumerate()
+        {
+            let from = from + g * LANES;
+            let to = from + e.len();
+            self.rows(&t[from..to], &r[from..to], rows, &mut trig);
+            if let Some(beta) = beta {
+                // −0.0 is the neutral element of a sum (`Iterator::sum` starts there too).
+                let mut fit = [-0.0; LANES];
+                for (c, &b) in beta.iter().enumerate() {
+                    for (j, f) in fit.iter_mut().enumerate().take(e.len()) {
+                        *f += rows[j * n + c] * b;
+                    }
+                }
+                for (j, ej) in e.iter_mut().enumerate() {
+                    *ej = y.at(from + j) - fit[j];
+                }
+            }
+        }
+    }
+
+    /// One row, given its sample's `trig = (cos kr, sin kr)`, `k = 1..`.
+    fn row(&self, t: f64, trig: &[(f64, f64)], out: &mut [f64]) {
         let tau = (2.0 * t - self.t0 - self.t1) / (self.t1 - self.t0);
         out[0] = 1.0;
         if self.degree >= 1 {
@@ -1069,19 +1146,6 @@ impl Basis {
         }
         for j in 2..=self.degree {
             out[j] = 2.0 * tau * out[j - 1] - out[j - 2];
-        }
-        let top = self.orders.last().copied().unwrap_or(0).max(
-            self.drag
-                .as_ref()
-                .and_then(|d| d.orders.last().copied())
-                .unwrap_or(0),
-        );
-        trig.clear();
-        let (s1, c1) = r.sin_cos();
-        let (mut s, mut c) = (0.0, 1.0);
-        for _ in 0..top {
-            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
-            trig.push((c, s));
         }
         let f = self.degree + 1;
         for (i, &k) in self.orders.iter().enumerate() {
@@ -1102,23 +1166,27 @@ impl Basis {
     }
 
     /// `AᵀA` and `Aᵀy` over all samples, in one pass.
-    fn normal_equations(&self, t: &[f64], r: &[f64], y: &[f64]) -> Normal {
+    fn normal_equations(&self, t: &[f64], r: &[f64], y: Target) -> Normal {
         let n = self.len();
         let mut g = vec![0.0; n * n];
         let mut rhs = vec![0.0; n];
-        let mut row = vec![0.0; n];
-        let mut trig = Vec::new();
-        for i in 0..t.len() {
-            self.row(t[i], r[i], &mut row, &mut trig);
-            for a in 0..n {
-                let ra = row[a];
-                rhs[a] += ra * y[i];
-                let line = &mut g[a * n..(a + 1) * n];
-                for b in a..n {
-                    line[b] += ra * row[b];
+        pipeline(
+            t.len(),
+            ROWS_PER_BLOCK,
+            |range, block| self.fill((t, r, y), None, range, block),
+            |range, block| {
+                for (row, yi) in block.rows.chunks_exact(n).zip(range.map(|i| y.at(i))) {
+                    for a in 0..n {
+                        let ra = row[a];
+                        rhs[a] += ra * yi;
+                        let line = &mut g[a * n..(a + 1) * n];
+                        for b in a..n {
+                            line[b] += ra * row[b];
+                        }
+                    }
                 }
-            }
-        }
+            },
+        );
         let g = DMatrix::from_fn(
             n,
             n,
@@ -1130,30 +1198,118 @@ impl Basis {
         }
     }
 
-    /// The residuals `y − Aβ` of the columns `cols`, passed to `each`.
+    /// The residuals `y − Aβ` of all columns, passed to `each` with their rows, in the order of
+    /// the samples.
     fn residuals(
         &self,
         t: &[f64],
         r: &[f64],
-        y: &[f64],
-        cols: &[usize],
+        y: Target,
         beta: &[f64],
-        mut each: impl FnMut(&[f64], f64),
+        mut each: impl FnMut(&[f64], f64) + Send,
     ) {
-        let mut row = vec![0.0; self.len()];
-        let mut trig = Vec::new();
-        for i in 0..t.len() {
-            self.row(t[i], r[i], &mut row, &mut trig);
-            let fit: f64 = cols.iter().zip(beta).map(|(&c, b)| row[c] * b).sum();
-            each(&row, y[i] - fit);
-        }
+        let n = self.len();
+        pipeline(
+            t.len(),
+            ROWS_PER_BLOCK,
+            |range, block| self.fill((t, r, y), Some(beta), range, block),
+            |_, block| {
+                for (row, &e) in block.rows.chunks_exact(n).zip(&block.e) {
+                    each(row, e);
+                }
+            },
+        );
     }
 
     /// Residual sum of squares.
-    fn rss(&self, t: &[f64], r: &[f64], y: &[f64], cols: &[usize], beta: &[f64]) -> f64 {
+    fn rss(&self, t: &[f64], r: &[f64], y: Target, beta: &[f64]) -> f64 {
         let mut sum = 0.0;
-        self.residuals(t, r, y, cols, beta, |_, e| sum += e * e);
+        self.residuals(t, r, y, beta, |_, e| sum += e * e);
         sum
+    }
+}
+
+/// What a fit fits, `y`: the coast's readings from the first, `r − origin` (made where they are
+/// used rather than stored, 8 bytes a sample less), or given values (the reference check's).
+#[derive(Debug, Clone, Copy)]
+enum Target<'a> {
+    Readings { r: &'a [f64], origin: f64 },
+    Given(&'a [f64]),
+}
+
+impl Target<'_> {
+    /// `y` of sample `i`.
+    fn at(self, i: usize) -> f64 {
+        match self {
+            Target::Readings { r, origin } => r[i] - origin,
+            Target::Given(y) => y[i],
+        }
+    }
+}
+
+/// Samples whose harmonics are computed side by side ([`harmonics`]).
+const LANES: usize = 8;
+
+/// Samples per block of a [`pipeline`] of rows.
+const ROWS_PER_BLOCK: usize = 1024;
+
+/// A block of rows of the fit and their residuals.
+#[derive(Debug, Default)]
+struct Block {
+    rows: Vec<f64>,
+    e: Vec<f64>,
+}
+
+/// A pass over `len` samples in blocks of `block_len`: `produce` makes a block (rows,
+/// residuals) while `consume` sums the block before it, on two threads where rayon has them
+/// (and `produce` may split its block over the threads left). `consume` sees the blocks in order,
+/// so every sum over the samples is taken in their order and the results are those of one
+/// thread, whatever the threads.
+fn pipeline<B: Default + Send + Sync>(
+    len: usize,
+    block_len: usize,
+    mut produce: impl FnMut(std::ops::Range<usize>, &mut B) + Send,
+    mut consume: impl FnMut(std::ops::Range<usize>, &B) + Send,
+) {
+    let (mut ready, mut next) = (B::default(), B::default());
+    let mut previous: Option<std::ops::Range<usize>> = None;
+    for start in (0..len).step_by(block_len) {
+        let range = start..(start + block_len).min(len);
+        match previous.take() {
+            None => produce(range.clone(), &mut next),
+            Some(done) => {
+                rayon::join(
+                    || consume(done, &ready),
+                    || produce(range.clone(), &mut next),
+                );
+            }
+        }
+        std::mem::swap(&mut ready, &mut next);
+        previous = Some(range);
+    }
+    if let Some(done) = previous {
+        consume(done, &ready);
+    }
+}
+
+/// `(cos kr, sin kr)`, `k = 1..=top`, of each reading of `r` (at most [`LANES`]) into
+/// `trig[j·top + k − 1]`, by the rotation `e^{i(k+1)r} = e^{ikr}·e^{ir}`. Each rotation waits
+/// for the one before, so one reading at a time leaves the core idle most of the time; the
+/// readings' chains run side by side instead, each exactly as it would alone.
+fn harmonics(r: &[f64], top: usize, trig: &mut Vec<(f64, f64)>) {
+    let lanes = r.len();
+    trig.clear();
+    trig.resize(lanes * top, (0.0, 0.0));
+    let (mut s1, mut c1) = ([0.0; LANES], [0.0; LANES]);
+    for (j, x) in r.iter().enumerate() {
+        (s1[j], c1[j]) = x.sin_cos();
+    }
+    let (mut s, mut c) = ([0.0; LANES], [1.0; LANES]);
+    for k in 0..top {
+        for j in 0..lanes {
+            (s[j], c[j]) = (s[j] * c1[j] + c[j] * s1[j], c[j] * c1[j] - s[j] * s1[j]);
+            trig[j * top + k] = (c[j], s[j]);
+        }
     }
 }
 
@@ -1193,28 +1349,27 @@ struct Fit {
 }
 
 impl Fit {
-    fn new(basis: &Basis, t: &[f64], r: &[f64], y: &[f64]) -> Option<Fit> {
+    fn new(basis: &Basis, t: &[f64], r: &[f64], y: Target) -> Option<Fit> {
         Fit::with_normal(basis, t, r, y, &basis.normal_equations(t, r, y))
     }
 
     /// Solves with one Cholesky factor, refines once from the exact residuals, and inverts the
     /// factor.
-    fn with_normal(basis: &Basis, t: &[f64], r: &[f64], y: &[f64], normal: &Normal) -> Option<Fit> {
+    fn with_normal(basis: &Basis, t: &[f64], r: &[f64], y: Target, normal: &Normal) -> Option<Fit> {
         let n = basis.len();
         let chol = normal.g.clone().cholesky()?;
         let first = chol.solve(&normal.rhs);
         if !first.iter().all(|v| v.is_finite()) {
             return None;
         }
-        let cols: Vec<usize> = (0..n).collect();
         let mut correction = DVector::<f64>::zeros(n);
-        basis.residuals(t, r, y, &cols, first.as_slice(), |row, e| {
+        basis.residuals(t, r, y, first.as_slice(), |row, e| {
             for (c, v) in correction.iter_mut().zip(row) {
                 *c += v * e;
             }
         });
         let beta: Vec<f64> = (first + chol.solve(&correction)).iter().copied().collect();
-        let rss = basis.rss(t, r, y, &cols, &beta);
+        let rss = basis.rss(t, r, y, &beta);
         let l_inv = lower_triangular_inverse(&chol.l());
         let dof = t.len().saturating_sub(n).max(1) as f64;
         Some(Fit {
@@ -1363,7 +1518,7 @@ struct Screen {
 fn screen_orders(
     t: &[f64],
     r: &[f64],
-    y: &[f64],
+    y: Target,
     span: (f64, f64),
     degree: usize,
     h: usize,
@@ -1411,7 +1566,7 @@ const BLOCK: usize = 1024;
 /// `sin jr·sin kr = ½(cos(j−k)r − cos(j+k)r)`, `cos jr·sin kr = ½(sin(j+k)r − sin(j−k)r)`; the
 /// motion's blocks and `Aᵀy` by matrix products over blocks of rows; the drag's columns, if
 /// any, in one more pass.
-fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: &[f64], h: usize) -> Normal {
+fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: Target, h: usize) -> Normal {
     let p1 = basis.degree + 1;
     let n = p1 + 2 * h;
     let mut cm = vec![0.0; 2 * h + 1];
@@ -1419,46 +1574,68 @@ fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: &[f64], h: u
     let mut mm = DMatrix::<f64>::zeros(p1, p1);
     let mut mf = DMatrix::<f64>::zeros(p1, 2 * h);
     let mut rhs = DVector::<f64>::zeros(n);
-    for start in (0..t.len()).step_by(BLOCK) {
-        let len = BLOCK.min(t.len() - start);
-        let mut a = DMatrix::<f64>::zeros(len, p1);
-        // One column per sample, so that filling it is contiguous.
-        let mut f = DMatrix::<f64>::zeros(2 * h, len);
-        let yv = DVector::from_column_slice(&y[start..start + len]);
-        for i in 0..len {
-            let (ti, ri) = (t[start + i], r[start + i]);
-            let tau = (2.0 * ti - basis.t0 - basis.t1) / (basis.t1 - basis.t0);
-            let (mut t0, mut t1) = (1.0, tau);
-            a[(i, 0)] = 1.0;
-            for j in 1..p1 {
-                a[(i, j)] = t1;
-                (t0, t1) = (t1, 2.0 * tau * t1 - t0);
-            }
-            let (s1, c1) = ri.sin_cos();
-            let (mut s, mut c) = (0.0, 1.0);
-            cm[0] += 1.0;
-            for m in 1..=2 * h {
-                (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
-                cm[m] += c;
-                sm[m] += s;
-                if m <= h {
-                    f[(2 * m - 2, i)] = c;
-                    f[(2 * m - 1, i)] = s;
+    let mut trig = Vec::new();
+    // Making a block's Chebyshev and harmonic columns (and the moments, in the order of the
+    // samples) beside the products of the block before.
+    pipeline(
+        t.len(),
+        BLOCK,
+        |range, block: &mut Option<(DMatrix<f64>, DMatrix<f64>)>| {
+            let (start, len) = (range.start, range.len());
+            // One column of `f` per sample, so that filling it is contiguous.
+            let (a, f) = match block {
+                Some((a, f)) if a.nrows() == len => (a, f),
+                _ => {
+                    let (a, f) = block.insert((
+                        DMatrix::<f64>::zeros(len, p1),
+                        DMatrix::<f64>::zeros(2 * h, len),
+                    ));
+                    (a, f)
+                }
+            };
+            for i in 0..len {
+                let ti = t[start + i];
+                let tau = (2.0 * ti - basis.t0 - basis.t1) / (basis.t1 - basis.t0);
+                let (mut t0, mut t1) = (1.0, tau);
+                a[(i, 0)] = 1.0;
+                for j in 1..p1 {
+                    a[(i, j)] = t1;
+                    (t0, t1) = (t1, 2.0 * tau * t1 - t0);
                 }
             }
-        }
-        let at = a.transpose();
-        mm += &at * &a;
-        mf += (&f * &a).transpose();
-        let ry = at * &yv;
-        let fy = &f * &yv;
-        for j in 0..p1 {
-            rhs[j] += ry[j];
-        }
-        for j in 0..2 * h {
-            rhs[p1 + j] += fy[j];
-        }
-    }
+            for first in (0..len).step_by(LANES) {
+                let lanes = LANES.min(len - first);
+                let from = start + first;
+                harmonics(&r[from..from + lanes], 2 * h, &mut trig);
+                for (j, e) in trig.chunks_exact(2 * h).enumerate() {
+                    cm[0] += 1.0;
+                    for (m, &(c, s)) in e.iter().enumerate() {
+                        cm[m + 1] += c;
+                        sm[m + 1] += s;
+                    }
+                    for (k, &(c, s)) in e[..h].iter().enumerate() {
+                        f[(2 * k, first + j)] = c;
+                        f[(2 * k + 1, first + j)] = s;
+                    }
+                }
+            }
+        },
+        |range, block| {
+            let Some((a, f)) = block else { return };
+            let yv = DVector::from_iterator(range.len(), range.map(|i| y.at(i)));
+            let at = a.transpose();
+            mm += &at * a;
+            mf += (f * a).transpose();
+            let ry = at * &yv;
+            let fy = f * &yv;
+            for j in 0..p1 {
+                rhs[j] += ry[j];
+            }
+            for j in 0..2 * h {
+                rhs[p1 + j] += fy[j];
+            }
+        },
+    );
     let mut g = DMatrix::<f64>::zeros(n, n);
     g.view_mut((0, 0), (p1, p1)).copy_from(&mm);
     g.view_mut((0, p1), (p1, 2 * h)).copy_from(&mf);
@@ -1492,15 +1669,17 @@ fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: &[f64], h: u
         big.view_mut((0, 0), (n, n)).copy_from(&g);
         let mut rhs_big = DVector::<f64>::zeros(total);
         rhs_big.rows_mut(0, n).copy_from(&rhs);
-        let mut row = vec![0.0; total];
-        let mut trig = Vec::new();
-        for i in 0..t.len() {
-            basis.row(t[i], r[i], &mut row, &mut trig);
-            for d in n..total {
-                let rd = row[d];
-                rhs_big[d] += rd * y[i];
-                for (b, &rb) in row.iter().enumerate().take(d + 1) {
-                    big[(d, b)] += rd * rb;
+        let mut rows = vec![0.0; LANES * total];
+        for start in (0..t.len()).step_by(LANES) {
+            let end = (start + LANES).min(t.len());
+            basis.rows(&t[start..end], &r[start..end], &mut rows, &mut trig);
+            for (row, yi) in rows.chunks_exact(total).zip((start..end).map(|i| y.at(i))) {
+                for d in n..total {
+                    let rd = row[d];
+                    rhs_big[d] += rd * yi;
+                    for (b, &rb) in row.iter().enumerate().take(d + 1) {
+                        big[(d, b)] += rd * rb;
+                    }
                 }
             }
         }
@@ -1525,7 +1704,7 @@ fn residual_orders(
     basis: &Basis,
     t: &[f64],
     r: &[f64],
-    y: &[f64],
+    y: Target,
     fit: &Fit,
     orders: std::ops::RangeInclusive<usize>,
 ) -> Vec<Harmonic> {
@@ -1533,24 +1712,39 @@ fn residual_orders(
     if hi < lo || fit.sigma <= 0.0 {
         return Vec::new();
     }
-    let m = hi - lo + 1;
-    let mut z = vec![(0.0, 0.0); m];
-    let cols: Vec<usize> = (0..basis.len()).collect();
-    let mut i = 0;
-    basis.residuals(t, r, y, &cols, &fit.beta, |_, e| {
-        let (s1, c1) = r[i].sin_cos();
-        let (sl, cl) = (lo as f64 * r[i]).sin_cos();
-        let (mut s, mut c) = (sl, cl);
-        for zk in z.iter_mut() {
-            zk.0 += e * c;
-            zk.1 -= e * s;
-            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
+    let mut z = vec![(0.0, 0.0); hi - lo + 1];
+    // The residuals of LANES samples at a time, projected side by side (as in `harmonics`).
+    let (mut es, mut rs) = ([0.0; LANES], [0.0; LANES]);
+    let mut lanes = 0;
+    let mut project = |es: &[f64], rs: &[f64]| {
+        let (mut s1, mut c1) = ([0.0; LANES], [0.0; LANES]);
+        let (mut s, mut c) = ([0.0; LANES], [0.0; LANES]);
+        for (j, x) in rs.iter().enumerate() {
+            (s1[j], c1[j]) = x.sin_cos();
+            (s[j], c[j]) = (lo as f64 * x).sin_cos();
         }
+        for zk in z.iter_mut() {
+            for (j, e) in es.iter().enumerate() {
+                zk.0 += e * c[j];
+                zk.1 -= e * s[j];
+                (s[j], c[j]) = (s[j] * c1[j] + c[j] * s1[j], c[j] * c1[j] - s[j] * s1[j]);
+            }
+        }
+    };
+    let mut i = 0;
+    basis.residuals(t, r, y, &fit.beta, |_, e| {
+        (es[lanes], rs[lanes]) = (e, r[i]);
+        lanes += 1;
         i += 1;
+        if lanes == LANES {
+            project(&es, &rs);
+            lanes = 0;
+        }
     });
+    project(&es[..lanes], &rs[..lanes]);
     let n = t.len() as f64;
     let sigma2 = fit.rss / n;
-    let threshold = significance_threshold(m);
+    let threshold = significance_threshold(z.len());
     let mut found: Vec<Harmonic> = z
         .iter()
         .enumerate()
@@ -1581,7 +1775,7 @@ fn reference_check(
         drag: None,
     };
     let mut series = FourierSeries::zeros(orders.last().copied().unwrap_or(1));
-    if let Some(fit) = Fit::new(&basis, t, r, &y) {
+    if let Some(fit) = Fit::new(&basis, t, r, Target::Given(&y)) {
         for (i, &k) in orders.iter().enumerate() {
             series.cos[k - 1] = fit.beta[1 + 2 * i];
             series.sin[k - 1] = fit.beta[2 + 2 * i];
