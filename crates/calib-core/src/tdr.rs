@@ -1071,12 +1071,21 @@ impl Basis {
     }
 
     /// The rows of the samples `(t, r)` (at most [`LANES`]) into `out`, one after the other;
-    /// `trig` is scratch for their `(cos kr, sin kr)`, `k = 1..`.
-    fn rows(&self, t: &[f64], r: &[f64], out: &mut [f64], trig: &mut Vec<(f64, f64)>) {
-        let (n, top) = (self.len(), self.top());
-        harmonics(r, top, trig);
+    /// `trig` is scratch for their `cos kr, sin kr`, `k = 1..`.
+    fn rows(&self, t: &[f64], r: &[f64], out: &mut [f64], trig: &mut Vec<f64>) {
+        let (n, top, f) = (self.len(), self.top(), self.degree + 1);
+        if self.drag.is_none() && self.orders.len() == top {
+            // The orders are 1..=top: the harmonics go straight into the rows.
+            harmonics(r, top, &mut out[f..], n);
+            for (j, row) in out.chunks_exact_mut(n).take(t.len()).enumerate() {
+                self.motion_columns(t[j], row);
+            }
+            return;
+        }
+        trig.resize(r.len() * 2 * top, 0.0);
+        harmonics(r, top, trig, 2 * top);
         for (j, row) in out.chunks_exact_mut(n).take(t.len()).enumerate() {
-            self.row(t[j], &trig[j * top..(j + 1) * top], row);
+            self.row(t[j], &trig[j * 2 * top..(j + 1) * 2 * top], row);
         }
     }
 
@@ -1137,8 +1146,8 @@ impl Basis {
         }
     }
 
-    /// One row, given its sample's `trig = (cos kr, sin kr)`, `k = 1..`.
-    fn row(&self, t: f64, trig: &[(f64, f64)], out: &mut [f64]) {
+    /// The motion's columns `T_0..T_p(τ)` of a row.
+    fn motion_columns(&self, t: f64, out: &mut [f64]) {
         let tau = (2.0 * t - self.t0 - self.t1) / (self.t1 - self.t0);
         out[0] = 1.0;
         if self.degree >= 1 {
@@ -1147,9 +1156,14 @@ impl Basis {
         for j in 2..=self.degree {
             out[j] = 2.0 * tau * out[j - 1] - out[j - 2];
         }
+    }
+
+    /// One row, given its sample's `trig = cos kr, sin kr`, `k = 1..`.
+    fn row(&self, t: f64, trig: &[f64], out: &mut [f64]) {
+        self.motion_columns(t, out);
         let f = self.degree + 1;
         for (i, &k) in self.orders.iter().enumerate() {
-            (out[f + 2 * i], out[f + 2 * i + 1]) = trig[k - 1];
+            (out[f + 2 * i], out[f + 2 * i + 1]) = (trig[2 * k - 2], trig[2 * k - 1]);
         }
         if let Some(d) = &self.drag {
             let (_, w1, w2) = d.motion.eval(t);
@@ -1157,7 +1171,7 @@ impl Basis {
             let v = 3.0 * w2 / (w1.powi(4) * d.gain);
             let g = self.drag_column(0);
             for (i, &k) in d.orders.iter().enumerate() {
-                let (c, s) = trig[k - 1];
+                let (c, s) = (trig[2 * k - 2], trig[2 * k - 1]);
                 let vk = v / k as f64;
                 out[g + 2 * i] = w * c + vk * s;
                 out[g + 2 * i + 1] = w * s - vk * c;
@@ -1170,21 +1184,21 @@ impl Basis {
         let n = self.len();
         let mut g = vec![0.0; n * n];
         let mut rhs = vec![0.0; n];
+        // The upper triangle's lines 0..split hold about as many entries as the others: the two
+        // parts are summed on two threads.
+        let split = ((n as f64) * (1.0 - std::f64::consts::FRAC_1_SQRT_2)).round() as usize;
         pipeline(
             t.len(),
             ROWS_PER_BLOCK,
             |range, block| self.fill((t, r, y), None, range, block),
             |range, block| {
-                for (row, yi) in block.rows.chunks_exact(n).zip(range.map(|i| y.at(i))) {
-                    for a in 0..n {
-                        let ra = row[a];
-                        rhs[a] += ra * yi;
-                        let line = &mut g[a * n..(a + 1) * n];
-                        for b in a..n {
-                            line[b] += ra * row[b];
-                        }
-                    }
-                }
+                let (g_a, g_b) = g.split_at_mut(split * n);
+                let (rhs_a, rhs_b) = rhs.split_at_mut(split);
+                let rows = &block.rows;
+                rayon::join(
+                    || add_lines(rows, y, range.clone(), 0, g_a, rhs_a),
+                    || add_lines(rows, y, range.clone(), split, g_b, rhs_b),
+                );
             },
         );
         let g = DMatrix::from_fn(
@@ -1226,6 +1240,31 @@ impl Basis {
         let mut sum = 0.0;
         self.residuals(t, r, y, beta, |_, e| sum += e * e);
         sum
+    }
+}
+
+/// Adds the samples `range` (their `rows`, one after the other, and `y`) to the lines
+/// `first..first + rhs.len()` of the upper triangle of `AᵀA` (`g`, from line `first` on) and of
+/// `Aᵀy` (`rhs`), one sample after the other.
+fn add_lines(
+    rows: &[f64],
+    y: Target,
+    range: std::ops::Range<usize>,
+    first: usize,
+    g: &mut [f64],
+    rhs: &mut [f64],
+) {
+    let n = rows.len() / range.len().max(1);
+    for (row, yi) in rows.chunks_exact(n).zip(range.map(|i| y.at(i))) {
+        for (k, rk) in rhs.iter_mut().enumerate() {
+            let a = first + k;
+            let ra = row[a];
+            *rk += ra * yi;
+            let line = &mut g[k * n..(k + 1) * n];
+            for b in a..n {
+                line[b] += ra * row[b];
+            }
+        }
     }
 }
 
@@ -1292,14 +1331,13 @@ fn pipeline<B: Default + Send + Sync>(
     }
 }
 
-/// `(cos kr, sin kr)`, `k = 1..=top`, of each reading of `r` (at most [`LANES`]) into
-/// `trig[j·top + k − 1]`, by the rotation `e^{i(k+1)r} = e^{ikr}·e^{ir}`. Each rotation waits
-/// for the one before, so one reading at a time leaves the core idle most of the time; the
-/// readings' chains run side by side instead, each exactly as it would alone.
-fn harmonics(r: &[f64], top: usize, trig: &mut Vec<(f64, f64)>) {
+/// `cos kr, sin kr`, `k = 1..=top`, of each reading `j` of `r` (at most [`LANES`]) into
+/// `out[j·stride + 2k − 2]` and `out[j·stride + 2k − 1]`, by the rotation
+/// `e^{i(k+1)r} = e^{ikr}·e^{ir}`. Each rotation waits for the one before, so one reading at a
+/// time leaves the core idle most of the time; the readings' chains run side by side instead,
+/// each exactly as it would alone.
+fn harmonics(r: &[f64], top: usize, out: &mut [f64], stride: usize) {
     let lanes = r.len();
-    trig.clear();
-    trig.resize(lanes * top, (0.0, 0.0));
     let (mut s1, mut c1) = ([0.0; LANES], [0.0; LANES]);
     for (j, x) in r.iter().enumerate() {
         (s1[j], c1[j]) = x.sin_cos();
@@ -1308,7 +1346,7 @@ fn harmonics(r: &[f64], top: usize, trig: &mut Vec<(f64, f64)>) {
     for k in 0..top {
         for j in 0..lanes {
             (s[j], c[j]) = (s[j] * c1[j] + c[j] * s1[j], c[j] * c1[j] - s[j] * s1[j]);
-            trig[j * top + k] = (c[j], s[j]);
+            (out[j * stride + 2 * k], out[j * stride + 2 * k + 1]) = (c[j], s[j]);
         }
     }
 }
@@ -1606,17 +1644,15 @@ fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: Target, h: u
             for first in (0..len).step_by(LANES) {
                 let lanes = LANES.min(len - first);
                 let from = start + first;
-                harmonics(&r[from..from + lanes], 2 * h, &mut trig);
-                for (j, e) in trig.chunks_exact(2 * h).enumerate() {
+                trig.resize(lanes * 4 * h, 0.0);
+                harmonics(&r[from..from + lanes], 2 * h, &mut trig, 4 * h);
+                for (j, e) in trig.chunks_exact(4 * h).enumerate() {
                     cm[0] += 1.0;
-                    for (m, &(c, s)) in e.iter().enumerate() {
-                        cm[m + 1] += c;
-                        sm[m + 1] += s;
+                    for (m, cs) in e.chunks_exact(2).enumerate() {
+                        cm[m + 1] += cs[0];
+                        sm[m + 1] += cs[1];
                     }
-                    for (k, &(c, s)) in e[..h].iter().enumerate() {
-                        f[(2 * k, first + j)] = c;
-                        f[(2 * k + 1, first + j)] = s;
-                    }
+                    f.column_mut(first + j).copy_from_slice(&e[..2 * h]);
                 }
             }
         },
