@@ -776,7 +776,7 @@ fn finish_paper(
     segmentation: Segmentation,
     mut warnings: Vec<String>,
 ) -> Result<Calibration, CsrrError> {
-    let (points, no_crossing) = paper.into_points();
+    let (points, stats, no_crossing) = paper.into_points();
     if !no_crossing.is_empty() {
         warnings.push(format!(
             "{} session(s) never passed a benchmark reading over a whole revolution and give no map point",
@@ -798,6 +798,7 @@ fn finish_paper(
             .collect::<Vec<_>>(),
         n,
     )?;
+    let uncertainty = paper::uncertainty(&points, &stats, n);
     let resolvable = points.len() / 2;
     warnings.push(format!(
         "the paper method resolves orders below {resolvable} only (half the {} sessions); use the joint method for higher orders",
@@ -842,7 +843,7 @@ fn finish_paper(
         iterations: 0,
         paper_points: points,
         reference: None,
-        uncertainty: None,
+        uncertainty: Some(uncertainty),
         warnings,
     })
 }
