@@ -254,7 +254,8 @@ pub struct Calibration {
     /// Checks against the reference encoder, when one was given.
     pub reference: Option<ReferenceCheck>,
     /// The standard uncertainty of A's and B's maps at every table point, with their budgets
-    /// (joint method; see [`map_uncertainty`]).
+    /// (joint method: [`map_uncertainty`]; paper method: [`paper`]'s budget of the points' noise,
+    /// the interpolation between them and ε_θ's bias). Given by both methods.
     pub uncertainty: Option<(MapUncertainty, MapUncertainty)>,
     /// Things the user should know.
     pub warnings: Vec<String>,
