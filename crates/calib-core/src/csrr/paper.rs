@@ -294,15 +294,11 @@ fn segments(angles: &[f64], points: usize) -> Vec<Segment> {
         .collect()
 }
 
-/// The points `(angle, error)` wrapped and sorted by angle, with their indices in `pts`.
-fn sorted(pts: &[(f64, f64)]) -> Vec<(usize, f64, f64)> {
-    let mut p: Vec<(usize, f64, f64)> = pts
-        .iter()
-        .enumerate()
-        .map(|(i, &(a, e))| (i, wrap_2pi(a), e))
-        .collect();
+/// The indices of `angles` in ascending order of the wrapped angle, with the wrapped angles.
+fn by_angle(angles: impl Iterator<Item = f64>) -> (Vec<usize>, Vec<f64>) {
+    let mut p: Vec<(usize, f64)> = angles.map(wrap_2pi).enumerate().collect();
     p.sort_by(|a, b| a.1.total_cmp(&b.1));
-    p
+    p.into_iter().unzip()
 }
 
 /// The map through `(angle, error)` points by periodic linear interpolation on `points` grid
@@ -311,11 +307,11 @@ pub(crate) fn map_from_points(pts: &[(f64, f64)], points: usize) -> Result<Error
     if pts.len() < 3 {
         return Err(CsrrError::PaperTooFewSessions { found: pts.len() });
     }
-    let p = sorted(pts);
-    let angles: Vec<f64> = p.iter().map(|q| q.1).collect();
+    let (order, angles) = by_angle(pts.iter().map(|p| p.0));
+    let error: Vec<f64> = order.iter().map(|&i| pts[i].1).collect();
     let values = segments(&angles, points)
         .iter()
-        .map(|s| p[s.lo].2 + (p[s.hi].2 - p[s.lo].2) * s.w)
+        .map(|s| error[s.lo] + (error[s.hi] - error[s.lo]) * s.w)
         .collect();
     Ok(ErrorMap::new(values))
 }
@@ -344,11 +340,12 @@ enum Sensor {
 ///   content of the maps the sessions' profiles show ([`harmonic_content`]). For `A·cos(hθ + φ)`
 ///   the error of interpolating between points a span `δ` apart, at the fraction `w`, is a
 ///   sinusoid in `φ` of amplitude `A·|e^{ihwδ} − (1 − w) − w·e^{ihδ}|` (≈ `A·(hδ)²·w(1−w)/2`
-///   for small `hδ`, the `A·(hδ)²/8` of [`interpolation_uncertainty`] at `w = ½`); with the
-///   phase taken as uniformly distributed, its standard deviation is that amplitude `/√2`,
-///   and the orders add in quadrature. Orders below half the number of sessions (the Nyquist
-///   limit of the session grid) and those at or above it (aliased: the points cannot hold them)
-///   are two components;
+///   for small `hδ`, the `A·(hδ)²/8` of [`interpolation_uncertainty`] at `w = ½`). An
+///   encoder's harmonics are often locked in phase (a pole pair's overtones), so the orders'
+///   amplitudes are added — the largest the error can be whatever the phases — and the sum is
+///   the half-width of a rectangular distribution (`/√3`, GUM 4.3.7). Orders below half the
+///   number of sessions (the Nyquist limit of the session grid) and those at or above it
+///   (aliased: the points cannot hold them) are two components;
 /// - **sampling non-uniformity ε_θ** (Type B): `Δ̂_k` is a time average, biased by ε_θ at the
 ///   orders the sensors share (eqs. 9–17; to first order `½·h·m_h·A_h`, the shift
 ///   [`super::EffectiveRange`] reports against a reference). The bias is measured in each session
@@ -365,11 +362,10 @@ pub(crate) fn uncertainty(
     points: usize,
 ) -> (MapUncertainty, MapUncertainty) {
     let pooled = |spread: fn(&SessionStats) -> (f64, f64)| {
-        let (ss, dof) = stats
+        stats
             .iter()
             .map(spread)
-            .fold((0.0, 0.0), |(a, b), (c, d)| (a + c, b + d));
-        (ss, dof)
+            .fold((0.0, 0.0), |(a, b), (c, d)| (a + c, b + d))
     };
     let (ss_a, dof_a) = pooled(|s| s.spread_a);
     let (ss_b, dof_b) = pooled(|s| s.spread_b);
@@ -402,11 +398,9 @@ pub(crate) fn uncertainty(
                 &content_b,
             ),
         };
-        let with_index: Vec<(f64, f64)> = angles.iter().map(|&a| (a, 0.0)).collect();
-        let order = sorted(&with_index);
-        let sorted_angles: Vec<f64> = order.iter().map(|q| q.1).collect();
-        let var: Vec<f64> = order.iter().map(|q| var[q.0]).collect();
-        let beta: Vec<f64> = order.iter().map(|q| bias * stats[q.0].eps_bias).collect();
+        let (order, sorted_angles) = by_angle(angles.into_iter());
+        let var: Vec<f64> = order.iter().map(|&i| var[i]).collect();
+        let beta: Vec<f64> = order.iter().map(|&i| bias * stats[i].eps_bias).collect();
         let segs = segments(&sorted_angles, points);
         let mut weight = vec![0.0; sorted_angles.len()];
         for s in &segs {
@@ -484,6 +478,9 @@ pub(crate) fn uncertainty(
     (map(Sensor::A), map(Sensor::B))
 }
 
+/// A sensor's harmonic content: `(order, amplitude)` pairs, amplitude in rad.
+type Content = Vec<(usize, f64)>;
+
 /// The amplitudes `(order, A_h)` of A's and of B's errors that stand above the noise, from the
 /// sessions' relative-angle profiles: at order `h` session `k` shows `G_k = a_h − b_h·z_k`,
 /// `z_k = e^{−ihΔ_k}` (`f_ab(x) = e_a(x) − e_b(x − Δ_k) + Δ_k`), so over the `K` sessions the
@@ -497,10 +494,7 @@ pub(crate) fn uncertainty(
 /// Where the sessions cannot separate the two sensors (`K² − |S|² < 1 %` of `K²`: every `hΔ_k`
 /// nearly equal), only `a_h − b_h·z` is seen: its mean amplitude is given to both sensors when
 /// it stands above its noise `v/K`.
-fn harmonic_content(
-    stats: &[SessionStats],
-    deltas: &[f64],
-) -> (Vec<(usize, f64)>, Vec<(usize, f64)>) {
+fn harmonic_content(stats: &[SessionStats], deltas: &[f64]) -> (Content, Content) {
     let orders = stats.iter().map(|s| s.profile.len()).min().unwrap_or(0);
     let k = stats.len() as f64;
     struct Fit {
