@@ -3,8 +3,11 @@
 //! and no output left behind).
 
 mod common;
+#[path = "common/json.rs"]
+mod json;
 
 use common::*;
+use json::read_json;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -22,12 +25,6 @@ fn max_map_error(out: &Path, truth_dir: &Path, channel: &str) -> f64 {
         .zip(&t)
         .map(|((_, g), t)| ((g - mean_g) - (t - mean_t)).abs())
         .fold(0.0, f64::max)
-}
-
-fn read_json(path: &Path) -> Value {
-    let text = std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap()
 }
 
 /// Bound on the map error for quick.toml. Measured (seed 1, joint method, orders 1–84 fitted

@@ -2,8 +2,11 @@
 //! methods, and bad inputs (exit code, message, nothing written).
 
 mod common;
+#[path = "common/json.rs"]
+mod json;
 
 use common::*;
+use json::read_json;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -19,10 +22,6 @@ const HEAD_ERRORS: [f64; 12] = [
 /// The simulated SelfA log in `dir` (8801 samples of 12 heads).
 fn selfa_log(dir: &Path) -> PathBuf {
     simulate(&testdata("scenarios/multihead.toml"), dir, "selfa.mcap")
-}
-
-fn read_json(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 /// Largest |table − truth table| over the truth's grid, both with their mean removed, arcsec.

@@ -7,8 +7,11 @@
 //! `calib_core::Report` (unknown keys refused) and must serialize to the same bytes.
 
 mod common;
+#[path = "common/reference.rs"]
+mod reference;
 
 use common::*;
+use reference::reference;
 use serde_json::Value;
 use std::path::Path;
 
@@ -142,19 +145,7 @@ fn reference_report_matches_the_schema() {
     let scenario = write(dir.path(), "resolver.toml", RESOLVER_SWEEP);
     let log = simulate(&scenario, dir.path(), "resolver.csv");
     let out = dir.path().join("out");
-    expect_exit(
-        &calib(&[
-            "reference",
-            s(&log),
-            "--dut",
-            "resolver",
-            "--ref",
-            "counter",
-            "-o",
-            s(&out),
-        ]),
-        0,
-    );
+    expect_exit(&reference(&log, "resolver", "counter", &out, &[]), 0);
     let r = assert_report(&out, "reference");
     assert!(r["details"]["gap"].is_object(), "{}", r["details"]);
 }

@@ -2,14 +2,12 @@
 //! their truth, and logs with no spin-down (exit code, message, nothing written).
 
 mod common;
+#[path = "common/json.rs"]
+mod json;
 
 use common::*;
+use json::read_json;
 use serde_json::Value;
-use std::path::Path;
-
-fn read_json(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
 
 /// Largest |table − truth table| on the table's grid, the truth interpolated linearly on its
 /// own (finer) grid, both zero mean.
