@@ -2,12 +2,15 @@
 //! turning both ways (reversal value), and bad inputs (exit code, message, nothing written).
 
 mod common;
+#[path = "common/compare.rs"]
+mod compare;
 #[path = "common/json.rs"]
 mod json;
 #[path = "common/reference.rs"]
 mod reference;
 
 use common::*;
+use compare::max_diff_zero_mean;
 use json::read_json;
 use reference::reference;
 use serde_json::Value;
@@ -59,17 +62,6 @@ turn_s = 0.5
 /// the reference's 0.3″ order 2 or 0.45″ order 1) or a sign error would exceed it.
 const TOL_ARCSEC: f64 = 0.2;
 
-/// Largest |table − expected| over the table's grid, both with their mean removed.
-fn max_diff(got: &[(f64, f64)], expected: impl Fn(f64) -> f64) -> f64 {
-    let t: Vec<f64> = got.iter().map(|(a, _)| expected(*a)).collect();
-    let mean_g = got.iter().map(|r| r.1).sum::<f64>() / got.len() as f64;
-    let mean_t = t.iter().sum::<f64>() / t.len() as f64;
-    got.iter()
-        .zip(&t)
-        .map(|((_, g), t)| ((g - mean_g) - (t - mean_t)).abs())
-        .fold(0.0, f64::max)
-}
-
 #[test]
 fn simulated_run_matches_the_truth_difference() {
     let dir = tempfile::tempdir().unwrap();
@@ -95,7 +87,7 @@ fn simulated_run_matches_the_truth_difference() {
     assert!(header.starts_with("angle_deg,error_arcsec,correction_arcsec,u_arcsec\n"));
     let truth_b = read_table(&dir.path().join("run.truth/b.csv"));
     let truth_r = read_table(&dir.path().join("run.truth/ref.csv"));
-    let e = max_diff(&got, |a| {
+    let e = max_diff_zero_mean(&got, |a| {
         interpolate(&truth_b, a) - interpolate(&truth_r, a)
     });
     println!("simulated_run_matches_the_truth_difference: max |map − truth| = {e:.4}″");
@@ -132,7 +124,7 @@ fn csrr72_sensor_b_against_its_reference() {
     let got = read_table(&out.join("b.csv"));
     let truth_b = read_table(&dir.path().join("c72.truth/b.csv"));
     let truth_r = read_table(&dir.path().join("c72.truth/ref.csv"));
-    let e = max_diff(&got, |a| {
+    let e = max_diff_zero_mean(&got, |a| {
         interpolate(&truth_b, a) - interpolate(&truth_r, a)
     });
     println!("csrr72_sensor_b_against_its_reference: max |map − truth| = {e:.4}″");
@@ -199,7 +191,7 @@ fn both_directions_give_the_reversal_value() {
     // The map is the bidirectional mean: the cosine without the backlash. Linear interpolation
     // at 0.36° spacing costs ≤ 9·0.0063²/8·10″ ≈ 0.0005″.
     let got = read_table(&out.join("dut.csv"));
-    let e = max_diff(&got, |a| 10.0 * (3.0 * a.to_radians()).cos());
+    let e = max_diff_zero_mean(&got, |a| 10.0 * (3.0 * a.to_radians()).cos());
     assert!(e < 0.002, "{e}″");
     // u is the reference's alone (the passes agree exactly).
     let text = std::fs::read_to_string(out.join("dut.csv")).unwrap();

@@ -7,17 +7,16 @@
 //! `calib_core::Report` (unknown keys refused) and must serialize to the same bytes.
 
 mod common;
+#[path = "common/multihead.rs"]
+mod multihead;
 #[path = "common/reference.rs"]
 mod reference;
 
 use common::*;
+use multihead::{multihead, selfa_log};
 use reference::reference;
 use serde_json::Value;
 use std::path::Path;
-
-/// The SelfA heads of `testdata/scenarios/multihead.toml`.
-const HEADS: &str = "h1@0,h2@360/7,h3@90,h4@720/7,h5@120,h6@1080/7,h7@180,h8@1440/7,h9@240,\
-                     h10@1800/7,h11@270,h12@2160/7";
 
 fn schema(name: &str) -> Value {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -84,26 +83,10 @@ fn csrr_reports_match_the_schema() {
 #[test]
 fn multihead_reports_match_the_schema() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(
-        &testdata("scenarios/multihead.toml"),
-        dir.path(),
-        "selfa.mcap",
-    );
+    let log = selfa_log(dir.path());
     for method in ["joint", "eda"] {
         let out = dir.path().join(method);
-        expect_exit(
-            &calib(&[
-                "multihead",
-                s(&log),
-                "--heads",
-                HEADS,
-                "--method",
-                method,
-                "-o",
-                s(&out),
-            ]),
-            0,
-        );
+        expect_exit(&multihead(&log, &out, &["--method", method]), 0);
         let r = assert_report(&out, "multihead");
         assert_eq!(r["details"]["solver"], method);
     }
