@@ -896,6 +896,18 @@ fn chunk_records(bytes: &[u8]) -> Vec<(usize, usize)> {
     found
 }
 
+/// The message of the first error reading `path`, which must name the chunk at byte `at`.
+#[track_caller]
+fn chunk_error(path: &Path, at: usize) -> String {
+    let (_, e) = first_error(path);
+    let (_, _, message) = mcap_error(e);
+    assert!(
+        message.contains(&format!("the chunk at byte {at}")),
+        "{message}"
+    );
+    message
+}
+
 /// One flipped bit in an uncompressed chunk (a position's last byte: the record still parses, the
 /// reading changes) is caught by the chunk's CRC; with `skip_damaged` the chunk's messages are left
 /// out, every other message is read, and the chunk is listed.
@@ -913,12 +925,7 @@ fn a_flipped_bit_in_an_uncompressed_chunk_fails_its_crc_or_is_skipped() {
     let bad = dir.path().join("bad.mcap");
     std::fs::write(&bad, &bytes).unwrap();
 
-    let (_, e) = first_error(&bad);
-    let (_, _, message) = mcap_error(e);
-    assert!(
-        message.contains(&format!("the chunk at byte {at}")),
-        "{message}"
-    );
+    let message = chunk_error(&bad, at);
     assert!(message.contains("do not match its CRC"), "{message}");
 
     let opts = ReadOptions {
@@ -944,12 +951,7 @@ fn a_flipped_bit_in_an_uncompressed_chunk_fails_its_crc_or_is_skipped() {
     let first_record = at + 9 + 40;
     bytes[first_record + 5] = 0x7f;
     std::fs::write(&bad, &bytes).unwrap();
-    let (_, e) = first_error(&bad);
-    let (_, _, message) = mcap_error(e);
-    assert!(
-        message.contains(&format!("the chunk at byte {at}")),
-        "{message}"
-    );
+    let message = chunk_error(&bad, at);
     assert!(message.contains("cannot be decoded"), "{message}");
     let (reader, samples) = read_all(&bad, &opts);
     assert_eq!(reader.diagnostics().damaged_chunks.len(), 1);
