@@ -6,12 +6,15 @@
 //! of an MCAP log with three topics and of a CSV log. Every report is also read back into
 //! `calib_core::Report` (unknown keys refused) and must serialize to the same bytes.
 
+#[path = "common/coast.rs"]
+mod coast;
 mod common;
 #[path = "common/multihead.rs"]
 mod multihead;
 #[path = "common/reference.rs"]
 mod reference;
 
+use coast::{coast_log, tdr_with_reference};
 use common::*;
 use multihead::{multihead, selfa_log};
 use reference::reference;
@@ -95,25 +98,9 @@ fn multihead_reports_match_the_schema() {
 #[test]
 fn tdr_report_matches_the_schema() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(
-        &testdata("scenarios/spindown.toml"),
-        dir.path(),
-        "coast.mcap",
-    );
+    let log = coast_log(dir.path());
     let out = dir.path().join("out");
-    expect_exit(
-        &calib(&[
-            "tdr",
-            s(&log),
-            "--channel",
-            "enc",
-            "--ref",
-            "ref",
-            "-o",
-            s(&out),
-        ]),
-        0,
-    );
+    expect_exit(&tdr_with_reference(&log, &out), 0);
     let r = assert_report(&out, "tdr");
     assert_eq!(r["details"]["reference"]["channel"], "ref");
     assert_eq!(
