@@ -2,6 +2,8 @@
 //! sensors publishing on their own topics and clocks.
 
 mod common;
+#[path = "common/inspect.rs"]
+mod inspect;
 #[path = "common/ros.rs"]
 mod ros;
 
@@ -9,6 +11,7 @@ use calib_core::simulate::Scenario;
 use calib_core::{AngleUnit, Channel, ErrorMap, Sample};
 use calib_io::mcap_log::McapWriter;
 use common::*;
+use inspect::{inspect, inspect_json};
 use ros::*;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -205,9 +208,7 @@ fn ambiguous_short_names_are_usage_errors_listing_the_topics() {
 
 #[test]
 fn inspect_lists_topics_with_type_rate_and_qualified_channels() {
-    let o = calib(&["inspect", s(&clocks())]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&clocks(), &[]);
     assert!(out.contains("\ntopics: 3 read, 0 not read\n"), "{out}");
     for t in TOPICS {
         let line = out
@@ -231,9 +232,7 @@ fn inspect_lists_topics_with_type_rate_and_qualified_channels() {
             "/reference/joint_states/encoder: median offset -0.900 ms, 399 interpolated, 0 exact, 1 dropped",
         ],
     );
-    let o = calib(&["inspect", s(&clocks()), "--json"]);
-    expect_exit(&o, 0);
-    let v: Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let v = inspect_json(&clocks(), &[]);
     assert_eq!(v["topics"].as_array().unwrap().len(), 3);
     assert_eq!(
         v["topics"][1]["channels"][0],
@@ -257,9 +256,7 @@ fn the_log_time_and_a_max_gap_are_options() {
 
 #[test]
 fn lab_csv_with_semicolons_metadata_and_a_time_unit_is_read() {
-    let o = calib(&["inspect", s(&lab_export())]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&lab_export(), &[]);
     // 400 rows 2.5 ms apart, the time in milliseconds.
     assert!(out.contains("  400 samples over "), "{out}");
     assert!(out.contains("400.00 Hz mean"), "{out}");

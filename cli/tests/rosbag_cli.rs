@@ -3,12 +3,15 @@
 //! creates, with CDR payloads as `rmw` serializes them.
 
 mod common;
+#[path = "common/inspect.rs"]
+mod inspect;
 #[path = "common/ros.rs"]
 mod ros;
 
 use calib_core::{AngleUnit, Channel, Sample};
 use calib_io::mcap_log::McapWriter;
 use common::*;
+use inspect::{inspect, inspect_json};
 use ros::*;
 use rusqlite::{Connection, params};
 use std::path::{Path, PathBuf};
@@ -153,23 +156,17 @@ fn csrr_on_a_split_bag_matches_the_mcap_of_the_same_run() {
     ]);
     expect_exit(&o, 0);
     // Inspect reads every message of both splits, and the bag's .db3 split alone is a log too.
-    let samples = read_json_stdout(&["inspect", s(&bag), "--json"]);
+    let samples = inspect_json(&bag, &[]);
     let total = samples["topics"][0]["messages"].as_u64().unwrap();
     assert_eq!(samples["topics"].as_array().unwrap().len(), 2);
     assert_eq!(samples["topics"][1]["messages"].as_u64().unwrap(), total);
     assert_eq!(samples["alignment"]["samples"].as_u64().unwrap(), total);
-    let first = read_json_stdout(&["inspect", s(&bag.join("run_bag_0.db3")), "--json"]);
+    let first = inspect_json(&bag.join("run_bag_0.db3"), &[]);
     assert_eq!(
         first["topics"][0]["messages"].as_u64().unwrap(),
         total / 2,
         "{first}"
     );
-}
-
-fn read_json_stdout(args: &[&str]) -> serde_json::Value {
-    let o = calib(args);
-    expect_exit(&o, 0);
-    serde_json::from_str(&stdout(&o)).unwrap_or_else(|e| panic!("{e}: {}", stdout(&o)))
 }
 
 /// A `.db3` file with a JointState topic and `/tf`, 200 messages each at 100 Hz from 1 s.
@@ -202,9 +199,7 @@ fn inspect_lists_the_topics_calib_does_not_read() {
     let dir = tempfile::tempdir().unwrap();
     let db3 = dir.path().join("robot.db3");
     write_with_tf(&db3);
-    let o = calib(&["inspect", s(&db3)]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&db3, &[]);
     assert!(out.contains("\ntopics: 1 read, 1 not read\n"), "{out}");
     let line = |topic: &str| {
         out.lines()
@@ -377,9 +372,7 @@ fn fixture() -> PathBuf {
 
 #[test]
 fn the_committed_bag_fixture_is_read() {
-    let o = calib(&["inspect", s(&fixture())]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&fixture(), &[]);
     assert!(out.contains("\ntopics: 2 read, 1 not read\n"), "{out}");
     assert_mentions(
         &out,
@@ -496,9 +489,7 @@ fn scalar_topics_in_mcap_and_bags_give_the_maps_of_the_same_run() {
     let want = dir.path().join("want");
     expect_exit(&calib(&["csrr", s(&reference), "-o", s(&want)]), 0);
     for log in [&mcap, &db3] {
-        let o = calib(&["inspect", s(log)]);
-        expect_exit(&o, 0);
-        let out = stdout(&o);
+        let out = inspect(log, &[]);
         assert!(out.contains("\ntopics: 2 read, 0 not read\n"), "{out}");
         assert_mentions(&out, &["std_msgs/msg/Float64", "      /enc_a/angle\n"]);
         let out = dir.path().join(log.extension().unwrap());
@@ -539,9 +530,7 @@ fn scalar_counts_are_read_with_a_counts_unit() {
         insert(&db, 1, 1_000_000_000 + i * 10_000_000, &data);
     }
     drop(db);
-    let o = calib(&["inspect", s(&db3), "--unit", "counts:4096", "--json"]);
-    expect_exit(&o, 0);
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let v = inspect_json(&db3, &["--unit", "counts:4096"]);
     assert_eq!(v["topics"][0]["channels"][0], "/encoder/count");
     let text = stdout(&calib(&["inspect", s(&db3), "--unit", "counts:4096"]));
     assert!(text.contains("  100 samples over "), "{text}");
@@ -687,9 +676,7 @@ fn dynamic_joint_states_in_mcap_and_bags_give_the_maps_of_the_same_run() {
     let want = dir.path().join("want");
     expect_exit(&calib(&["csrr", s(&reference), "-o", s(&want)]), 0);
     for log in [&mcap, &db3] {
-        let o = calib(&["inspect", s(log)]);
-        expect_exit(&o, 0);
-        let out = stdout(&o);
+        let out = inspect(log, &[]);
         assert_mentions(&out, &[DYNAMIC_JOINT_STATE, "3301 msg", "      a, b\n"]);
         assert!(!out.contains("gripper"), "{out}");
         let out = dir.path().join(log.extension().unwrap());
@@ -714,9 +701,7 @@ fn dynamic_fixture() -> PathBuf {
 
 #[test]
 fn the_committed_dynamic_joint_state_fixture_is_read() {
-    let o = calib(&["inspect", s(&dynamic_fixture())]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&dynamic_fixture(), &[]);
     assert_mentions(
         &out,
         &[
