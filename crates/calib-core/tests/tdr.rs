@@ -485,3 +485,27 @@ fn a_motion_degree_that_can_follow_the_error_is_warned_about() {
         cal.warnings
     );
 }
+
+/// The fit's passes run on two threads (a block of rows made while the one before is summed)
+/// but take every sum in the order of the samples: one thread and two give the same bits. The
+/// rolling-bearing coast has drag separated, so the drag's columns and the second screening are
+/// covered too.
+#[test]
+fn one_thread_and_two_give_the_same_bits() {
+    let s = scenario("spindown-drag.toml");
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| run_with(&s, TdrOptions::default()))
+    };
+    let (one, two) = (on(1), on(2));
+    assert!(
+        !two.drag.is_empty(),
+        "no drag separated: {:?}",
+        two.warnings
+    );
+    // Debug prints every f64 with the digits that round-trip it: equal text, equal bits.
+    assert_eq!(format!("{one:?}"), format!("{two:?}"));
+}
