@@ -10,21 +10,26 @@
 use super::Range;
 use crate::atomic::AtomicFile;
 use crate::mcap_log::cdr::{JointFormat, JointState};
+use crate::mcap_log::chunks::{self, Chunked, Fallback};
 use crate::mcap_log::json::field_spans;
-use crate::mcap_log::read::{Encoding, read_summary};
-use crate::mcap_log::records::{Checked, StreamError};
+use crate::mcap_log::read::{Encoding, PARALLEL_CHUNKS, read_summary};
+use crate::mcap_log::records::{self, Checked, StreamError};
 use crate::{DamagedChunk, Error, Truncation};
 use calib_core::AngleUnit;
 use calib_core::correction::Correction;
-use mcap::records::{Header, Record};
+use mcap::records::{Header, MessageHeader, Record, op};
 use mcap::sans_io::LinearReaderOptions;
 use mcap::{Compression, McapError, WriteOptions, Writer};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{self, BufReader, Seek, SeekFrom};
 use std::ops::Range as Span;
 use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::thread::JoinHandle;
 
 /// Where a message holds the channel's readings, and their values.
 enum Hit<'d> {
@@ -53,73 +58,52 @@ fn mcap_error(path: &Path, index: Option<u64>, channel: Option<&str>, message: S
     }
 }
 
-/// One pass over the log's records in file order, each chunk's records after its CRC matched
-/// (see the `records` module). `each(record, index, hit)` gets every record; for a message,
-/// `index` is its 0-based position among the messages and `hit` says where it holds the
-/// channel's readings, if it does. Returns where the file breaks off, if it does, and the damaged
-/// chunks left out (with `skip_damaged`; otherwise the first is an error).
-fn walk(
-    path: &Path,
-    channel: &str,
-    skip_damaged: bool,
-    mut each: impl FnMut(&Record, u64, Option<Hit>) -> Result<(), Error>,
-) -> Result<(Option<Truncation>, Vec<DamagedChunk>), Error> {
-    let io = |source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let file = File::open(path).map_err(io)?;
-    let len = file.metadata().map_err(io)?.len();
-    let file = BufReader::with_capacity(256 * 1024, file);
-    let mut records = Checked::new(
-        file,
-        // No record can be longer than the file; a corrupt length must not drive an allocation.
+/// Where the records of a pass come from (see the module docs).
+enum Source {
+    /// Chunks decompressed on worker threads, every top-level record handed on, up to the data
+    /// end record; the bytes walked so far.
+    Chunked(Chunked, Arc<AtomicU64>),
+    /// The streaming reader: from the start of the file, or, after the chunks read in parallel
+    /// have reached the data end record, from there (the summary section).
+    Linear(Checked<BufReader<File>>),
+}
+
+/// The streaming reader of `file` from byte `at`: from the start, or past the data end record
+/// (then it expects no magic there).
+fn linear(mut file: File, len: u64, at: u64, skip_damaged: bool) -> io::Result<Source> {
+    file.seek(SeekFrom::Start(at))?;
+    Ok(Source::Linear(Checked::new(
+        BufReader::with_capacity(256 * 1024, file),
         LinearReaderOptions::default()
+            .with_skip_start_magic(at > 0)
+            // No record can be longer than the file; a corrupt length must not drive an
+            // allocation.
             .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX)),
         skip_damaged,
-    );
-    let mut schemas: HashMap<u16, String> = HashMap::new();
-    let mut topics: HashMap<u16, Topic> = HashMap::new();
-    // The topic carrying the channel, once met: a name on two topics is ambiguous.
-    let mut carrier: Option<String> = None;
-    let mut messages = 0u64;
-    while let Some(next) = records.next_record() {
-        let (opcode, data) = match next {
-            Ok(record) => record,
-            Err(StreamError::Mcap(McapError::UnexpectedEof)) => {
-                return Ok((
-                    Some(Truncation {
-                        byte_offset: records.consumed,
-                        messages_read: messages,
-                    }),
-                    records.damaged,
-                ));
-            }
-            Err(StreamError::Mcap(McapError::Io(source))) => return Err(io(source)),
-            Err(e @ (StreamError::Damaged(_) | StreamError::DataCrc)) => {
-                return Err(mcap_error(
-                    path,
-                    Some(messages),
-                    None,
-                    format!(
-                        "{e}; nothing was written: run with --skip-damaged to leave the damaged \
-                         chunk's messages out of the output, or repair the file"
-                    ),
-                ));
-            }
-            Err(e) => {
-                return Err(mcap_error(
-                    path,
-                    Some(messages),
-                    None,
-                    format!(
-                        "the file is damaged here ({e}); repair it with `mcap recover` and apply \
-                         to the repaired file"
-                    ),
-                ));
-            }
-        };
-        let data = data.as_slice();
+    )))
+}
+
+/// What a pass has learnt of the log so far.
+struct Walk<'a> {
+    path: &'a Path,
+    channel: &'a str,
+    schemas: HashMap<u16, String>,
+    topics: HashMap<u16, Topic>,
+    /// The topic carrying the channel, once met: a name on two topics is ambiguous.
+    carrier: Option<String>,
+    /// Messages met so far.
+    messages: u64,
+}
+
+impl Walk<'_> {
+    /// Parses one record and hands it to `each` (see [`walk`]).
+    fn record(
+        &mut self,
+        opcode: u8,
+        data: &[u8],
+        each: &mut impl FnMut(&Record, u64, Option<Hit>) -> Result<(), Error>,
+    ) -> Result<(), Error> {
+        let (path, channel, messages) = (self.path, self.channel, self.messages);
         let record = mcap::parse_record(opcode, data).map_err(|e| {
             mcap_error(
                 path,
@@ -131,11 +115,11 @@ fn walk(
         let mut hit = None;
         match &record {
             Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name.clone());
+                self.schemas.insert(header.id, header.name.clone());
             }
             Record::Channel(c) => {
-                let schema = schemas.get(&c.schema_id).map_or("", String::as_str);
-                topics.insert(
+                let schema = self.schemas.get(&c.schema_id).map_or("", String::as_str);
+                self.topics.insert(
                     c.id,
                     Topic {
                         name: c.topic.clone(),
@@ -144,7 +128,7 @@ fn walk(
                 );
             }
             Record::Message { header, data } => {
-                let topic = topics.get(&header.channel_id).ok_or_else(|| {
+                let topic = self.topics.get(&header.channel_id).ok_or_else(|| {
                     mcap_error(
                         path,
                         Some(messages),
@@ -175,7 +159,7 @@ fn walk(
                 hit = find(topic.encoding, data, member)
                     .map_err(|m| mcap_error(path, Some(messages), Some(&topic.name), m))?;
                 if hit.is_some() {
-                    match &carrier {
+                    match &self.carrier {
                         Some(other) if *other != topic.name => {
                             return Err(mcap_error(
                                 path,
@@ -189,7 +173,7 @@ fn walk(
                             ));
                         }
                         Some(_) => {}
-                        None => carrier = Some(topic.name.clone()),
+                        None => self.carrier = Some(topic.name.clone()),
                     }
                 }
             }
@@ -197,10 +181,129 @@ fn walk(
         }
         each(&record, messages, hit)?;
         if matches!(record, Record::Message { .. }) {
-            messages += 1;
+            self.messages += 1;
+        }
+        Ok(())
+    }
+
+    /// The error (or, for a file cut short, the truncation) the streaming reader stopped with;
+    /// `consumed`: the bytes of the file it had read.
+    fn stopped(&self, e: StreamError, consumed: u64) -> Result<Truncation, Error> {
+        let messages = self.messages;
+        Err(match e {
+            StreamError::Mcap(McapError::UnexpectedEof) => {
+                return Ok(Truncation {
+                    byte_offset: consumed,
+                    messages_read: messages,
+                });
+            }
+            StreamError::Mcap(McapError::Io(source)) => Error::Io {
+                path: self.path.to_path_buf(),
+                source,
+            },
+            e @ (StreamError::Damaged(_) | StreamError::DataCrc) => mcap_error(
+                self.path,
+                Some(messages),
+                None,
+                format!(
+                    "{e}; nothing was written: run with --skip-damaged to leave the damaged \
+                     chunk's messages out of the output, or repair the file"
+                ),
+            ),
+            e => mcap_error(
+                self.path,
+                Some(messages),
+                None,
+                format!(
+                    "the file is damaged here ({e}); repair it with `mcap recover` and apply \
+                     to the repaired file"
+                ),
+            ),
+        })
+    }
+}
+
+/// One pass over the log's records in file order, each chunk's records after its CRC matched
+/// (see the `records` module). `each(record, index, hit)` gets every record; for a message,
+/// `index` is its 0-based position among the messages and `hit` says where it holds the
+/// channel's readings, if it does. Returns where the file breaks off, if it does, and the damaged
+/// chunks left out (with `skip_damaged`; otherwise the first is an error).
+///
+/// A log whose summary lists [`PARALLEL_CHUNKS`] chunks or more has its data section read by
+/// [`Chunked`] (chunks decompressed and checked on worker threads) and its summary section by
+/// the streaming reader; at the first irregularity in the data section the streaming reader
+/// reads the file again from its start and skips the records already handed to `each`, so that
+/// every record, error, truncation and damaged chunk is the streaming reader's own.
+fn walk(
+    path: &Path,
+    channel: &str,
+    skip_damaged: bool,
+    mut each: impl FnMut(&Record, u64, Option<Hit>) -> Result<(), Error>,
+) -> Result<(Option<Truncation>, Vec<DamagedChunk>), Error> {
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    let parallel =
+        records::read_summary(&mut file, len).is_some_and(|s| s.chunks >= PARALLEL_CHUNKS);
+    let chunked = parallel
+        .then(|| {
+            let consumed = Arc::new(AtomicU64::new(0));
+            let chunked = Chunked::every_record(
+                file.try_clone().ok()?,
+                len,
+                Arc::clone(&consumed),
+                chunks::workers(),
+            )?;
+            Some(Source::Chunked(chunked, consumed))
+        })
+        .flatten();
+    let mut source = match chunked {
+        Some(chunked) => chunked,
+        None => linear(file.try_clone().map_err(io)?, len, 0, skip_damaged).map_err(io)?,
+    };
+    let mut walk = Walk {
+        path,
+        channel,
+        schemas: HashMap::new(),
+        topics: HashMap::new(),
+        carrier: None,
+        messages: 0,
+    };
+    // Records handed on from the chunks read in parallel, which the streaming reader skips if
+    // it takes over; where the streaming reader started.
+    let (mut handed, mut skip, mut base) = (0u64, 0u64, 0u64);
+    loop {
+        match &mut source {
+            Source::Chunked(chunked, consumed) => match chunked.next_record() {
+                Ok((opcode, data)) => {
+                    walk.record(opcode, data, &mut each)?;
+                    handed += 1;
+                    if opcode == op::DATA_END {
+                        base = consumed.load(Ordering::Relaxed);
+                        source = linear(file.try_clone().map_err(io)?, len, base, skip_damaged)
+                            .map_err(io)?;
+                    }
+                }
+                Err(Fallback) => {
+                    source =
+                        linear(file.try_clone().map_err(io)?, len, 0, skip_damaged).map_err(io)?;
+                    skip = handed;
+                }
+            },
+            Source::Linear(records) => match records.next_record() {
+                None => return Ok((None, std::mem::take(&mut records.damaged))),
+                Some(Ok(_)) if skip > 0 => skip -= 1,
+                Some(Ok((opcode, data))) => walk.record(opcode, &data, &mut each)?,
+                Some(Err(e)) => {
+                    let truncated = walk.stopped(e, base + records.consumed)?;
+                    return Ok((Some(truncated), std::mem::take(&mut records.damaged)));
+                }
+            },
         }
     }
-    Ok((None, records.damaged))
 }
 
 /// Where `data` (a message of this encoding) holds `channel`'s readings, if it does.
@@ -296,8 +399,10 @@ pub(super) struct Rewritten {
 }
 
 /// The writer's options for a copy of the log at `path`: its header's profile and library, and
-/// the compression of its chunks as its summary lists them (zstd if it has no summary).
-fn write_options(path: &Path, header: &Header) -> Result<WriteOptions, Error> {
+/// the compression of its chunks as its summary lists them (zstd if it has no summary). Also
+/// whether the summary lists [`PARALLEL_CHUNKS`] chunks or more (then the log is read in
+/// parallel and written on a thread of its own).
+fn write_options(path: &Path, header: &Header) -> Result<(WriteOptions, bool), Error> {
     let mut file = File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -316,7 +421,11 @@ fn write_options(path: &Path, header: &Header) -> Result<WriteOptions, Error> {
         // message than they save (10e6 messages: 14.1 s CPU and 40 s wall against 15.0 s and
         // 46 s with the default one thread per core).
         .compression_threads(0);
-    Ok(match read_summary(&mut file, len) {
+    let summary = read_summary(&mut file, len);
+    let parallel = summary
+        .as_ref()
+        .is_some_and(|s| s.chunk_indexes.len() >= PARALLEL_CHUNKS);
+    let options = match summary {
         Some(summary) => match summary.chunk_indexes.first() {
             Some(chunk) => options.compression(match chunk.compression.as_str() {
                 "lz4" => Some(Compression::Lz4),
@@ -327,7 +436,225 @@ fn write_options(path: &Path, header: &Header) -> Result<WriteOptions, Error> {
             None => options.compression(Some(Compression::Zstd)),
         },
         None => options.compression(Some(Compression::Zstd)),
+    };
+    Ok((options, parallel))
+}
+
+/// Messages for the writer, gathered so that it is handed them in bulk: their headers, and their
+/// data one after another in one buffer (reused from batch to batch: no allocation per message).
+#[derive(Default)]
+struct Batch {
+    /// The index among the log's messages of the first.
+    first: u64,
+    /// Each message's header and the end of its data in `data`.
+    headers: Vec<(MessageHeader, usize)>,
+    data: Vec<u8>,
+}
+
+impl Batch {
+    /// Bytes or messages gathered before the batch is handed on, whichever comes first.
+    const BYTES: usize = 256 * 1024;
+    const MESSAGES: usize = 4096;
+
+    fn full(&self) -> bool {
+        self.data.len() >= Self::BYTES || self.headers.len() >= Self::MESSAGES
+    }
+}
+
+/// What the writer is handed, in file order.
+enum Out {
+    Messages(Batch),
+    /// A schema, channel, metadata, attachment or private record.
+    Record(Record<'static>),
+}
+
+/// A copy of `record` to hand to the writer if the copy keeps it: a schema, channel, metadata,
+/// attachment or private record.
+fn copied(record: &Record) -> Option<Record<'static>> {
+    let owned = |data: &Cow<[u8]>| Cow::Owned(data.to_vec());
+    Some(match record {
+        Record::Schema { header, data } => Record::Schema {
+            header: header.clone(),
+            data: owned(data),
+        },
+        Record::Channel(c) => Record::Channel(c.clone()),
+        Record::Metadata(m) => Record::Metadata(m.clone()),
+        Record::Attachment { header, data, crc } => Record::Attachment {
+            header: header.clone(),
+            data: owned(data),
+            crc: *crc,
+        },
+        Record::Unknown { opcode, data } => Record::Unknown {
+            opcode: *opcode,
+            data: owned(data),
+        },
+        _ => return None,
     })
+}
+
+/// A write that failed: the index of the message, if it was one, and the error.
+type Failed = (Option<u64>, McapError);
+
+/// Writes `out`: the calls the copy makes of the `mcap` crate's writer, in order.
+fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
+    let record = match out {
+        Out::Messages(batch) => {
+            let mut from = 0;
+            for (i, (header, end)) in batch.headers.iter().enumerate() {
+                w.write_to_known_channel(header, &batch.data[from..*end])
+                    .map_err(|e| (Some(batch.first + i as u64), e))?;
+                from = *end;
+            }
+            return Ok(());
+        }
+        Out::Record(record) => record,
+    };
+    let result = match record {
+        Record::Schema { header, data } => w
+            .add_schema_with_id(header.id, &header.name, &header.encoding, data)
+            .map(drop),
+        Record::Channel(c) => w
+            .add_channel_with_id(
+                c.id,
+                c.schema_id,
+                &c.topic,
+                &c.message_encoding,
+                &c.metadata,
+            )
+            .map(drop),
+        Record::Metadata(m) => w.write_metadata(m),
+        Record::Attachment { header, data, .. } => w.attach(&mcap::Attachment {
+            log_time: header.log_time,
+            create_time: header.create_time,
+            name: header.name.clone(),
+            media_type: header.media_type.clone(),
+            data: Cow::Borrowed(data),
+        }),
+        Record::Unknown { opcode, data } => {
+            w.write_private_record(*opcode, data, Default::default())
+        }
+        // Not handed here (see `copied`).
+        _ => Ok(()),
+    };
+    result.map_err(|e| (None, e))
+}
+
+/// Records handed to the writer's thread and not yet written.
+const QUEUE: usize = 4;
+
+/// The writer of the copy: called in turn (a log read by the streaming reader), or on a thread
+/// of its own (a log whose chunks are read in parallel), so that the writer's work — above all
+/// compressing the new chunks — runs beside reading and correcting the log. The calls, and so
+/// the output's bytes, are the same either way.
+struct Output {
+    /// Called in turn.
+    inline: Option<Box<Writer<AtomicFile>>>,
+    /// To the thread.
+    queue: Option<SyncSender<Out>>,
+    /// Batches written, back from the thread for reuse.
+    spent: Option<Receiver<Batch>>,
+    thread: Option<JoinHandle<(Writer<AtomicFile>, Result<(), Failed>)>>,
+    /// A batch to reuse (inline).
+    spare: Option<Batch>,
+}
+
+/// The error of a writer's thread that ended without an answer (it panicked).
+fn thread_failed() -> Failed {
+    (
+        None,
+        McapError::Io(io::Error::other("the thread writing the output stopped")),
+    )
+}
+
+impl Output {
+    /// Writes with `writer`: on a thread of its own with `threaded`, if it can be started.
+    fn new(writer: Writer<AtomicFile>, threaded: bool) -> io::Result<Self> {
+        let mut output = Output {
+            inline: None,
+            queue: None,
+            spent: None,
+            thread: None,
+            spare: None,
+        };
+        if !threaded {
+            output.inline = Some(Box::new(writer));
+            return Ok(output);
+        }
+        let (queue, todo) = sync_channel::<Out>(QUEUE);
+        let (spend, spent) = sync_channel::<Batch>(QUEUE);
+        let thread = std::thread::Builder::new()
+            .name("calib-apply-write".into())
+            .spawn(move || {
+                let mut writer = writer;
+                while let Ok(out) = todo.recv() {
+                    if let Err(e) = write(&mut writer, &out) {
+                        return (writer, Err(e));
+                    }
+                    if let Out::Messages(batch) = out {
+                        // A full return queue: the batch is dropped, the reader makes another.
+                        let _ = spend.try_send(batch);
+                    }
+                }
+                (writer, Ok(()))
+            })?;
+        output.queue = Some(queue);
+        output.spent = Some(spent);
+        output.thread = Some(thread);
+        Ok(output)
+    }
+
+    /// An empty batch, reused where one has come back.
+    fn batch(&mut self, first: u64) -> Batch {
+        let mut batch = match (&self.spent, self.spare.take()) {
+            (_, Some(batch)) => batch,
+            (Some(spent), None) => spent.try_recv().unwrap_or_default(),
+            (None, None) => Batch::default(),
+        };
+        batch.first = first;
+        batch.headers.clear();
+        batch.data.clear();
+        batch
+    }
+
+    /// Writes `out` (or hands it to the thread).
+    fn put(&mut self, out: Out) -> Result<(), Failed> {
+        if let Some(w) = self.inline.as_mut() {
+            write(w, &out)?;
+            if let Out::Messages(batch) = out {
+                self.spare = Some(batch);
+            }
+            return Ok(());
+        }
+        let sent = self.queue.as_ref().map(|queue| queue.send(out));
+        match sent {
+            Some(Ok(())) => Ok(()),
+            // The thread has stopped at an error: its error.
+            _ => Err(self.join().err().unwrap_or_else(thread_failed)),
+        }
+    }
+
+    /// The writer, once everything handed on is written; the first error of the thread.
+    fn join(&mut self) -> Result<Writer<AtomicFile>, Failed> {
+        if let Some(w) = self.inline.take() {
+            return Ok(*w);
+        }
+        self.queue = None;
+        let (writer, result) = self
+            .thread
+            .take()
+            .ok_or_else(thread_failed)?
+            .join()
+            .map_err(|_| thread_failed())?;
+        result.map(|()| writer)
+    }
+}
+
+impl Drop for Output {
+    fn drop(&mut self) {
+        // An error elsewhere: the thread stops, and the temporary output is removed before the
+        // error is reported.
+        let _ = self.join();
+    }
 }
 
 /// Writes `output`, a copy of `input` with the channel's readings corrected: JointState
@@ -340,16 +667,16 @@ pub(super) fn rewrite(
     json_fix: &Correction,
     skip_damaged: bool,
 ) -> Result<Rewritten, Error> {
-    let mut writer: Option<Writer<AtomicFile>> = None;
+    let mut out: Option<Output> = None;
+    let mut batch = Batch::default();
     let mut done = Rewritten {
         readings: 0,
         copied: 0,
         truncated: None,
         damaged: Vec::new(),
     };
-    let mut buf: Vec<u8> = Vec::new();
     let mut number = ryu::Buffer::new();
-    let fail = |index: Option<u64>, e: McapError| match e {
+    let fail = |(index, e): Failed| match e {
         McapError::Io(source) => Error::Io {
             path: output.to_path_buf(),
             source,
@@ -362,14 +689,13 @@ pub(super) fn rewrite(
         ),
     };
     (done.truncated, done.damaged) = walk(input, channel, skip_damaged, |record, index, hit| {
-        let w = match (record, writer.as_mut()) {
+        let w = match (record, out.as_mut()) {
             (Record::Header(header), None) => {
-                let options = write_options(input, header)?;
-                writer = Some(
-                    options
-                        .create(AtomicFile::create(output)?)
-                        .map_err(|e| fail(None, e))?,
-                );
+                let (options, threaded) = write_options(input, header)?;
+                let writer = options
+                    .create(AtomicFile::create(output)?)
+                    .map_err(|e| fail((None, e)))?;
+                out = Some(Output::new(writer, threaded).map_err(|e| fail((None, e.into())))?);
                 return Ok(());
             }
             (_, Some(w)) => w,
@@ -382,76 +708,68 @@ pub(super) fn rewrite(
                 ));
             }
         };
-        let rewritten = hit.is_some();
-        let result = match record {
-            Record::Schema { header, data } => w
-                .add_schema_with_id(header.id, &header.name, &header.encoding, data)
-                .map(drop),
-            Record::Channel(c) => w
-                .add_channel_with_id(
-                    c.id,
-                    c.schema_id,
-                    &c.topic,
-                    &c.message_encoding,
-                    &c.metadata,
-                )
-                .map(drop),
-            Record::Message { header, data } => match hit {
-                None => w.write_to_known_channel(header, data),
-                Some(Hit::Joint {
-                    message,
-                    index: joint,
-                    value,
-                }) => {
-                    buf.clear();
-                    buf.extend_from_slice(data);
-                    message.set_position(&mut buf, joint, joint_fix.apply(value));
-                    done.readings += 1;
-                    w.write_to_known_channel(header, &buf)
-                }
-                Some(Hit::Json { fields }) => {
-                    buf.clear();
-                    let mut from = 0;
-                    for (span, value) in &fields {
-                        buf.extend_from_slice(&data[from..span.start]);
-                        buf.extend_from_slice(
-                            number.format_finite(json_fix.apply(*value)).as_bytes(),
-                        );
-                        from = span.end;
-                    }
-                    buf.extend_from_slice(&data[from..]);
-                    done.readings += fields.len() as u64;
-                    w.write_to_known_channel(header, &buf)
-                }
-            },
-            Record::Metadata(m) => w.write_metadata(m),
-            Record::Attachment { header, data, .. } => w.attach(&mcap::Attachment {
-                log_time: header.log_time,
-                create_time: header.create_time,
-                name: header.name.clone(),
-                media_type: header.media_type.clone(),
-                data: Cow::Borrowed(data),
-            }),
-            Record::Unknown { opcode, data } => {
-                w.write_private_record(*opcode, data, Default::default())
+        let Record::Message { header, data } = record else {
+            // The rest is structure (chunks, indexes, summary, footer) the writer makes anew, or
+            // a second header, which the specification does not allow and which is dropped.
+            let Some(copy) = copied(record) else {
+                return Ok(());
+            };
+            if !batch.headers.is_empty() {
+                let next = w.batch(index);
+                w.put(Out::Messages(std::mem::replace(&mut batch, next)))
+                    .map_err(fail)?;
             }
-            // The rest is structure (chunks, indexes, summary, footer) the writer makes anew,
-            // or a second header, which the specification does not allow and which is dropped.
-            _ => return Ok(()),
+            return w.put(Out::Record(copy)).map_err(fail);
         };
-        let is_message = matches!(record, Record::Message { .. });
-        result.map_err(|e| fail(is_message.then_some(index), e))?;
-        if is_message && !rewritten {
-            done.copied += 1;
+        if batch.headers.is_empty() {
+            batch.first = index;
+        }
+        let start = batch.data.len();
+        match hit {
+            None => {
+                batch.data.extend_from_slice(data);
+                done.copied += 1;
+            }
+            Some(Hit::Joint {
+                message,
+                index: joint,
+                value,
+            }) => {
+                batch.data.extend_from_slice(data);
+                message.set_position(&mut batch.data[start..], joint, joint_fix.apply(value));
+                done.readings += 1;
+            }
+            Some(Hit::Json { fields }) => {
+                let mut from = 0;
+                for (span, value) in &fields {
+                    batch.data.extend_from_slice(&data[from..span.start]);
+                    batch
+                        .data
+                        .extend_from_slice(number.format_finite(json_fix.apply(*value)).as_bytes());
+                    from = span.end;
+                }
+                batch.data.extend_from_slice(&data[from..]);
+                done.readings += fields.len() as u64;
+            }
+        }
+        batch.headers.push((*header, batch.data.len()));
+        if batch.full() {
+            let next = w.batch(index + 1);
+            w.put(Out::Messages(std::mem::replace(&mut batch, next)))
+                .map_err(fail)?;
         }
         Ok(())
     })?;
-    let Some(mut writer) = writer else {
+    let Some(mut out) = out else {
         return Err(Error::Empty {
             path: input.to_path_buf(),
         });
     };
-    writer.finish().map_err(|e| fail(None, e))?;
+    if !batch.headers.is_empty() {
+        out.put(Out::Messages(batch)).map_err(fail)?;
+    }
+    let mut writer = out.join().map_err(fail)?;
+    writer.finish().map_err(|e| fail((None, e)))?;
     writer.into_inner().commit()?;
     Ok(done)
 }
