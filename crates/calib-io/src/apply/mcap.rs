@@ -1,18 +1,33 @@
 //! MCAP logs: every record copied through the `mcap` crate's writer, the channel's messages
 //! rewritten in place.
 //!
-//! The input is read front to back by the crate's sans-io [`LinearReader`] through a buffered
-//! file: chunks are decompressed one at a time and their records handed over one by one, so
-//! memory is bounded by the largest chunk. Records of the summary section (which repeats
-//! schemas and channels, and indexes the data) are not copied: the writer writes a new summary
-//! for the new chunks.
+//! # Reading
+//! A log whose summary lists [`PARALLEL_CHUNKS`](crate::mcap_log::read::PARALLEL_CHUNKS) chunks or more has its data section read as
+//! the MCAP reader reads it ([`Chunked`]): chunks checked against their CRCs and decompressed on
+//! worker threads, every record handed on in file order; its summary section, which the copy
+//! does not need but whose damage the streaming reader reports, is then read by the streaming
+//! reader. At the first irregularity (a damaged chunk, lz4 chunks, a chunk over
+//! [`MAX_PARALLEL_CHUNK_BYTES`](crate::limits::MAX_PARALLEL_CHUNK_BYTES), …) the streaming
+//! reader reads the file again from its start, skipping the records already copied, so every
+//! error, truncation and damaged chunk left out is its own. The streaming reader is the `mcap`
+//! crate's sans-io [`LinearReader`](mcap::sans_io::LinearReader) through a buffered file:
+//! chunks decompressed one at a time, records handed over one by one. Either way memory is
+//! bounded by a few chunks. Records of the summary section (which repeats schemas and channels,
+//! and indexes the data) are not copied: the writer writes a new summary for the new chunks.
+//!
+//! # Writing
+//! Messages are gathered in batches (their data in one reused buffer) and handed to the
+//! writer; for a log read in parallel, to a thread that owns the writer, so that the writer's
+//! work — above all compressing the new chunks — runs beside reading and correcting. The writer
+//! is called with the same records in the same order either way, so the output's bytes are the
+//! same as writing message by message on one thread.
 
 use super::Range;
 use crate::atomic::AtomicFile;
 use crate::mcap_log::cdr::{JointFormat, JointState};
 use crate::mcap_log::chunks::{self, Chunked, Fallback};
 use crate::mcap_log::json::field_spans;
-use crate::mcap_log::read::{Encoding, PARALLEL_CHUNKS, read_summary};
+use crate::mcap_log::read::{Encoding, read_summary};
 use crate::mcap_log::records::{self, Checked, StreamError};
 use crate::{DamagedChunk, Error, Truncation};
 use calib_core::AngleUnit;
@@ -229,7 +244,7 @@ impl Walk<'_> {
 /// channel's readings, if it does. Returns where the file breaks off, if it does, and the damaged
 /// chunks left out (with `skip_damaged`; otherwise the first is an error).
 ///
-/// A log whose summary lists [`PARALLEL_CHUNKS`] chunks or more has its data section read by
+/// A log whose summary lists `parallel_chunks` chunks or more has its data section read by
 /// [`Chunked`] (chunks decompressed and checked on worker threads) and its summary section by
 /// the streaming reader; at the first irregularity in the data section the streaming reader
 /// reads the file again from its start and skips the records already handed to `each`, so that
@@ -238,6 +253,7 @@ fn walk(
     path: &Path,
     channel: &str,
     skip_damaged: bool,
+    parallel_chunks: usize,
     mut each: impl FnMut(&Record, u64, Option<Hit>) -> Result<(), Error>,
 ) -> Result<(Option<Truncation>, Vec<DamagedChunk>), Error> {
     let io = |source| Error::Io {
@@ -247,7 +263,7 @@ fn walk(
     let mut file = File::open(path).map_err(io)?;
     let len = file.metadata().map_err(io)?.len();
     let parallel =
-        records::read_summary(&mut file, len).is_some_and(|s| s.chunks >= PARALLEL_CHUNKS);
+        records::read_summary(&mut file, len).is_some_and(|s| s.chunks >= parallel_chunks);
     let chunked = parallel
         .then(|| {
             let consumed = Arc::new(AtomicU64::new(0));
@@ -367,15 +383,18 @@ fn find<'d>(
     }
 }
 
-/// The range of the channel's readings: radians for JointState, `json_unit` for JSON.
+/// The range of the channel's readings: radians for JointState, `json_unit` for JSON. The chunks
+/// of a log whose summary lists `parallel_chunks` chunks or more are read in parallel (see
+/// [`walk`]; [`PARALLEL_CHUNKS`](crate::mcap_log::read::PARALLEL_CHUNKS) but in tests).
 pub(super) fn scan(
     path: &Path,
     channel: &str,
     json_unit: AngleUnit,
     skip_damaged: bool,
+    parallel_chunks: usize,
 ) -> Result<Range, Error> {
     let mut range = Range::new(json_unit);
-    walk(path, channel, skip_damaged, |_, _, hit| {
+    walk(path, channel, skip_damaged, parallel_chunks, |_, _, hit| {
         match hit {
             Some(Hit::Joint { value, .. }) => range.add(value, AngleUnit::Rad),
             Some(Hit::Json { fields }) => {
@@ -400,9 +419,13 @@ pub(super) struct Rewritten {
 
 /// The writer's options for a copy of the log at `path`: its header's profile and library, and
 /// the compression of its chunks as its summary lists them (zstd if it has no summary). Also
-/// whether the summary lists [`PARALLEL_CHUNKS`] chunks or more (then the log is read in
-/// parallel and written on a thread of its own).
-fn write_options(path: &Path, header: &Header) -> Result<(WriteOptions, bool), Error> {
+/// whether the summary lists `parallel_chunks` chunks or more (then the log is read in parallel
+/// and written on a thread of its own).
+fn write_options(
+    path: &Path,
+    header: &Header,
+    parallel_chunks: usize,
+) -> Result<(WriteOptions, bool), Error> {
     let mut file = File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -424,7 +447,7 @@ fn write_options(path: &Path, header: &Header) -> Result<(WriteOptions, bool), E
     let summary = read_summary(&mut file, len);
     let parallel = summary
         .as_ref()
-        .is_some_and(|s| s.chunk_indexes.len() >= PARALLEL_CHUNKS);
+        .is_some_and(|s| s.chunk_indexes.len() >= parallel_chunks);
     let options = match summary {
         Some(summary) => match summary.chunk_indexes.first() {
             Some(chunk) => options.compression(match chunk.compression.as_str() {
@@ -658,15 +681,17 @@ impl Drop for Output {
 }
 
 /// Writes `output`, a copy of `input` with the channel's readings corrected: JointState
-/// positions by `joint_fix` (radians), JSON fields by `json_fix`.
+/// positions by `joint_fix` (radians), JSON fields by `json_fix`. A log whose summary lists
+/// `parallel_chunks` chunks or more is read in parallel and written on a thread of its own.
 pub(super) fn rewrite(
     input: &Path,
     output: &Path,
     channel: &str,
-    joint_fix: &Correction,
-    json_fix: &Correction,
+    fix: (&Correction, &Correction),
     skip_damaged: bool,
+    parallel_chunks: usize,
 ) -> Result<Rewritten, Error> {
+    let (joint_fix, json_fix) = fix;
     let mut out: Option<Output> = None;
     let mut batch = Batch::default();
     let mut done = Rewritten {
@@ -688,10 +713,10 @@ pub(super) fn rewrite(
             format!("cannot write the MCAP file ({e})"),
         ),
     };
-    (done.truncated, done.damaged) = walk(input, channel, skip_damaged, |record, index, hit| {
+    let each = |record: &Record, index: u64, hit: Option<Hit>| {
         let w = match (record, out.as_mut()) {
             (Record::Header(header), None) => {
-                let (options, threaded) = write_options(input, header)?;
+                let (options, threaded) = write_options(input, header, parallel_chunks)?;
                 let writer = options
                     .create(AtomicFile::create(output)?)
                     .map_err(|e| fail((None, e)))?;
@@ -759,7 +784,8 @@ pub(super) fn rewrite(
                 .map_err(fail)?;
         }
         Ok(())
-    })?;
+    };
+    (done.truncated, done.damaged) = walk(input, channel, skip_damaged, parallel_chunks, each)?;
     let Some(mut out) = out else {
         return Err(Error::Empty {
             path: input.to_path_buf(),
@@ -772,4 +798,224 @@ pub(super) fn rewrite(
     writer.finish().map_err(|e| fail((None, e)))?;
     writer.into_inner().commit()?;
     Ok(done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mcap_log::JOINT_STATE_MSGDEF;
+    use crate::mcap_log::read::PARALLEL_CHUNKS;
+    use calib_core::ErrorMap;
+    use calib_core::correction::Wrapping;
+    use std::collections::BTreeMap;
+
+    /// A little-endian CDR JointState of joints `a` and `b`.
+    fn joint_state(i: u32, a: f64, b: f64) -> Vec<u8> {
+        let mut m = vec![0u8, 1, 0, 0];
+        m.extend(i.to_le_bytes()); // stamp.sec
+        m.extend(0u32.to_le_bytes()); // stamp.nanosec
+        m.extend(1u32.to_le_bytes()); // frame_id "" and padding to 4
+        m.extend([0, 0, 0, 0]);
+        m.extend(2u32.to_le_bytes());
+        m.extend(2u32.to_le_bytes());
+        m.extend(*b"a\0\0\0");
+        m.extend(2u32.to_le_bytes());
+        m.extend(*b"b\0\0\0");
+        m.extend(2u32.to_le_bytes()); // ends 40 bytes after the origin: 8-aligned already
+        m.extend(a.to_le_bytes());
+        m.extend(b.to_le_bytes());
+        m.extend(0u32.to_le_bytes());
+        m.extend(0u32.to_le_bytes());
+        m
+    }
+
+    /// A JointState log of `n` messages in zstd chunks of about 4 KiB (60 messages), with
+    /// metadata, an attachment and a private record between chunks.
+    fn log(path: &Path, n: u32) {
+        let file = std::io::BufWriter::new(File::create(path).unwrap());
+        let mut w = WriteOptions::new()
+            .profile("ros2")
+            .compression(Some(Compression::Zstd))
+            .chunk_size(Some(4096))
+            .create(file)
+            .unwrap();
+        let schema = w
+            .add_schema(
+                "sensor_msgs/msg/JointState",
+                "ros2msg",
+                JOINT_STATE_MSGDEF.as_bytes(),
+            )
+            .unwrap();
+        let js = w
+            .add_channel(schema, "/joint_states", "cdr", &BTreeMap::new())
+            .unwrap();
+        for i in 0..n {
+            let a = (f64::from(i) * 1e-3).rem_euclid(std::f64::consts::TAU);
+            let header = MessageHeader {
+                channel_id: js,
+                sequence: i,
+                log_time: 1_000_000 + u64::from(i),
+                publish_time: 1_000_000 + u64::from(i),
+            };
+            w.write_to_known_channel(&header, &joint_state(i, a, a.sin()))
+                .unwrap();
+            match i {
+                500 => w
+                    .write_metadata(&mcap::records::Metadata {
+                        name: "run".into(),
+                        metadata: BTreeMap::from([("operator".into(), "kim".into())]),
+                    })
+                    .unwrap(),
+                1500 => w
+                    .attach(&mcap::Attachment {
+                        log_time: 5,
+                        create_time: 6,
+                        name: "rig.urdf".into(),
+                        media_type: "text/xml".into(),
+                        data: Cow::Borrowed(b"<robot/>"),
+                    })
+                    .unwrap(),
+                2500 => w
+                    .write_private_record(0x90, b"vendor", Default::default())
+                    .unwrap(),
+                _ => {}
+            }
+        }
+        w.finish().unwrap();
+    }
+
+    /// Offsets and lengths of the top-level chunk records of MCAP `bytes`.
+    fn chunk_records(bytes: &[u8]) -> Vec<(usize, usize)> {
+        let mut at = 8;
+        let mut found = Vec::new();
+        while at + 9 <= bytes.len() && bytes[at] != op::DATA_END {
+            let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+            if bytes[at] == op::CHUNK {
+                found.push((at, 9 + len));
+            }
+            at += 9 + len;
+        }
+        found
+    }
+
+    /// `calib apply` of `path` (joint `a`, a 72-point map) with chunks read in parallel where
+    /// the log has `parallel_chunks` or more: what it reports (or its error) and the output.
+    fn apply(path: &Path, skip_damaged: bool, parallel_chunks: usize) -> (String, Vec<u8>) {
+        let out = path.with_extension(format!("out-{parallel_chunks}.mcap"));
+        let map = ErrorMap::new((0..72).map(|i| 1e-5 * f64::from(i % 7)).collect());
+        let fix = Correction::new(map, AngleUnit::Rad, Wrapping::Positive);
+        let done =
+            scan(path, "a", AngleUnit::Deg, skip_damaged, parallel_chunks).and_then(|range| {
+                let done = rewrite(path, &out, "a", (&fix, &fix), skip_damaged, parallel_chunks)?;
+                Ok((range, done))
+            });
+        match done {
+            Ok((range, done)) => (
+                format!(
+                    "{range:?} {} {} {:?} {:?}",
+                    done.readings, done.copied, done.truncated, done.damaged
+                ),
+                std::fs::read(&out).unwrap(),
+            ),
+            Err(e) => {
+                assert!(!out.exists(), "{e}: no output");
+                (e.to_string(), Vec::new())
+            }
+        }
+    }
+
+    /// Chunks read in parallel hand on every record the streaming reader hands on, up to the
+    /// data end record.
+    #[test]
+    fn every_record_of_the_data_section_is_handed_on_as_the_streaming_reader_does() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        log(&path, 3000);
+        let len = std::fs::metadata(&path).unwrap().len();
+        let Source::Linear(mut linear) = linear(File::open(&path).unwrap(), len, 0, false).unwrap()
+        else {
+            unreachable!("the streaming reader")
+        };
+        let consumed = Arc::new(AtomicU64::new(0));
+        let mut chunked =
+            Chunked::every_record(File::open(&path).unwrap(), len, consumed, 2).unwrap();
+        let mut opcodes = Vec::new();
+        loop {
+            let (opcode, data) = chunked.next_record().expect("no fallback");
+            let expected = linear.next_record().unwrap().unwrap();
+            assert_eq!((opcode, data), (expected.0, expected.1.as_slice()));
+            opcodes.push(opcode);
+            if opcode == op::DATA_END {
+                break;
+            }
+        }
+        for opcode in [
+            op::HEADER,
+            op::METADATA,
+            op::ATTACHMENT,
+            0x90,
+            op::MESSAGE_INDEX,
+        ] {
+            assert!(opcodes.contains(&opcode), "{opcode:#x}");
+        }
+        assert_eq!(opcodes.iter().filter(|&&o| o == op::MESSAGE).count(), 3000);
+    }
+
+    /// The copy of a log of many chunks is the same, byte for byte, whether its chunks are read
+    /// in parallel and it is written on a thread of its own or it is read and written in turn
+    /// — and so are the errors, truncation and damaged chunks left out.
+    #[test]
+    fn chunks_read_in_parallel_give_the_streaming_readers_copy() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        log(&path, 3000);
+        let good = std::fs::read(&path).unwrap();
+        let chunks = chunk_records(&good);
+        assert!(chunks.len() >= 40, "{} chunks", chunks.len());
+        let streaming = apply(&path, false, usize::MAX);
+        assert_eq!(apply(&path, false, PARALLEL_CHUNKS), streaming);
+        assert!(streaming.0.contains(" 3000 0 None []"), "{}", streaming.0);
+        // The copy holds every message, metadata record and attachment.
+        let copy = mcap::MessageStream::new(&streaming.1).unwrap().count();
+        assert_eq!(copy, 3000);
+        let summary = mcap::Summary::read(&streaming.1).unwrap().unwrap();
+        assert_eq!(
+            (
+                summary.metadata_indexes.len(),
+                summary.attachment_indexes.len()
+            ),
+            (1, 1)
+        );
+        // A damaged chunk: its compressed data, or its CRC.
+        let (at, len) = chunks[chunks.len() / 2];
+        for (name, offset) in [("data", at + len - 8), ("crc", at + 9 + 24)] {
+            let mut bytes = good.clone();
+            bytes[offset] ^= 0x10;
+            let bad = dir.path().join(format!("{name}.mcap"));
+            std::fs::write(&bad, &bytes).unwrap();
+            for skip_damaged in [false, true] {
+                let streaming = apply(&bad, skip_damaged, usize::MAX);
+                assert_eq!(apply(&bad, skip_damaged, PARALLEL_CHUNKS), streaming);
+                if skip_damaged {
+                    assert!(
+                        streaming.0.contains("DamagedChunk"),
+                        "{name}: {}",
+                        streaming.0
+                    );
+                } else {
+                    assert!(
+                        streaming.0.contains("--skip-damaged"),
+                        "{name}: {}",
+                        streaming.0
+                    );
+                }
+            }
+        }
+        // A truncated file: no summary, so the streaming reader (the writer called in turn).
+        let cut = dir.path().join("cut.mcap");
+        std::fs::write(&cut, &good[..good.len() * 2 / 3]).unwrap();
+        let streaming = apply(&cut, false, usize::MAX);
+        assert_eq!(apply(&cut, false, PARALLEL_CHUNKS), streaming);
+        assert!(streaming.0.contains("Some(Truncation"), "{}", streaming.0);
+    }
 }
