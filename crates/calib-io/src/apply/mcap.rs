@@ -60,6 +60,9 @@ enum Hit<'d> {
     Json { fields: Vec<(Span<usize>, f64)> },
 }
 
+/// Length of a message record's header: channel ID, sequence, log time, publish time.
+const MESSAGE_HEADER: usize = 2 + 4 + 8 + 8;
+
 /// A channel record's topic and, if calib reads its messages, how.
 struct Topic {
     name: String,
@@ -106,7 +109,8 @@ struct Walk<'a> {
     path: &'a Path,
     channel: &'a str,
     schemas: HashMap<u16, String>,
-    topics: HashMap<u16, Topic>,
+    /// By channel ID: a vector lookup per message.
+    topics: Vec<Option<Topic>>,
     /// The topic carrying the channel, once met: a name on two topics is ambiguous.
     carrier: Option<String>,
     /// Messages met so far.
@@ -122,7 +126,26 @@ impl Walk<'_> {
         each: &mut impl FnMut(&Record, u64, Option<Hit>) -> Result<(), Error>,
     ) -> Result<(), Error> {
         let (path, channel, messages) = (self.path, self.channel, self.messages);
-        let record = mcap::parse_record(opcode, data).map_err(|e| {
+        let record = match opcode {
+            // A message's header as `mcap::parse_record` reads it, without its per-field parsing
+            // (a message too short for one goes there for its error): channel ID, sequence, log
+            // time, publish time.
+            op::MESSAGE if data.len() >= MESSAGE_HEADER => {
+                let u64_at =
+                    |i: usize| u64::from_le_bytes(data[i..i + 8].try_into().unwrap_or_default());
+                Ok(Record::Message {
+                    header: MessageHeader {
+                        channel_id: u16::from_le_bytes([data[0], data[1]]),
+                        sequence: u32::from_le_bytes(data[2..6].try_into().unwrap_or_default()),
+                        log_time: u64_at(6),
+                        publish_time: u64_at(14),
+                    },
+                    data: Cow::Borrowed(&data[MESSAGE_HEADER..]),
+                })
+            }
+            _ => mcap::parse_record(opcode, data),
+        }
+        .map_err(|e| {
             mcap_error(
                 path,
                 Some(messages),
@@ -137,16 +160,18 @@ impl Walk<'_> {
             }
             Record::Channel(c) => {
                 let schema = self.schemas.get(&c.schema_id).map_or("", String::as_str);
-                self.topics.insert(
-                    c.id,
-                    Topic {
-                        name: c.topic.clone(),
-                        encoding: Encoding::from_names(&c.message_encoding, schema),
-                    },
-                );
+                let id = usize::from(c.id);
+                if self.topics.len() <= id {
+                    self.topics.resize_with(id + 1, || None);
+                }
+                self.topics[id] = Some(Topic {
+                    name: c.topic.clone(),
+                    encoding: Encoding::from_names(&c.message_encoding, schema),
+                });
             }
             Record::Message { header, data } => {
-                let topic = self.topics.get(&header.channel_id).ok_or_else(|| {
+                let topic = self.topics.get(usize::from(header.channel_id));
+                let topic = topic.and_then(Option::as_ref).ok_or_else(|| {
                     mcap_error(
                         path,
                         Some(messages),
@@ -287,7 +312,7 @@ fn walk(
         path,
         channel,
         schemas: HashMap::new(),
-        topics: HashMap::new(),
+        topics: Vec::new(),
         carrier: None,
         messages: 0,
     };
@@ -444,8 +469,8 @@ fn write_options(
         .profile(header.profile.clone())
         .library(header.library.clone())
         // zstd on the writer's own thread (for a large log, not the reading thread): a zstd
-        // worker thread on top cost 1 s more CPU (10e6 messages: 11.4–11.7 s against 10.4 s)
-        // for a wall-time gain lost in the noise of a shared 2-core machine.
+        // worker thread on top was slower on a shared 2-core machine (10e6 messages, load 6:
+        // 13.2–14.7 s wall and 9.4–10.1 s CPU against 11.4–12.2 s and 8.9–9.3 s).
         .compression_threads(0);
     let summary = read_summary(&mut file, len);
     let parallel = summary
