@@ -4,8 +4,11 @@
 //! option, the path and what to do.
 
 mod common;
+#[path = "common/long.rs"]
+mod long;
 
 use common::{calib, code, s, stderr, stdout, testdata};
+use long::long_scenario;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -281,16 +284,6 @@ fn a_later_run_into_the_same_folder_leaves_no_earlier_files() {
 }
 
 // --- 3. Temporary files -----------------------------------------------------------------------
-
-/// The quick scenario, 15 times as long and 5 times as dense: 150 000 samples, long enough to
-/// signal while the log is written.
-fn long_scenario(dir: &Path) -> PathBuf {
-    let text = common::quick_with(&[
-        ("revolutions = 2.0", "revolutions = 30.0"),
-        ("rate_hz = 200.0", "rate_hz = 1000.0"),
-    ]);
-    common::write(dir, "long.toml", &text)
-}
 
 #[test]
 fn sigterm_and_sigint_while_writing_leave_no_temporary_file() {

@@ -3,8 +3,11 @@
 //! from equal runs.
 
 mod common;
+#[path = "common/json.rs"]
+mod json;
 
 use common::*;
+use json::read_json;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -16,12 +19,6 @@ fn calib_in(dir: &Path, args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("cannot start calib")
-}
-
-fn read_json(path: &Path) -> Value {
-    let text = std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap()
 }
 
 /// `dir/logs/` with two simulated quick runs (seeds 1 and 2), the first again under `x/` (same

@@ -3,8 +3,14 @@
 //! and no output left behind).
 
 mod common;
+#[path = "common/compare.rs"]
+mod compare;
+#[path = "common/json.rs"]
+mod json;
 
 use common::*;
+use compare::max_diff_zero_mean;
+use json::read_json;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -15,19 +21,7 @@ const QUICK_DELTAS: [f64; 5] = [0.0, 7.3, 23.9, 61.7, 151.1];
 fn max_map_error(out: &Path, truth_dir: &Path, channel: &str) -> f64 {
     let got = read_table(&out.join(format!("{channel}.csv")));
     let truth = read_table(&truth_dir.join(format!("{channel}.csv")));
-    let t: Vec<f64> = got.iter().map(|(a, _)| interpolate(&truth, *a)).collect();
-    let mean_g = got.iter().map(|r| r.1).sum::<f64>() / got.len() as f64;
-    let mean_t = t.iter().sum::<f64>() / t.len() as f64;
-    got.iter()
-        .zip(&t)
-        .map(|((_, g), t)| ((g - mean_g) - (t - mean_t)).abs())
-        .fold(0.0, f64::max)
-}
-
-fn read_json(path: &Path) -> Value {
-    let text = std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap()
+    max_diff_zero_mean(&got, |a| interpolate(&truth, a))
 }
 
 /// Bound on the map error for quick.toml. Measured (seed 1, joint method, orders 1–84 fitted

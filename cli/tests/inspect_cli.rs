@@ -2,8 +2,11 @@
 //! fixtures, `--json`, and a simulated CSRR run.
 
 mod common;
+#[path = "common/inspect.rs"]
+mod inspect;
 
 use common::*;
+use inspect::{inspect, inspect_json};
 use serde_json::Value;
 
 /// Rows of the human channel table: `(name, unit)` for each line under `channels`.
@@ -19,21 +22,13 @@ fn channel_rows(out: &str) -> Vec<(String, String)> {
         .collect()
 }
 
-fn inspect_json(log: &std::path::Path) -> Value {
-    let o = calib(&["inspect", s(log), "--json"]);
-    expect_exit(&o, 0);
-    serde_json::from_str(&stdout(&o)).unwrap_or_else(|e| panic!("{e}:\n{}", stdout(&o)))
-}
-
 #[test]
 fn mcap_fixture_lists_channels_and_the_exact_sample_count() {
     // make_fixture.py: 300 JointStates joined with JSON /reference, which is missing for
     // i = 100..=104, plus two stray JSON messages: aligned on a's clock, 295 samples (ref has
     // a gap of 6 intervals there); /status is skipped.
     let log = testdata("mcap/fixture.mcap");
-    let o = calib(&["inspect", s(&log)]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&log, &[]);
     assert!(out.contains("  295 samples over 2.990 s"), "{out}");
     assert_eq!(
         channel_rows(&out),
@@ -54,7 +49,7 @@ fn mcap_fixture_lists_channels_and_the_exact_sample_count() {
 
 #[test]
 fn mcap_fixture_json_has_samples_channels_and_segments() {
-    let v = inspect_json(&testdata("mcap/fixture.mcap"));
+    let v = inspect_json(&testdata("mcap/fixture.mcap"), &[]);
     let i = &v["inspection"];
     assert_eq!(i["samples"], 295);
     let names: Vec<&str> = i["channels"]
@@ -85,9 +80,7 @@ fn mcap_fixture_json_has_samples_channels_and_segments() {
 fn csv_fixture_lists_both_channels_and_four_samples() {
     // testdata/csv/README.md: four rows of a two-channel log in degrees, `a` wraps.
     let log = testdata("csv/small.csv");
-    let o = calib(&["inspect", s(&log)]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&log, &[]);
     assert!(out.contains("  4 samples over 0.300 s"), "{out}");
     assert_eq!(
         channel_rows(&out),
@@ -99,7 +92,7 @@ fn csv_fixture_lists_both_channels_and_four_samples() {
         .unwrap();
     assert!(a_row.trim_end().ends_with("yes"), "a wraps: {a_row}");
 
-    let v = inspect_json(&log);
+    let v = inspect_json(&log, &[]);
     let i = &v["inspection"];
     assert_eq!(i["samples"], 4);
     assert_eq!(i["channels"].as_array().unwrap().len(), 2);
@@ -140,9 +133,7 @@ fn simulated_run_shows_five_sessions_at_the_scenario_rotations() {
     let dir = tempfile::tempdir().unwrap();
     let log = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.mcap");
 
-    let o = calib(&["inspect", s(&log)]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&log, &[]);
     assert!(out.contains("3301 samples"), "{out}");
     assert!(
         out.contains("5 CSRR session(s) of at least one revolution"),
@@ -159,7 +150,7 @@ fn simulated_run_shows_five_sessions_at_the_scenario_rotations() {
         assert!(circular_diff(rel, QUICK_DELTAS[k]) < 0.01, "{row}");
     }
 
-    let v = inspect_json(&log);
+    let v = inspect_json(&log, &[]);
     let sessions = sessions_of(&v);
     assert_eq!(sessions.len(), 5, "{sessions:?}");
     for (k, (session, rel)) in sessions.iter().enumerate() {
@@ -184,7 +175,7 @@ fn simulated_run_shows_five_sessions_at_the_scenario_rotations() {
 fn simulated_csv_with_session_marks_shows_the_same_sessions() {
     let dir = tempfile::tempdir().unwrap();
     let log = simulate(&testdata("scenarios/quick.toml"), dir.path(), "run.csv");
-    let v = inspect_json(&log);
+    let v = inspect_json(&log, &[]);
     assert_eq!(v["inspection"]["samples"], 3301);
     let sessions = sessions_of(&v);
     assert_eq!(sessions.len(), 5, "{sessions:?}");
@@ -203,8 +194,11 @@ fn simulated_csv_with_session_marks_shows_the_same_sessions() {
 fn relative_angle_does_not_depend_on_the_log_format() {
     let dir = tempfile::tempdir().unwrap();
     let quick = testdata("scenarios/quick.toml");
-    let csv = sessions_of(&inspect_json(&simulate(&quick, dir.path(), "run.csv")));
-    let mcap = sessions_of(&inspect_json(&simulate(&quick, dir.path(), "run.mcap")));
+    let csv = sessions_of(&inspect_json(&simulate(&quick, dir.path(), "run.csv"), &[]));
+    let mcap = sessions_of(&inspect_json(
+        &simulate(&quick, dir.path(), "run.mcap"),
+        &[],
+    ));
     assert_eq!(csv.len(), mcap.len());
     for ((_, c), (_, m)) in csv.iter().zip(&mcap) {
         assert!((c - m).abs() < 0.01, "csv {c}° vs mcap {m}°");
@@ -240,8 +234,6 @@ fn inspect_reports_time_going_backwards_in_a_csv() {
         "back.csv",
         "t,a,b\n0.0,1,1\n0.1,2,2\n0.05,3,3\n0.2,4,4\n",
     );
-    let o = calib(&["inspect", s(&log), "--json"]);
-    expect_exit(&o, 0);
-    let v: Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let v = inspect_json(&log, &[]);
     assert_eq!(v["inspection"]["non_monotonic"], 1);
 }

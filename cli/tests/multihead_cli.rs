@@ -2,43 +2,29 @@
 //! methods, and bad inputs (exit code, message, nothing written).
 
 mod common;
+#[path = "common/compare.rs"]
+mod compare;
+#[path = "common/json.rs"]
+mod json;
+#[path = "common/multihead.rs"]
+mod multihead;
 
 use common::*;
+use compare::max_diff_zero_mean;
+use json::read_json;
+use multihead::{HEADS, multihead, selfa_log};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-
-/// The SelfA heads of `testdata/scenarios/multihead.toml`, numbered as in the paper.
-const HEADS: &str = "h1@0,h2@360/7,h3@90,h4@720/7,h5@120,h6@1080/7,h7@180,h8@1440/7,h9@240,\
-                     h10@1800/7,h11@270,h12@2160/7";
+use std::path::Path;
 
 /// Head angle errors the scenario gives h1..h12, arcsec.
 const HEAD_ERRORS: [f64; 12] = [
     0.0, 1.8, -2.5, 0.9, 3.1, -1.2, 2.2, -0.7, -3.4, 1.5, 0.6, -2.0,
 ];
 
-/// The simulated SelfA log in `dir` (8801 samples of 12 heads).
-fn selfa_log(dir: &Path) -> PathBuf {
-    simulate(&testdata("scenarios/multihead.toml"), dir, "selfa.mcap")
-}
-
-fn read_json(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
 /// Largest |table − truth table| over the truth's grid, both with their mean removed, arcsec.
 fn max_diff(table: &Path, truth: &Path) -> f64 {
     let got = read_table(table);
-    let want = read_table(truth);
-    let g: Vec<f64> = want.iter().map(|(a, _)| interpolate(&got, *a)).collect();
-    let mean = |v: &mut dyn Iterator<Item = f64>, n: usize| v.sum::<f64>() / n as f64;
-    let (mg, mw) = (
-        mean(&mut g.iter().copied(), g.len()),
-        mean(&mut want.iter().map(|r| r.1), want.len()),
-    );
-    g.iter()
-        .zip(&want)
-        .map(|(g, (_, w))| ((g - mg) - (w - mw)).abs())
-        .fold(0.0, f64::max)
+    max_diff_zero_mean(&read_table(truth), |a| interpolate(&got, a))
 }
 
 fn orders(v: &Value) -> Vec<u64> {
@@ -54,7 +40,7 @@ fn selfa_joint_meets_the_bar_and_names_the_blind_orders() {
     let dir = tempfile::tempdir().unwrap();
     let log = selfa_log(dir.path());
     let out = dir.path().join("out");
-    let o = calib(&["multihead", s(&log), "--heads", HEADS, "-o", s(&out)]);
+    let o = multihead(&log, &out, &[]);
     expect_exit(&o, 0);
     // report.html: the map, its zoom and the spectrum with order 84 (lcm of 3, 4, 7) marked blind.
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
@@ -125,16 +111,7 @@ fn eda_with_one_set_misses_its_multiples_and_json_goes_to_stdout() {
 
     // All three sets (inferred): meets the bar as well (measured 0.0116″).
     let out = dir.path().join("eda");
-    let o = calib(&[
-        "multihead",
-        s(&log),
-        "--heads",
-        HEADS,
-        "-o",
-        s(&out),
-        "--method",
-        "eda",
-    ]);
+    let o = multihead(&log, &out, &["--method", "eda"]);
     expect_exit(&o, 0);
     assert_mentions(
         &stdout(&o),
@@ -151,21 +128,19 @@ fn eda_with_one_set_misses_its_multiples_and_json_goes_to_stdout() {
 
     // The square set alone cannot see the scale's orders 4, 12, 24, 36 and 72.
     let out = dir.path().join("square");
-    let o = calib(&[
-        "multihead",
-        s(&log),
-        "--heads",
-        HEADS,
-        "-o",
-        s(&out),
-        "--method",
-        "eda",
-        "--sets",
-        "h1,h3,h7,h11",
-        "--max-order",
-        "100",
-        "--json",
-    ]);
+    let o = multihead(
+        &log,
+        &out,
+        &[
+            "--method",
+            "eda",
+            "--sets",
+            "h1,h3,h7,h11",
+            "--max-order",
+            "100",
+            "--json",
+        ],
+    );
     expect_exit(&o, 0);
     let report: Value = serde_json::from_str(&stdout(&o)).expect("--json prints the report");
     assert_eq!(report["details"]["solver"], "eda");
@@ -249,16 +224,7 @@ fn bad_data_are_data_errors() {
 
     // The SelfA log asked for more orders than its sampling resolves.
     let log = selfa_log(dir.path());
-    let o = calib(&[
-        "multihead",
-        s(&log),
-        "--heads",
-        HEADS,
-        "-o",
-        s(&out),
-        "--max-order",
-        "1000",
-    ]);
+    let o = multihead(&log, &out, &["--max-order", "1000"]);
     let err = expect_exit(&o, 1);
     assert_mentions(&err, &["order 1000", "2048", "--max-order"]);
     assert_no_output(&out);

@@ -4,9 +4,14 @@
 //! `apply`, `export` and `compare`.
 
 mod common;
+#[path = "common/json.rs"]
+mod json;
+#[path = "common/reference.rs"]
+mod reference;
 
 use common::*;
-use serde_json::Value;
+use json::read_json;
+use reference::reference;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
@@ -44,10 +49,6 @@ speeds_deg_s = [10.0, 25.0, 15.0, 40.0]
 ramp_s = 0.5
 pause_s = 0.5
 "#;
-
-fn read_json(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
 
 /// A range table's `(lo, hi)` from its `# range_deg:` line and its rows `(angle, error)`.
 fn read_range(path: &Path) -> ((f64, f64), Vec<(f64, f64)>) {
@@ -102,16 +103,7 @@ fn reference_on_the_joint(dir: &Path) -> (PathBuf, PathBuf, Output) {
     let scenario = write(dir, "joint.toml", JOINT);
     let log = simulate(&scenario, dir, "joint.csv");
     let out = dir.join("out");
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "b",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
+    let o = reference(&log, "b", "ref", &out, &[]);
     expect_exit(&o, 0);
     (log, out, o)
 }
@@ -206,16 +198,7 @@ fn a_resolver_with_a_large_error_and_a_gap_is_measured() {
     let scenario = write(dir.path(), "resolver.toml", RESOLVER_SWEEP);
     let log = simulate(&scenario, dir.path(), "resolver.csv");
     let out = dir.path().join("out");
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "resolver",
-        "--ref",
-        "counter",
-        "-o",
-        s(&out),
-    ]);
+    let o = reference(&log, "resolver", "counter", &out, &[]);
     expect_exit(&o, 0);
     let text = format!("{}{}", stdout(&o), stderr(&o));
     assert_mentions(
@@ -268,19 +251,7 @@ fn a_slipping_reference_is_refused() {
     }
     let log = write(dir.path(), "slipping.csv", &slipped);
     let out = dir.path().join("out");
-    let err = expect_exit(
-        &calib(&[
-            "reference",
-            s(&log),
-            "--dut",
-            "b",
-            "--ref",
-            "ref",
-            "-o",
-            s(&out),
-        ]),
-        1,
-    );
+    let err = expect_exit(&reference(&log, "b", "ref", &out, &[]), 1);
     assert_mentions(&err, &["slipping.csv", "does not follow", "between passes"]);
     assert_no_output(&out);
 }

@@ -2,11 +2,17 @@
 //! sensors publishing on their own topics and clocks.
 
 mod common;
+#[path = "common/inspect.rs"]
+mod inspect;
+#[path = "common/ros.rs"]
+mod ros;
 
 use calib_core::simulate::Scenario;
 use calib_core::{AngleUnit, Channel, ErrorMap, Sample};
 use calib_io::mcap_log::McapWriter;
 use common::*;
+use inspect::{inspect, inspect_json};
+use ros::*;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -22,8 +28,19 @@ const TOPICS: [&str; 3] = [
 ];
 
 fn scenario() -> Scenario {
-    let text = std::fs::read_to_string(testdata("scenarios/csrr72.toml")).unwrap();
-    toml::from_str(&text).unwrap()
+    load_scenario("csrr72.toml")
+}
+
+/// An MCAP file at `path` with the three [`TOPICS`], each carrying one joint `encoder` (rad).
+fn three_topics(path: &Path) -> McapWriter {
+    let channel = [Channel {
+        name: "encoder".into(),
+        unit: AngleUnit::Rad,
+    }];
+    let mut writer = McapWriter::create(path, &channel, TOPICS[0]).unwrap();
+    writer.add_topic(TOPICS[1], &channel).unwrap();
+    writer.add_topic(TOPICS[2], &channel).unwrap();
+    writer
 }
 
 /// Writes `testdata/scenarios/csrr72.toml`'s run (400 Hz) with A, B and the reference each on its
@@ -34,13 +51,7 @@ fn write_run(path: &Path, b_offset: u64, ref_offset: u64, jitter: u64) -> Scenar
     let mut sc = scenario();
     let rate = sc.rate_hz;
     sc.rate_hz = rate * OVERSAMPLE as f64;
-    let channel = [Channel {
-        name: "encoder".into(),
-        unit: AngleUnit::Rad,
-    }];
-    let mut writer = McapWriter::create(path, &channel, TOPICS[0]).unwrap();
-    writer.add_topic(TOPICS[1], &channel).unwrap();
-    writer.add_topic(TOPICS[2], &channel).unwrap();
+    let mut writer = three_topics(path);
     // A 64-bit LCG (Knuth's MMIX constants): deterministic jitter draws.
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut draw = || {
@@ -197,9 +208,7 @@ fn ambiguous_short_names_are_usage_errors_listing_the_topics() {
 
 #[test]
 fn inspect_lists_topics_with_type_rate_and_qualified_channels() {
-    let o = calib(&["inspect", s(&clocks())]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&clocks(), &[]);
     assert!(out.contains("\ntopics: 3 read, 0 not read\n"), "{out}");
     for t in TOPICS {
         let line = out
@@ -223,9 +232,7 @@ fn inspect_lists_topics_with_type_rate_and_qualified_channels() {
             "/reference/joint_states/encoder: median offset -0.900 ms, 399 interpolated, 0 exact, 1 dropped",
         ],
     );
-    let o = calib(&["inspect", s(&clocks()), "--json"]);
-    expect_exit(&o, 0);
-    let v: Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let v = inspect_json(&clocks(), &[]);
     assert_eq!(v["topics"].as_array().unwrap().len(), 3);
     assert_eq!(
         v["topics"][1]["channels"][0],
@@ -249,9 +256,7 @@ fn the_log_time_and_a_max_gap_are_options() {
 
 #[test]
 fn lab_csv_with_semicolons_metadata_and_a_time_unit_is_read() {
-    let o = calib(&["inspect", s(&lab_export())]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&lab_export(), &[]);
     // 400 rows 2.5 ms apart, the time in milliseconds.
     assert!(out.contains("  400 samples over "), "{out}");
     assert!(out.contains("400.00 Hz mean"), "{out}");
@@ -326,13 +331,7 @@ fn make_fixtures() {
 /// The first second of the scenario on three clocks (see [`make_fixtures`]).
 fn write_small_run(path: &Path) {
     let sc = scenario();
-    let channel = [Channel {
-        name: "encoder".into(),
-        unit: AngleUnit::Rad,
-    }];
-    let mut writer = McapWriter::create(path, &channel, TOPICS[0]).unwrap();
-    writer.add_topic(TOPICS[1], &channel).unwrap();
-    writer.add_topic(TOPICS[2], &channel).unwrap();
+    let mut writer = three_topics(path);
     for (n, s) in sc.samples().unwrap().take(400).enumerate() {
         for (k, shift) in [0.0, 0.9e-3, 1.6e-3].into_iter().enumerate() {
             let sample = Sample {
@@ -391,59 +390,34 @@ fn ros1_joint_state(seq: u32, stamp_ns: u64, names: &[&str], positions: &[f64]) 
     b
 }
 
-/// A stamp in nanoseconds as `McapWriter` rounds it: whole seconds, then the fraction to the
-/// nanosecond.
-fn ns(t: f64) -> u64 {
-    let sec = t.floor();
-    sec as u64 * 1_000_000_000 + ((t - sec) * 1e9).round() as u64
-}
-
 /// Writes `quick.toml`'s run (3301 samples of `a` and `b`) to `path` as `mcap convert` makes of
 /// a ROS 1 bag: schema `sensor_msgs/JointState` (`ros1msg`), message encoding `ros1`, one
 /// message per sample on `/joint_states`, header stamp and log time the sample's time (whole
 /// nanoseconds, as `calib simulate` writes them).
 fn write_ros1_run(path: &Path) {
-    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
-    let sc: Scenario = toml::from_str(&text).unwrap();
+    let sc = load_scenario("quick.toml");
     let names = sc.channels();
     assert_eq!((names[0].name.as_str(), names[1].name.as_str()), ("a", "b"));
-    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-    let mut writer = mcap::Writer::new(file).unwrap();
-    let schema = writer
-        .add_schema(
-            "sensor_msgs/JointState",
-            "ros1msg",
-            ROS1_JOINT_STATE.as_bytes(),
-        )
-        .unwrap();
-    let channel = writer
-        .add_channel(schema, "/joint_states", "ros1", &Default::default())
-        .unwrap();
+    let (mut writer, channel) = ros1_mcap(path);
     for (n, sample) in sc.samples().unwrap().enumerate() {
         let t = ns(sample.t);
         let data = ros1_joint_state(n as u32, t, &["a", "b"], &sample.values[..2]);
-        let header = mcap::records::MessageHeader {
-            channel_id: channel,
-            sequence: n as u32,
-            log_time: t,
-            publish_time: t,
-        };
-        writer.write_to_known_channel(&header, &data).unwrap();
+        writer.write(channel, n as u32, t, &data);
     }
-    writer.finish().unwrap();
+    writer.finish();
 }
 
-/// The largest |difference| of the error column between two tables on the same grid, arcsec.
-fn table_difference(want: &Path, got: &Path) -> f64 {
-    let (w, g) = (read_table(want), read_table(got));
-    assert_eq!(w.len(), g.len(), "{}", got.display());
-    w.iter()
-        .zip(&g)
-        .map(|(w, g)| {
-            assert_eq!(w.0, g.0, "grid");
-            (w.1 - g.1).abs()
-        })
-        .fold(0.0, f64::max)
+/// An MCAP file at `path` as `mcap convert` makes of a ROS 1 bag, with the channel
+/// `/joint_states` (`sensor_msgs/JointState`, `ros1`); the writer and the channel's id.
+fn ros1_mcap(path: &Path) -> (RawMcap, u16) {
+    let mut writer = RawMcap::create(
+        path,
+        "sensor_msgs/JointState",
+        "ros1msg",
+        ROS1_JOINT_STATE.as_bytes(),
+    );
+    let channel = writer.channel("/joint_states", "ros1");
+    (writer, channel)
 }
 
 /// The committed ROS 1 fixture holds `quick.toml`'s run with the stamps and values `calib
@@ -473,44 +447,20 @@ fn a_ros1_encoded_mcap_gives_the_maps_of_the_cdr_mcap() {
     }
     // A message cut short is an error naming the file, the message and the topic.
     let cut = dir.path().join("cut.mcap");
-    let file = std::io::BufWriter::new(std::fs::File::create(&cut).unwrap());
-    let mut writer = mcap::Writer::new(file).unwrap();
-    let schema = writer
-        .add_schema(
-            "sensor_msgs/JointState",
-            "ros1msg",
-            ROS1_JOINT_STATE.as_bytes(),
-        )
-        .unwrap();
-    let channel = writer
-        .add_channel(schema, "/joint_states", "ros1", &Default::default())
-        .unwrap();
+    let (mut writer, channel) = ros1_mcap(&cut);
     for n in 0..10u32 {
         let mut data = ros1_joint_state(n, 1_000_000_000 + u64::from(n), &["a"], &[0.1]);
         if n == 5 {
             data.truncate(30);
         }
-        let header = mcap::records::MessageHeader {
-            channel_id: channel,
-            sequence: n,
-            log_time: u64::from(n),
-            publish_time: u64::from(n),
-        };
-        writer.write_to_known_channel(&header, &data).unwrap();
+        writer.write(channel, n, u64::from(n), &data);
     }
-    writer.finish().unwrap();
+    writer.finish();
     let err = expect_exit(&calib(&["inspect", s(&cut)]), 1);
     assert_mentions(
         &err,
         &["cut.mcap", "message 5", "/joint_states", "truncated"],
     );
-}
-
-/// The samples of a scenario of `testdata/scenarios`.
-fn scenario_samples(name: &str) -> Vec<Sample> {
-    let text = std::fs::read_to_string(testdata(&format!("scenarios/{name}"))).unwrap();
-    let sc: Scenario = toml::from_str(&text).unwrap();
-    sc.samples().unwrap().collect()
 }
 
 /// The committed field-path fixture (see [`write_field_run`]).
@@ -549,62 +499,35 @@ uint32 nanosec
 /// `m`, `name` `motor`, `currents` 1, 2, 3, `position` A's reading and `extra` `[(1, 0.5),
 /// (2, B's reading)]`.
 fn motor_state(stamp_ns: u64, a: f64, b: f64) -> Vec<u8> {
-    let mut buf = vec![0u8, 1, 0, 0];
-    let pad = |buf: &mut Vec<u8>, n: usize| {
-        while (buf.len() - 4) % n != 0 {
-            buf.push(0);
-        }
-    };
-    let string = |buf: &mut Vec<u8>, s: &str| {
-        pad(buf, 4);
-        buf.extend_from_slice(&(s.len() as u32 + 1).to_le_bytes());
-        buf.extend_from_slice(s.as_bytes());
-        buf.push(0);
-    };
-    buf.extend_from_slice(&((stamp_ns / 1_000_000_000) as i32).to_le_bytes());
-    buf.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
-    string(&mut buf, "m");
-    string(&mut buf, "motor");
-    pad(&mut buf, 4);
+    let mut m = Cdr::message();
+    m.stamp(stamp_ns).string("m").string("motor");
     for c in [1.0f32, 2.0, 3.0] {
-        buf.extend_from_slice(&c.to_le_bytes());
+        m.primitive(c.to_le_bytes());
     }
-    pad(&mut buf, 8);
-    buf.extend_from_slice(&a.to_le_bytes());
-    pad(&mut buf, 4);
-    buf.extend_from_slice(&2u32.to_le_bytes());
+    m.f64(a).u32(2);
     for (id, value) in [(1u8, 0.5), (2, b)] {
-        buf.push(id);
-        pad(&mut buf, 8);
-        buf.extend_from_slice(&value.to_le_bytes());
+        m.primitive([id]).f64(value);
     }
-    buf
+    m.bytes()
 }
 
 /// Writes `samples` (of `a` and `b`, radians) to `path` as rosbag2 writes MCAP: one
 /// `my_robot/msg/MotorState` message per sample on `/motor/state`, A in `position`, B in
 /// `extra[1].value`, header stamp and log time the sample's time.
 fn write_field_run(path: &Path, samples: impl IntoIterator<Item = Sample>) {
-    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-    let mut writer = mcap::Writer::new(file).unwrap();
-    let schema = writer
-        .add_schema("my_robot/msg/MotorState", "ros2msg", MOTOR_STATE.as_bytes())
-        .unwrap();
-    let channel = writer
-        .add_channel(schema, "/motor/state", "cdr", &Default::default())
-        .unwrap();
+    let mut writer = RawMcap::create(
+        path,
+        "my_robot/msg/MotorState",
+        "ros2msg",
+        MOTOR_STATE.as_bytes(),
+    );
+    let channel = writer.channel("/motor/state", "cdr");
     for (n, sample) in samples.into_iter().enumerate() {
         let t = ns(sample.t);
-        let header = mcap::records::MessageHeader {
-            channel_id: channel,
-            sequence: n as u32,
-            log_time: t,
-            publish_time: t,
-        };
         let data = motor_state(t, sample.values[0], sample.values[1]);
-        writer.write_to_known_channel(&header, &data).unwrap();
+        writer.write(channel, n as u32, t, &data);
     }
-    writer.finish().unwrap();
+    writer.finish();
 }
 
 /// Fields by path through the message definition the file carries: `TOPIC.position` and
@@ -683,28 +606,15 @@ fn numeric_fields_are_read_by_path_through_the_schema() {
         ],
     );
     let broken = dir.path().join("broken.mcap");
-    let file = std::io::BufWriter::new(std::fs::File::create(&broken).unwrap());
-    let mut writer = mcap::Writer::new(file).unwrap();
-    let schema = writer
-        .add_schema(
-            "my_robot/msg/MotorState",
-            "ros2msg",
-            b"float64 position\nmy_robot/Gear gear\n",
-        )
-        .unwrap();
-    let channel = writer
-        .add_channel(schema, "/motor/state", "cdr", &Default::default())
-        .unwrap();
-    let header = mcap::records::MessageHeader {
-        channel_id: channel,
-        sequence: 0,
-        log_time: 1,
-        publish_time: 1,
-    };
-    writer
-        .write_to_known_channel(&header, &[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
-        .unwrap();
-    writer.finish().unwrap();
+    let mut writer = RawMcap::create(
+        &broken,
+        "my_robot/msg/MotorState",
+        "ros2msg",
+        b"float64 position\nmy_robot/Gear gear\n",
+    );
+    let channel = writer.channel("/motor/state", "cdr");
+    writer.write(channel, 0, 1, &[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]);
+    writer.finish();
     let o = calib(&["inspect", s(&broken), "--a", "/motor/state.position"]);
     let err = expect_exit(&o, 1);
     assert_mentions(

@@ -2,10 +2,18 @@
 //! turning both ways (reversal value), and bad inputs (exit code, message, nothing written).
 
 mod common;
+#[path = "common/compare.rs"]
+mod compare;
+#[path = "common/json.rs"]
+mod json;
+#[path = "common/reference.rs"]
+mod reference;
 
 use common::*;
+use compare::max_diff_zero_mean;
+use json::read_json;
+use reference::reference;
 use serde_json::Value;
-use std::path::Path;
 
 /// A DUT `b` and a reference `ref` on the driven shaft: 5 revolutions at 60 r/min, 1000 Hz
 /// (0.36° between samples: interpolating between samples costs < 0.004″ on order 12).
@@ -54,21 +62,6 @@ turn_s = 0.5
 /// the reference's 0.3″ order 2 or 0.45″ order 1) or a sign error would exceed it.
 const TOL_ARCSEC: f64 = 0.2;
 
-fn read_json(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-/// Largest |table − expected| over the table's grid, both with their mean removed.
-fn max_diff(got: &[(f64, f64)], expected: impl Fn(f64) -> f64) -> f64 {
-    let t: Vec<f64> = got.iter().map(|(a, _)| expected(*a)).collect();
-    let mean_g = got.iter().map(|r| r.1).sum::<f64>() / got.len() as f64;
-    let mean_t = t.iter().sum::<f64>() / t.len() as f64;
-    got.iter()
-        .zip(&t)
-        .map(|((_, g), t)| ((g - mean_g) - (t - mean_t)).abs())
-        .fold(0.0, f64::max)
-}
-
 #[test]
 fn simulated_run_matches_the_truth_difference() {
     let dir = tempfile::tempdir().unwrap();
@@ -76,18 +69,7 @@ fn simulated_run_matches_the_truth_difference() {
     let log = simulate(&scenario, dir.path(), "run.csv");
     let out = dir.path().join("out");
     // ISO 230-2 at every grid point (the default is 20 targets), so E↑ is the map's p-p.
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "b",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-        "--targets",
-        "3600",
-    ]);
+    let o = reference(&log, "b", "ref", &out, &["--targets", "3600"]);
     expect_exit(&o, 0);
     assert_mentions(
         &stdout(&o),
@@ -105,7 +87,7 @@ fn simulated_run_matches_the_truth_difference() {
     assert!(header.starts_with("angle_deg,error_arcsec,correction_arcsec,u_arcsec\n"));
     let truth_b = read_table(&dir.path().join("run.truth/b.csv"));
     let truth_r = read_table(&dir.path().join("run.truth/ref.csv"));
-    let e = max_diff(&got, |a| {
+    let e = max_diff_zero_mean(&got, |a| {
         interpolate(&truth_b, a) - interpolate(&truth_r, a)
     });
     println!("simulated_run_matches_the_truth_difference: max |map − truth| = {e:.4}″");
@@ -137,21 +119,12 @@ fn csrr72_sensor_b_against_its_reference() {
     let dir = tempfile::tempdir().unwrap();
     let log = simulate(&testdata("scenarios/csrr72.toml"), dir.path(), "c72.csv");
     let out = dir.path().join("out");
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "b",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
+    let o = reference(&log, "b", "ref", &out, &[]);
     expect_exit(&o, 0);
     let got = read_table(&out.join("b.csv"));
     let truth_b = read_table(&dir.path().join("c72.truth/b.csv"));
     let truth_r = read_table(&dir.path().join("c72.truth/ref.csv"));
-    let e = max_diff(&got, |a| {
+    let e = max_diff_zero_mean(&got, |a| {
         interpolate(&truth_b, a) - interpolate(&truth_r, a)
     });
     println!("csrr72_sensor_b_against_its_reference: max |map − truth| = {e:.4}″");
@@ -190,21 +163,13 @@ fn both_directions_give_the_reversal_value() {
     let dir = tempfile::tempdir().unwrap();
     let log = write(dir.path(), "run.csv", &back_and_forth(3.0));
     let out = dir.path().join("out");
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
+    let o = reference(
+        &log,
         "dut",
-        "--ref",
         "ref",
-        "--ref-u",
-        "0.2",
-        "-o",
-        s(&out),
-        "--json",
-        "--targets",
-        "3600",
-    ]);
+        &out,
+        &["--ref-u", "0.2", "--json", "--targets", "3600"],
+    );
     expect_exit(&o, 0);
     let report: Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(report, read_json(&out.join("report.json")));
@@ -226,7 +191,7 @@ fn both_directions_give_the_reversal_value() {
     // The map is the bidirectional mean: the cosine without the backlash. Linear interpolation
     // at 0.36° spacing costs ≤ 9·0.0063²/8·10″ ≈ 0.0005″.
     let got = read_table(&out.join("dut.csv"));
-    let e = max_diff(&got, |a| 10.0 * (3.0 * a.to_radians()).cos());
+    let e = max_diff_zero_mean(&got, |a| 10.0 * (3.0 * a.to_radians()).cos());
     assert!(e < 0.002, "{e}″");
     // u is the reference's alone (the passes agree exactly).
     let text = std::fs::read_to_string(out.join("dut.csv")).unwrap();
@@ -265,31 +230,13 @@ fn bad_inputs_fail_cleanly() {
     let good = write(dir.path(), "run.csv", &back_and_forth(0.0));
 
     // Unknown channel: bad usage.
-    let o = calib(&[
-        "reference",
-        s(&good),
-        "--dut",
-        "dut",
-        "--ref",
-        "enc2",
-        "-o",
-        s(&out),
-    ]);
+    let o = reference(&good, "dut", "enc2", &out, &[]);
     let err = expect_exit(&o, 2);
     assert_mentions(&err, &["enc2", "run.csv"]);
     assert_no_output(&out);
 
     // Same channel twice: bad usage.
-    let o = calib(&[
-        "reference",
-        s(&good),
-        "--dut",
-        "dut",
-        "--ref",
-        "dut",
-        "-o",
-        s(&out),
-    ]);
+    let o = reference(&good, "dut", "dut", &out, &[]);
     expect_exit(&o, 2);
     let o = calib(&[
         "reference",
@@ -306,38 +253,14 @@ fn bad_inputs_fail_cleanly() {
     // A reference that never moves.
     let still = with_reference(|_| 12.5);
     let log = write(dir.path(), "still.csv", &still);
-    let err = expect_exit(
-        &calib(&[
-            "reference",
-            s(&log),
-            "--dut",
-            "dut",
-            "--ref",
-            "ref",
-            "-o",
-            s(&out),
-        ]),
-        1,
-    );
+    let err = expect_exit(&reference(&log, "dut", "ref", &out, &[]), 1);
     assert_mentions(&err, &["still.csv", "`ref`", "does not move"]);
     assert_no_output(&out);
 
     // A reference on another shaft (turning the other way).
     let reversed = with_reference(|r| (-r).rem_euclid(360.0));
     let log = write(dir.path(), "reversed.csv", &reversed);
-    let err = expect_exit(
-        &calib(&[
-            "reference",
-            s(&log),
-            "--dut",
-            "dut",
-            "--ref",
-            "ref",
-            "-o",
-            s(&out),
-        ]),
-        1,
-    );
+    let err = expect_exit(&reference(&log, "dut", "ref", &out, &[]), 1);
     assert_mentions(&err, &["reversed.csv", "does not follow"]);
     assert_no_output(&out);
 
@@ -350,19 +273,7 @@ fn bad_inputs_fail_cleanly() {
         .collect();
     let log = write(dir.path(), "short.csv", &short);
     let short_out = dir.path().join("short-out");
-    expect_exit(
-        &calib(&[
-            "reference",
-            s(&log),
-            "--dut",
-            "dut",
-            "--ref",
-            "ref",
-            "-o",
-            s(&short_out),
-        ]),
-        0,
-    );
+    expect_exit(&reference(&log, "dut", "ref", &short_out, &[]), 0);
     let table = std::fs::read_to_string(short_out.join("dut.csv")).unwrap();
     assert!(
         table.starts_with("# range_deg: 1.100000 to 287.600000 "),
@@ -378,18 +289,7 @@ fn bad_inputs_fail_cleanly() {
         .collect();
     let log = write(dir.path(), "tiny.csv", &tiny);
     let err = expect_exit(
-        &calib(&[
-            "reference",
-            s(&log),
-            "--dut",
-            "dut",
-            "--ref",
-            "ref",
-            "--points",
-            "360",
-            "-o",
-            s(&out),
-        ]),
+        &reference(&log, "dut", "ref", &out, &["--points", "360"]),
         1,
     );
     assert_mentions(&err, &["tiny.csv", "crossed 0 grid point", "at least 2"]);

@@ -2,24 +2,15 @@
 //! a final output name, and results no table may hold are refused rather than written.
 
 mod common;
+#[path = "common/long.rs"]
+mod long;
 
 use calib_io::{LogReader, ReadOptions};
 use common::{calib, code, s, stderr, testdata};
+use long::long_scenario;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-
-/// The quick scenario, 15 times as long and 5 times as dense: 150 000 samples.
-fn long_scenario(dir: &Path) -> PathBuf {
-    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
-    let text = text
-        .replace("revolutions = 2.0", "revolutions = 30.0")
-        .replace("rate_hz = 200.0", "rate_hz = 1000.0");
-    assert!(text.contains("revolutions = 30.0") && text.contains("rate_hz = 1000.0"));
-    let path = dir.join("long.toml");
-    std::fs::write(&path, text).unwrap();
-    path
-}
 
 fn spawn(args: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_calib"))

@@ -3,8 +3,11 @@
 //! page with headless Chromium where it is installed.
 
 mod common;
+#[path = "common/reference.rs"]
+mod reference;
 
 use common::*;
+use reference::reference;
 use std::collections::HashSet;
 use std::path::Path;
 
@@ -244,16 +247,7 @@ fn reports_with_a_reference_encoder() {
     assert_eq!(y.matches("<circle").count(), 11);
 
     let out = dir.path().join("reference");
-    let o = calib(&[
-        "reference",
-        s(&log),
-        "--dut",
-        "b",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
+    let o = reference(&log, "b", "ref", &out, &[]);
     expect_exit(&o, 0);
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     check_page(&html, &["map-b", "zoom-b", "spectrum"]);

@@ -3,11 +3,16 @@
 //! creates, with CDR payloads as `rmw` serializes them.
 
 mod common;
+#[path = "common/inspect.rs"]
+mod inspect;
+#[path = "common/ros.rs"]
+mod ros;
 
-use calib_core::simulate::Scenario;
 use calib_core::{AngleUnit, Channel, Sample};
 use calib_io::mcap_log::McapWriter;
 use common::*;
+use inspect::{inspect, inspect_json};
+use ros::*;
 use rusqlite::{Connection, params};
 use std::path::{Path, PathBuf};
 
@@ -50,38 +55,16 @@ fn insert(db: &Connection, topic_id: i64, timestamp: i64, data: &[u8]) {
 /// A `sensor_msgs/msg/JointState` in little-endian CDR with its encapsulation header; alignment
 /// is counted from the end of the header, `frame_id` is empty, velocity and effort are empty.
 fn joint_state(stamp_ns: i64, names: &[&str], positions: &[f64]) -> Vec<u8> {
-    let mut b = vec![0u8, 1, 0, 0];
-    let align = |b: &mut Vec<u8>, n: usize| {
-        while (b.len() - 4) % n != 0 {
-            b.push(0);
-        }
-    };
-    let u32_at = |b: &mut Vec<u8>, v: u32| {
-        align(b, 4);
-        b.extend_from_slice(&v.to_le_bytes());
-    };
-    let string = |b: &mut Vec<u8>, s: &str| {
-        u32_at(b, s.len() as u32 + 1);
-        b.extend_from_slice(s.as_bytes());
-        b.push(0);
-    };
-    b.extend_from_slice(&((stamp_ns / 1_000_000_000) as i32).to_le_bytes());
-    b.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
-    string(&mut b, "");
-    u32_at(&mut b, names.len() as u32);
+    let mut m = Cdr::message();
+    m.stamp(stamp_ns as u64).string("").u32(names.len() as u32);
     for n in names {
-        string(&mut b, n);
+        m.string(n);
     }
-    u32_at(&mut b, positions.len() as u32);
-    if !positions.is_empty() {
-        align(&mut b, 8);
+    m.u32(positions.len() as u32);
+    for &p in positions {
+        m.f64(p);
     }
-    for p in positions {
-        b.extend_from_slice(&p.to_le_bytes());
-    }
-    u32_at(&mut b, 0);
-    u32_at(&mut b, 0);
-    b
+    m.u32(0).u32(0).bytes()
 }
 
 /// `metadata.yaml` as `ros2 bag record` (Humble) writes it, listing these splits.
@@ -105,13 +88,6 @@ fn compressed_metadata(storage: &str, files: &[&str], format: &str, mode: &str) 
     text
 }
 
-/// A stamp in nanoseconds as `McapWriter` rounds it: whole seconds, then the fraction to the
-/// nanosecond.
-fn ns(t: f64) -> i64 {
-    let sec = t.floor();
-    sec as i64 * 1_000_000_000 + ((t - sec) * 1e9).round() as i64
-}
-
 /// Writes `quick.toml`'s run as a bag directory `dir/run_bag` of two split `.db3` files (the
 /// second from the middle of the run on), A's joint `a` on `/enc_a/joint_states` and B's `b` on
 /// `/enc_b/joint_states`, header stamps and log times the run's times (the run starts at 0 s,
@@ -119,8 +95,7 @@ fn ns(t: f64) -> i64 {
 /// the same run as `dir/run.mcap` as `calib simulate` writes it. Returns both.
 fn write_run(dir: &Path) -> (PathBuf, PathBuf) {
     let mcap = simulate(&testdata("scenarios/quick.toml"), dir, "run.mcap");
-    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
-    let sc: Scenario = toml::from_str(&text).unwrap();
+    let sc = load_scenario("quick.toml");
     let samples: Vec<Sample> = sc.samples().unwrap().collect();
     let (ia, ib) = (0, 1);
     assert_eq!(sc.channels()[ia].name, "a");
@@ -137,7 +112,7 @@ fn write_run(dir: &Path) -> (PathBuf, PathBuf) {
         db.execute_batch("BEGIN").unwrap();
         // B's message first at each instant: the order of rows must not matter, only stamps.
         for s in part {
-            let t = ns(s.t);
+            let t = ns(s.t) as i64;
             insert(&db, 2, t, &joint_state(t, &["b"], &[s.values[ib]]));
             insert(&db, 1, t, &joint_state(t, &["a"], &[s.values[ia]]));
         }
@@ -165,19 +140,7 @@ fn csrr_on_a_split_bag_matches_the_mcap_of_the_same_run() {
     let o = calib(&["csrr", s(&bag), "--a", "a", "--b", "b", "-o", s(&out_bag)]);
     expect_exit(&o, 0);
     for table in ["a.csv", "b.csv"] {
-        let (want, got) = (
-            read_table(&out_mcap.join(table)),
-            read_table(&out_bag.join(table)),
-        );
-        assert_eq!(want.len(), got.len(), "{table}");
-        let worst = want
-            .iter()
-            .zip(&got)
-            .map(|(w, g)| {
-                assert_eq!(w.0, g.0, "{table}: grid");
-                (w.1 - g.1).abs()
-            })
-            .fold(0.0, f64::max);
+        let worst = table_difference(&out_mcap.join(table), &out_bag.join(table));
         assert!(worst < 1e-6, "{table}: max |bag − mcap| {worst}″");
     }
     // The same channels by their qualified names.
@@ -193,23 +156,17 @@ fn csrr_on_a_split_bag_matches_the_mcap_of_the_same_run() {
     ]);
     expect_exit(&o, 0);
     // Inspect reads every message of both splits, and the bag's .db3 split alone is a log too.
-    let samples = read_json_stdout(&["inspect", s(&bag), "--json"]);
+    let samples = inspect_json(&bag, &[]);
     let total = samples["topics"][0]["messages"].as_u64().unwrap();
     assert_eq!(samples["topics"].as_array().unwrap().len(), 2);
     assert_eq!(samples["topics"][1]["messages"].as_u64().unwrap(), total);
     assert_eq!(samples["alignment"]["samples"].as_u64().unwrap(), total);
-    let first = read_json_stdout(&["inspect", s(&bag.join("run_bag_0.db3")), "--json"]);
+    let first = inspect_json(&bag.join("run_bag_0.db3"), &[]);
     assert_eq!(
         first["topics"][0]["messages"].as_u64().unwrap(),
         total / 2,
         "{first}"
     );
-}
-
-fn read_json_stdout(args: &[&str]) -> serde_json::Value {
-    let o = calib(args);
-    expect_exit(&o, 0);
-    serde_json::from_str(&stdout(&o)).unwrap_or_else(|e| panic!("{e}: {}", stdout(&o)))
 }
 
 /// A `.db3` file with a JointState topic and `/tf`, 200 messages each at 100 Hz from 1 s.
@@ -242,9 +199,7 @@ fn inspect_lists_the_topics_calib_does_not_read() {
     let dir = tempfile::tempdir().unwrap();
     let db3 = dir.path().join("robot.db3");
     write_with_tf(&db3);
-    let o = calib(&["inspect", s(&db3)]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&db3, &[]);
     assert!(out.contains("\ntopics: 1 read, 1 not read\n"), "{out}");
     let line = |topic: &str| {
         out.lines()
@@ -417,9 +372,7 @@ fn fixture() -> PathBuf {
 
 #[test]
 fn the_committed_bag_fixture_is_read() {
-    let o = calib(&["inspect", s(&fixture())]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&fixture(), &[]);
     assert!(out.contains("\ntopics: 2 read, 1 not read\n"), "{out}");
     assert_mentions(
         &out,
@@ -486,7 +439,7 @@ fn make_fixture() {
 
 /// A `std_msgs/msg/Float64` message in little-endian CDR.
 fn float64(v: f64) -> Vec<u8> {
-    [&[0u8, 1, 0, 0][..], &v.to_le_bytes()].concat()
+    Cdr::message().f64(v).bytes()
 }
 
 /// `quick.toml`'s run with A and B published as `std_msgs/msg/Float64` (radians) on
@@ -494,24 +447,16 @@ fn float64(v: f64) -> Vec<u8> {
 /// a `.db3` file; returns both and the MCAP of the same run that `calib simulate` writes.
 fn write_scalar_run(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
     let reference = simulate(&testdata("scenarios/quick.toml"), dir, "run.mcap");
-    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
-    let sc: Scenario = toml::from_str(&text).unwrap();
-    let samples: Vec<Sample> = sc.samples().unwrap().collect();
+    let samples = scenario_samples("quick.toml");
     let topics = ["/enc_a/angle", "/enc_b/angle"];
     let mcap_path = dir.join("scalars.mcap");
-    let file = std::io::BufWriter::new(std::fs::File::create(&mcap_path).unwrap());
-    let mut writer = mcap::Writer::new(file).unwrap();
-    let schema = writer
-        .add_schema("std_msgs/msg/Float64", "ros2msg", b"float64 data")
-        .unwrap();
-    let ids: Vec<u16> = topics
-        .iter()
-        .map(|t| {
-            writer
-                .add_channel(schema, t, "cdr", &Default::default())
-                .unwrap()
-        })
-        .collect();
+    let mut writer = RawMcap::create(
+        &mcap_path,
+        "std_msgs/msg/Float64",
+        "ros2msg",
+        b"float64 data",
+    );
+    let ids: Vec<u16> = topics.iter().map(|t| writer.channel(t, "cdr")).collect();
     let db3 = dir.join("scalars.db3");
     let db = create_db3(
         &db3,
@@ -525,18 +470,12 @@ fn write_scalar_run(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
         let t = ns(s.t);
         for (k, &id) in ids.iter().enumerate() {
             let data = float64(s.values[k]);
-            let header = mcap::records::MessageHeader {
-                channel_id: id,
-                sequence: n as u32,
-                log_time: t as u64,
-                publish_time: t as u64,
-            };
-            writer.write_to_known_channel(&header, &data).unwrap();
-            insert(&db, k as i64 + 1, t, &data);
+            writer.write(id, n as u32, t, &data);
+            insert(&db, k as i64 + 1, t as i64, &data);
         }
     }
     db.execute_batch("COMMIT").unwrap();
-    writer.finish().unwrap();
+    writer.finish();
     (mcap_path, db3, reference)
 }
 
@@ -550,9 +489,7 @@ fn scalar_topics_in_mcap_and_bags_give_the_maps_of_the_same_run() {
     let want = dir.path().join("want");
     expect_exit(&calib(&["csrr", s(&reference), "-o", s(&want)]), 0);
     for log in [&mcap, &db3] {
-        let o = calib(&["inspect", s(log)]);
-        expect_exit(&o, 0);
-        let out = stdout(&o);
+        let out = inspect(log, &[]);
         assert!(out.contains("\ntopics: 2 read, 0 not read\n"), "{out}");
         assert_mentions(&out, &["std_msgs/msg/Float64", "      /enc_a/angle\n"]);
         let out = dir.path().join(log.extension().unwrap());
@@ -570,13 +507,7 @@ fn scalar_topics_in_mcap_and_bags_give_the_maps_of_the_same_run() {
         ]);
         expect_exit(&o, 0);
         for (got, table) in [("enc_a_angle.csv", "a.csv"), ("enc_b_angle.csv", "b.csv")] {
-            let (want, got) = (read_table(&want.join(table)), read_table(&out.join(got)));
-            assert_eq!(want.len(), got.len());
-            let worst = want
-                .iter()
-                .zip(&got)
-                .map(|(w, g)| (w.1 - g.1).abs())
-                .fold(0.0, f64::max);
+            let worst = table_difference(&want.join(table), &out.join(got));
             assert!(
                 worst < 1e-6,
                 "{}: {table} differs by {worst}″",
@@ -595,13 +526,11 @@ fn scalar_counts_are_read_with_a_counts_unit() {
     let db = create_db3(&db3, &[("/encoder/count", "std_msgs/msg/UInt16")]);
     for i in 0..100i64 {
         let count = (i * 41 % 4096) as u16;
-        let data = [&[0u8, 1, 0, 0][..], &count.to_le_bytes()].concat();
+        let data = Cdr::message().primitive(count.to_le_bytes()).bytes();
         insert(&db, 1, 1_000_000_000 + i * 10_000_000, &data);
     }
     drop(db);
-    let o = calib(&["inspect", s(&db3), "--unit", "counts:4096", "--json"]);
-    expect_exit(&o, 0);
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let v = inspect_json(&db3, &["--unit", "counts:4096"]);
     assert_eq!(v["topics"][0]["channels"][0], "/encoder/count");
     let text = stdout(&calib(&["inspect", s(&db3), "--unit", "counts:4096"]));
     assert!(text.contains("  100 samples over "), "{text}");
@@ -668,50 +597,30 @@ uint32 nanosec
 
 /// A `control_msgs/msg/DynamicJointState` in little-endian CDR: for each joint its name and
 /// its interfaces `(name, value)`; `frame_id` is `base`.
-fn dynamic_joint_state(stamp_ns: i64, joints: &[(&str, &[(&str, f64)])]) -> Vec<u8> {
-    let mut b = vec![0u8, 1, 0, 0];
-    let align = |b: &mut Vec<u8>, n: usize| {
-        while (b.len() - 4) % n != 0 {
-            b.push(0);
-        }
-    };
-    let u32_at = |b: &mut Vec<u8>, v: u32| {
-        align(b, 4);
-        b.extend_from_slice(&v.to_le_bytes());
-    };
-    let string = |b: &mut Vec<u8>, s: &str| {
-        u32_at(b, s.len() as u32 + 1);
-        b.extend_from_slice(s.as_bytes());
-        b.push(0);
-    };
-    b.extend_from_slice(&((stamp_ns / 1_000_000_000) as i32).to_le_bytes());
-    b.extend_from_slice(&((stamp_ns % 1_000_000_000) as u32).to_le_bytes());
-    string(&mut b, "base");
-    u32_at(&mut b, joints.len() as u32);
+fn dynamic_joint_state(stamp_ns: u64, joints: &[(&str, &[(&str, f64)])]) -> Vec<u8> {
+    let mut m = Cdr::message();
+    m.stamp(stamp_ns).string("base").u32(joints.len() as u32);
     for (name, _) in joints {
-        string(&mut b, name);
+        m.string(name);
     }
-    u32_at(&mut b, joints.len() as u32);
+    m.u32(joints.len() as u32);
     for (_, interfaces) in joints {
-        u32_at(&mut b, interfaces.len() as u32);
+        m.u32(interfaces.len() as u32);
         for (name, _) in *interfaces {
-            string(&mut b, name);
+            m.string(name);
         }
-        u32_at(&mut b, interfaces.len() as u32);
-        if !interfaces.is_empty() {
-            align(&mut b, 8);
-        }
-        for (_, v) in *interfaces {
-            b.extend_from_slice(&v.to_le_bytes());
+        m.u32(interfaces.len() as u32);
+        for &(_, v) in *interfaces {
+            m.f64(v);
         }
     }
-    b
+    m.bytes()
 }
 
 /// The joints of one DynamicJointState as `ros2_control`'s broadcaster publishes them: `a` with
 /// position and velocity, `b` with effort first and then position, and `gripper` with an
 /// effort only (not a channel: it has no position).
-fn dynamic_message(t: i64, a: f64, b: f64) -> Vec<u8> {
+fn dynamic_message(t: u64, a: f64, b: f64) -> Vec<u8> {
     dynamic_joint_state(
         t,
         &[
@@ -726,40 +635,34 @@ fn dynamic_message(t: i64, a: f64, b: f64) -> Vec<u8> {
 /// [`dynamic_message`]), once in an MCAP file (`ros2msg` schema, `cdr`) and once in a `.db3`
 /// file, header stamp and log time the sample's time; returns both.
 fn write_dynamic_run(dir: &Path) -> (PathBuf, PathBuf) {
-    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
-    let sc: Scenario = toml::from_str(&text).unwrap();
-    let samples: Vec<Sample> = sc.samples().unwrap().collect();
+    let samples = scenario_samples("quick.toml");
     let mcap_path = dir.join("dynamic.mcap");
-    let file = std::io::BufWriter::new(std::fs::File::create(&mcap_path).unwrap());
-    let mut writer = mcap::Writer::new(file).unwrap();
-    let schema = writer
-        .add_schema(
-            DYNAMIC_JOINT_STATE,
-            "ros2msg",
-            DYNAMIC_JOINT_STATE_MSGDEF.as_bytes(),
-        )
-        .unwrap();
-    let id = writer
-        .add_channel(schema, "/dynamic_joint_states", "cdr", &Default::default())
-        .unwrap();
+    let (mut writer, id) = dynamic_mcap(&mcap_path);
     let db3 = dir.join("dynamic.db3");
     let db = create_db3(&db3, &[("/dynamic_joint_states", DYNAMIC_JOINT_STATE)]);
     db.execute_batch("BEGIN").unwrap();
     for (n, s) in samples.iter().enumerate() {
         let t = ns(s.t);
         let data = dynamic_message(t, s.values[0], s.values[1]);
-        let header = mcap::records::MessageHeader {
-            channel_id: id,
-            sequence: n as u32,
-            log_time: t as u64,
-            publish_time: t as u64,
-        };
-        writer.write_to_known_channel(&header, &data).unwrap();
-        insert(&db, 1, t, &data);
+        writer.write(id, n as u32, t, &data);
+        insert(&db, 1, t as i64, &data);
     }
     db.execute_batch("COMMIT").unwrap();
-    writer.finish().unwrap();
+    writer.finish();
     (mcap_path, db3)
+}
+
+/// An MCAP file at `path` with the DynamicJointState schema (`ros2msg`) and the channel
+/// `/dynamic_joint_states` (`cdr`), as rosbag2 writes it; the writer and the channel's id.
+fn dynamic_mcap(path: &Path) -> (RawMcap, u16) {
+    let mut writer = RawMcap::create(
+        path,
+        DYNAMIC_JOINT_STATE,
+        "ros2msg",
+        DYNAMIC_JOINT_STATE_MSGDEF.as_bytes(),
+    );
+    let id = writer.channel("/dynamic_joint_states", "cdr");
+    (writer, id)
 }
 
 /// DynamicJointState in MCAP and in a bag: the `position` interface of each joint, wherever it
@@ -773,22 +676,14 @@ fn dynamic_joint_states_in_mcap_and_bags_give_the_maps_of_the_same_run() {
     let want = dir.path().join("want");
     expect_exit(&calib(&["csrr", s(&reference), "-o", s(&want)]), 0);
     for log in [&mcap, &db3] {
-        let o = calib(&["inspect", s(log)]);
-        expect_exit(&o, 0);
-        let out = stdout(&o);
+        let out = inspect(log, &[]);
         assert_mentions(&out, &[DYNAMIC_JOINT_STATE, "3301 msg", "      a, b\n"]);
         assert!(!out.contains("gripper"), "{out}");
         let out = dir.path().join(log.extension().unwrap());
         let o = calib(&["csrr", s(log), "--a", "a", "--b", "b", "-o", s(&out)]);
         expect_exit(&o, 0);
         for table in ["a.csv", "b.csv"] {
-            let (w, g) = (read_table(&want.join(table)), read_table(&out.join(table)));
-            assert_eq!(w.len(), g.len());
-            let worst = w
-                .iter()
-                .zip(&g)
-                .map(|(w, g)| (w.1 - g.1).abs())
-                .fold(0.0, f64::max);
+            let worst = table_difference(&want.join(table), &out.join(table));
             eprintln!("{}: {table} max |difference| {worst:e}″", log.display());
             assert!(
                 worst < 1e-6,
@@ -806,9 +701,7 @@ fn dynamic_fixture() -> PathBuf {
 
 #[test]
 fn the_committed_dynamic_joint_state_fixture_is_read() {
-    let o = calib(&["inspect", s(&dynamic_fixture())]);
-    expect_exit(&o, 0);
-    let out = stdout(&o);
+    let out = inspect(&dynamic_fixture(), &[]);
     assert_mentions(
         &out,
         &[
@@ -835,46 +728,20 @@ fn the_committed_dynamic_joint_state_fixture_is_read() {
 #[test]
 #[ignore = "writes the committed fixture"]
 fn make_dynamic_fixture() {
-    let file = std::io::BufWriter::new(std::fs::File::create(dynamic_fixture()).unwrap());
-    let mut writer = mcap::Writer::new(file).unwrap();
-    let schema = writer
-        .add_schema(
-            DYNAMIC_JOINT_STATE,
-            "ros2msg",
-            DYNAMIC_JOINT_STATE_MSGDEF.as_bytes(),
-        )
-        .unwrap();
-    let id = writer
-        .add_channel(schema, "/dynamic_joint_states", "cdr", &Default::default())
-        .unwrap();
-    for i in 0..200i64 {
+    let (mut writer, id) = dynamic_mcap(&dynamic_fixture());
+    for i in 0..200u64 {
         let t = 1_700_000_000_000_000_000 + i * 10_000_000;
         let q = i as f64 * 0.01;
-        let header = mcap::records::MessageHeader {
-            channel_id: id,
-            sequence: i as u32,
-            log_time: t as u64,
-            publish_time: t as u64,
-        };
-        writer
-            .write_to_known_channel(&header, &dynamic_message(t, q, -q))
-            .unwrap();
+        writer.write(id, i as u32, t, &dynamic_message(t, q, -q));
     }
-    writer.finish().unwrap();
+    writer.finish();
 }
 
 /// The largest |difference| between the `a.csv` and `b.csv` maps of two output folders, arcsec.
 fn worst_difference(want: &Path, got: &Path) -> f64 {
     ["a.csv", "b.csv"]
         .iter()
-        .map(|table| {
-            let (w, g) = (read_table(&want.join(table)), read_table(&got.join(table)));
-            assert_eq!(w.len(), g.len(), "{table}");
-            w.iter()
-                .zip(&g)
-                .map(|(w, g)| (w.1 - g.1).abs())
-                .fold(0.0, f64::max)
-        })
+        .map(|table| table_difference(&want.join(table), &got.join(table)))
         .fold(0.0, f64::max)
 }
 
@@ -902,8 +769,7 @@ fn compress_files(from: &Path, to: &Path, storage: &str, splits: &[&str]) {
 /// from the middle of the run on), as `calib simulate` writes MCAP: joints `a` and `b` on
 /// `/joint_states`.
 fn write_mcap_split_run(dir: &Path, name: &str) -> PathBuf {
-    let text = std::fs::read_to_string(testdata("scenarios/quick.toml")).unwrap();
-    let sc: Scenario = toml::from_str(&text).unwrap();
+    let sc = load_scenario("quick.toml");
     let samples: Vec<Sample> = sc.samples().unwrap().collect();
     let channels: Vec<Channel> = sc.channels()[..2]
         .iter()

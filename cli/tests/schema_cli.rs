@@ -6,15 +6,20 @@
 //! of an MCAP log with three topics and of a CSV log. Every report is also read back into
 //! `calib_core::Report` (unknown keys refused) and must serialize to the same bytes.
 
+#[path = "common/coast.rs"]
+mod coast;
 mod common;
+#[path = "common/multihead.rs"]
+mod multihead;
+#[path = "common/reference.rs"]
+mod reference;
 
+use coast::{coast_log, tdr_with_reference};
 use common::*;
+use multihead::{multihead, selfa_log};
+use reference::reference;
 use serde_json::Value;
 use std::path::Path;
-
-/// The SelfA heads of `testdata/scenarios/multihead.toml`.
-const HEADS: &str = "h1@0,h2@360/7,h3@90,h4@720/7,h5@120,h6@1080/7,h7@180,h8@1440/7,h9@240,\
-                     h10@1800/7,h11@270,h12@2160/7";
 
 fn schema(name: &str) -> Value {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -81,26 +86,10 @@ fn csrr_reports_match_the_schema() {
 #[test]
 fn multihead_reports_match_the_schema() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(
-        &testdata("scenarios/multihead.toml"),
-        dir.path(),
-        "selfa.mcap",
-    );
+    let log = selfa_log(dir.path());
     for method in ["joint", "eda"] {
         let out = dir.path().join(method);
-        expect_exit(
-            &calib(&[
-                "multihead",
-                s(&log),
-                "--heads",
-                HEADS,
-                "--method",
-                method,
-                "-o",
-                s(&out),
-            ]),
-            0,
-        );
+        expect_exit(&multihead(&log, &out, &["--method", method]), 0);
         let r = assert_report(&out, "multihead");
         assert_eq!(r["details"]["solver"], method);
     }
@@ -109,25 +98,9 @@ fn multihead_reports_match_the_schema() {
 #[test]
 fn tdr_report_matches_the_schema() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(
-        &testdata("scenarios/spindown.toml"),
-        dir.path(),
-        "coast.mcap",
-    );
+    let log = coast_log(dir.path());
     let out = dir.path().join("out");
-    expect_exit(
-        &calib(&[
-            "tdr",
-            s(&log),
-            "--channel",
-            "enc",
-            "--ref",
-            "ref",
-            "-o",
-            s(&out),
-        ]),
-        0,
-    );
+    expect_exit(&tdr_with_reference(&log, &out), 0);
     let r = assert_report(&out, "tdr");
     assert_eq!(r["details"]["reference"]["channel"], "ref");
     assert_eq!(
@@ -142,19 +115,7 @@ fn reference_report_matches_the_schema() {
     let scenario = write(dir.path(), "resolver.toml", RESOLVER_SWEEP);
     let log = simulate(&scenario, dir.path(), "resolver.csv");
     let out = dir.path().join("out");
-    expect_exit(
-        &calib(&[
-            "reference",
-            s(&log),
-            "--dut",
-            "resolver",
-            "--ref",
-            "counter",
-            "-o",
-            s(&out),
-        ]),
-        0,
-    );
+    expect_exit(&reference(&log, "resolver", "counter", &out, &[]), 0);
     let r = assert_report(&out, "reference");
     assert!(r["details"]["gap"].is_object(), "{}", r["details"]);
 }

@@ -1,28 +1,14 @@
 //! End-to-end tests of `calib shift-angle`, `calib uncertainty` and `calib compare` at the process
 //! boundary: exit codes, written files, messages.
 
+mod common;
+
+use common::{calib, s, stderr};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn calib(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_calib"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn testdata(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../testdata/shift-angle")
-        .join(name)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
+/// `testdata/shift-angle/NAME`.
+fn shift_angle_data(name: &str) -> PathBuf {
+    common::testdata("shift-angle").join(name)
 }
 
 /// `(angle, error)` of a CSV with angle in column 0 and error in column `col`.
@@ -44,11 +30,11 @@ fn shift_angle_writes_tables_and_report_that_match_the_truth() {
     let out = dir.path().join("out");
     let o = calib(&[
         "shift-angle",
-        s(&testdata("readings.csv")),
+        s(&shift_angle_data("readings.csv")),
         "-o",
         s(&out),
         "--budget",
-        s(&testdata("table3.toml")),
+        s(&shift_angle_data("table3.toml")),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let summary = String::from_utf8(o.stdout).unwrap();
@@ -62,7 +48,7 @@ fn shift_angle_writes_tables_and_report_that_match_the_truth() {
         "angle_deg,error_arcsec,correction_arcsec,u_arcsec,expanded_uncertainty_arcsec\n"
     ));
     let got = column(&out.join("encoder.csv"), 1);
-    let truth = column(&testdata("truth_encoder.csv"), 2);
+    let truth = column(&shift_angle_data("truth_encoder.csv"), 2);
     assert_eq!(got.len(), 360);
     // σ = 0.03″ per reading; one reading per α at S > 0: 5σ bounds the largest of 360 errors.
     for ((a, e), (ta, t)) in got.iter().zip(&truth) {
@@ -70,7 +56,7 @@ fn shift_angle_writes_tables_and_report_that_match_the_truth() {
         assert!((e - t).abs() < 0.15, "{a}°: {e} vs {t}");
     }
     let polygon = column(&out.join("polygon.csv"), 1);
-    let beta = column(&testdata("truth_polygon.csv"), 1);
+    let beta = column(&shift_angle_data("truth_polygon.csv"), 1);
     for ((_, b), (_, t)) in polygon.iter().zip(&beta) {
         // β: ≈ σ·sqrt(2/24) ≈ 0.009″; 0.045″ is 5 of those.
         assert!((b - t).abs() < 0.045, "{b} vs {t}");
@@ -101,7 +87,7 @@ fn shift_angle_writes_tables_and_report_that_match_the_truth() {
 fn the_papers_method_prints_json_and_agrees_with_the_joint_fit() {
     let dir = tempfile::tempdir().unwrap();
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
-    let readings = testdata("readings.csv");
+    let readings = shift_angle_data("readings.csv");
     let o = calib(&[
         "shift-angle",
         s(&readings),
@@ -133,7 +119,7 @@ fn the_papers_method_prints_json_and_agrees_with_the_joint_fit() {
 
 /// The fixture with `edit` applied to its lines (header included).
 fn edited_readings(dir: &Path, edit: impl FnOnce(&mut Vec<String>)) -> PathBuf {
-    let text = std::fs::read_to_string(testdata("readings.csv")).unwrap();
+    let text = std::fs::read_to_string(shift_angle_data("readings.csv")).unwrap();
     let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
     edit(&mut lines);
     let path = dir.join("readings.csv");
@@ -176,7 +162,7 @@ fn bad_readings_are_named_and_leave_no_tables() {
 
     let o = calib(&[
         "shift-angle",
-        s(&testdata("readings.csv")),
+        s(&shift_angle_data("readings.csv")),
         "--faces",
         "12",
         "-o",
@@ -211,7 +197,7 @@ fn bad_readings_are_named_and_leave_no_tables() {
 
 #[test]
 fn uncertainty_reproduces_table_3_and_names_bad_components() {
-    let o = calib(&["uncertainty", s(&testdata("table3.toml")), "--json"]);
+    let o = calib(&["uncertainty", s(&shift_angle_data("table3.toml")), "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!((r["combined_standard_uncertainty"].as_f64().unwrap() - 0.0692).abs() < 5e-4);
@@ -257,17 +243,17 @@ fn compare_passes_within_uncertainty_and_lists_failures() {
     assert!(
         calib(&[
             "shift-angle",
-            s(&testdata("readings.csv")),
+            s(&shift_angle_data("readings.csv")),
             "-o",
             s(&out),
             "--budget",
-            s(&testdata("table3.toml")),
+            s(&shift_angle_data("table3.toml")),
         ])
         .status
         .success()
     );
     // A "self-calibration" of the same encoder: the truth on a 0.5° grid, u = 0.01″.
-    let truth = column(&testdata("truth_encoder.csv"), 2);
+    let truth = column(&shift_angle_data("truth_encoder.csv"), 2);
     let mut selfcal = String::from("angle_deg,error_arcsec,u_arcsec\n");
     for w in 0..720 {
         let (i, f) = (w / 2, (w % 2) as f64 * 0.5);

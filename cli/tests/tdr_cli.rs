@@ -1,15 +1,16 @@
 //! End-to-end tests of `calib tdr`: the simulated air-bearing and rolling-bearing coasts against
 //! their truth, and logs with no spin-down (exit code, message, nothing written).
 
+#[path = "common/coast.rs"]
+mod coast;
 mod common;
+#[path = "common/json.rs"]
+mod json;
 
+use coast::{coast_log, tdr_with_reference};
 use common::*;
+use json::read_json;
 use serde_json::Value;
-use std::path::Path;
-
-fn read_json(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
 
 /// Largest |table − truth table| on the table's grid, the truth interpolated linearly on its
 /// own (finer) grid, both zero mean.
@@ -22,22 +23,9 @@ fn max_diff(got: &[(f64, f64)], truth: &[(f64, f64)]) -> f64 {
 #[test]
 fn air_bearing_coast_matches_the_truth_and_the_reference() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(
-        &testdata("scenarios/spindown.toml"),
-        dir.path(),
-        "coast.mcap",
-    );
+    let log = coast_log(dir.path());
     let out = dir.path().join("out");
-    let o = calib(&[
-        "tdr",
-        s(&log),
-        "--channel",
-        "enc",
-        "--ref",
-        "ref",
-        "-o",
-        s(&out),
-    ]);
+    let o = tdr_with_reference(&log, &out);
     expect_exit(&o, 0);
     let text = stdout(&o);
     assert_mentions(

@@ -1,4 +1,8 @@
 //! Helpers shared by the end-to-end tests of `calib` (each test file uses a subset).
+//!
+//! The files beside this one hold helpers of one kind each (ROS recordings, report.json, one
+//! method's runs, …). A test declares only those it uses, e.g.
+//! `#[path = "common/ros.rs"] mod ros;`, so that a helper no test uses warns as dead code.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};

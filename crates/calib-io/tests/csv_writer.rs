@@ -1,19 +1,12 @@
 //! CsvWriter: exact round trips through CsvReader, atomicity, and refusal of unreadable logs.
 
-use calib_core::{AngleUnit, Channel, Sample};
+mod common;
+
+use calib_core::{AngleUnit, Sample};
 use calib_io::csv_log::{CsvReader, CsvWriter};
 use calib_io::{Error, ReadOptions};
+use common::channels;
 use std::path::Path;
-
-fn channels(names: &[&str]) -> Vec<Channel> {
-    names
-        .iter()
-        .map(|n| Channel {
-            name: n.to_string(),
-            unit: AngleUnit::Rad,
-        })
-        .collect()
-}
 
 fn read(path: &Path, unit: AngleUnit) -> (Vec<String>, Vec<Sample>) {
     let r = CsvReader::open(

@@ -203,6 +203,10 @@ impl Builder {
             .write_to_known_channel(&header, data)
             .expect("write");
     }
+    /// A little-endian JointState on `channel`, stamped and logged at `ns`.
+    fn put_joint_state(&mut self, channel: u16, ns: u64, names: &[&str], position: &[f64]) {
+        self.put(channel, ns, &cdr(&joint_state(ns, names, position), false));
+    }
     fn finish(mut self) {
         self.writer.finish().expect("finish");
     }
@@ -603,7 +607,7 @@ fn stamps_off_the_clock_are_interpolated_never_extrapolated() {
     let r = b.json_topic("/ref");
     for i in 0..100u64 {
         let ns = T0 + i * 1_000_000;
-        b.put(a, ns, &cdr(&joint_state(ns, &["a"], &[1.0]), false));
+        b.put_joint_state(a, ns, &["a"], &[1.0]);
         // Half a millisecond off: never equal. ref turns at 1°/ms.
         b.put(
             r,
@@ -672,7 +676,7 @@ fn alignment_queues_stay_bounded_when_a_topic_lags() {
     // All of /a first, then all of /ref: only the last ALIGN_QUEUE of /a are still queued.
     for i in 0..n {
         let ns = T0 + i;
-        b.put(a, ns, &cdr(&joint_state(ns, &["a"], &[i as f64]), false));
+        b.put_joint_state(a, ns, &["a"], &[i as f64]);
     }
     for i in 0..n {
         b.put(r, T0 + i, format!(r#"{{"ref": {i}}}"#).as_bytes());
@@ -712,11 +716,7 @@ fn files_without_usable_topics_or_with_repeated_joints_are_errors() {
     let path = dir.path().join("twice.mcap");
     let mut b = Builder::new(&path, None, true);
     let one = b.joint_state_topic("/one");
-    b.put(
-        one,
-        1,
-        &cdr(&joint_state(1, &["a", "a"], &[0.0, 0.0]), false),
-    );
+    b.put_joint_state(one, 1, &["a", "a"], &[0.0, 0.0]);
     b.finish();
     let (_, channel, m) = open_error(&path);
     assert_eq!(channel.as_deref(), Some("/one"));
@@ -731,11 +731,7 @@ fn names_shared_between_topics_are_qualified() {
     let one = b.joint_state_topic("/one");
     let two = b.json_topic("/two");
     for i in 1..=3 {
-        b.put(
-            one,
-            i,
-            &cdr(&joint_state(i, &["a", "b"], &[0.0, 0.0]), false),
-        );
+        b.put_joint_state(one, i, &["a", "b"], &[0.0, 0.0]);
         b.put(two, i, br#"{"b": 1}"#);
     }
     b.finish();
@@ -896,6 +892,18 @@ fn chunk_records(bytes: &[u8]) -> Vec<(usize, usize)> {
     found
 }
 
+/// The message of the first error reading `path`, which must name the chunk at byte `at`.
+#[track_caller]
+fn chunk_error(path: &Path, at: usize) -> String {
+    let (_, e) = first_error(path);
+    let (_, _, message) = mcap_error(e);
+    assert!(
+        message.contains(&format!("the chunk at byte {at}")),
+        "{message}"
+    );
+    message
+}
+
 /// One flipped bit in an uncompressed chunk (a position's last byte: the record still parses, the
 /// reading changes) is caught by the chunk's CRC; with `skip_damaged` the chunk's messages are left
 /// out, every other message is read, and the chunk is listed.
@@ -913,12 +921,7 @@ fn a_flipped_bit_in_an_uncompressed_chunk_fails_its_crc_or_is_skipped() {
     let bad = dir.path().join("bad.mcap");
     std::fs::write(&bad, &bytes).unwrap();
 
-    let (_, e) = first_error(&bad);
-    let (_, _, message) = mcap_error(e);
-    assert!(
-        message.contains(&format!("the chunk at byte {at}")),
-        "{message}"
-    );
+    let message = chunk_error(&bad, at);
     assert!(message.contains("do not match its CRC"), "{message}");
 
     let opts = ReadOptions {
@@ -944,12 +947,7 @@ fn a_flipped_bit_in_an_uncompressed_chunk_fails_its_crc_or_is_skipped() {
     let first_record = at + 9 + 40;
     bytes[first_record + 5] = 0x7f;
     std::fs::write(&bad, &bytes).unwrap();
-    let (_, e) = first_error(&bad);
-    let (_, _, message) = mcap_error(e);
-    assert!(
-        message.contains(&format!("the chunk at byte {at}")),
-        "{message}"
-    );
+    let message = chunk_error(&bad, at);
     assert!(message.contains("cannot be decoded"), "{message}");
     let (reader, samples) = read_all(&bad, &opts);
     assert_eq!(reader.diagnostics().damaged_chunks.len(), 1);

@@ -1,20 +1,13 @@
 //! McapWriter: round trip through McapReader, atomic output, and refused input.
 
+mod common;
+
 use std::collections::BTreeMap;
 
-use calib_core::{AngleUnit, Channel, Sample};
+use calib_core::Sample;
 use calib_io::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter};
 use calib_io::{Error, ReadOptions};
-
-fn channels(names: &[&str]) -> Vec<Channel> {
-    names
-        .iter()
-        .map(|n| Channel {
-            name: n.to_string(),
-            unit: AngleUnit::Rad,
-        })
-        .collect()
-}
+use common::channels;
 
 #[test]
 fn samples_round_trip_with_metadata() {
