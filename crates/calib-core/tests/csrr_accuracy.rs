@@ -36,7 +36,12 @@ fn channel_of(channels: &[calib_core::Channel], name: &str) -> usize {
 }
 
 fn truth(sc: &Scenario, name: &str) -> ErrorMap {
-    sc.truth(36000)
+    truth_on(sc, name, 36000)
+}
+
+/// The true map of sensor `name` on `points` grid points.
+fn truth_on(sc: &Scenario, name: &str, points: usize) -> ErrorMap {
+    sc.truth(points)
         .expect("truth")
         .into_iter()
         .find(|(n, _)| n == name)
@@ -83,16 +88,8 @@ fn check(file: &str, bar_arcsec: f64) {
     let ea = max_error(&cal.a, &truth(&sc, "a"));
     let eb = max_error(&cal.b, &truth(&sc, "b"));
     let (ua, ub) = cal.uncertainty.as_ref().expect("the joint method gives u");
-    let on_grid = |name: &str, n: usize| {
-        sc.truth(n)
-            .unwrap()
-            .into_iter()
-            .find(|(s, _)| s == name)
-            .unwrap()
-            .1
-    };
-    let (ca, ma) = coverage(&cal.a, ua, &on_grid("a", cal.a.len()), 2.0);
-    let (cb, mb) = coverage(&cal.b, ub, &on_grid("b", cal.b.len()), 2.0);
+    let (ca, ma) = coverage(&cal.a, ua, &truth_on(&sc, "a", cal.a.len()), 2.0);
+    let (cb, mb) = coverage(&cal.b, ub, &truth_on(&sc, "b", cal.b.len()), 2.0);
     println!(
         "{file}: max |map − truth| A {ea:.4}″ B {eb:.4}″; |map − truth| ≤ 2u at A {:.1} % B {:.1} % of {} points; median u A {ma:.4}″ B {mb:.4}″",
         100.0 * ca,
@@ -130,44 +127,19 @@ fn table_v_90_pole_pairs_sharing_order_90_within_0_3_arcsec() {
     check("csrr90.toml", 0.3);
 }
 
-/// A dense-Δ run for the paper method: 40 sessions 9° apart, low-order sensors, short ramps.
-fn dense_run(eps_order: usize, m: f64) -> String {
-    let deltas: Vec<String> = (0..40).map(|k| format!("{:.1}", k as f64 * 9.0)).collect();
-    format!(
-        r#"
-seed = 7
-rate_hz = 400.0
-speed_rpm = 30.0
-wrap = true
-[speed]
-harmonic = [{{ order = {eps_order}, amplitude_arcsec = {m}, phase_deg = 20.0 }}]
-[[sensor]]
-name = "a"
-mount = "a"
-harmonics = [{{ order = 3, amplitude_arcsec = 100.0, phase_deg = 10.0 }}, {{ order = 5, amplitude_arcsec = 10.0, phase_deg = -60.0 }}]
-quantization_arcsec = 0.09
-noise_arcsec = 0.05
-[[sensor]]
-name = "b"
-mount = "b"
-harmonics = [{{ order = 2, amplitude_arcsec = 20.0, phase_deg = 45.0 }}, {{ order = 7, amplitude_arcsec = 8.0, phase_deg = 0.0 }}]
-quantization_arcsec = 0.09
-noise_arcsec = 0.05
-[procedure]
-relative_deg = [{}]
-revolutions = 2.2
-ramp_s = 0.05
-pause_s = 0.2
-turn_s = 0.3
-"#,
-        deltas.join(", ")
-    )
+/// A dense-Δ run for the paper method (`paper40.toml`: 40 sessions 9° apart, low-order
+/// sensors, short ramps) with the sampling non-uniformity ε_θ at order `eps_order`, `m` arcsec.
+fn dense_run(eps_order: u32, m: f64) -> Scenario {
+    let mut sc = load("paper40.toml");
+    sc.speed.harmonics[0].order = eps_order;
+    sc.speed.harmonics[0].amplitude_arcsec = m;
+    sc
 }
 
 /// The paper method's own output: one point of A's map per session. Max |point − truth|, mean
 /// removed over the points, arcsec.
-fn paper_point_error(eps_order: usize, m: f64) -> f64 {
-    let sc = scenario(&dense_run(eps_order, m));
+fn paper_point_error(eps_order: u32, m: f64) -> f64 {
+    let sc = dense_run(eps_order, m);
     let cal = run(
         &sc,
         CsrrOptions {
@@ -225,6 +197,65 @@ fn paper_method_is_accurate_unless_eps_theta_shares_an_order() {
     assert!(
         (1.7..2.3).contains(&ratio),
         "residual ratio {ratio:.3} for m doubled"
+    );
+}
+
+/// The paper method's `u` (issue 16) on the dense-Δ run with ε_θ sharing sensor a's order 3
+/// (`paper40-shared.toml`, one seed). Its map error is mostly deterministic: the linear
+/// interpolation between points 9° apart (at a midpoint `A·(1 − cos(hδ/2))` per harmonic, 3.52″
+/// for a's 100″ at order 3 and 10″ at order 5) and ε_θ's bias of the time-averaged `Δ̂_k`
+/// (`½·h·m·A` = 0.436″ to first order, eq. 14). Both enter `u` as rectangular bounds, so `2u`
+/// covers nearly every point (measured 97.6 % / 97.1 % of A's / B's 3600 points, over five seeds
+/// 97.9 % / 95.5 %); the bar is the issue's lower end, 90 %, and at most every point. The
+/// budget's bounds are checked against those closed forms: the harmonic content found in the
+/// sessions' profiles is the truth's within 0.01″, so the interpolation bound's largest value is
+/// within 5 % of 3.52″ (measured 3.55″: the points are not exactly 9° apart); the ε_θ bound
+/// measures the bias in each session, whose spread is the first-order shift within the 10 % the
+/// second-order terms leave (measured 0.436″).
+#[test]
+fn paper_method_u_bounds_interpolation_and_eps_theta() {
+    let sc = load("paper40-shared.toml");
+    let cal = run(
+        &sc,
+        CsrrOptions {
+            method: Method::Paper,
+            ..CsrrOptions::default()
+        },
+    );
+    let (ua, ub) = cal.uncertainty.as_ref().expect("the paper method gives u");
+    let (ca, ma) = coverage(&cal.a, ua, &truth_on(&sc, "a", cal.a.len()), 2.0);
+    let (cb, mb) = coverage(&cal.b, ub, &truth_on(&sc, "b", cal.b.len()), 2.0);
+    let bound = |u: &calib_core::uncertainty::MapUncertainty, name: &str| {
+        let c = u
+            .components
+            .iter()
+            .find(|c| c.name.starts_with(name))
+            .unwrap_or_else(|| panic!("component {name}"));
+        c.u.iter().copied().fold(0.0, f64::max) * 3f64.sqrt() * ARCSEC_PER_RAD
+    };
+    let interpolation = bound(ua, "linear interpolation");
+    let eps = bound(ua, "sampling non-uniformity");
+    let step = 9f64.to_radians();
+    let midpoint = [(3.0, 100.0), (5.0, 10.0)]
+        .iter()
+        .map(|(h, a)| a * (1.0 - (h * step / 2.0).cos()))
+        .sum::<f64>();
+    let first_order = 0.5 * 3.0 * (600.0 / ARCSEC_PER_RAD) * 100.0;
+    println!(
+        "paper40-shared: ≤ 2u at A {:.1} % B {:.1} %, median u A {ma:.3}″ B {mb:.3}″; interpolation bound {interpolation:.3}″ (closed form {midpoint:.3}″), ε_θ bound {eps:.3}″ (½·h·m·A {first_order:.3}″)",
+        100.0 * ca,
+        100.0 * cb
+    );
+    for c in [ca, cb] {
+        assert!((0.90..=1.0).contains(&c), "coverage {c}");
+    }
+    assert!(
+        (interpolation / midpoint - 1.0).abs() < 0.05,
+        "{interpolation}″ vs {midpoint}″"
+    );
+    assert!(
+        (eps / first_order - 1.0).abs() < 0.1,
+        "{eps}″ vs {first_order}″"
     );
 }
 

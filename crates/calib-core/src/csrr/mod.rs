@@ -254,7 +254,8 @@ pub struct Calibration {
     /// Checks against the reference encoder, when one was given.
     pub reference: Option<ReferenceCheck>,
     /// The standard uncertainty of A's and B's maps at every table point, with their budgets
-    /// (joint method; see [`map_uncertainty`]).
+    /// (joint method: [`map_uncertainty`]; paper method: [`paper`]'s budget of the points' noise,
+    /// the interpolation between them and ε_θ's bias). Given by both methods.
     pub uncertainty: Option<(MapUncertainty, MapUncertainty)>,
     /// Things the user should know.
     pub warnings: Vec<String>,
@@ -776,7 +777,7 @@ fn finish_paper(
     segmentation: Segmentation,
     mut warnings: Vec<String>,
 ) -> Result<Calibration, CsrrError> {
-    let (points, no_crossing) = paper.into_points();
+    let (points, stats, no_crossing) = paper.into_points();
     if !no_crossing.is_empty() {
         warnings.push(format!(
             "{} session(s) never passed a benchmark reading over a whole revolution and give no map point",
@@ -798,6 +799,7 @@ fn finish_paper(
             .collect::<Vec<_>>(),
         n,
     )?;
+    let uncertainty = paper::uncertainty(&points, &stats, n);
     let resolvable = points.len() / 2;
     warnings.push(format!(
         "the paper method resolves orders below {resolvable} only (half the {} sessions); use the joint method for higher orders",
@@ -842,7 +844,7 @@ fn finish_paper(
         iterations: 0,
         paper_points: points,
         reference: None,
-        uncertainty: None,
+        uncertainty: Some(uncertainty),
         warnings,
     })
 }

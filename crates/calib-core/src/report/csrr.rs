@@ -46,7 +46,7 @@ pub struct CsrrDetails {
     /// Solver iterations (joint solver; written with the residual).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iterations: Option<usize>,
-    /// The standard uncertainty of each map, by channel (joint solver).
+    /// The standard uncertainty of each map, by channel (both solvers; `docs/uncertainty.md`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<BTreeMap<String, UncertaintyReport>>,
     /// The paper solver's map points, one per session.
