@@ -14,14 +14,18 @@
 #   inspect    calib inspect LOG --json
 #   csrr       calib csrr LOG -o OUT -q
 #   reference  calib reference LOG --dut b --ref ref -o OUT -q
-#   apply      calib apply OUT/a.csv LOG --channel a -o LOG2   (reads, corrects, re-compresses)
+#   apply      calib apply OUT/a.csv LOG --channel a -o LOG2   (reads, corrects, re-compresses),
+#              beside floor+write: `mcap_floor LOG --write COPY`, the floor plus every message
+#              written unchanged into a new MCAP through the mcap crate's Writer (the input's
+#              zstd, default chunk size and level, one thread) — the floor of a rewriter
 # Then on a second log, a coast for `calib tdr`: testdata/scenarios/spindown.toml (an air-bearing
 # spin-down from 600 r/min, two channels) recorded for COAST_S s at COAST_HZ (default 100 s at
 # 100 kHz: 10,000,001 samples, 600 → 80 r/min), the floor on it alternating REPEAT times with
 #   tdr        calib tdr COAST --channel enc -o OUT -q
-# (COAST_HZ=0 leaves it out.)
+# (COAST_HZ=0 leaves it out: a tdr run takes minutes, the fit and not the reading.)
 # It prints each one's median wall and CPU time, its peak RSS, and the ratio of its median wall
-# time to the floor's. The log is read from the page cache (a first, unmeasured read warms it).
+# time to the floor's (apply's: to floor+write's). The log is read from the page cache (a first,
+# unmeasured read warms it).
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
@@ -70,13 +74,15 @@ measure() {
 }
 median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
 
-names=(floor inspect csrr reference apply)
+names=(floor inspect csrr reference floor+write apply)
 run() {
   case $1 in
     floor) measure "$floor" "$log" ;;
     inspect) measure "$calib" inspect "$log" --json ;;
     csrr) measure "$calib" csrr "$log" -o "$work/out-csrr" -q ;;
     reference) measure "$calib" reference "$log" --dut b --ref ref -o "$work/out-ref" -q ;;
+    floor+write) rm -f "$work/floor-copy.mcap"
+      measure "$floor" "$log" --write "$work/floor-copy.mcap" ;;
     apply) rm -f "$work/applied.mcap"
       measure "$calib" apply "$work/table/a.csv" "$log" --channel a -o "$work/applied.mcap" -q ;;
   esac
@@ -89,13 +95,16 @@ done
 
 echo "# $(date -u +%Y-%m-%dT%H:%MZ), $(nproc) cores, calib $(git rev-parse --short HEAD), $(stat -c %s "$log" | awk '{printf "%.0f MB", $1 / 1e6}') log, $repeat runs each"
 floor_s=$(cut -d' ' -f1 "$work/floor.txt" | median)
-printf '%-10s %10s %10s %10s %9s\n' command "wall s" "cpu s" "peak MB" "÷ floor"
+write_s=$(cut -d' ' -f1 "$work/floor+write.txt" | median)
+printf '%-11s %10s %10s %10s %9s\n' command "wall s" "cpu s" "peak MB" "÷ floor"
 for name in "${names[@]}"; do
   wall=$(cut -d' ' -f1 "$work/$name.txt" | median)
   cpu=$(cut -d' ' -f2 "$work/$name.txt" | median)
   rss=$(cut -d' ' -f3 "$work/$name.txt" | sort -g | tail -1)
-  awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$floor_s" \
-    'BEGIN{printf "%-10s %10.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
+  base=$floor_s
+  [[ $name == apply ]] && base=$write_s # apply: ÷ floor+write
+  awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$base" \
+    'BEGIN{printf "%-11s %10.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
 done
 echo "# load after: $(uptime | sed 's/.*load/load/')"
 
@@ -127,7 +136,7 @@ if [[ $coast_hz != 0 ]]; then
     cpu=$(cut -d' ' -f2 "$work/$name.txt" | median)
     rss=$(cut -d' ' -f3 "$work/$name.txt" | sort -g | tail -1)
     awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$floor_s" \
-      'BEGIN{printf "%-11s %9.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
+      'BEGIN{printf "%-11s %10.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
   done
   echo "# load after: $(uptime | sed 's/.*load/load/')"
 fi

@@ -1542,12 +1542,24 @@ fn write_summary_and_footer_magic<W: Write + Seek>(
     Ok(())
 }
 
+/// calib: the input buffer in front of the zstd compressor (see [`Compressor::Zstd`]): one zstd
+/// block (ZSTD_BLOCKSIZE_MAX).
+#[cfg(feature = "zstd")]
+const ZSTD_INPUT_BUFFER: usize = 128 * 1024;
+
 enum Compressor<W: Write> {
     Null(W),
     // zstd's Encoder wrapper doesn't let us get the inner writer without calling finish(), so use
     // zio::Writer directly instead.
+    //
+    // calib: behind a buffer of ZSTD_INPUT_BUFFER bytes. A record is serialized field by field (a
+    // message in 7 writes of 1 to 8 bytes, then its data), and every write reaching zio::Writer
+    // is a call of ZSTD_compressStream2: about a third of writing a log of small messages went to
+    // those calls. zstd buffers its input up to a whole block before it compresses in any case,
+    // so the compressed bytes are the same; only `flush` (which ends a zstd block) and `finish`
+    // pass the buffer on first.
     #[cfg(feature = "zstd")]
-    Zstd(zio::Writer<W, zraw::Encoder<'static>>),
+    Zstd(io::BufWriter<zio::Writer<W, zraw::Encoder<'static>>>),
     #[cfg(feature = "lz4")]
     Lz4(lz4::Encoder<W>),
 }
@@ -1557,8 +1569,13 @@ impl<W: Write> Compressor<W> {
         match self {
             Compressor::Null(w) => (w, Ok(()), Default::default()),
             #[cfg(feature = "zstd")]
-            Compressor::Zstd(mut w) => {
-                let result = w.finish();
+            Compressor::Zstd(w) => {
+                // Not `BufWriter::flush`, which would also end a zstd block.
+                let (mut w, buffered) = w.into_parts();
+                let result = buffered
+                    .map_err(|_| io::Error::other("a write into the zstd buffer panicked"))
+                    .and_then(|buffered| w.write_all(&buffered))
+                    .and_then(|()| w.finish());
                 let (writer, enc) = w.into_inner();
                 (writer, result, Some(enc))
             }
@@ -1574,7 +1591,7 @@ impl<W: Write> Compressor<W> {
         match self {
             Compressor::Null(w) => w,
             #[cfg(feature = "zstd")]
-            Compressor::Zstd(w) => w.into_inner().0,
+            Compressor::Zstd(w) => w.into_parts().0.into_inner().0,
             #[cfg(feature = "lz4")]
             Compressor::Lz4(w) => w.finish().0,
         }
@@ -1675,7 +1692,10 @@ impl<W: Write + Seek> ChunkWriter<W> {
                     Ok(enc) => enc,
                     Err(err) => return Err((sink.finalize().0.inner, err)),
                 };
-                Compressor::Zstd(zio::Writer::new(sink, enc))
+                Compressor::Zstd(io::BufWriter::with_capacity(
+                    ZSTD_INPUT_BUFFER,
+                    zio::Writer::new(sink, enc),
+                ))
             }
             #[cfg(feature = "lz4")]
             Some(Compression::Lz4) => {

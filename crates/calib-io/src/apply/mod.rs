@@ -13,7 +13,9 @@
 //!   `position`, in a JSON message the text of that field's number. Chunks are re-formed (with the
 //!   input's compression, where its summary names it) and the summary and indexes rewritten.
 //!
-//! Both stream: memory stays bounded by a row or an MCAP chunk, whatever the log's length.
+//! Both stream: memory stays bounded by a row or a few MCAP chunks, whatever the log's length.
+//! An MCAP log of several chunks is read with its chunks decompressed on worker threads and
+//! written on a thread of its own (see the `mcap` module).
 //!
 //! # Wrapping
 //! Unless told ([`ApplyOptions::wrapping`]), the channel's wrapping is detected by a first pass
@@ -30,6 +32,7 @@ mod csv;
 mod mcap;
 
 use crate::log::LogFormat;
+use crate::mcap_log::read::PARALLEL_CHUNKS;
 use crate::{DamagedChunk, Error, Truncation};
 use calib_core::correction::{Correction, Wrapping};
 use calib_core::{AngleUnit, ErrorMap, RangeMap};
@@ -166,7 +169,13 @@ pub fn apply_map(
     let unit = opts.unit.unwrap_or(AngleUnit::Deg);
     let range = match format {
         LogFormat::Csv => csv::scan(input, &opts.channel, unit)?,
-        LogFormat::Mcap => mcap::scan(input, &opts.channel, unit, opts.skip_damaged)?,
+        LogFormat::Mcap => mcap::scan(
+            input,
+            &opts.channel,
+            unit,
+            opts.skip_damaged,
+            PARALLEL_CHUNKS,
+        )?,
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
     };
     if range.count == 0 {
@@ -198,9 +207,9 @@ pub fn apply_map(
                 input,
                 output,
                 &opts.channel,
-                &joint,
-                &json,
+                (&joint, &json),
                 opts.skip_damaged,
+                PARALLEL_CHUNKS,
             )?;
             (
                 done.readings,

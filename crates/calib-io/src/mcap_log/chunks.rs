@@ -19,6 +19,13 @@
 //! reader, skipping the messages it has already handed on. Damaged files pay one more read of
 //! what came before the damage; every message, error and recovery stays the streaming reader's.
 //!
+//! # Every record, for a copy
+//! The reader needs only schemas, channels and messages; `calib apply`, which copies a log,
+//! needs every record the streaming reader hands on ([`Chunked::every_record`]): then the
+//! top-level header, metadata, attachments, message indexes and private records are handed on
+//! too, in file order, and the records handed on are exactly the streaming reader's up to the
+//! data end record. A caller that falls back can then skip as many records as it was handed.
+//!
 //! # Memory
 //! At most [`AHEAD`] chunks per worker are in flight, each at most [`MAX_PARALLEL_CHUNK_BYTES`]
 //! compressed and decompressed; their buffers are reused from chunk to chunk.
@@ -111,6 +118,8 @@ pub(crate) struct Chunked {
     record: Vec<u8>,
     /// Buffers to reuse for chunk bodies and decompressed chunks.
     spare: Vec<Vec<u8>>,
+    /// Hand on every top-level record, not only schemas, channels and messages.
+    every: bool,
 }
 
 /// A little-endian `u64` at `at`, if the bytes are there.
@@ -216,10 +225,31 @@ impl Chunked {
     /// Walks `file` (of `len` bytes) from its start with `workers` worker threads; `None` if it
     /// does not start with the MCAP magic or no thread can be started.
     pub(crate) fn new(
+        file: File,
+        len: u64,
+        consumed: Arc<AtomicU64>,
+        workers: usize,
+    ) -> Option<Self> {
+        Self::walking(file, len, consumed, workers, false)
+    }
+
+    /// [`new`](Self::new), handing on every top-level record of the data section as the streaming
+    /// reader does (see the module docs).
+    pub(crate) fn every_record(
+        file: File,
+        len: u64,
+        consumed: Arc<AtomicU64>,
+        workers: usize,
+    ) -> Option<Self> {
+        Self::walking(file, len, consumed, workers, true)
+    }
+
+    fn walking(
         mut file: File,
         len: u64,
         consumed: Arc<AtomicU64>,
         workers: usize,
+        every: bool,
     ) -> Option<Self> {
         file.seek(SeekFrom::Start(0)).ok()?;
         let mut file = BufReader::with_capacity(READ_BUFFER, file);
@@ -255,6 +285,7 @@ impl Chunked {
             at: 0,
             record: Vec::new(),
             spare: Vec::new(),
+            every,
         })
     }
 
@@ -307,7 +338,13 @@ impl Chunked {
                     self.crc.update(&body);
                     Some(Planned::Record(opcode, body))
                 }
-                // Message indexes, attachments, metadata: read only for the CRC.
+                _ if self.every => {
+                    let body = self.read_body(n)?;
+                    self.crc.update(&head);
+                    self.crc.update(&body);
+                    Some(Planned::Record(opcode, body))
+                }
+                // The header, message indexes, attachments, metadata: read only for the CRC.
                 _ => {
                     self.crc.update(&head);
                     let mut hashing = Hashing(&mut self.crc);
