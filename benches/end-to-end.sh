@@ -59,11 +59,15 @@ log="$work/run.mcap"
 sed -e "/^rate_hz/s/.*/rate_hz = $rate_hz.0/" -e "/^speed_rpm/s/.*/speed_rpm = $speed_rpm.0/" \
   -e "/^revolutions/s/.*/revolutions = $revolutions.0/" \
   testdata/scenarios/csrr72.toml > "$scenario"
-if [[ ! -s $log ]] || ! cmp -s "$scenario" "$log.toml"; then
-  echo "simulating ~$samples samples → $log" >&2
-  "$calib" simulate "$scenario" -o "$log" -q >&2
-  cp "$scenario" "$log.toml"
-fi
+# Simulates SCENARIO into LOG unless LOG was made from the same scenario (kept in LOG.toml).
+simulate_once() {
+  if [[ ! -s $2 ]] || ! cmp -s "$1" "$2.toml"; then
+    echo "simulating $1 → $2" >&2
+    "$calib" simulate "$1" -o "$2" -q >&2
+    cp "$1" "$2.toml"
+  fi
+}
+simulate_once "$scenario" "$log"
 "$floor" "$log" >&2
 "$calib" csrr "$log" -o "$work/table" -q > /dev/null
 
@@ -116,11 +120,7 @@ if [[ $coast_hz != 0 ]]; then
   coast="$work/coast.mcap"
   sed -e "/^rate_hz/s/.*/rate_hz = $coast_hz.0/" -e "/^duration_s/s/.*/duration_s = $coast_s.0/" \
     testdata/scenarios/spindown.toml > "$coast_scenario"
-  if [[ ! -s $coast ]] || ! cmp -s "$coast_scenario" "$coast.toml"; then
-    echo "simulating a ${coast_s} s coast at $coast_hz Hz → $coast" >&2
-    "$calib" simulate "$coast_scenario" -o "$coast" -q >&2
-    cp "$coast_scenario" "$coast.toml"
-  fi
+  simulate_once "$coast_scenario" "$coast"
   "$floor" "$coast" >&2
   : > "$work/floor-coast.txt"
   : > "$work/tdr.txt"

@@ -74,6 +74,29 @@ impl Tally {
     }
 }
 
+/// Sensor A's and B's tallies of `calib csrr --method METHOD` on `file` over the seeds.
+fn csrr_tallies(file: &str, method: CsrrMethod) -> (Tally, Tally) {
+    let (mut ta, mut tb) = (Tally::default(), Tally::default());
+    for seed in SEEDS {
+        let s = scenario(file, seed);
+        let channels = s.channels();
+        let ia = channels.iter().position(|c| c.name == "a").unwrap();
+        let ib = channels.iter().position(|c| c.name == "b").unwrap();
+        let mut csrr = Csrr::new(CsrrOptions {
+            method,
+            ..CsrrOptions::default()
+        });
+        for x in s.samples().unwrap() {
+            csrr.push(x.t, x.values[ia], x.values[ib], None);
+        }
+        let cal = csrr.finish().unwrap();
+        let (ua, ub) = cal.uncertainty.as_ref().unwrap();
+        ta.add(&cal.a, ua, &truth(&s, "a", cal.a.len()));
+        tb.add(&cal.b, ub, &truth(&s, "b", cal.b.len()));
+    }
+    (ta, tb)
+}
+
 #[test]
 #[ignore = "Monte Carlo over seeds, about a minute"]
 fn coverage_of_u_over_seeds() {
@@ -81,21 +104,7 @@ fn coverage_of_u_over_seeds() {
     println!("|---|---|---|---|---|---|");
     let mut rows = Vec::new();
     for file in ["csrr72.toml", "csrr84.toml", "csrr90.toml"] {
-        let (mut ta, mut tb) = (Tally::default(), Tally::default());
-        for seed in SEEDS {
-            let s = scenario(file, seed);
-            let channels = s.channels();
-            let ia = channels.iter().position(|c| c.name == "a").unwrap();
-            let ib = channels.iter().position(|c| c.name == "b").unwrap();
-            let mut csrr = Csrr::new(CsrrOptions::default());
-            for x in s.samples().unwrap() {
-                csrr.push(x.t, x.values[ia], x.values[ib], None);
-            }
-            let cal = csrr.finish().unwrap();
-            let (ua, ub) = cal.uncertainty.as_ref().unwrap();
-            ta.add(&cal.a, ua, &truth(&s, "a", cal.a.len()));
-            tb.add(&cal.b, ub, &truth(&s, "b", cal.b.len()));
-        }
+        let (mut ta, mut tb) = csrr_tallies(file, CsrrMethod::Joint);
         rows.push(ta.row(&format!("csrr `{file}` (a)")));
         rows.push(tb.row(&format!("csrr `{file}` (b)")));
     }
@@ -169,24 +178,7 @@ fn coverage_of_the_paper_method_over_seeds() {
         "csrr84.toml",
         "csrr90.toml",
     ] {
-        let (mut ta, mut tb) = (Tally::default(), Tally::default());
-        for seed in SEEDS {
-            let s = scenario(file, seed);
-            let channels = s.channels();
-            let ia = channels.iter().position(|c| c.name == "a").unwrap();
-            let ib = channels.iter().position(|c| c.name == "b").unwrap();
-            let mut csrr = Csrr::new(CsrrOptions {
-                method: CsrrMethod::Paper,
-                ..CsrrOptions::default()
-            });
-            for x in s.samples().unwrap() {
-                csrr.push(x.t, x.values[ia], x.values[ib], None);
-            }
-            let cal = csrr.finish().unwrap();
-            let (ua, ub) = cal.uncertainty.as_ref().unwrap();
-            ta.add(&cal.a, ua, &truth(&s, "a", cal.a.len()));
-            tb.add(&cal.b, ub, &truth(&s, "b", cal.b.len()));
-        }
+        let (mut ta, mut tb) = csrr_tallies(file, CsrrMethod::Paper);
         rows.push(ta.row(&format!("csrr paper `{file}` (a)")));
         rows.push(tb.row(&format!("csrr paper `{file}` (b)")));
     }
