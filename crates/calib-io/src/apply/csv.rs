@@ -12,7 +12,7 @@
 use super::Range;
 use crate::Error;
 use crate::atomic::AtomicFile;
-use crate::csv_log::dialect::{self, Dialect, SNIFF_BYTES};
+use crate::csv_log::dialect::{self, Dialect};
 use crate::csv_log::parse_f64;
 use crate::error::csv_error;
 use crate::limits::{LineLimit, line_too_long};
@@ -20,7 +20,7 @@ use calib_core::AngleUnit;
 use calib_core::correction::Correction;
 use std::borrow::Cow;
 use std::fs::File;
-use std::io::{BufRead, BufReader, Read, Seek, Write};
+use std::io::{BufRead, BufReader, Write};
 use std::ops::Range as Span;
 use std::path::{Path, PathBuf};
 
@@ -49,14 +49,7 @@ impl Records {
             path: path.to_path_buf(),
             source,
         };
-        let mut file = File::open(path).map_err(io)?;
-        let mut head = Vec::with_capacity(SNIFF_BYTES);
-        (&mut file)
-            .take(SNIFF_BYTES as u64)
-            .read_to_end(&mut head)
-            .map_err(io)?;
-        let dialect = dialect::sniff(&head);
-        file.rewind().map_err(io)?;
+        let (file, dialect) = dialect::open(path).map_err(io)?;
         let records = Records {
             path: path.to_path_buf(),
             input: BufReader::with_capacity(1 << 16, LineLimit::new(file)),

@@ -18,6 +18,9 @@
 //! the plain dialect — `,` and the header on line 1 — so that its errors stay the usual ones.
 
 use super::fields::parse_f64;
+use std::fs::File;
+use std::io::{self, Read, Seek};
+use std::path::Path;
 
 /// Bytes of the file's start that the separator and header are found in: metadata blocks are a
 /// few lines, and a header with its first data row is rarely longer than a few kilobytes.
@@ -89,6 +92,18 @@ impl std::str::FromStr for TimeUnit {
         TimeUnit::from_suffix(s)
             .ok_or_else(|| format!("unknown time unit `{s}`; use s, ms, us or ns"))
     }
+}
+
+/// Opens `path` and finds its dialect from its first [`SNIFF_BYTES`]; the file is handed back
+/// rewound to its start.
+pub fn open(path: &Path) -> io::Result<(File, Dialect)> {
+    let mut file = File::open(path)?;
+    let mut head = Vec::with_capacity(SNIFF_BYTES);
+    (&mut file)
+        .take(SNIFF_BYTES as u64)
+        .read_to_end(&mut head)?;
+    file.rewind()?;
+    Ok((file, sniff(&head)))
 }
 
 /// The dialect of a file starting with `head` (see the [module docs](self)).

@@ -1,13 +1,12 @@
 //! Streaming reader of CSV logs.
 
-use super::dialect::{self, SNIFF_BYTES};
+use super::dialect;
 use super::fields::{self, line_of, parse_f64};
 use crate::limits::LineLimit;
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use csv::ByteRecord;
 use std::fs::File;
-use std::io::{Read, Seek};
 use std::iter::FusedIterator;
 use std::path::{Path, PathBuf};
 
@@ -74,14 +73,7 @@ impl CsvReader {
             path: path.to_path_buf(),
             source,
         };
-        let mut file = File::open(path).map_err(io)?;
-        let mut head = Vec::with_capacity(SNIFF_BYTES);
-        (&mut file)
-            .take(SNIFF_BYTES as u64)
-            .read_to_end(&mut head)
-            .map_err(io)?;
-        let dialect = dialect::sniff(&head);
-        file.rewind().map_err(io)?;
+        let (file, dialect) = dialect::open(path).map_err(io)?;
         let mut reader = fields::csv_reader_with(file, dialect.separator);
         let mut record = ByteRecord::new();
         let csv_err = |e| fields::from_csv(path, e);
