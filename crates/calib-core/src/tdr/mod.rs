@@ -12,8 +12,8 @@
 //! `r_n = θ(t_n) + E(r_n) + noise`,    `E(r) = Σ_{k=1..H} a_k cos kr + b_k sin kr`     (1)
 //!
 //! is **linear** in the unknowns — the motion's parameters and the `2H` Fourier coefficients —
-//! and is solved by one linear least-squares fit (normal equations, Cholesky, one step of
-//! iterative refinement; no Gauss–Newton is needed). Circular closure fixes the gauge: `E` is
+//! and is solved by one linear least-squares fit (normal equations and Cholesky; no
+//! Gauss–Newton is needed). Circular closure fixes the gauge: `E` is
 //! periodic and has no constant term (the constant goes into the motion), so it is the zero-mean
 //! map of the interface.
 //!
@@ -44,8 +44,7 @@
 //! rule** `xᵀC⁻¹x > 2·ln(M/α)`, `C = σ²·[(AᵀA)⁻¹]_kk` their covariance from the fit, `M` the
 //! orders tested and `α` = [`FALSE_ORDER_PROBABILITY`]: for noise alone the chance that any
 //! order passes is below `α`. The map holds only the kept orders, so asking for many orders
-//! costs computing time (the Fourier–Fourier block of `AᵀA` is built from the `2H` moments
-//! `Σ e^{imr_n}` in `O(N·H)`), not accuracy. After the final fit, the residual is projected on
+//! costs computing time (a dense factor of `2H` columns), not accuracy. After the final fit, the residual is projected on
 //! the orders above the highest tested (to half the densest samples per revolution, at least
 //! `2H`): orders there that pass the same rule are reported in
 //! [`TdrCalibration::unresolved`] and warned about with their amplitude.
@@ -93,23 +92,30 @@
 //! (the residual check names them). The motion must be free: a driven constant-speed plateau is
 //! skipped, and a log without falling speed is refused ([`TdrError`]).
 //!
-//! # Streaming
+//! # Streaming, and the cost of the fit
 //! [`Tdr::push`] keeps of each sample only its time and unwrapped reading (16 bytes; 24 with a
-//! reference channel; 160 MB for 10 million samples): the log itself is not kept, and the fit
-//! reads these pairs a few times (normal equations in blocks of rows, residual passes for
-//! refinement and checks). Each pass costs `O(N·(p + H))` or, for the normal equations of a
-//! few columns, `O(N·n²)`: on ten million samples at the default 500 orders the fit, not the
-//! reading, takes nearly all the time. The passes use two threads where rayon has them — one
-//! makes a block of rows while the other adds the block before into the sums — and every sum is
-//! still taken in the order of the samples, so the results are the same bits on any number of
-//! threads.
+//! reference channel; 160 MB for 10 million samples): the log itself is not kept. The fits do
+//! not pass over the samples: every entry of their normal equations is a combination of two
+//! spectra of the samples, `Σ_n e^{i(jφ_n + mr_n)}` and the same weighted by the readings,
+//! `φ = arccos τ` (the `moments` module has the algebra), which one two-dimensional
+//! non-uniform FFT gives ([`crate::nufft2d`]). Ten million samples cost one such pass and one
+//! more for the residual's structure (above); each fit then costs `O(n²)` for its `n` columns
+//! and a Cholesky factor. Both passes use two threads where rayon has them and sum in a fixed
+//! order, so the results are the same bits on any number of threads.
 
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper};
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
 use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation_uncertainty};
+use chebyshev::chebyshev_with_derivatives;
+use moments::{Moments, Normal, Samples};
 use nalgebra::{DMatrix, DVector};
+use residual::{reference_check, residual_orders};
 use std::f64::consts::TAU;
+
+mod chebyshev;
+mod moments;
+mod residual;
 
 /// The statement of what a spin-down calibration cannot separate, for reports.
 pub const DRAG_AMBIGUITY: &str = "An angle-dependent drag torque (rolling-element bearings, motor cogging, unbalance) decelerating the shaft by a_h·cos(hθ+φ) shakes it by a_h/(h·ω)² at order h, periodic in angle like the encoder's error. TDR separates the two by their speed dependence (the drag's imprint grows as 1/ω², the encoder's error does not) when the coast sweeps the speed widely enough (1/ω² varying by ≥ 10 % RMS); otherwise the map's order h absorbs a_h/h²·⟨ω⁻²⟩. Drag not periodic in shaft angle (ball and cage orders) is not separated: check the map against a reference (--ref) on rolling bearings.";
@@ -154,8 +160,8 @@ impl Default for TdrOptions {
 /// from the motion and from its neighbours (the same fraction as CSRR's).
 pub const ORDERS_PER_SAMPLE: f64 = 0.4;
 
-/// Cap of the default highest order: the fit's cost grows as the orders squared (a dense
-/// Cholesky factor), 500 orders take about a second.
+/// Cap of the default highest order: the screening fit's cost grows as the orders cubed (a
+/// dense Cholesky factor and its inverse), 500 orders take a tenth of a second.
 pub const MAX_DEFAULT_ORDER: usize = 500;
 
 /// The significance rule's family-wise false-alarm probability: an order (or drag order, or a
@@ -422,16 +428,23 @@ impl Tdr {
         let densest = TAU / (coast.slowest_speed * median_step(t));
         let (max_degree, h) = self.sizes(&coast, t.len(), densest, &mut warnings)?;
         let y0 = r[0];
-        let y = Target::Readings { r, origin: y0 };
         let span = (t[0], t[t.len() - 1]);
+        let samples = Samples {
+            t,
+            r,
+            origin: y0,
+            span,
+        };
         let underdetermined = TdrError::Underdetermined {
             unknowns: max_degree + 1 + 2 * h,
             samples: t.len(),
         };
+        let hd = self.opts.max_drag_order.min(h);
+        let moments = Moments::of_coast(samples, max_degree, h, hd);
 
         // 1. Which orders the data hold: every order to h, the motion at its highest degree.
         let mut screen =
-            screen_orders(t, r, y, span, max_degree, h, None).ok_or(underdetermined)?;
+            screen_orders(&moments, span, max_degree, h, None).ok_or(underdetermined)?;
         let screen_motion = TdrMotion {
             degree: max_degree,
             t_start: span.0,
@@ -439,16 +452,15 @@ impl Tdr {
             angle_origin: y0,
             coefficients: screen.motion.clone(),
         };
-        let speeds = SpeedSpread::of(&screen_motion, t);
+        let speeds = SpeedSpread::of(&screen_motion, &moments);
 
         // 2. Drag: the orders to max_drag_order fitted jointly with the map (eq. 3).
         let coasting = Coasting {
-            t,
-            r,
-            y,
+            moments: &moments,
             span,
             max_degree,
             h,
+            hd,
         };
         let drag = self.drag_step(
             &coasting,
@@ -475,12 +487,13 @@ impl Tdr {
             orders: orders.clone(),
             drag: (!drag_orders.is_empty()).then(|| weights(drag_orders.clone())),
         };
+        let normal = Normal::new(&moments, &basis);
         let degree = match self.opts.motion_degree {
             Some(p) => p,
-            None => motion_degree_by_bic(&basis, t, r, y),
+            None => motion_degree_by_bic(&normal, t.len()),
         };
         basis.degree = degree;
-        let fit = Fit::new(&basis, t, r, y).ok_or(TdrError::Underdetermined {
+        let fit = Fit::from_normal(&normal, degree).ok_or(TdrError::Underdetermined {
             unknowns: basis.len(),
             samples: t.len(),
         })?;
@@ -492,7 +505,7 @@ impl Tdr {
 
         // 4. What the model leaves: periodic structure in the residual above the orders fitted.
         let top = ((0.5 * densest) as usize).max(2 * h).min(4 * h.max(8));
-        let unresolved = residual_orders(&basis, t, r, y, &fit, h + 1..=top);
+        let unresolved = residual_orders(samples, &basis, &fit, h + 1..=top);
         warnings.extend(unresolved_warning(&unresolved, h));
 
         let uncertainty = map_uncertainty(
@@ -551,7 +564,7 @@ impl Tdr {
         speeds: &SpeedSpread,
         warnings: &mut Vec<String>,
     ) -> DragStep {
-        let hd = self.opts.max_drag_order.min(c.h);
+        let hd = c.hd;
         let separable =
             speeds.noise_gain * speeds.noise_gain <= MAX_DRAG_VARIANCE_INFLATION && hd >= 1;
         let weights = |orders: Vec<usize>| DragWeights {
@@ -568,7 +581,7 @@ impl Tdr {
                 orders: union(&screen.kept, &tested),
                 drag: Some(weights(tested)),
             };
-            significant_drag(&basis, c.t, c.r, c.y, separable)
+            significant_drag(c.moments, &basis, separable)
         } else {
             (Vec::new(), Vec::new())
         };
@@ -576,7 +589,7 @@ impl Tdr {
         warnings.extend(drag_warnings(coast, speeds, too_narrow, &speed_dependence));
         if !orders.is_empty() {
             let drag = Some(weights(orders.clone()));
-            if let Some(again) = screen_orders(c.t, c.r, c.y, c.span, c.max_degree, c.h, drag) {
+            if let Some(again) = screen_orders(c.moments, c.span, c.max_degree, c.h, drag) {
                 screen.kept = again.kept;
                 screen.dropped = again.dropped;
             }
@@ -666,25 +679,19 @@ impl Tdr {
                 "a reference reading came with only some samples (push and push_with_reference mixed): the reference check is skipped".to_string(),
             );
         }
-        (!self.reference.is_empty() && !mixed).then(|| {
-            let d: Vec<f64> = range
-                .clone()
-                .map(|i| self.r[i] - self.reference[i])
-                .collect();
-            reference_check(&self.t[range.clone()], &self.r[range], &d, seen, map)
-        })
+        (!self.reference.is_empty() && !mixed)
+            .then(|| reference_check(&self.r[range.clone()], &self.reference[range], seen, map))
     }
 }
 
-/// The coast's samples as the fits take them: times, readings, readings from the first, the
-/// time span, the motion's highest degree and the highest order tested.
+/// The coast as the fits take it: its spectra, its time span, the motion's highest degree, the
+/// highest order tested and the highest drag order.
 struct Coasting<'a> {
-    t: &'a [f64],
-    r: &'a [f64],
-    y: Target<'a>,
+    moments: &'a Moments,
     span: (f64, f64),
     max_degree: usize,
     h: usize,
+    hd: usize,
 }
 
 /// What [`Tdr::drag_step`] found.
@@ -709,10 +716,16 @@ struct SpeedSpread {
 }
 
 impl SpeedSpread {
-    fn of(motion: &TdrMotion, t: &[f64]) -> Self {
-        let speed = |t: f64| motion.eval(t).1.abs();
-        let drag_gain = t.iter().map(|&ti| speed(ti).powi(-2)).sum::<f64>() / t.len() as f64;
-        let mean_w2 = t.iter().map(|&ti| speed(ti).powi(-4)).sum::<f64>() / t.len() as f64;
+    /// From the motion, its means over the samples taken from the spectra (`ω⁻²` is smooth).
+    fn of(motion: &TdrMotion, moments: &Moments) -> Self {
+        let (mid, half) = (
+            0.5 * (motion.t_start + motion.t_end),
+            0.5 * (motion.t_end - motion.t_start),
+        );
+        let speed = |tau: f64| motion.eval(mid + tau * half).1.abs();
+        let n = moments.samples as f64;
+        let drag_gain = moments.sum_of(|tau| speed(tau).powi(-2)) / n;
+        let mean_w2 = moments.sum_of(|tau| speed(tau).powi(-4)) / n;
         let variation = (mean_w2 / (drag_gain * drag_gain) - 1.0).max(0.0).sqrt();
         let noise_gain = (1.0 + 1.0 / (variation * variation).max(1e-300)).sqrt();
         SpeedSpread {
@@ -727,14 +740,12 @@ impl SpeedSpread {
 /// and are material: where the coast separates drag (`separable`) the orders to fit as drag,
 /// else the speed dependence found, to be warned about.
 fn significant_drag(
+    moments: &Moments,
     basis: &Basis,
-    t: &[f64],
-    r: &[f64],
-    y: Target,
     separable: bool,
 ) -> (Vec<usize>, Vec<SpeedDependence>) {
     let (mut drag_orders, mut speed_dependence) = (Vec::new(), Vec::new());
-    let (Some(fit), Some(weights)) = (Fit::new(basis, t, r, y), &basis.drag) else {
+    let (Some(fit), Some(weights)) = (Fit::new(moments, basis), &basis.drag) else {
         return (drag_orders, speed_dependence);
     };
     let threshold = significance_threshold(weights.orders.len());
@@ -798,34 +809,22 @@ fn drag_warnings(
     warnings
 }
 
-/// The motion's degree, 2 to `basis.degree`, with the least BIC.
-///
-/// Nested fits: the residual sum of squares of degree p is that of the highest degree plus
-/// ‖A(β_max − β_p)‖² = δᵀ(AᵀA)δ, with no pass over the samples.
-fn motion_degree_by_bic(basis: &Basis, t: &[f64], r: &[f64], y: Target) -> usize {
-    let max_degree = basis.degree;
-    let normal = basis.normal_equations(t, r, y);
-    let tail: Vec<usize> = (max_degree + 1..basis.len()).collect();
-    let columns = |p: usize| -> Vec<usize> { (0..=p).chain(tail.iter().copied()).collect() };
-    let all = columns(max_degree);
-    let n = t.len() as f64;
+/// The motion's degree, 2 to the normal equations' highest, with the least BIC
+/// `N ln(RSS/N) + n_params ln N` over the `samples`: nested fits, each from the normal equations
+/// alone.
+fn motion_degree_by_bic(normal: &Normal, samples: usize) -> usize {
+    let max_degree = normal.degree();
+    let n = samples as f64;
     let mut best: Option<(f64, usize)> = None;
-    if let Some(full) = normal.solve(&all) {
-        let rss_full = basis.rss(t, r, y, &full);
-        for p in 2..=max_degree {
-            let cols = columns(p);
-            let Some(beta) = normal.solve(&cols) else {
-                continue;
-            };
-            let mut delta = DVector::from_column_slice(&full);
-            for (k, &c) in cols.iter().enumerate() {
-                delta[c] -= beta[k];
-            }
-            let rss = rss_full + (delta.transpose() * &normal.g * &delta)[0].max(0.0);
-            let bic = n * (rss / n).max(1e-300).ln() + cols.len() as f64 * n.ln();
-            if best.is_none_or(|(b, _)| bic < b) {
-                best = Some((bic, p));
-            }
+    for p in 2..=max_degree {
+        let cols = normal.columns(p);
+        let Some((b, _)) = normal.solve(&cols) else {
+            continue;
+        };
+        let rss = normal.rss(&b);
+        let bic = n * (rss / n).max(1e-300).ln() + cols.len() as f64 * n.ln();
+        if best.is_none_or(|(least, _)| bic < least) {
+            best = Some((bic, p));
         }
     }
     best.map_or(max_degree, |(_, p)| p)
@@ -1000,34 +999,34 @@ fn find_coast(t: &[f64], r: &[f64], opts: &TdrOptions) -> Result<Coast, TdrError
     })
 }
 
-/// The median time step, seconds.
+/// The median time step, seconds: the step of rank `⌊(N−1)/2⌋` among the `N − 1` steps.
+///
+/// Found by a radix selection on the steps' bits (positive doubles order as their bits do),
+/// 16 bits a pass over the times, rather than by sorting a copy of the steps: ten million
+/// samples would need 80 MB more.
 fn median_step(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    let mid = d.len() / 2;
-    d.select_nth_unstable_by(mid, f64::total_cmp);
-    d[mid]
-}
-
-/// `(f, f′, f″)` of `f(τ) = Σ c_j T_j(τ)` by the recurrences `T_{j+1} = 2τT_j − T_{j−1}`,
-/// `T′_{j+1} = 2T_j + 2τT′_j − T′_{j−1}`, `T″_{j+1} = 4T′_j + 2τT″_j − T″_{j−1}`.
-fn chebyshev_with_derivatives(c: &[f64], tau: f64) -> (f64, f64, f64) {
-    let (mut t0, mut t1) = (1.0, tau);
-    let (mut d0, mut d1) = (0.0, 1.0);
-    let (mut s0, mut s1) = (0.0, 0.0);
-    let mut out = (0.0, 0.0, 0.0);
-    for (j, &cj) in c.iter().enumerate() {
-        let (tj, dj, sj) = if j == 0 { (t0, d0, s0) } else { (t1, d1, s1) };
-        out.0 += cj * tj;
-        out.1 += cj * dj;
-        out.2 += cj * sj;
-        if j >= 1 {
-            let t2 = 2.0 * tau * t1 - t0;
-            let d2 = 2.0 * t1 + 2.0 * tau * d1 - d0;
-            let s2 = 4.0 * d1 + 2.0 * tau * s1 - s0;
-            (t0, t1, d0, d1, s0, s1) = (t1, t2, d1, d2, s1, s2);
+    let steps = || t.windows(2).map(|w| (w[1] - w[0]).to_bits());
+    let mut rank = (t.len() - 1) / 2;
+    let mut prefix = 0u64;
+    for pass in 0..4 {
+        let shift = 48 - 16 * pass;
+        let mask = if pass == 0 {
+            0
+        } else {
+            u64::MAX << (shift + 16)
+        };
+        let mut counts = vec![0usize; 1 << 16];
+        for s in steps().filter(|s| s & mask == prefix) {
+            counts[((s >> shift) & 0xffff) as usize] += 1;
         }
+        let mut digit = 0;
+        while rank >= counts[digit] {
+            rank -= counts[digit];
+            digit += 1;
+        }
+        prefix |= (digit as u64) << shift;
     }
-    out
+    f64::from_bits(prefix)
 }
 
 /// The columns of the fit (1): `T_0..T_p(τ)`, then `cos kr, sin kr` for the map's orders `k`,
@@ -1075,315 +1074,12 @@ impl Basis {
                 .unwrap_or(0),
         )
     }
-
-    /// The rows of the samples `(t, r)` (at most [`LANES`]) into `out`, one after the other;
-    /// `trig` is scratch for their `cos kr, sin kr`, `k = 1..`.
-    fn rows(&self, t: &[f64], r: &[f64], out: &mut [f64], trig: &mut Vec<f64>) {
-        let (n, top, f) = (self.len(), self.top(), self.degree + 1);
-        if self.drag.is_none() && self.orders.len() == top {
-            // The orders are 1..=top: the harmonics go straight into the rows.
-            harmonics(r, top, &mut out[f..], n);
-            for (j, row) in out.chunks_exact_mut(n).take(t.len()).enumerate() {
-                self.motion_columns(t[j], row);
-            }
-            return;
-        }
-        trig.resize(r.len() * 2 * top, 0.0);
-        harmonics(r, top, trig, 2 * top);
-        for (j, row) in out.chunks_exact_mut(n).take(t.len()).enumerate() {
-            self.row(t[j], &trig[j * 2 * top..(j + 1) * 2 * top], row);
-        }
-    }
-
-    /// The rows of the samples `range` into `block.rows` and, given coefficients `beta`, their
-    /// residuals `y − Aβ` into `block.e` (each summing its row's terms in column order), on
-    /// the threads rayon has.
-    fn fill(
-        &self,
-        c: (&[f64], &[f64], Target),
-        beta: Option<&[f64]>,
-        range: std::ops::Range<usize>,
-        block: &mut Block,
-    ) {
-        let n = self.len();
-        block.rows.resize(range.len() * n, 0.0);
-        block.e.resize(range.len(), 0.0);
-        // Two halves, one per thread.
-        let half = range.len().div_ceil(2 * LANES) * LANES;
-        let (rows_a, rows_b) = block.rows.split_at_mut(half * n);
-        let (e_a, e_b) = block.e.split_at_mut(half);
-        rayon::join(
-            || self.fill_part(c, beta, range.start, rows_a, e_a),
-            || self.fill_part(c, beta, range.start + half, rows_b, e_b),
-        );
-    }
-
-    /// [`fill`](Self::fill) of the samples from `from` on, as many as `e` holds.
-    fn fill_part(
-        &self,
-        (t, r, y): (&[f64], &[f64], Target),
-        beta: Option<&[f64]>,
-        from: usize,
-        rows: &mut [f64],
-        e: &mut [f64],
-    ) {
-        let n = self.len();
-        let mut trig = Vec::new();
-        for (g, (rows, e)) in rows
-            .chunks_mut(LANES * n)
-            .zip(e.chunks_mut(LANES))
-            .enumerate()
-        {
-            let from = from + g * LANES;
-            let to = from + e.len();
-            self.rows(&t[from..to], &r[from..to], rows, &mut trig);
-            if let Some(beta) = beta {
-                // −0.0 is the neutral element of a sum (`Iterator::sum` starts there too).
-                let mut fit = [-0.0; LANES];
-                for (c, &b) in beta.iter().enumerate() {
-                    for (j, f) in fit.iter_mut().enumerate().take(e.len()) {
-                        *f += rows[j * n + c] * b;
-                    }
-                }
-                for (j, ej) in e.iter_mut().enumerate() {
-                    *ej = y.at(from + j) - fit[j];
-                }
-            }
-        }
-    }
-
-    /// The motion's columns `T_0..T_p(τ)` of a row.
-    fn motion_columns(&self, t: f64, out: &mut [f64]) {
-        let tau = (2.0 * t - self.t0 - self.t1) / (self.t1 - self.t0);
-        out[0] = 1.0;
-        if self.degree >= 1 {
-            out[1] = tau;
-        }
-        for j in 2..=self.degree {
-            out[j] = 2.0 * tau * out[j - 1] - out[j - 2];
-        }
-    }
-
-    /// One row, given its sample's `trig = cos kr, sin kr`, `k = 1..`.
-    fn row(&self, t: f64, trig: &[f64], out: &mut [f64]) {
-        self.motion_columns(t, out);
-        let f = self.degree + 1;
-        for (i, &k) in self.orders.iter().enumerate() {
-            (out[f + 2 * i], out[f + 2 * i + 1]) = (trig[2 * k - 2], trig[2 * k - 1]);
-        }
-        if let Some(d) = &self.drag {
-            let (_, w1, w2) = d.motion.eval(t);
-            let w = 1.0 / (w1 * w1 * d.gain);
-            let v = 3.0 * w2 / (w1.powi(4) * d.gain);
-            let g = self.drag_column(0);
-            for (i, &k) in d.orders.iter().enumerate() {
-                let (c, s) = (trig[2 * k - 2], trig[2 * k - 1]);
-                let vk = v / k as f64;
-                out[g + 2 * i] = w * c + vk * s;
-                out[g + 2 * i + 1] = w * s - vk * c;
-            }
-        }
-    }
-
-    /// `AᵀA` and `Aᵀy` over all samples, in one pass.
-    fn normal_equations(&self, t: &[f64], r: &[f64], y: Target) -> Normal {
-        let n = self.len();
-        let mut g = vec![0.0; n * n];
-        let mut rhs = vec![0.0; n];
-        // The upper triangle's lines 0..split hold about as many entries as the others: the two
-        // parts are summed on two threads.
-        let split = ((n as f64) * (1.0 - std::f64::consts::FRAC_1_SQRT_2)).round() as usize;
-        pipeline(
-            t.len(),
-            ROWS_PER_BLOCK,
-            |range, block| self.fill((t, r, y), None, range, block),
-            |range, block| {
-                let (g_a, g_b) = g.split_at_mut(split * n);
-                let (rhs_a, rhs_b) = rhs.split_at_mut(split);
-                let rows = &block.rows;
-                rayon::join(
-                    || add_lines(rows, y, range.clone(), 0, g_a, rhs_a),
-                    || add_lines(rows, y, range.clone(), split, g_b, rhs_b),
-                );
-            },
-        );
-        let g = DMatrix::from_fn(
-            n,
-            n,
-            |a, b| if a <= b { g[a * n + b] } else { g[b * n + a] },
-        );
-        Normal {
-            g,
-            rhs: DVector::from_vec(rhs),
-        }
-    }
-
-    /// The residuals `y − Aβ` of all columns, passed to `each` with their rows, in the order of
-    /// the samples.
-    fn residuals(
-        &self,
-        t: &[f64],
-        r: &[f64],
-        y: Target,
-        beta: &[f64],
-        mut each: impl FnMut(&[f64], f64) + Send,
-    ) {
-        let n = self.len();
-        pipeline(
-            t.len(),
-            ROWS_PER_BLOCK,
-            |range, block| self.fill((t, r, y), Some(beta), range, block),
-            |_, block| {
-                for (row, &e) in block.rows.chunks_exact(n).zip(&block.e) {
-                    each(row, e);
-                }
-            },
-        );
-    }
-
-    /// Residual sum of squares.
-    fn rss(&self, t: &[f64], r: &[f64], y: Target, beta: &[f64]) -> f64 {
-        let mut sum = 0.0;
-        self.residuals(t, r, y, beta, |_, e| sum += e * e);
-        sum
-    }
 }
 
-/// Adds the samples `range` (their `rows`, one after the other, and `y`) to the lines
-/// `first..first + rhs.len()` of the upper triangle of `AᵀA` (`g`, from line `first` on) and of
-/// `Aᵀy` (`rhs`), one sample after the other.
-fn add_lines(
-    rows: &[f64],
-    y: Target,
-    range: std::ops::Range<usize>,
-    first: usize,
-    g: &mut [f64],
-    rhs: &mut [f64],
-) {
-    let n = rows.len() / range.len().max(1);
-    for (row, yi) in rows.chunks_exact(n).zip(range.map(|i| y.at(i))) {
-        for (k, rk) in rhs.iter_mut().enumerate() {
-            let a = first + k;
-            let ra = row[a];
-            *rk += ra * yi;
-            let line = &mut g[k * n..(k + 1) * n];
-            for b in a..n {
-                line[b] += ra * row[b];
-            }
-        }
-    }
-}
-
-/// What a fit fits, `y`: the coast's readings from the first, `r − origin` (made where they are
-/// used rather than stored, 8 bytes a sample less), or given values (the reference check's).
-#[derive(Debug, Clone, Copy)]
-enum Target<'a> {
-    Readings { r: &'a [f64], origin: f64 },
-    Given(&'a [f64]),
-}
-
-impl Target<'_> {
-    /// `y` of sample `i`.
-    fn at(self, i: usize) -> f64 {
-        match self {
-            Target::Readings { r, origin } => r[i] - origin,
-            Target::Given(y) => y[i],
-        }
-    }
-}
-
-/// Samples whose harmonics are computed side by side ([`harmonics`]).
-const LANES: usize = 8;
-
-/// Samples per block of a [`pipeline`] of rows.
-const ROWS_PER_BLOCK: usize = 1024;
-
-/// A block of rows of the fit and their residuals.
-#[derive(Debug, Default)]
-struct Block {
-    rows: Vec<f64>,
-    e: Vec<f64>,
-}
-
-/// A pass over `len` samples in blocks of `block_len`: `produce` makes a block (rows,
-/// residuals) while `consume` sums the block before it, on two threads where rayon has them
-/// (and `produce` may split its block over the threads left). `consume` sees the blocks in order,
-/// so every sum over the samples is taken in their order and the results are those of one
-/// thread, whatever the threads.
-fn pipeline<B: Default + Send + Sync>(
-    len: usize,
-    block_len: usize,
-    mut produce: impl FnMut(std::ops::Range<usize>, &mut B) + Send,
-    mut consume: impl FnMut(std::ops::Range<usize>, &B) + Send,
-) {
-    let (mut ready, mut next) = (B::default(), B::default());
-    let mut previous: Option<std::ops::Range<usize>> = None;
-    for start in (0..len).step_by(block_len) {
-        let range = start..(start + block_len).min(len);
-        match previous.take() {
-            None => produce(range.clone(), &mut next),
-            Some(done) => {
-                rayon::join(
-                    || consume(done, &ready),
-                    || produce(range.clone(), &mut next),
-                );
-            }
-        }
-        std::mem::swap(&mut ready, &mut next);
-        previous = Some(range);
-    }
-    if let Some(done) = previous {
-        consume(done, &ready);
-    }
-}
-
-/// `cos kr, sin kr`, `k = 1..=top`, of each reading `j` of `r` (at most [`LANES`]) into
-/// `out[j·stride + 2k − 2]` and `out[j·stride + 2k − 1]`, by the rotation
-/// `e^{i(k+1)r} = e^{ikr}·e^{ir}`. Each rotation waits for the one before, so one reading at a
-/// time leaves the core idle most of the time; the readings' chains run side by side instead,
-/// each exactly as it would alone.
-fn harmonics(r: &[f64], top: usize, out: &mut [f64], stride: usize) {
-    let lanes = r.len();
-    let (mut s1, mut c1) = ([0.0; LANES], [0.0; LANES]);
-    for (j, x) in r.iter().enumerate() {
-        (s1[j], c1[j]) = x.sin_cos();
-    }
-    let (mut s, mut c) = ([0.0; LANES], [1.0; LANES]);
-    for k in 0..top {
-        for j in 0..lanes {
-            (s[j], c[j]) = (s[j] * c1[j] + c[j] * s1[j], c[j] * c1[j] - s[j] * s1[j]);
-            (out[j * stride + 2 * k], out[j * stride + 2 * k + 1]) = (c[j], s[j]);
-        }
-    }
-}
-
-/// Normal equations of the largest column set; fits use sub-blocks of them.
-#[derive(Debug, Clone)]
-struct Normal {
-    g: DMatrix<f64>,
-    rhs: DVector<f64>,
-}
-
-impl Normal {
-    fn sub(&self, cols: &[usize]) -> DMatrix<f64> {
-        DMatrix::from_fn(cols.len(), cols.len(), |a, b| self.g[(cols[a], cols[b])])
-    }
-
-    /// The least-squares coefficients of columns `cols` (in that order). `None` if singular.
-    fn solve(&self, cols: &[usize]) -> Option<Vec<f64>> {
-        let chol = self.sub(cols).cholesky()?;
-        let b = DVector::from_fn(cols.len(), |a, _| self.rhs[cols[a]]);
-        let x = chol.solve(&b);
-        x.iter()
-            .all(|v| v.is_finite())
-            .then(|| x.iter().copied().collect())
-    }
-}
-
-/// A least-squares fit with all columns of its basis: coefficients, residual sum of squares,
-/// the noise `σ` per sample estimated from it, and the inverse `L⁻¹` of the Cholesky factor of
-/// `AᵀA = LLᵀ`, from which `(AᵀA)⁻¹ = L⁻ᵀL⁻¹` (the coefficients' covariance over `σ²`) is read
-/// entry by entry.
+/// A least-squares fit with the columns of its basis: coefficients (the motion's from the coast's
+/// first reading), residual sum of squares, the noise `σ` per sample estimated from it, and the
+/// inverse `L⁻¹` of the Cholesky factor of `AᵀA = LLᵀ`, from which `(AᵀA)⁻¹ = L⁻ᵀL⁻¹` (the
+/// coefficients' covariance over `σ²`) is read entry by entry.
 #[derive(Debug, Clone)]
 struct Fit {
     beta: Vec<f64>,
@@ -1393,34 +1089,21 @@ struct Fit {
 }
 
 impl Fit {
-    fn new(basis: &Basis, t: &[f64], r: &[f64], y: Target) -> Option<Fit> {
-        Fit::with_normal(basis, t, r, y, &basis.normal_equations(t, r, y))
+    fn new(moments: &Moments, basis: &Basis) -> Option<Fit> {
+        Fit::from_normal(&Normal::new(moments, basis), basis.degree)
     }
 
-    /// Solves with one Cholesky factor, refines once from the exact residuals, and inverts the
-    /// factor.
-    fn with_normal(basis: &Basis, t: &[f64], r: &[f64], y: Target, normal: &Normal) -> Option<Fit> {
-        let n = basis.len();
-        let chol = normal.g.clone().cholesky()?;
-        let first = chol.solve(&normal.rhs);
-        if !first.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        let mut correction = DVector::<f64>::zeros(n);
-        basis.residuals(t, r, y, first.as_slice(), |row, e| {
-            for (c, v) in correction.iter_mut().zip(row) {
-                *c += v * e;
-            }
-        });
-        let beta: Vec<f64> = (first + chol.solve(&correction)).iter().copied().collect();
-        let rss = basis.rss(t, r, y, &beta);
-        let l_inv = lower_triangular_inverse(&chol.l());
-        let dof = t.len().saturating_sub(n).max(1) as f64;
+    /// The fit of the normal equations' columns with the motion to degree `p`.
+    fn from_normal(normal: &Normal, p: usize) -> Option<Fit> {
+        let cols = normal.columns(p);
+        let (b, chol) = normal.solve(&cols)?;
+        let rss = normal.rss(&b);
+        let dof = normal.samples.saturating_sub(cols.len()).max(1) as f64;
         Some(Fit {
-            beta,
+            beta: normal.coefficients(&b, &cols),
             rss,
             sigma: (rss / dof).sqrt(),
-            l_inv,
+            l_inv: lower_triangular_inverse(&chol.l()),
         })
     }
 
@@ -1560,9 +1243,7 @@ struct Screen {
 }
 
 fn screen_orders(
-    t: &[f64],
-    r: &[f64],
-    y: Target,
+    moments: &Moments,
     span: (f64, f64),
     degree: usize,
     h: usize,
@@ -1575,8 +1256,7 @@ fn screen_orders(
         orders: (1..=h).collect(),
         drag,
     };
-    let normal = fourier_normal_equations(&basis, t, r, y, h);
-    let fit = Fit::with_normal(&basis, t, r, y, &normal)?;
+    let fit = Fit::new(moments, &basis)?;
     let threshold = significance_threshold(h);
     let f = degree + 1;
     let mut kept = Vec::new();
@@ -1601,233 +1281,30 @@ fn screen_orders(
     })
 }
 
-/// Rows per block of [`fourier_normal_equations`].
-const BLOCK: usize = 1024;
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// The normal equations of a basis of the motion, every order `1..=h` and a few drag columns, built in
-/// `O(N·(p + h)·p)` rather than `O(N·h²)`: the Fourier–Fourier block comes from the moments
-/// `C_m + iS_m = Σ_n e^{imr_n}`, `m = 0..2h`, by `cos jr·cos kr = ½(cos(j−k)r + cos(j+k)r)`,
-/// `sin jr·sin kr = ½(cos(j−k)r − cos(j+k)r)`, `cos jr·sin kr = ½(sin(j+k)r − sin(j−k)r)`; the
-/// motion's blocks and `Aᵀy` by matrix products over blocks of rows; the drag's columns, if
-/// any, in one more pass.
-fn fourier_normal_equations(basis: &Basis, t: &[f64], r: &[f64], y: Target, h: usize) -> Normal {
-    let p1 = basis.degree + 1;
-    let n = p1 + 2 * h;
-    let mut cm = vec![0.0; 2 * h + 1];
-    let mut sm = vec![0.0; 2 * h + 1];
-    let mut mm = DMatrix::<f64>::zeros(p1, p1);
-    let mut mf = DMatrix::<f64>::zeros(p1, 2 * h);
-    let mut rhs = DVector::<f64>::zeros(n);
-    let mut trig = Vec::new();
-    // Making a block's Chebyshev and harmonic columns (and the moments, in the order of the
-    // samples) beside the products of the block before.
-    pipeline(
-        t.len(),
-        BLOCK,
-        |range, block: &mut Option<(DMatrix<f64>, DMatrix<f64>)>| {
-            let (start, len) = (range.start, range.len());
-            // One column of `f` per sample, so that filling it is contiguous.
-            let (a, f) = match block {
-                Some((a, f)) if a.nrows() == len => (a, f),
-                _ => {
-                    let (a, f) = block.insert((
-                        DMatrix::<f64>::zeros(len, p1),
-                        DMatrix::<f64>::zeros(2 * h, len),
-                    ));
-                    (a, f)
-                }
+    #[test]
+    fn the_median_step_is_the_sorted_steps_middle_one() {
+        // Steps with many repeats (a regular clock), jitter and a few gaps.
+        let mut t = vec![0.0];
+        let mut state = 12_345u64;
+        for i in 0..10_001 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            let step = match state >> 61 {
+                0 => 1e-3 + (state >> 20) as f64 * 1e-25,
+                1 if i % 97 == 0 => 0.5,
+                _ => 1e-3,
             };
-            for i in 0..len {
-                let ti = t[start + i];
-                let tau = (2.0 * ti - basis.t0 - basis.t1) / (basis.t1 - basis.t0);
-                let (mut t0, mut t1) = (1.0, tau);
-                a[(i, 0)] = 1.0;
-                for j in 1..p1 {
-                    a[(i, j)] = t1;
-                    (t0, t1) = (t1, 2.0 * tau * t1 - t0);
-                }
-            }
-            for first in (0..len).step_by(LANES) {
-                let lanes = LANES.min(len - first);
-                let from = start + first;
-                trig.resize(lanes * 4 * h, 0.0);
-                harmonics(&r[from..from + lanes], 2 * h, &mut trig, 4 * h);
-                for (j, e) in trig.chunks_exact(4 * h).enumerate() {
-                    cm[0] += 1.0;
-                    for (m, cs) in e.chunks_exact(2).enumerate() {
-                        cm[m + 1] += cs[0];
-                        sm[m + 1] += cs[1];
-                    }
-                    f.column_mut(first + j).copy_from_slice(&e[..2 * h]);
-                }
-            }
-        },
-        |range, block| {
-            let Some((a, f)) = block else { return };
-            let yv = DVector::from_iterator(range.len(), range.map(|i| y.at(i)));
-            let at = a.transpose();
-            mm += &at * a;
-            mf += (f * a).transpose();
-            let ry = at * &yv;
-            let fy = f * &yv;
-            for j in 0..p1 {
-                rhs[j] += ry[j];
-            }
-            for j in 0..2 * h {
-                rhs[p1 + j] += fy[j];
-            }
-        },
-    );
-    let mut g = DMatrix::<f64>::zeros(n, n);
-    g.view_mut((0, 0), (p1, p1)).copy_from(&mm);
-    g.view_mut((0, p1), (p1, 2 * h)).copy_from(&mf);
-    g.view_mut((p1, 0), (2 * h, p1)).copy_from(&mf.transpose());
-    let sin = |m: isize| {
-        if m >= 0 {
-            sm[m as usize]
-        } else {
-            -sm[(-m) as usize]
+            t.push(t[i] + step);
         }
-    };
-    for j in 1..=h {
-        for k in 1..=h {
-            let (d, s) = (j.abs_diff(k), j + k);
-            let (cj, sj, ck, sk) = (
-                p1 + 2 * j - 2,
-                p1 + 2 * j - 1,
-                p1 + 2 * k - 2,
-                p1 + 2 * k - 1,
-            );
-            g[(cj, ck)] = 0.5 * (cm[d] + cm[s]);
-            g[(sj, sk)] = 0.5 * (cm[d] - cm[s]);
-            g[(cj, sk)] = 0.5 * (sm[s] - sin(j as isize - k as isize));
-            g[(sk, cj)] = g[(cj, sk)];
+        for len in [3, 4, 1000, t.len()] {
+            let mut d: Vec<f64> = t[..len].windows(2).map(|w| w[1] - w[0]).collect();
+            d.sort_by(f64::total_cmp);
+            assert_eq!(median_step(&t[..len]).to_bits(), d[(len - 1) / 2].to_bits());
         }
-    }
-    if basis.drag.is_some() {
-        // The drag's few columns against all: one pass with full rows.
-        let total = basis.len();
-        let mut big = DMatrix::<f64>::zeros(total, total);
-        big.view_mut((0, 0), (n, n)).copy_from(&g);
-        let mut rhs_big = DVector::<f64>::zeros(total);
-        rhs_big.rows_mut(0, n).copy_from(&rhs);
-        let mut rows = vec![0.0; LANES * total];
-        for start in (0..t.len()).step_by(LANES) {
-            let end = (start + LANES).min(t.len());
-            basis.rows(&t[start..end], &r[start..end], &mut rows, &mut trig);
-            for (row, yi) in rows.chunks_exact(total).zip((start..end).map(|i| y.at(i))) {
-                for d in n..total {
-                    let rd = row[d];
-                    rhs_big[d] += rd * yi;
-                    for (b, &rb) in row.iter().enumerate().take(d + 1) {
-                        big[(d, b)] += rd * rb;
-                    }
-                }
-            }
-        }
-        for d in n..total {
-            for b in 0..d {
-                big[(b, d)] = big[(d, b)];
-            }
-        }
-        return Normal {
-            g: big,
-            rhs: rhs_big,
-        };
-    }
-    Normal { g, rhs }
-}
-
-/// Periodic structure in the residual of `fit` at `orders`: each order's residual projected on
-/// `e^{−ikr}` over the samples, `z_k = Σ e_n e^{−ikr_n}`, amplitude `2|z_k|/N`; under white noise
-/// `2|z_k|²/(Nσ²)` is a chi-square of 2 degrees of freedom, and the orders that pass the
-/// significance rule are returned, largest first.
-fn residual_orders(
-    basis: &Basis,
-    t: &[f64],
-    r: &[f64],
-    y: Target,
-    fit: &Fit,
-    orders: std::ops::RangeInclusive<usize>,
-) -> Vec<Harmonic> {
-    let (lo, hi) = (*orders.start(), *orders.end());
-    if hi < lo || fit.sigma <= 0.0 {
-        return Vec::new();
-    }
-    let mut z = vec![(0.0, 0.0); hi - lo + 1];
-    // The residuals of LANES samples at a time, projected side by side (as in `harmonics`).
-    let (mut es, mut rs) = ([0.0; LANES], [0.0; LANES]);
-    let mut lanes = 0;
-    let mut project = |es: &[f64], rs: &[f64]| {
-        let (mut s1, mut c1) = ([0.0; LANES], [0.0; LANES]);
-        let (mut s, mut c) = ([0.0; LANES], [0.0; LANES]);
-        for (j, x) in rs.iter().enumerate() {
-            (s1[j], c1[j]) = x.sin_cos();
-            (s[j], c[j]) = (lo as f64 * x).sin_cos();
-        }
-        for zk in z.iter_mut() {
-            for (j, e) in es.iter().enumerate() {
-                zk.0 += e * c[j];
-                zk.1 -= e * s[j];
-                (s[j], c[j]) = (s[j] * c1[j] + c[j] * s1[j], c[j] * c1[j] - s[j] * s1[j]);
-            }
-        }
-    };
-    let mut i = 0;
-    basis.residuals(t, r, y, &fit.beta, |_, e| {
-        (es[lanes], rs[lanes]) = (e, r[i]);
-        lanes += 1;
-        i += 1;
-        if lanes == LANES {
-            project(&es, &rs);
-            lanes = 0;
-        }
-    });
-    project(&es[..lanes], &rs[..lanes]);
-    let n = t.len() as f64;
-    let sigma2 = fit.rss / n;
-    let threshold = significance_threshold(z.len());
-    let mut found: Vec<Harmonic> = z
-        .iter()
-        .enumerate()
-        .filter(|(_, (a, b))| 2.0 * (a * a + b * b) / (n * sigma2) > threshold)
-        .map(|(j, &(a, b))| Harmonic::from_coefficients(lo + j, 2.0 * a / n, -2.0 * b / n))
-        .collect();
-    found.sort_by(|a, b| b.amplitude.total_cmp(&a.amplitude));
-    found
-}
-
-/// Fits `d = c + Σ a_k cos kr + b_k sin kr` (DUT − reference against the DUT's reading) at
-/// `orders` — the map's and those the residual showed beyond it — and compares the map with the
-/// TDR map.
-fn reference_check(
-    t: &[f64],
-    r: &[f64],
-    d: &[f64],
-    orders: &[usize],
-    tdr: &ErrorMap,
-) -> ReferenceCheck {
-    let d0 = d[0];
-    let y: Vec<f64> = d.iter().map(|v| v - d0).collect();
-    let basis = Basis {
-        t0: t[0],
-        t1: t[t.len() - 1],
-        degree: 0,
-        orders: orders.to_vec(),
-        drag: None,
-    };
-    let mut series = FourierSeries::zeros(orders.last().copied().unwrap_or(1));
-    if let Some(fit) = Fit::new(&basis, t, r, Target::Given(&y)) {
-        for (i, &k) in orders.iter().enumerate() {
-            series.cos[k - 1] = fit.beta[1 + 2 * i];
-            series.sin[k - 1] = fit.beta[2 + 2 * i];
-        }
-    }
-    let map = ErrorMap::from_series(&series, tdr.len());
-    let diff = tdr.minus(&map);
-    ReferenceCheck {
-        max_abs_diff_arcsec: diff.max_abs_arcsec(),
-        rms_diff_arcsec: diff.rms() * ARCSEC_PER_RAD,
-        map,
     }
 }
