@@ -78,6 +78,7 @@ pub mod error_map;
 pub mod harmonics;
 pub mod inspect;
 pub mod multihead;
+pub mod nufft2d;
 pub mod range_map;
 pub mod reference_cal;
 pub mod report;
