@@ -56,6 +56,7 @@
 //! spectra hold `(2·j_max + 1)·(m_max + 1)` complex values each.
 
 use rayon::join;
+use rayon::prelude::*;
 use realfft::RealFftPlanner;
 use rustfft::FftPlanner;
 pub use rustfft::num_complex::Complex64;
@@ -147,23 +148,20 @@ pub fn type1<const K: usize>(
     } else {
         [0..len / 2, len / 2..len]
     };
-    let (mut grid, other) = join(
+    let (mut grid, mut other) = join(
         || plan.spread(&sample, first),
         || plan.spread(&sample, second),
     );
     if grid.is_empty() {
+        std::mem::swap(&mut grid, &mut other);
+    }
+    if grid.is_empty() {
         grid = vec![[0.0; K]; plan.cells()];
     }
-    for (g, o) in grid.iter_mut().zip(&other) {
-        for s in 0..K {
-            g[s] += o[s];
-        }
-    }
-    drop(other);
     if plan.two_d {
-        transform_2d(grid, &plan.a, &plan.b, j_max, m_max)
+        transform_2d(&grid, &other, &plan.a, &plan.b, j_max, m_max)
     } else {
-        transform_1d(grid, &plan.b, m_max)
+        transform_1d(&grid, &other, &plan.b, m_max)
     }
 }
 
@@ -179,7 +177,7 @@ struct Plan {
 
 impl Plan {
     /// Cells of `K` values in a grid: rows of `N_b + W − 1` cells (the last `W − 1` padding, so
-    /// that every kernel row is one contiguous run; see [`fold_padding`]), `N_a` rows or one.
+    /// that every kernel row is one contiguous run; see [`merged_row`]), `N_a` rows or one.
     fn cells(&self) -> usize {
         let rows = if self.two_d { self.a.n } else { 1 };
         rows * (self.b.n + WIDTH - 1)
@@ -209,9 +207,31 @@ impl Plan {
 /// and two additions; the compiler's own vectorization of the same loops was half as fast). The
 /// two differ in the last bits (a fused multiply-add rounds once): the results are
 /// reproducible on one kind of CPU.
+///
+/// Horner's rule for the kernels along `a` and `b` is split into steps so that the spreading
+/// loop can run them between the rows of the previous sample ([`spread_samples`]).
 trait Lanes: Copy {
-    /// The kernel's `W` values at the offsets `i + 1 − W/2 − f` ([`Kernel::values`]).
-    fn kernel(self, kernel: &Kernel, f: f64) -> [f64; WIDTH];
+    /// Horner's rule for the kernels at two fractions `(f_a, f_b)`, part done.
+    type Horner;
+
+    /// The start of Horner's rule: the leading coefficients.
+    fn horner_start(self, kernel: &Kernel, fa: f64, fb: f64) -> Self::Horner;
+
+    /// The step that adds the coefficients of `t^d`.
+    fn horner_step(self, kernel: &Kernel, h: &mut Self::Horner, d: usize);
+
+    /// The kernel values at the two fractions, after the steps `d = DEGREE − 1, …, 0`.
+    fn horner_values(self, h: &Self::Horner) -> [[f64; WIDTH]; 2];
+
+    /// The kernel's `W` values at the offsets `i + 1 − W/2 − f`, all steps at once.
+    #[cfg(test)]
+    fn kernel(self, kernel: &Kernel, f: f64) -> [f64; WIDTH] {
+        let mut h = self.horner_start(kernel, f, f);
+        for d in (0..DEGREE).rev() {
+            self.horner_step(kernel, &mut h, d);
+        }
+        self.horner_values(&h)[0]
+    }
 
     /// `cells[q] += k·scaled[q]` for the `W·K` values of one kernel row.
     fn add_row(self, cells: &mut [f64], k: f64, scaled: &[f64]);
@@ -222,9 +242,25 @@ trait Lanes: Copy {
 struct Portable;
 
 impl Lanes for Portable {
+    type Horner = ([f64; 2], [[f64; WIDTH]; 2]);
+
     #[inline(always)]
-    fn kernel(self, kernel: &Kernel, f: f64) -> [f64; WIDTH] {
-        kernel.values(f)
+    fn horner_start(self, kernel: &Kernel, fa: f64, fb: f64) -> Self::Horner {
+        ([2.0 * fa - 1.0, 2.0 * fb - 1.0], [kernel.coeffs[DEGREE]; 2])
+    }
+
+    #[inline(always)]
+    fn horner_step(self, kernel: &Kernel, (t, v): &mut Self::Horner, d: usize) {
+        for (v, t) in v.iter_mut().zip(*t) {
+            for (v, c) in v.iter_mut().zip(&kernel.coeffs[d]) {
+                *v = *v * t + c;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn horner_values(self, (_, v): &Self::Horner) -> [[f64; WIDTH]; 2] {
+        *v
     }
 
     #[inline(always)]
@@ -235,9 +271,41 @@ impl Lanes for Portable {
     }
 }
 
+/// A sample placed on the grid, its kernels part evaluated.
+struct Started<const K: usize, L: Lanes> {
+    row: usize,
+    first: usize,
+    w: [f64; K],
+    horner: L::Horner,
+}
+
+impl<const K: usize, L: Lanes> Started<K, L> {
+    #[inline(always)]
+    fn new(lanes: L, plan: &Plan, (a, b, w): (f64, f64, [f64; K])) -> Self {
+        let (row, fa) = if plan.two_d {
+            plan.a.locate(a)
+        } else {
+            (0, 0.0)
+        };
+        let (first, fb) = plan.b.locate(b);
+        let horner = lanes.horner_start(&plan.kernel, fa, fb);
+        Started {
+            row,
+            first,
+            w,
+            horner,
+        }
+    }
+}
+
 /// Adds the samples `range` to `grid`, in order: per sample, the `W` kernel values along `b`
 /// times the `K` weights, added to `W` rows (`j_max > 0`, scaled by the kernel along `a`) or to
 /// the one row.
+///
+/// The next sample's kernels are evaluated while the current one is spread, one step of
+/// Horner's rule per row: each step waits for the previous one (a chain of `DEGREE` dependent
+/// multiply-adds), and the rows' loads and stores fill those waits. Evaluated on their own
+/// before each sample, the chains took a third of the time.
 #[inline(always)]
 fn spread_samples<const K: usize, L: Lanes, F>(
     lanes: L,
@@ -249,24 +317,40 @@ fn spread_samples<const K: usize, L: Lanes, F>(
     F: Fn(usize) -> (f64, f64, [f64; K]),
 {
     let row_len = plan.b.n + WIDTH - 1;
-    for n in range {
-        let (a, b, w) = sample(n);
-        let (first, fb) = plan.b.locate(b);
-        let kb = lanes.kernel(&plan.kernel, fb);
+    let kernel = &plan.kernel;
+    let Some(mut next) = range
+        .clone()
+        .next()
+        .map(|n| Started::new(lanes, plan, sample(n)))
+    else {
+        return;
+    };
+    for d in (0..DEGREE).rev() {
+        lanes.horner_step(kernel, &mut next.horner, d);
+    }
+    for n in range.clone() {
+        let current = next;
+        let [ka, kb] = lanes.horner_values(&current.horner);
         let mut scaled = [[0.0; K]; WIDTH];
         for (c, k) in scaled.iter_mut().zip(kb) {
             for s in 0..K {
-                c[s] = k * w[s];
+                c[s] = k * current.w[s];
             }
         }
         let scaled = scaled.as_flattened();
+        // The sample after the last is a dummy that is never spread.
+        let following = if n + 1 < range.end { n + 1 } else { n };
+        next = Started::new(lanes, plan, sample(following));
+        let first = current.first;
         if !plan.two_d {
+            for d in (0..DEGREE).rev() {
+                lanes.horner_step(kernel, &mut next.horner, d);
+            }
             lanes.add_row(grid[first..first + WIDTH].as_flattened_mut(), 1.0, scaled);
             continue;
         }
-        let (row, fa) = plan.a.locate(a);
-        let ka = lanes.kernel(&plan.kernel, fa);
         // The kernel's rows `row, …, row + W − 1`, wrapped past the last row.
+        let row = current.row;
         let unwrapped = (plan.a.n - row).min(WIDTH);
         for (i, &k) in ka.iter().enumerate() {
             let r = if i < unwrapped {
@@ -276,6 +360,9 @@ fn spread_samples<const K: usize, L: Lanes, F>(
             };
             let start = r * row_len + first;
             lanes.add_row(grid[start..start + WIDTH].as_flattened_mut(), k, scaled);
+            if i < DEGREE {
+                lanes.horner_step(kernel, &mut next.horner, DEGREE - 1 - i);
+            }
         }
     }
 }
@@ -285,7 +372,9 @@ mod avx2 {
     //! [`Lanes`] in AVX2 and FMA instructions.
 
     use super::{DEGREE, Kernel, Lanes, Plan, Range, WIDTH, spread_samples};
-    use std::arch::x86_64::{_mm256_fmadd_pd, _mm256_loadu_pd, _mm256_set1_pd, _mm256_storeu_pd};
+    use std::arch::x86_64::{
+        __m256d, _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_set1_pd, _mm256_storeu_pd,
+    };
 
     /// Proof that the CPU has AVX2 and FMA: made only by [`Avx2::detect`].
     #[derive(Clone, Copy)]
@@ -329,22 +418,48 @@ mod avx2 {
     }
 
     impl Lanes for Avx2 {
+        type Horner = ([__m256d; 2], [[__m256d; WIDTH / 4]; 2]);
+
         #[inline(always)]
-        fn kernel(self, kernel: &Kernel, f: f64) -> [f64; WIDTH] {
-            let c = &kernel.coeffs;
-            let mut out = [0.0; WIDTH];
-            // SAFETY: `self` proves AVX2 and FMA; every load and store covers 4 of an array's
-            // `WIDTH` values at a multiple of 4 below `WIDTH`.
+        fn horner_start(self, kernel: &Kernel, fa: f64, fb: f64) -> Self::Horner {
+            let c = kernel.coeffs[DEGREE].as_ptr();
+            // SAFETY: `self` proves AVX2 and FMA; the loads cover 4 of the `WIDTH` coefficients
+            // at multiples of 4 below `WIDTH`.
             unsafe {
-                let t = _mm256_set1_pd(2.0 * f - 1.0);
-                let mut v = [0, 1, 2, 3].map(|l| _mm256_loadu_pd(c[DEGREE].as_ptr().add(4 * l)));
-                for d in (0..DEGREE).rev() {
+                let v = std::array::from_fn(|l| _mm256_loadu_pd(c.add(4 * l)));
+                (
+                    [
+                        _mm256_set1_pd(2.0 * fa - 1.0),
+                        _mm256_set1_pd(2.0 * fb - 1.0),
+                    ],
+                    [v, v],
+                )
+            }
+        }
+
+        #[inline(always)]
+        fn horner_step(self, kernel: &Kernel, (t, v): &mut Self::Horner, d: usize) {
+            let c = kernel.coeffs[d].as_ptr();
+            // SAFETY: as in `horner_start`.
+            unsafe {
+                for (v, t) in v.iter_mut().zip(*t) {
                     for (l, v) in v.iter_mut().enumerate() {
-                        *v = _mm256_fmadd_pd(*v, t, _mm256_loadu_pd(c[d].as_ptr().add(4 * l)));
+                        *v = _mm256_fmadd_pd(*v, t, _mm256_loadu_pd(c.add(4 * l)));
                     }
                 }
-                for (l, v) in v.into_iter().enumerate() {
-                    _mm256_storeu_pd(out.as_mut_ptr().add(4 * l), v);
+            }
+        }
+
+        #[inline(always)]
+        fn horner_values(self, (_, v): &Self::Horner) -> [[f64; WIDTH]; 2] {
+            let mut out = [[0.0; WIDTH]; 2];
+            // SAFETY: `self` proves AVX2 and FMA; each store covers 4 of an array's `WIDTH`
+            // values at a multiple of 4 below `WIDTH`.
+            unsafe {
+                for (o, v) in out.iter_mut().zip(v) {
+                    for (l, v) in v.iter().enumerate() {
+                        _mm256_storeu_pd(o.as_mut_ptr().add(4 * l), *v);
+                    }
                 }
             }
             out
@@ -495,19 +610,6 @@ impl Kernel {
         }
         Kernel { coeffs }
     }
-
-    /// The kernel at offsets `i + 1 − W/2 − f`, `i = 0, …, W − 1`, by Horner's rule.
-    #[inline(always)]
-    fn values(&self, f: f64) -> [f64; WIDTH] {
-        let t = 2.0 * f - 1.0;
-        let mut v = self.coeffs[DEGREE];
-        for c in self.coeffs[..DEGREE].iter().rev() {
-            for i in 0..WIDTH {
-                v[i] = v[i] * t + c[i];
-            }
-        }
-        v
-    }
 }
 
 /// `1/φ̂(2πk/n)` for `k = 0, …, max_order`, with `φ̂(ξ) = 2∫_0^{W/2} φ(x)·cos(ξx) dx` by
@@ -560,20 +662,35 @@ fn gauss_legendre(q: usize) -> (Vec<f64>, Vec<f64>) {
     (nodes, weights)
 }
 
-/// Folds a row's padding (cells `N_b, …, N_b + W − 2`, which stand for `0, …, W − 2`) back.
-fn fold_padding<const K: usize>(row: &mut [[f64; K]], n: usize) {
-    let (body, padding) = row.split_at_mut(n);
-    for (c, p) in body.iter_mut().zip(padding) {
-        for s in 0..K {
-            c[s] += p[s];
+/// Row `s` of the sum of the grids `grid` and `other` (which may be empty) with its padding
+/// (cells `N_b, …, N_b + W − 2`, which stand for `0, …, W − 2`) folded back, into `line`
+/// (`N_b` values).
+fn merged_row<const K: usize>(grid: &[[f64; K]], other: &[[f64; K]], s: usize, line: &mut [f64]) {
+    let n = line.len();
+    if other.is_empty() {
+        for (l, g) in line.iter_mut().zip(grid) {
+            *l = g[s];
+        }
+        for (l, g) in line.iter_mut().zip(&grid[n..]) {
+            *l += g[s];
+        }
+    } else {
+        for ((l, g), o) in line.iter_mut().zip(grid).zip(other) {
+            *l = g[s] + o[s];
+        }
+        for ((l, g), o) in line.iter_mut().zip(&grid[n..]).zip(&other[n..]) {
+            *l += g[s] + o[s];
         }
     }
 }
 
-/// Step 2 and 3 for the 2-D grid: real FFTs of the rows, complex FFTs of the columns
-/// `m ≤ m_max`, and the division by the kernel's transform.
+/// Steps 2 and 3 for the 2-D grid `grid + other` (`other` may be empty): real FFTs of the rows,
+/// complex FFTs of the columns `m ≤ m_max`, and the division by the kernel's transform. Rows,
+/// then columns, are transformed in parallel; each is independent, so the bits do not depend
+/// on the threads.
 fn transform_2d<const K: usize>(
-    mut grid: Vec<[f64; K]>,
+    grid: &[[f64; K]],
+    other: &[[f64; K]],
     a_axis: &Axis,
     b_axis: &Axis,
     j_max: usize,
@@ -581,63 +698,79 @@ fn transform_2d<const K: usize>(
 ) -> [Spectrum2; K] {
     let (na, nb) = (a_axis.n, b_axis.n);
     let row_len = nb + WIDTH - 1;
-    for row in grid.chunks_exact_mut(row_len) {
-        fold_padding(row, nb);
-    }
+    let width = m_max + 1;
+    let rfft = RealFftPlanner::<f64>::new().plan_fft_forward(nb);
+    // The row transforms, `m ≤ m_max`, of row r and set s at `(r·K + s)·width`.
+    let mut rows = vec![Complex64::default(); na * K * width];
+    rows.par_chunks_exact_mut(K * width)
+        .enumerate()
+        .for_each_init(
+            || {
+                let line = rfft.make_input_vec();
+                (line, rfft.make_output_vec(), rfft.make_scratch_vec())
+            },
+            |(line, out, scratch), (r, spectra)| {
+                let cells = r * row_len..(r + 1) * row_len;
+                let other = other.get(cells.clone()).unwrap_or_default();
+                for (s, spectrum) in spectra.chunks_exact_mut(width).enumerate() {
+                    merged_row(&grid[cells.clone()], other, s, line);
+                    rfft.process_with_scratch(line, out, scratch)
+                        .expect("buffer sizes come from the plan");
+                    spectrum.copy_from_slice(&out[..width]);
+                }
+            },
+        );
     let inv_a = inverse_kernel_transform(j_max, na);
     let inv_b = inverse_kernel_transform(m_max, nb);
-    let rfft = RealFftPlanner::<f64>::new().plan_fft_forward(nb);
     let cfft = FftPlanner::<f64>::new().plan_fft_forward(na);
-    let mut line = rfft.make_input_vec();
-    let mut out = rfft.make_output_vec();
-    let mut scratch = rfft.make_scratch_vec();
-    let mut cscratch = vec![Complex64::default(); cfft.get_inplace_scratch_len()];
-    std::array::from_fn(|s| {
-        // Column m of the row transforms at [m·N_a, (m + 1)·N_a).
-        let mut columns = vec![Complex64::default(); (m_max + 1) * na];
-        for (r, row) in grid.chunks_exact(row_len).enumerate() {
-            for (l, c) in line.iter_mut().zip(row) {
-                *l = c[s];
-            }
-            rfft.process_with_scratch(&mut line, &mut out, &mut scratch)
-                .expect("buffer sizes come from the plan");
-            for (m, o) in out[..=m_max].iter().enumerate() {
-                columns[m * na + r] = *o;
-            }
-        }
-        cfft.process_with_scratch(&mut columns, &mut cscratch);
-        // The forward FFTs give Σ g·e^{−i(…)} = conj G for the real grid g.
-        let mut values = Vec::with_capacity((2 * j_max + 1) * (m_max + 1));
-        for j in -(j_max as i64)..=j_max as i64 {
-            let r = j.rem_euclid(na as i64) as usize;
-            let ia = inv_a[j.unsigned_abs() as usize];
-            values.extend((0..=m_max).map(|m| columns[m * na + r].conj() * (ia * inv_b[m])));
-        }
-        Spectrum2 {
-            j_max,
-            m_max,
-            values,
-        }
+    let orders = 2 * j_max + 1;
+    // F_s(j, m) at `(s·width + m)·orders + j + j_max`.
+    let mut columns = vec![Complex64::default(); K * width * orders];
+    columns
+        .par_chunks_exact_mut(orders)
+        .enumerate()
+        .for_each_init(
+            || {
+                let scratch = vec![Complex64::default(); cfft.get_inplace_scratch_len()];
+                (vec![Complex64::default(); na], scratch)
+            },
+            |(column, scratch), (sm, out)| {
+                let (s, m) = (sm / width, sm % width);
+                for (r, c) in column.iter_mut().enumerate() {
+                    *c = rows[(r * K + s) * width + m];
+                }
+                cfft.process_with_scratch(column, scratch);
+                // The forward FFTs give Σ g·e^{−i(…)} = conj G for the real grid g.
+                for (o, j) in out.iter_mut().zip(-(j_max as i64)..) {
+                    let c = column[j.rem_euclid(na as i64) as usize];
+                    *o = c.conj() * (inv_a[j.unsigned_abs() as usize] * inv_b[m]);
+                }
+            },
+        );
+    std::array::from_fn(|s| Spectrum2 {
+        j_max,
+        m_max,
+        values: (0..orders * width)
+            .map(|i| columns[(s * width + i % width) * orders + i / width])
+            .collect(),
     })
 }
 
-/// Steps 2 and 3 for the 1-D grid (`j_max = 0`).
+/// Steps 2 and 3 for the 1-D grid `grid + other` (`j_max = 0`).
 fn transform_1d<const K: usize>(
-    mut grid: Vec<[f64; K]>,
+    grid: &[[f64; K]],
+    other: &[[f64; K]],
     b_axis: &Axis,
     m_max: usize,
 ) -> [Spectrum2; K] {
     let nb = b_axis.n;
-    fold_padding(&mut grid, nb);
     let inv_b = inverse_kernel_transform(m_max, nb);
     let rfft = RealFftPlanner::<f64>::new().plan_fft_forward(nb);
     let mut line = rfft.make_input_vec();
     let mut out = rfft.make_output_vec();
     let mut scratch = rfft.make_scratch_vec();
     std::array::from_fn(|s| {
-        for (l, c) in line.iter_mut().zip(&grid) {
-            *l = c[s];
-        }
+        merged_row(grid, other, s, &mut line);
         rfft.process_with_scratch(&mut line, &mut out, &mut scratch)
             .expect("buffer sizes come from the plan");
         Spectrum2 {
