@@ -176,9 +176,12 @@ pub fn type1<const K: usize>(
         grid = vec![[0.0; K]; plan.cells()];
     }
     // The second grid added into the first (in parallel, cell by cell) and freed before the
-    // FFTs allocate: the two grids are the peak of memory.
+    // FFTs allocate: the two grids are the peak of memory. Blocks that the second half's
+    // samples did not reach are skipped: adding their zeros would make the system allocate
+    // the first grid's pages there too (rows that no sample reached are never written).
     grid.par_chunks_mut(1 << 12)
         .zip(other.par_chunks(1 << 12))
+        .filter(|(_, o)| o.iter().flatten().any(|&v| v != 0.0))
         .for_each(|(g, o)| {
             for (g, o) in g.iter_mut().zip(o) {
                 for s in 0..K {
