@@ -75,6 +75,7 @@ use rayon::prelude::*;
 use realfft::RealFftPlanner;
 use rustfft::FftPlanner;
 pub use rustfft::num_complex::Complex64;
+use std::cell::RefCell;
 use std::f64::consts::TAU;
 use std::ops::Range;
 
@@ -94,6 +95,8 @@ const QUADRATURE_NODES: usize = 3 * WIDTH;
 /// Below this many samples, one grid: a second grid would cost more to clear and add than the
 /// spreading it parallelizes.
 const MIN_SPLIT: usize = 1 << 16;
+/// Samples [`type1_blocks`] asks for at a time; the halves split at a multiple of it.
+pub const BLOCK: usize = 256;
 /// `1/(2π)` as a double-double: the nearest double plus the remainder.
 const INV_TAU: (f64, f64) = (0.159_154_943_091_895_35, -9.839_338_337_591_243e-18);
 
@@ -154,6 +157,22 @@ pub fn type1<const K: usize>(
     m_max: usize,
     sample: impl Fn(usize) -> (f64, f64, [f64; K]) + Sync,
 ) -> [Spectrum2; K] {
+    type1_blocks(len, j_max, m_max, |range, points| {
+        points.extend(range.map(&sample));
+    })
+}
+
+/// [`type1`] with the samples given a block at a time: `fill(range, points)` appends the points
+/// of the samples `range` — at most [`BLOCK`] of them, starting at a multiple of `BLOCK`, each
+/// block once, from two threads. A caller whose per-sample work vectorizes across samples (a
+/// series evaluated side by side) does it here, and may keep a sum per block: the blocks are the
+/// same whatever the threads.
+pub fn type1_blocks<const K: usize>(
+    len: usize,
+    j_max: usize,
+    m_max: usize,
+    fill: impl Fn(Range<usize>, &mut Vec<(f64, f64, [f64; K])>) + Sync,
+) -> [Spectrum2; K] {
     let plan = Plan {
         a: Axis::new(j_max),
         b: Axis::new(m_max),
@@ -163,12 +182,10 @@ pub fn type1<const K: usize>(
     let [first, second] = if len < MIN_SPLIT {
         [0..len, len..len]
     } else {
-        [0..len / 2, len / 2..len]
+        let half = len / 2 / BLOCK * BLOCK;
+        [0..half, half..len]
     };
-    let (mut grid, mut other) = join(
-        || plan.spread(&sample, first),
-        || plan.spread(&sample, second),
-    );
+    let (mut grid, mut other) = join(|| plan.spread(&fill, first), || plan.spread(&fill, second));
     if grid.is_empty() {
         std::mem::swap(&mut grid, &mut other);
     }
@@ -220,21 +237,34 @@ impl Plan {
         rows * self.row_len()
     }
 
-    /// The grid of the samples `range` (empty for an empty range).
-    fn spread<const K: usize, F>(&self, sample: &F, range: Range<usize>) -> Vec<[f64; K]>
+    /// The grid of the samples `range` (empty for an empty range), `fill`ed a block at a time.
+    fn spread<const K: usize, F>(&self, fill: &F, range: Range<usize>) -> Vec<[f64; K]>
     where
-        F: Fn(usize) -> (f64, f64, [f64; K]),
+        F: Fn(Range<usize>, &mut Vec<(f64, f64, [f64; K])>),
     {
         if range.is_empty() {
             return Vec::new();
         }
         let mut grid = vec![[0.0; K]; self.cells()];
+        // The spreading loop asks for the samples one by one, in order.
+        let end = range.end;
+        let block = RefCell::new((range.start, Vec::with_capacity(BLOCK)));
+        let sample = |n: usize| {
+            let mut block = block.borrow_mut();
+            let (start, points) = &mut *block;
+            if n < *start || n >= *start + points.len() {
+                *start = n / BLOCK * BLOCK;
+                points.clear();
+                fill(*start..(*start + BLOCK).min(end), points);
+            }
+            points[n - *start]
+        };
         #[cfg(target_arch = "x86_64")]
         if let Some(avx2) = avx2::Avx2::detect() {
-            avx2.spread_samples(self, sample, range, &mut grid);
+            avx2.spread_samples(self, &sample, range, &mut grid);
             return grid;
         }
-        spread_samples(Portable, self, sample, range, &mut grid);
+        spread_samples(Portable, self, &sample, range, &mut grid);
         grid
     }
 }

@@ -27,7 +27,7 @@
 
 use super::Basis;
 use super::chebyshev::{chebyshev_coefficients, chebyshev_lanes};
-use crate::nufft2d::{BLOCK, Complex64, Spectrum2, type1};
+use crate::nufft2d::{BLOCK, Complex64, Spectrum2, type1, type1_blocks};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -87,11 +87,11 @@ impl Samples<'_> {
         squares
     }
 
-    /// `Σ_n f(n)` over the samples, in fixed chunks summed in order.
-    pub fn sum(&self, f: impl Fn(usize) -> f64 + Sync) -> f64 {
+    /// `Σ f(chunk)` over the samples' chunks of [`CHUNK`], summed in order.
+    pub fn sum(&self, f: impl Fn(Range<usize>) -> f64 + Sync) -> f64 {
         let chunks: Vec<f64> = (0..self.len().div_ceil(CHUNK))
             .into_par_iter()
-            .map(|c| (c * CHUNK..((c + 1) * CHUNK).min(self.len())).map(&f).sum())
+            .map(|c| f(c * CHUNK..((c + 1) * CHUNK).min(self.len())))
             .collect();
         chunks.iter().sum()
     }
@@ -123,7 +123,7 @@ impl Moments {
         let squares: Vec<AtomicU64> = (0..s.len().div_ceil(BLOCK))
             .map(|_| AtomicU64::new(0))
             .collect();
-        let [one, data] = type1::<2>(s.len(), j_max, m_max, |range, points| {
+        let [one, data] = type1_blocks::<2>(s.len(), j_max, m_max, |range, points| {
             let block = range.start / BLOCK;
             let sum = s.points(&preliminary, range, points);
             squares[block].store(sum.to_bits(), Ordering::Relaxed);
@@ -144,9 +144,7 @@ impl Moments {
     /// The spectra of a target `y` given at the samples of readings `r` (small: no preliminary
     /// motion), for fits of a constant and the map's orders up to `h`.
     pub fn of_given(r: &[f64], y: impl Fn(usize) -> f64 + Sync, h: usize) -> Moments {
-        let [one, data] = type1::<2>(r.len(), 0, (2 * h).max(1), |range, points| {
-            points.extend(range.map(|i| (0.0, r[i], [1.0, y(i)])));
-        });
+        let [one, data] = type1::<2>(r.len(), 0, (2 * h).max(1), |i| (0.0, r[i], [1.0, y(i)]));
         let samples = Samples {
             t: r,
             r,
@@ -156,7 +154,7 @@ impl Moments {
         Moments {
             one,
             data,
-            yy: samples.sum(|i| y(i).powi(2)),
+            yy: samples.sum(|range| range.map(|i| y(i).powi(2)).sum()),
             preliminary: Vec::new(),
             samples: r.len(),
         }

@@ -7,7 +7,7 @@ use super::{Basis, Fit, ReferenceCheck, significance_threshold};
 use crate::angle::ARCSEC_PER_RAD;
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
-use crate::nufft2d::type1;
+use crate::nufft2d::type1_blocks;
 use std::f64::consts::TAU;
 use std::ops::Range;
 
@@ -37,7 +37,7 @@ pub(super) fn residual_orders(
         return Vec::new();
     }
     let model = Model::new(basis, fit);
-    let [z] = type1::<1>(s.len(), 0, hi, |range, points| {
+    let [z] = type1_blocks::<1>(s.len(), 0, hi, |range, points| {
         model.points(s, range, points)
     });
     let n = s.len() as f64;
@@ -148,7 +148,10 @@ impl Periodic {
 
     /// Cubic (4-point Lagrange) interpolation at `x` radians (any revolution).
     fn at(&self, x: f64) -> f64 {
-        let u = x.rem_euclid(TAU) * (TABLE as f64 / TAU);
+        // x − 2π·⌊x/2π⌋ rather than `rem_euclid` (a libm call): a rounding of the turn count
+        // moves the point by an ulp of x, nothing to an interpolation.
+        let turns = x / TAU;
+        let u = (turns - turns.floor()) * TABLE as f64;
         let i = (u.floor() as usize).min(TABLE - 1);
         let p = &self.0[i..i + 4];
         lagrange([p[0], p[1], p[2], p[3]], u - i as f64)
