@@ -581,17 +581,19 @@ impl Axis {
     /// `i + 1 − W/2 − f` from `x`, `i = 0, …, W − 1`.
     ///
     /// `x·n/2π` is formed in double-double arithmetic and wrapped by its integer part, so the
-    /// fraction is exact to ~10⁻¹⁶ grid steps whatever the number of turns in `x`.
+    /// fraction is exact to ~10⁻¹⁶ grid steps up to 2^52 grid steps (~10¹³ turns) of `x`.
     #[inline(always)]
     fn locate(&self, x: f64) -> (usize, f64) {
         let p = x * self.scale.0;
         let e = two_product_error(x, self.scale.0, p) + x * self.scale.1;
         let whole = p.floor();
         // `p − whole` is exact; adding the tiny `e` may leave the fraction a rounding outside
-        // [0, 1], where the kernel's polynomials are still accurate.
-        let frac = (p - whole) + e;
+        // [0, 1], and beyond 2^52 grid steps (10¹³ turns) `e` is no longer tiny: clamped, so
+        // that the kernel's polynomials stay finite (a NaN stays NaN).
+        let frac = ((p - whole) + e).clamp(0.0, 1.0);
         let n = self.n as i64;
-        let first = whole as i64 - (WIDTH / 2 - 1) as i64;
+        // Saturated for huge or infinite angles (whose spectra are meaningless or NaN): wrap.
+        let first = (whole as i64).wrapping_sub((WIDTH / 2 - 1) as i64);
         let first = if (0..n).contains(&first) {
             first
         } else {
@@ -1052,6 +1054,24 @@ mod tests {
                 .collect()
         };
         assert_eq!(bits(run(1)), bits(run(2)));
+    }
+
+    #[test]
+    fn non_finite_and_huge_inputs_give_nan_not_a_panic() {
+        for x in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -1e300, 1e300] {
+            for j_max in [0, 3] {
+                // Sample 0 has the value as both angles, sample 1 as its weight.
+                let [s] = type1(2, j_max, 5, |n| {
+                    if n == 0 {
+                        (x, x, [1.0])
+                    } else {
+                        (0.1, 0.2, [x])
+                    }
+                });
+                let nan = s.values.iter().any(|v| v.re.is_nan() || v.im.is_nan());
+                assert_eq!(nan, !x.is_finite(), "{x}, j_max = {j_max}");
+            }
+        }
     }
 
     #[test]
