@@ -141,11 +141,12 @@ impl Spectrum2 {
 /// `|j| ≤ j_max`, `0 ≤ m ≤ m_max` (and `m < 0` by symmetry, see [`Spectrum2::at`]).
 ///
 /// `sample(n)` gives sample `n`'s two angles `(a_n, b_n)` in radians — any finite values, reduced
-/// modulo 2π exactly inside — and its `K` real weights. It is called once per sample, from two
-/// threads. With `j_max = 0`, `a_n` is not used (a 1-D transform along `b`).
+/// modulo 2π exactly inside (up to ~10¹³ turns, where a double's resolution becomes coarser than
+/// the grid) — and its `K` real weights. It is called once per sample, from two threads (the
+/// two halves of `0..len`). With `j_max = 0`, `a_n` is not used (a 1-D transform along `b`).
 ///
 /// `len = 0` gives all-zero spectra. A non-finite angle or weight makes the spectra NaN (no panic).
-/// Limits: the grids take `2·N_a·(N_b + 15)·K·8` bytes with `N ≈ 4·max_order + 2` rounded up to
+/// Limits: the grids take `2·N_a·(N_b + 19)·K·8` bytes with `N ≈ 4·max_order + 2` rounded up to
 /// a product of 2, 3 and 5 (at least 32), `N_a = 1` when `j_max = 0`; sizes whose grids do not
 /// fit in memory abort on allocation.
 pub fn type1<const K: usize>(
