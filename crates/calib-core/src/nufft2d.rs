@@ -43,9 +43,10 @@
 //! On x86-64 CPUs with AVX2 and FMA (detected at run time) the spreading uses those
 //! instructions. Two consecutive samples that share their first row and start at most
 //! 4 columns apart along `b` — nearly all of them when the samples are in time order — are
-//! spread in one pass over the grid's rows. Measured on 2 shared cores, 10⁷ samples of
-//! `calib tdr`'s spin-down, `K = 2`, `j_max = 127`, `m_max = 1016`: ~0.5 s wall, ~80 ns of CPU
-//! per sample (see `benches/nufft2d.rs` and `tests/nufft2d.rs`).
+//! spread in one pass over the grid's rows. Measured on a 2-core machine shared with other jobs
+//! (load 1.5–2), 10⁷ samples of `calib tdr`'s spin-down, `K = 2`, `j_max = 127`,
+//! `m_max = 1016`: 0.47–0.53 s wall (~0.9 s of CPU); on one thread 0.76–0.82 s, ~80 ns per
+//! sample (`tests/nufft2d.rs`; `benches/nufft2d.rs` for 10⁶ samples).
 //!
 //! # Accuracy
 //! `|F_s(j, m) − exact| ≤ 10⁻¹³·Σ_n |w_{s,n}|` at every returned `(j, m)`: the tests measure
