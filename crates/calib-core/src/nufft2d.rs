@@ -41,7 +41,7 @@
 //!
 //! # Speed
 //! On x86-64 CPUs with AVX2 and FMA (detected at run time) the spreading uses those
-//! instructions. Four consecutive samples that share their first row and start at most
+//! instructions. Two consecutive samples that share their first row and start at most
 //! 4 columns apart along `b` — nearly all of them when the samples are in time order — are
 //! spread in one pass over the grid's rows. Measured on a 2-core machine shared with other jobs
 //! (load 1.5–2), 10⁷ samples of `calib tdr`'s spin-down, `K = 2`, `j_max = 127`,
@@ -227,11 +227,10 @@ struct Plan {
 }
 
 impl Plan {
-    /// Cells of a grid's row: `N_b`, then `GROUP_WIDTH − 1` cells of padding (folded back by
-    /// [`folded_row`]), so that every kernel row, of one sample or a group, is one contiguous
-    /// run.
+    /// Cells of a grid's row: `N_b`, then `PAIR_WIDTH − 1` cells of padding (folded back by
+    /// [`folded_row`]), so that every kernel row, of one sample or a pair, is one contiguous run.
     fn row_len(&self) -> usize {
-        self.b.n + GROUP_WIDTH - 1
+        self.b.n + PAIR_WIDTH - 1
     }
 
     /// Cells of `K` values in a grid: `N_a` rows or one.
@@ -285,9 +284,9 @@ trait Lanes: Copy {
     /// `cells[q] += k·scaled[q]` for the `W·K` values of one kernel row.
     fn add_row(self, cells: &mut [f64], k: f64, scaled: &[f64]);
 
-    /// `cells[q] += Σ_g k_g·scaled_g[q]`: one kernel row of a group of samples, each `scaled`
-    /// zero outside its sample's `W·K` values.
-    fn add_row_group(self, cells: &mut [f64], k: [f64; GROUP], scaled: [&[f64]; GROUP]);
+    /// `cells[q] += k₀·scaled₀[q] + k₁·scaled₁[q]`: one kernel row of two samples, each
+    /// `scaled` zero outside its sample's `W·K` values.
+    fn add_row_pair(self, cells: &mut [f64], k: [f64; 2], scaled: [&[f64]; 2]);
 }
 
 /// [`Lanes`] in portable Rust.
@@ -317,30 +316,27 @@ impl Lanes for Portable {
     }
 
     #[inline(always)]
-    fn add_row_group(self, cells: &mut [f64], k: [f64; GROUP], scaled: [&[f64]; GROUP]) {
-        for (q, c) in cells.iter_mut().enumerate() {
-            for g in 0..GROUP {
-                *c += k[g] * scaled[g][q];
-            }
+    fn add_row_pair(self, cells: &mut [f64], k: [f64; 2], [s0, s1]: [&[f64]; 2]) {
+        for ((c, v0), v1) in cells.iter_mut().zip(s0).zip(s1) {
+            *c += k[0] * v0 + k[1] * v1;
         }
     }
 }
 
-/// Columns by which the later samples of a group may start after the first (see
+/// Columns by which the second sample of a pair may start after the first (see
 /// [`spread_samples`]); the rows carry as many extra cells of padding.
-const GROUP_SHIFT: usize = 4;
-/// Cells of a group's rows.
-const GROUP_WIDTH: usize = WIDTH + GROUP_SHIFT;
+const PAIR_SHIFT: usize = 4;
+/// Cells of a pair's rows.
+const PAIR_WIDTH: usize = WIDTH + PAIR_SHIFT;
 
 /// A sample placed on the grid: its first row and column, its kernel along `a`, and its kernel
-/// along `b` times its weights between [`GROUP_SHIFT`] zero cells on either side, so that the
-/// later samples of a group read their rows shifted by up to [`GROUP_SHIFT`] cells without a
-/// copy.
+/// along `b` times its weights between [`PAIR_SHIFT`] zero cells on either side, so that a
+/// pair's second sample reads its row shifted by up to [`PAIR_SHIFT`] cells without a copy.
 struct Placed<const K: usize> {
     row: usize,
     first: usize,
     ka: [f64; WIDTH],
-    padded: [[f64; K]; WIDTH + 2 * GROUP_SHIFT],
+    padded: [[f64; K]; WIDTH + 2 * PAIR_SHIFT],
 }
 
 impl<const K: usize> Placed<K> {
@@ -349,7 +345,7 @@ impl<const K: usize> Placed<K> {
             row: 0,
             first: 0,
             ka: [0.0; WIDTH],
-            padded: [[0.0; K]; WIDTH + 2 * GROUP_SHIFT],
+            padded: [[0.0; K]; WIDTH + 2 * PAIR_SHIFT],
         }
     }
 
@@ -363,7 +359,7 @@ impl<const K: usize> Placed<K> {
         };
         let (first, fb) = plan.b.locate(b);
         let [ka, kb] = lanes.kernels(&plan.kernel, fa, fb);
-        for (c, k) in self.padded[GROUP_SHIFT..].iter_mut().zip(kb) {
+        for (c, k) in self.padded[PAIR_SHIFT..].iter_mut().zip(kb) {
             for s in 0..K {
                 c[s] = k * w[s];
             }
@@ -374,7 +370,7 @@ impl<const K: usize> Placed<K> {
     /// The kernel along `b` times the weights, starting `shift` cells into `len` cells.
     #[inline(always)]
     fn scaled(&self, shift: usize, len: usize) -> &[f64] {
-        self.padded[GROUP_SHIFT - shift..GROUP_SHIFT - shift + len].as_flattened()
+        self.padded[PAIR_SHIFT - shift..PAIR_SHIFT - shift + len].as_flattened()
     }
 
     /// The kernel's rows `row, …, row + W − 1` (wrapped past the last of `rows`) with the
@@ -397,11 +393,10 @@ impl<const K: usize> Placed<K> {
 /// times the `K` weights, added to `W` rows (`j_max > 0`, scaled by the kernel along `a`) or to
 /// the one row.
 ///
-/// [`GROUP`] consecutive samples that share their first row and start at most [`GROUP_SHIFT`]
-/// columns after the first (nearly all, for time-ordered samples) are added in one pass over
-/// [`GROUP_WIDTH`] cells per row: one load and one store of the grid for all of them. The
-/// stores bound the speed of the spreading (the store buffer fills up). Measured alternately
-/// on 10⁷ time-ordered samples: pairs 0.54–0.61 s, groups of 4 0.49–0.57 s.
+/// Two consecutive samples that share their first row and start at most [`PAIR_SHIFT`]
+/// columns apart (nearly all, for time-ordered samples) are added in one pass over
+/// [`PAIR_WIDTH`] cells per row: one load and one store of the grid for both. The stores
+/// bound the speed of the spreading (the store buffer fills); pairs make 40 % fewer.
 #[inline(always)]
 fn spread_samples<const K: usize, L: Lanes, F>(
     lanes: L,
@@ -413,40 +408,38 @@ fn spread_samples<const K: usize, L: Lanes, F>(
     F: Fn(usize) -> (f64, f64, [f64; K]),
 {
     let row_len = plan.row_len();
-    // `slots[..placed]` hold the next samples to spread, placed on the grid.
-    let mut slots: [Placed<K>; GROUP] = std::array::from_fn(|_| Placed::zero());
-    let mut placed = 0;
+    // `slots[0]` is the next sample to spread when `placed`, `slots[1]` the one after it.
+    let mut slots = [Placed::zero(), Placed::zero()];
+    let mut placed = false;
     let mut n = range.start;
-    while placed > 0 || n < range.end {
-        while placed < GROUP && n < range.end && (plan.two_d || placed == 0) {
-            slots[placed].place(lanes, plan, sample(n));
-            placed += 1;
+    while placed || n < range.end {
+        if !placed {
+            slots[0].place(lanes, plan, sample(n));
             n += 1;
         }
-        let p = &slots[0];
-        let shifts: [usize; GROUP] = std::array::from_fn(|g| slots[g].first.wrapping_sub(p.first));
-        let together = placed == GROUP
-            && slots.iter().all(|q| q.row == p.row)
-            && shifts.iter().all(|&shift| shift <= GROUP_SHIFT);
-        if !together {
-            spread_one(lanes, plan, p, grid);
-            slots[..placed].rotate_left(1);
-            placed -= 1;
+        placed = false;
+        if !plan.two_d || n == range.end {
+            spread_one(lanes, plan, &slots[0], grid);
             continue;
         }
-        let scaled: [&[f64]; GROUP] =
-            std::array::from_fn(|g| slots[g].scaled(shifts[g], GROUP_WIDTH));
+        slots[1].place(lanes, plan, sample(n));
+        n += 1;
+        let [p, q] = &slots;
+        let shift = q.first.wrapping_sub(p.first);
+        if q.row != p.row || shift > PAIR_SHIFT {
+            spread_one(lanes, plan, p, grid);
+            slots.swap(0, 1);
+            placed = true;
+            continue;
+        }
+        let scaled = [p.scaled(0, PAIR_WIDTH), q.scaled(shift, PAIR_WIDTH)];
         for (i, r) in p.rows(plan.a.n) {
             let start = r * row_len + p.first;
-            let cells = grid[start..start + GROUP_WIDTH].as_flattened_mut();
-            lanes.add_row_group(cells, std::array::from_fn(|g| slots[g].ka[i]), scaled);
+            let cells = grid[start..start + PAIR_WIDTH].as_flattened_mut();
+            lanes.add_row_pair(cells, [p.ka[i], q.ka[i]], scaled);
         }
-        placed = 0;
     }
 }
-
-/// Samples spread together (see [`spread_samples`]).
-const GROUP: usize = 4;
 
 /// Adds one placed sample to `grid`.
 #[inline(always)]
@@ -475,7 +468,7 @@ fn spread_one<const K: usize>(
 mod avx2 {
     //! [`Lanes`] in AVX2 and FMA instructions.
 
-    use super::{DEGREE, GROUP, GROUP_WIDTH, Kernel, Lanes, Plan, Range, WIDTH, spread_samples};
+    use super::{DEGREE, Kernel, Lanes, PAIR_WIDTH, Plan, Range, WIDTH, spread_samples};
     use std::arch::x86_64::{_mm256_fmadd_pd, _mm256_loadu_pd, _mm256_set1_pd, _mm256_storeu_pd};
 
     /// Proof that the CPU has AVX2 and FMA: made only by [`Avx2::detect`].
@@ -483,7 +476,7 @@ mod avx2 {
     pub(super) struct Avx2(());
 
     const _: () = assert!(
-        WIDTH % 4 == 0 && GROUP_WIDTH % 4 == 0,
+        WIDTH % 4 == 0 && PAIR_WIDTH % 4 == 0,
         "rows are whole vectors of 4 lanes"
     );
 
@@ -568,23 +561,17 @@ mod avx2 {
         }
 
         #[inline(always)]
-        fn add_row_group(self, cells: &mut [f64], k: [f64; GROUP], scaled: [&[f64]; GROUP]) {
-            assert!(scaled.iter().all(|s| s.len() == cells.len()) && cells.len() % 4 == 0);
+        fn add_row_pair(self, cells: &mut [f64], k: [f64; 2], [s0, s1]: [&[f64]; 2]) {
+            assert!(cells.len() == s0.len() && cells.len() == s1.len() && cells.len() % 4 == 0);
             // SAFETY: as in `add_row`.
             unsafe {
-                let k = [
-                    _mm256_set1_pd(k[0]),
-                    _mm256_set1_pd(k[1]),
-                    _mm256_set1_pd(k[2]),
-                    _mm256_set1_pd(k[3]),
-                ];
+                let (k0, k1) = (_mm256_set1_pd(k[0]), _mm256_set1_pd(k[1]));
                 for q in (0..cells.len()).step_by(4) {
                     let p = cells.as_mut_ptr().add(q);
-                    let mut c = _mm256_loadu_pd(p);
-                    for g in 0..GROUP {
-                        c = _mm256_fmadd_pd(k[g], _mm256_loadu_pd(scaled[g].as_ptr().add(q)), c);
-                    }
-                    _mm256_storeu_pd(p, c);
+                    let v0 = _mm256_loadu_pd(s0.as_ptr().add(q));
+                    let v1 = _mm256_loadu_pd(s1.as_ptr().add(q));
+                    let c = _mm256_fmadd_pd(k0, v0, _mm256_loadu_pd(p));
+                    _mm256_storeu_pd(p, _mm256_fmadd_pd(k1, v1, c));
                 }
             }
         }
@@ -797,7 +784,7 @@ fn transform_2d<const K: usize>(
     m_max: usize,
 ) -> [Spectrum2; K] {
     let (na, nb) = (a_axis.n, b_axis.n);
-    let row_len = nb + GROUP_WIDTH - 1;
+    let row_len = nb + PAIR_WIDTH - 1;
     let width = m_max + 1;
     let rfft = RealFftPlanner::<f64>::new().plan_fft_forward(nb);
     // The row transforms, `m ≤ m_max`, of row r and set s at `(r·K + s)·width`.
@@ -1029,7 +1016,7 @@ mod tests {
     fn time_ordered_samples_match_direct_sums() {
         // Samples in time order, as `calib tdr` has them: `a = acos τ` with τ the normalized time
         // and `b` a decelerating phase over 2 turns. Consecutive samples share their row and
-        // lie 0–6 columns apart, so both the grouped and the single spreading run.
+        // lie 0–6 columns apart, so both the paired and the single spreading run.
         let pts = time_ordered(3000, 2.0, 7);
         let spectra = type1(pts.len(), 127, 1016, |n| pts[n]);
         let mut pairs: Vec<(i64, i64)> = [-127, -64, -1, 0, 1, 37, 126, 127]
@@ -1073,7 +1060,7 @@ mod tests {
 
     #[test]
     fn bits_do_not_depend_on_the_threads() {
-        // Time-ordered samples (mostly spread in groups) then random ones (singly).
+        // Time-ordered samples (mostly spread in pairs) then random ones (singly).
         let mut pts = time_ordered(2 * MIN_SPLIT + 7, 100.0, 4);
         pts.extend(samples(MIN_SPLIT, 8));
         let run = |threads: usize| {
