@@ -164,9 +164,13 @@ pub struct McapReader {
     channels: Vec<Channel>,
     time: TimeSource,
     aligner: Aligner,
-    /// One topic whose messages carry every joint, all channels selected in order: every
-    /// message is a sample, and the aligner is bypassed.
+    /// One topic whose messages carry every joint, each channel selected at most once: every
+    /// message is a sample (its selected joints, exact on the same stamp), and the aligner is
+    /// bypassed.
     fast: bool,
+    /// Where the fast path's values come from: `None` for every channel in order, else the
+    /// selected raw channels.
+    pick: Option<Vec<usize>>,
     /// Samples emitted by the fast path (every channel exact).
     fast_samples: u64,
     /// One reading per raw channel of the current message, NaN where it carries none.
@@ -670,6 +674,7 @@ impl McapReader {
             time: opts.time,
             aligner: Aligner::new(vec![0], AlignOptions::default()),
             fast: false,
+            pick: None,
             fast_samples: 0,
             raw: vec![f64::NAN; width],
             index: 0,
@@ -702,9 +707,12 @@ impl McapReader {
     /// first one's stamps as [`crate::align`] describes. Call it before reading any sample.
     pub fn select(&mut self, channels: &[usize], opts: AlignOptions) {
         let width = self.all_channels.len();
-        self.fast = self.registry.topics.len() == 1
-            && !self.registry.topics[0].subset
-            && channels.iter().copied().eq(0..width);
+        let distinct = channels
+            .iter()
+            .enumerate()
+            .all(|(k, c)| *c < width && !channels[..k].contains(c));
+        self.fast = self.registry.topics.len() == 1 && !self.registry.topics[0].subset && distinct;
+        self.pick = (!channels.iter().copied().eq(0..width)).then(|| channels.to_vec());
         self.aligner = Aligner::new(channels.to_vec(), opts);
         self.channels = channels
             .iter()
@@ -767,9 +775,22 @@ impl McapReader {
         let topic = &mut self.registry.topics[k];
         topic.stats.note(message.log_time);
         if self.fast {
-            let mut values = vec![f64::NAN; topic.names.len()];
-            let (stamp, full) = decode(topic, message, self.time, &mut values)
-                .map_err(|(c, m)| fail(&c.unwrap_or_else(|| topic.name.clone()), m))?;
+            // With a selection, every joint into the scratch row and the selected ones into the
+            // sample; with every channel in order, straight into the sample.
+            let (stamp, full, values) = match &self.pick {
+                Some(pick) => {
+                    self.raw.fill(f64::NAN);
+                    let (stamp, full) = decode(topic, message, self.time, &mut self.raw)
+                        .map_err(|(c, m)| fail(&c.unwrap_or_else(|| topic.name.clone()), m))?;
+                    (stamp, full, pick.iter().map(|&i| self.raw[i]).collect())
+                }
+                None => {
+                    let mut values = vec![f64::NAN; topic.names.len()];
+                    let (stamp, full) = decode(topic, message, self.time, &mut values)
+                        .map_err(|(c, m)| fail(&c.unwrap_or_else(|| topic.name.clone()), m))?;
+                    (stamp, full, values)
+                }
+            };
             if full {
                 self.fast_samples += 1;
                 return Ok(Some(Sample {
@@ -779,9 +800,12 @@ impl McapReader {
                 }));
             }
             // A message with a subset of the joints: from here on, through the aligner (which
-            // is empty, so the order of samples is kept).
+            // is empty, so the order of samples is kept), which takes the whole row.
             self.fast = false;
-            self.aligner.push(stamp, seconds(stamp), &values, None);
+            if self.pick.is_none() {
+                self.raw.copy_from_slice(&values);
+            }
+            self.aligner.push(stamp, seconds(stamp), &self.raw, None);
             return Ok(self.aligner.pop());
         }
         let range = topic.offset..topic.offset + topic.names.len();
