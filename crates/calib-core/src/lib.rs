@@ -23,6 +23,8 @@
 //!   or the equal-division average of the SelfA paper), head angle errors included.
 //! - [`simulate`]: realistic runs with a known truth.
 //! - [`tdr`]: self-calibration of one encoder from a free spin-down (Lu & Trumper's TDR).
+//! - [`nufft2d`]: sums `Σ w_n e^{i(j·a_n + m·b_n)}` over millions of samples by a type-1
+//!   non-uniform FFT (the spin-down fit's normal equations come from two of them).
 //!
 //! The crate's `examples/` folder holds one program per method, each fed from the simulator in
 //! memory and checking its result against the truth: `cargo run -p calib-core --example
