@@ -86,15 +86,6 @@ impl Samples<'_> {
         }
         squares
     }
-
-    /// `Σ f(chunk)` over the samples' chunks of [`CHUNK`], summed in order.
-    pub fn sum(&self, f: impl Fn(Range<usize>) -> f64 + Sync) -> f64 {
-        let chunks: Vec<f64> = (0..self.len().div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| f(c * CHUNK..((c + 1) * CHUNK).min(self.len())))
-            .collect();
-        chunks.iter().sum()
-    }
 }
 
 /// The spectra of a coast: `F` (unit weights) and `F_y` (the target `y′`), with `y′ᵀy′` and the
@@ -145,16 +136,18 @@ impl Moments {
     /// motion), for fits of a constant and the map's orders up to `h`.
     pub fn of_given(r: &[f64], y: impl Fn(usize) -> f64 + Sync, h: usize) -> Moments {
         let [one, data] = type1::<2>(r.len(), 0, (2 * h).max(1), |i| (0.0, r[i], [1.0, y(i)]));
-        let samples = Samples {
-            t: r,
-            r,
-            origin: 0.0,
-            span: (0.0, 1.0),
-        };
+        let chunks: Vec<f64> = (0..r.len().div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                (c * CHUNK..((c + 1) * CHUNK).min(r.len()))
+                    .map(|i| y(i).powi(2))
+                    .sum()
+            })
+            .collect();
         Moments {
             one,
             data,
-            yy: samples.sum(|range| range.map(|i| y(i).powi(2)).sum()),
+            yy: chunks.iter().sum(),
             preliminary: Vec::new(),
             samples: r.len(),
         }
