@@ -508,6 +508,12 @@ where
                 c.stroke_width(2),
             ))?,
             Mark::Bars { width } => {
+                // With a thousand orders on the axis a bar 0.8 orders wide is under a pixel and
+                // the renderer drops it (`width="0"` in SVG): the largest harmonics vanished.
+                // Every bar is drawn at least MIN_BAR_PX wide.
+                let pixels = ctx.plotting_area().get_pixel_range().0;
+                let per_pixel = (x.end - x.start) / f64::from((pixels.end - pixels.start).max(1));
+                let width = width.max(MIN_BAR_PX * per_pixel);
                 let base = if ylo > 0.0 {
                     ylo
                 } else {
@@ -555,6 +561,9 @@ where
     }
     Ok(())
 }
+
+/// The narrowest bar drawn, pixels: a bar below a pixel wide is not drawn at all.
+const MIN_BAR_PX: f64 = 2.0;
 
 /// Height of the legend row above a panel, pixels.
 const LEGEND_HEIGHT: u32 = 26;
@@ -630,6 +639,30 @@ mod tests {
         ));
         let (x, y) = (flat.x_range(), flat.y_range());
         assert!(x.start < 1.0 && x.end > 1.0 && y.start < 5.0 && y.end > 5.0);
+    }
+
+    #[test]
+    fn bars_of_a_thousand_orders_all_have_a_width() {
+        let amps = (1..=1000).map(|h| (h as f64, 1.0 + h as f64 / 100.0));
+        let chart = Chart::new(
+            Axis::linear("order").with_range(0.0, 1001.0),
+            Axis::log("amplitude").with_range(0.5, 20.0),
+        )
+        .with(Series::new(
+            "a",
+            Mark::Bars { width: 0.4 },
+            Colour::Blue,
+            amps,
+        ));
+        let svg = Figure::new("spectrum", "spectrum", "", chart)
+            .to_svg()
+            .expect("renders");
+        let bars = svg.matches("<rect").count();
+        assert!(bars >= 1000, "{bars} rectangles for 1000 bars");
+        assert!(
+            !svg.contains("width=\"0\""),
+            "a bar of zero width was drawn"
+        );
     }
 
     #[test]
