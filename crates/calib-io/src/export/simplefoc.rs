@@ -60,30 +60,45 @@ pub const DEFAULT_ENTRIES: usize = 200;
 const FIXED_SCALE: &str = "the driver decodes every entry as (code - 32767)/10430.2191955 rad \
                            (LUT_SCALE and LUT_OFFSET of CalibratedSensor.h), one code = 19.78″";
 
+/// The most entries [`default_points`] gives: 4096, 8 KB of RAM on the microcontroller. A table
+/// that needs more gets these and the export's fit line (and warning) says what is left.
+pub const MAX_DEFAULT_ENTRIES: usize = 4096;
+
 /// The number of entries a SimpleFOC table of `map` gets without `--points`: the driver's
-/// default [`DEFAULT_ENTRIES`], or more where `map` needs them — enough that every order of
-/// amplitude above half a code ([`QUANTUM_RAD`]) is below `N/2`, and that the linear
-/// interpolation of those orders errs by at most half a code. Interpolating `A·cos(hθ)`
-/// linearly between points `Δ = 2π/N` apart errs by at most `A(hΔ)²/8`; summed over the orders,
-/// `Σ A_h·π²h²/(2N²) ≤ q/2` gives `N ≥ π·√(Σ A_h·h² / q)`. Capped at the table point limit.
+/// default [`DEFAULT_ENTRIES`], or more where `map` needs them to be held to the code
+/// ([`QUANTUM_RAD`] `= q`). The smallest orders whose amplitudes add up to at most `q/4` may be
+/// left out (together they err by at most a quarter of a code); every other order `h` must be
+/// below `N/2`, and their linear interpolation must err by at most `q/4`: interpolating
+/// `A·cos(hθ)` between points `Δ = 2π/N` apart errs by at most `A(hΔ)²/8`, so
+/// `Σ A_h·π²h²/(2N²) ≤ q/4`, i.e. `N ≥ π·√(2·Σ A_h·h² / q)`. With rounding to half a code, the
+/// table as the driver uses it is then within one code of `map`. At most
+/// [`MAX_DEFAULT_ENTRIES`].
 pub fn default_points(map: &ErrorMap) -> usize {
-    let significant: Vec<(usize, f64)> = map
+    let mut orders: Vec<(usize, f64)> = map
         .series()
         .harmonics()
         .iter()
-        .filter(|h| h.amplitude > QUANTUM_RAD / 2.0)
         .map(|h| (h.order, h.amplitude))
         .collect();
-    let highest = significant.iter().map(|&(h, _)| h).max().unwrap_or(0);
-    let curvature: f64 = significant
+    orders.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut left_out = 0.0;
+    let held = orders
         .iter()
-        .map(|&(h, a)| a * (h * h) as f64)
-        .sum();
-    let interpolation = (PI * (curvature / QUANTUM_RAD).sqrt()).ceil() as usize;
+        .skip_while(|&&(_, a)| {
+            left_out += a;
+            left_out <= QUANTUM_RAD / 4.0
+        })
+        .copied();
+    let (mut highest, mut curvature) = (0, 0.0);
+    for (h, a) in held {
+        highest = highest.max(h);
+        curvature += a * (h * h) as f64;
+    }
+    let interpolation = (PI * (2.0 * curvature / QUANTUM_RAD).sqrt()).ceil() as usize;
     DEFAULT_ENTRIES
         .max(2 * highest + 1)
         .max(interpolation)
-        .min(crate::limits::MAX_TABLE_POINTS)
+        .min(MAX_DEFAULT_ENTRIES)
 }
 
 /// The code `calib` writes for an error of `e` radians: the nearest, `round(e·LUT_SCALE +
@@ -347,16 +362,17 @@ mod tests {
             57_600,
         );
         let n = default_points(&poles);
-        // 216 is held (N > 432), and the interpolation bound: π·√((30·72² + 20·144² + 5·216²)″
-        // / 19.78″) = 695.
-        assert!(n >= 433, "{n}");
+        // 216 is held (N > 432; its 5″ are above a quarter code, 4.94″), and the interpolation
+        // bound: π·√(2·(30·72² + 20·144² + 5·216²)″ / 19.7757″) = 895.6.
+        assert_eq!(n, 896);
         let mut opts = ExportOptions::new(Format::Simplefoc, "t");
         opts.keep = Keep::All;
         let out = export(&poles, &opts).unwrap();
         assert!(out.text.contains(&format!("calibrationLut[{n}]")), "{n}");
         let fit = out.fit.unwrap();
-        // Interpolation held to half a code, plus the rounding of each entry to half a code.
-        assert!(fit.max <= QUANTUM_RAD * 1.01, "{}", fit.max * ARCSEC_PER_RAD);
+        // Interpolation held to a quarter code, plus the rounding of each entry to half a code
+        // (nothing left out: every amplitude is above a quarter code).
+        assert!(fit.max <= QUANTUM_RAD * 0.75, "{}", fit.max * ARCSEC_PER_RAD);
         assert!(out.warnings.is_empty());
     }
 }
