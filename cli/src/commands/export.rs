@@ -237,11 +237,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         Some(path) => {
             calib_io::atomic::write_atomic(path, out.text.as_bytes())?;
             let mut o = format!("wrote {}\n", path.display());
-            let shown = out
-                .header
-                .iter()
-                .skip(1)
-                .filter(|l| uncommented || l.starts_with("fit: ") || l.starts_with("warning: "));
+            let shown =
+                out.header.iter().skip(1).filter(|l| {
+                    uncommented || l.starts_with("fit: ") || l.starts_with("warning: ")
+                });
             for line in shown {
                 o.push_str(&format!("  {line}\n"));
             }

@@ -95,7 +95,9 @@ pub struct Args {
 /// Runs `calib import`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.scale.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
-        return Err(Usage("--scale must be a positive number of arcseconds per code".into()).into());
+        return Err(
+            Usage("--scale must be a positive number of arcseconds per code".into()).into(),
+        );
     }
     if !args.file.exists() {
         return Err(Usage(format!(

@@ -153,6 +153,57 @@ pub fn parse_points(input: impl std::io::Read, path: &Path) -> Result<PointTable
 mod tests {
     use super::*;
 
+    /// `rows` rows of a point table, made as they are read (no file, nothing held).
+    struct Rows {
+        next: usize,
+        rows: usize,
+        pending: Vec<u8>,
+    }
+
+    impl std::io::Read for Rows {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            while self.pending.len() < buf.len() && self.next <= self.rows {
+                let row = if self.next == 0 {
+                    "angle_deg,error_arcsec\n".to_string()
+                } else {
+                    format!("{},0\n", self.next)
+                };
+                self.pending.extend_from_slice(row.as_bytes());
+                self.next += 1;
+            }
+            let n = buf.len().min(self.pending.len());
+            buf[..n].copy_from_slice(&self.pending[..n]);
+            self.pending.drain(..n);
+            Ok(n)
+        }
+    }
+
+    /// Issue 33: a 10⁷-row table took 6.85 GB in `compare`; now the row beyond the limit is
+    /// refused as it is read.
+    #[test]
+    fn tables_beyond_the_point_limit_are_refused_as_they_are_read() {
+        let rows = |rows| Rows {
+            next: 0,
+            rows,
+            pending: Vec::new(),
+        };
+        let limit = crate::limits::MAX_TABLE_POINTS;
+        let err = parse_points(rows(limit + 1), Path::new("big.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!("line {}", limit + 2)) && err.contains("more than 3600000 rows"),
+            "{err}"
+        );
+        assert_eq!(
+            parse_points(rows(limit), Path::new("big.csv"))
+                .unwrap()
+                .points
+                .len(),
+            limit
+        );
+    }
+
     #[test]
     fn reads_optional_columns_and_ignores_others() {
         let t = parse_points(

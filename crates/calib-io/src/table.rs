@@ -767,6 +767,27 @@ mod tests {
         assert!((half_unit(b"1.5E2") - 5.0).abs() < 1e-12);
     }
 
+    /// Issue 33: tables read in are held to the limit of tables written, refused at the first row
+    /// beyond it. Ignored: it writes a 130 MB file (`cargo test -p calib-io --lib -- --ignored
+    /// point_limit`).
+    #[test]
+    #[ignore]
+    fn tables_beyond_the_point_limit_are_refused_at_the_row_beyond() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.csv");
+        let n = MAX_TABLE_POINTS + 1;
+        let mut text = String::from("angle_deg,error_arcsec,correction_arcsec\n");
+        for i in 0..n {
+            let _ = writeln!(text, "{:.6},0,0", grid_deg(i, n));
+        }
+        std::fs::write(&path, text).unwrap();
+        let err = read_any_table(&path).unwrap_err().to_string();
+        assert!(
+            err.contains(&format!("line {}", n + 1)) && err.contains("resample it"),
+            "{err}"
+        );
+    }
+
     #[test]
     fn negative_zero_is_written_as_zero() {
         let mut s = String::new();

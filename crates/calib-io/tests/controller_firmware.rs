@@ -141,7 +141,11 @@ fn moteus_keeps_what_256_entries_hold_and_folds_nothing() {
     // Orders 144 and 216 cannot be held by 256 entries: they are left as they are (15″ and 8″,
     // 46″ p-p at most), order 72 is corrected but for its interpolation between entries
     // (30″·(72·2π/256)²/8 = 11.7″ at most) and half a code (58″/127/2 = 0.23″).
-    assert!(pp(&after) < 2.0 * (15.0 + 8.0 + 11.7 + 0.3), "{}", pp(&after));
+    assert!(
+        pp(&after) < 2.0 * (15.0 + 8.0 + 11.7 + 0.3),
+        "{}",
+        pp(&after)
+    );
     assert!(pp(&after) < pp(&uncorrected));
     // Nothing folded onto order 40 (216's image on 256 entries): below the interpolation's
     // images of order 72 there (at 256 − 72 = 184, not 40) and half a code.
@@ -183,9 +187,12 @@ fn simplefoc_gets_a_size_that_holds_the_orders_and_never_folds() {
     let small = export(&map, &opts).unwrap();
     let at_200 = simplefoc_residual(&small.text);
     let folded = simplefoc_residual(
-        &export(&map.resample_linear(200), &ExportOptions::new(Format::Simplefoc, "t"))
-            .unwrap()
-            .text,
+        &export(
+            &map.resample_linear(200),
+            &ExportOptions::new(Format::Simplefoc, "t"),
+        )
+        .unwrap()
+        .text,
     );
     println!(
         "simplefoc: uncorrected {:.2}″ p-p; default {n} entries {:.2}″ p-p; 200 entries {:.2}″ \

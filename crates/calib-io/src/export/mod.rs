@@ -605,7 +605,6 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
     let mut warnings = Vec::new();
     if let Some(fit) = &fit {
         header.push(fit.describe());
-        let arcsec = |x: f64| x * ARCSEC_PER_RAD;
         let advice = match &chosen {
             Some(chosen) if chosen.dropped_pp > fit.rms => format!(
                 "The orders this {points}-entry table cannot hold are most of it ({}): {}",
@@ -621,33 +620,46 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
                   (--points) is too coarse for this table."
                 .to_string(),
         };
-        if fit.left_fraction() >= 1.0 {
-            return Err(ExportError::NoBetter {
-                format: format.name(),
-                points,
-                left_rms: arcsec(fit.rms),
-                left_pp: arcsec(fit.left_pp),
-                source_rms: arcsec(fit.source_rms),
-                source_pp: arcsec(fit.source_pp),
-                advice,
-            });
-        }
-        if fit.left_fraction() > WARN_LEFT_FRACTION {
-            warnings.push(format!(
-                "as the controller uses it, this table leaves {:.3} arcsec RMS ({:.3} arcsec p-p) \
-                 of the table's {:.3} arcsec RMS ({:.3} arcsec p-p), {:.0} % of the RMS, more than \
-                 the {:.0} % calib accepts without a word. {advice}",
-                arcsec(fit.rms),
-                arcsec(fit.left_pp),
-                arcsec(fit.source_rms),
-                arcsec(fit.source_pp),
-                100.0 * fit.left_fraction(),
-                100.0 * WARN_LEFT_FRACTION
-            ));
-        }
+        warnings.extend(judge(fit, format, points, advice)?);
     }
     header.extend(warnings.iter().map(|w| format!("warning: {w}")));
     Ok(assemble(format, header, &rendered.body, fit, warnings))
+}
+
+/// The verdict on a table that leaves `fit` of its source (see [Tables that would not
+/// help](self#tables-that-would-not-help)): refused if it leaves all of the source's RMS or more,
+/// a warning if more than [`WARN_LEFT_FRACTION`] of it; `advice` says what to do.
+fn judge(
+    fit: &Fit,
+    format: Format,
+    points: usize,
+    advice: String,
+) -> Result<Option<String>, ExportError> {
+    let arcsec = |x: f64| x * ARCSEC_PER_RAD;
+    if fit.left_fraction() >= 1.0 {
+        return Err(ExportError::NoBetter {
+            format: format.name(),
+            points,
+            left_rms: arcsec(fit.rms),
+            left_pp: arcsec(fit.left_pp),
+            source_rms: arcsec(fit.source_rms),
+            source_pp: arcsec(fit.source_pp),
+            advice,
+        });
+    }
+    Ok((fit.left_fraction() > WARN_LEFT_FRACTION).then(|| {
+        format!(
+            "as the controller uses it, this table leaves {:.3} arcsec RMS ({:.3} arcsec p-p) of \
+             the table's {:.3} arcsec RMS ({:.3} arcsec p-p), {:.0} % of the RMS, more than the \
+             {:.0} % calib accepts without a word. {advice}",
+            arcsec(fit.rms),
+            arcsec(fit.left_pp),
+            arcsec(fit.source_rms),
+            arcsec(fit.source_pp),
+            100.0 * fit.left_fraction(),
+            100.0 * WARN_LEFT_FRACTION
+        )
+    }))
 }
 
 /// A range table's values resampled to `points` entries by linear interpolation over the range,
@@ -792,6 +804,53 @@ mod tests {
         let err = quantize(&[12.75], 127, Some(0.1)).unwrap_err();
         assert!(err.to_string().contains("1.003937e-1"), "{err}");
         assert!(quantize(&[12.74], 127, Some(0.1)).is_ok());
+    }
+
+    #[test]
+    fn tables_that_leave_their_error_are_refused_and_those_that_leave_much_warned() {
+        let fit = |rms: f64| Fit {
+            max: 2.0 * rms,
+            rms,
+            left_pp: 4.0 * rms,
+            source_rms: 1.0,
+            source_pp: 3.0,
+            points: 360,
+        };
+        let judged = |rms| judge(&fit(rms), Format::Moteus, 256, "do this".into());
+        assert_eq!(judged(0.25).unwrap(), None);
+        let warning = judged(0.5).unwrap().unwrap();
+        assert!(warning.contains("50 % of the RMS") && warning.ends_with("do this"));
+        assert!(matches!(
+            judged(1.0),
+            Err(ExportError::NoBetter { points: 256, .. })
+        ));
+        let err = judged(1.5).unwrap_err().to_string();
+        assert!(
+            err.contains("no better or worse") && err.ends_with("do this"),
+            "{err}"
+        );
+        // A source without error leaves nothing to judge.
+        let flat = Fit {
+            source_rms: 0.0,
+            ..fit(0.0)
+        };
+        assert_eq!(flat.left_fraction(), 0.0);
+    }
+
+    #[test]
+    fn a_scale_that_zeroes_every_code_is_refused() {
+        let err = quantize(&[12.0, -3.0], 127, Some(24.5)).unwrap_err();
+        assert!(matches!(err, ExportError::ScaleAboveTable { .. }));
+        let text = err.to_string();
+        assert!(
+            text.contains("12.000000″") && text.contains("2.400000e1"),
+            "{text}"
+        );
+        // Up to twice the largest, one code is left.
+        assert_eq!(
+            quantize(&[12.0, -3.0], 127, Some(23.9)).unwrap().1,
+            vec![1, 0]
+        );
     }
 
     #[test]

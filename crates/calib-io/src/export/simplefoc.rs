@@ -372,7 +372,11 @@ mod tests {
         let fit = out.fit.unwrap();
         // Interpolation held to a quarter code, plus the rounding of each entry to half a code
         // (nothing left out: every amplitude is above a quarter code).
-        assert!(fit.max <= QUANTUM_RAD * 0.75, "{}", fit.max * ARCSEC_PER_RAD);
+        assert!(
+            fit.max <= QUANTUM_RAD * 0.75,
+            "{}",
+            fit.max * ARCSEC_PER_RAD
+        );
         assert!(out.warnings.is_empty());
     }
 }

@@ -69,9 +69,10 @@ pub(super) fn parse(
         let line = line_at(&code, offset);
         check_count(path, line, values.len())?;
         let value = match format {
-            Format::Simplefoc => token.parse::<u16>().map(|c| f64::from(decode(c))).map_err(|_| {
-                format!("`{token}` is not a uint16_t code (0 to 65535)")
-            }),
+            Format::Simplefoc => token
+                .parse::<u16>()
+                .map(|c| f64::from(decode(c)))
+                .map_err(|_| format!("`{token}` is not a uint16_t code (0 to 65535)")),
             _ => token
                 .trim_end_matches(['f', 'F'])
                 .parse::<f32>()
@@ -103,7 +104,9 @@ pub(super) fn parse(
                 return Err(at(
                     path,
                     line,
-                    format!("the array's size `{name}` is neither a number nor #defined in the file"),
+                    format!(
+                        "the array's size `{name}` is neither a number nor #defined in the file"
+                    ),
                 ));
             }
         }
@@ -137,7 +140,9 @@ pub(super) fn parse(
 /// What `format` reads, for messages.
 fn expected(format: Format) -> &'static str {
     match format {
-        Format::Simplefoc => "SimpleFOC's `uint16_t calibrationLut[N] = {…};` as printLUT() prints it",
+        Format::Simplefoc => {
+            "SimpleFOC's `uint16_t calibrationLut[N] = {…};` as printLUT() prints it"
+        }
         Format::SimplefocFloat => "the `float NAME[N] = {…};` of SimpleFOC releases before PR #75",
         _ => "calib's `static const float calib_correction_arcsec[N] = {…};`",
     }

@@ -62,9 +62,10 @@ pub(super) fn parse(
                 ));
             };
             let angle = angle.trim().parse::<f64>().ok().filter(|a| a.is_finite());
-            angles.push(angle.ok_or_else(|| {
-                at(path, line, format!("`{row}`: the angle is not a number"))
-            })?);
+            angles
+                .push(angle.ok_or_else(|| {
+                    at(path, line, format!("`{row}`: the angle is not a number"))
+                })?);
             value.trim()
         } else {
             row
@@ -90,9 +91,8 @@ pub(super) fn parse(
     }
     let n = values.len();
     if format == Format::Csv
-        && let Some(i) = (0..n).find(|&i| {
-            (angles[i] - 360.0 * i as f64 / n as f64).abs() > GRID_TOLERANCE_DEG
-        })
+        && let Some(i) =
+            (0..n).find(|&i| (angles[i] - 360.0 * i as f64 / n as f64).abs() > GRID_TOLERANCE_DEG)
     {
         return Err(data(
             path,
@@ -141,7 +141,9 @@ pub(super) fn parse(
             };
             (
                 scale / ARCSEC_PER_RAD,
-                format!("calib lut ({kind}) of {n} entries at {scale:e} arcsec a code: the correction"),
+                format!(
+                    "calib lut ({kind}) of {n} entries at {scale:e} arcsec a code: the correction"
+                ),
             )
         }
     };
@@ -152,5 +154,9 @@ pub(super) fn parse(
 /// `S` of ` correction_arcsec = code * S` or ` correction_arcsec = (code - 32768) * S`.
 fn scale_of(rest: &str) -> Option<f64> {
     let (_, factor) = rest.rsplit_once('*')?;
-    factor.trim().parse().ok().filter(|s: &f64| s.is_finite() && *s > 0.0)
+    factor
+        .trim()
+        .parse()
+        .ok()
+        .filter(|s: &f64| s.is_finite() && *s > 0.0)
 }

@@ -95,7 +95,10 @@ pub(super) fn parse(
         Some(n) if n >= SOURCES => {
             return Err(data(
                 path,
-                format!("moteus has sources 0 to {} (--source); not {n}", SOURCES - 1),
+                format!(
+                    "moteus has sources 0 to {} (--source); not {n}",
+                    SOURCES - 1
+                ),
             ));
         }
         Some(n) if present.contains(&n) => n,
@@ -217,7 +220,9 @@ fn set(
                 return Err(at(
                     path,
                     line_no,
-                    format!("`{value}` is not a number; compensation_scale is a float (revolutions)"),
+                    format!(
+                        "`{value}` is not a number; compensation_scale is a float (revolutions)"
+                    ),
                 ));
             };
             settings.scale = Some((scale, line_no));

@@ -106,7 +106,11 @@ fn print_lut_output_is_read_with_its_settings_as_notes() {
         // decodeOffsetU16 in f32: 2⁻²⁴ of 10⁻³ rad.
         assert!((g - w).abs() < 1e-10, "{g} vs {w}");
     }
-    assert!(got.notes.iter().any(|n| n.contains("zero_electric_angle = 2.35")));
+    assert!(
+        got.notes
+            .iter()
+            .any(|n| n.contains("zero_electric_angle = 2.35"))
+    );
     assert!(
         got.notes
             .iter()
@@ -127,10 +131,7 @@ fn print_lut_output_is_read_with_its_settings_as_notes() {
     )
     .unwrap_err()
     .to_string();
-    assert!(
-        err.contains("declared with 5 entries but holds 4"),
-        "{err}"
-    );
+    assert!(err.contains("declared with 5 entries but holds 4"), "{err}");
     let err = read(
         "uint16_t calibrationLut[2] = {1, 70000};",
         &ImportOptions::new(Format::Simplefoc),
