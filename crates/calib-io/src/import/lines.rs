@@ -131,11 +131,10 @@ pub(super) fn parse(
                 (None, None) => {
                     return Err(data(
                         path,
-                        format!(
-                            "the file has no `# scale:` header line, so its codes have no unit; \
-                             give the arcseconds a code stands for with --scale (the exporter's \
-                             scale; calib writes it in the header)"
-                        ),
+                        "the file has no `# scale:` header line, so its codes have no unit; give \
+                         the arcseconds a code stands for with --scale (the exporter's scale; \
+                         calib writes it in the header)"
+                            .to_string(),
                     ));
                 }
             };
