@@ -99,6 +99,7 @@ pub fn default_points(map: &ErrorMap) -> usize {
         .max(2 * highest + 1)
         .max(interpolation)
         .min(MAX_DEFAULT_ENTRIES)
+        .min(map.len().max(DEFAULT_ENTRIES))
 }
 
 /// The code `calib` writes for an error of `e` radians: the nearest, `round(e·LUT_SCALE +
