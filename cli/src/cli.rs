@@ -42,4 +42,5 @@ pub enum Command {
     Apply(commands::apply::Args),
     Compose(commands::compose::Args),
     Export(commands::export::Args),
+    Import(commands::import::Args),
 }

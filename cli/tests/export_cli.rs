@@ -160,6 +160,65 @@ fn a_scale_too_small_is_refused() {
     expect_exit(&o, 2);
 }
 
+/// Issue 33: a --scale above twice the largest correction (~12″) made every code 0, exit 0.
+#[test]
+fn a_scale_that_zeroes_every_code_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = table(dir.path());
+    let out = dir.path().join("out.txt");
+    for format in ["lut-i16", "lut-i8", "lut-u16", "moteus"] {
+        let o = calib(&[
+            "export",
+            s(&t),
+            "--format",
+            format,
+            "--scale",
+            "100",
+            "-o",
+            s(&out),
+        ]);
+        let err = expect_exit(&o, 2);
+        assert_mentions(
+            &err,
+            &[
+                "largest |correction| is 11.7",
+                "every code would be 0",
+                "--scale",
+            ],
+        );
+        assert!(!out.exists(), "{format}");
+    }
+}
+
+/// Issue 30: a table whose error is mostly in orders the controller's table cannot hold is
+/// written with a warning naming them (the refusal of one that would leave all of its error is
+/// tested in `calib_io::export`).
+#[test]
+fn tables_that_leave_much_of_their_error_are_written_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    // 4″ at order 1 and 20″ at order 150 on 3600 points: 256 entries hold order 1 only.
+    let mut text = String::from("angle_deg,error_arcsec,correction_arcsec\n");
+    for i in 0..3600 {
+        let th = (i as f64 * 0.1).to_radians();
+        let e = 4.0 * th.cos() + 20.0 * (150.0 * th).cos();
+        text.push_str(&format!("{:.6},{e:.6},{:.6}\n", i as f64 * 0.1, -e));
+    }
+    let t = write(dir.path(), "high.csv", &text);
+    let out = dir.path().join("high.moteus");
+    let o = calib(&["export", s(&t), "--format", "moteus", "-o", s(&out)]);
+    assert_mentions(
+        &{
+            expect_exit(&o, 0);
+            stdout(&o)
+        },
+        &[
+            "warning: as the controller uses it, this table leaves",
+            "order 150 40.0000",
+            "cannot correct them",
+        ],
+    );
+}
+
 #[test]
 fn harmonic_form_keeps_the_largest_and_names_the_rest() {
     let dir = tempfile::tempdir().unwrap();
@@ -231,7 +290,7 @@ fn help_lists_every_format_and_where_it_is_loaded() {
         "moteus",
         "moteus-config",
         "simplefoc",
-        "simplefoc-u16",
+        "simplefoc-float",
     ] {
         assert!(help.contains(&format!("{name}:")), "{name} in:\n{help}");
     }
@@ -240,10 +299,9 @@ fn help_lists_every_format_and_where_it_is_loaded() {
         &[
             "--write-config",
             "--restore-config",
-            "CalibratedSensor(sensor, N, calib_lut)",
-            "calib_lut_load()",
+            "CalibratedSensor(sensor, N, lut)",
+            "PR #75",
             "commit 06a3d52",
-            "commit 011c612",
             "--harmonics",
             "--orders",
             "Not established from the source",
@@ -323,11 +381,40 @@ fn moteus_lines_decode_to_the_table_and_their_header_goes_to_the_terminal() {
     expect_exit(&o, 2);
 }
 
+/// `--format simplefoc`: current SimpleFOC's uint16_t codes, decoded as `decodeOffsetU16` does;
+/// `--format simplefoc-float`: the float table of releases before PR #75. 200 entries of the
+/// 720-point table hold its orders 3, 7 and 11 exactly: each entry is the error there.
 #[test]
 fn simplefoc_tables_hold_the_error_in_radians() {
     let dir = tempfile::tempdir().unwrap();
     let (c, d) = export(dir.path(), &["--format", "simplefoc", "--points", "200"]);
     assert!(c.iter().any(|l| l.contains("returns raw - lut(raw)")));
+    let body = d.join("\n");
+    assert_mentions(&body, &["uint16_t calibrationLut[200] = {"]);
+    assert!(
+        c.iter()
+            .any(|l| l.contains("CalibratedSensor(sensor, 200, calibrationLut)"))
+    );
+    let codes: Vec<u16> = c_numbers(&body)
+        .iter()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(codes.len(), 200);
+    // Half a code of 2π/65535 rad (9.89″), and f32 decoding (2⁻²⁴ of 12″).
+    let half_code = std::f64::consts::TAU / 65535.0 / 2.0 * 206264.80624709636;
+    for (i, &k) in codes.iter().enumerate() {
+        let got = f64::from((f32::from(k) - 32767.0) / 10430.219) * 206264.80624709636;
+        let want = error_of(i as f64 * 1.8);
+        assert!(
+            (got - want).abs() <= half_code + TABLE,
+            "{i}: {got} vs {want}"
+        );
+    }
+    let (c, d) = export(
+        dir.path(),
+        &["--format", "simplefoc-float", "--points", "200"],
+    );
+    assert!(c.iter().any(|l| l.contains("before PR #75")));
     let body = d.join("\n");
     assert_mentions(
         &body,
@@ -341,44 +428,26 @@ fn simplefoc_tables_hold_the_error_in_radians() {
         .map(|v| v.parse().unwrap())
         .collect();
     assert_eq!(values.len(), 200);
-    // Linear interpolation of the 0.5° table at 1.8° steps: within 0.002″ of error_of there.
     for (i, v) in values.iter().enumerate() {
-        let want = table_at(i as f64 * 1.8);
+        let want = error_of(i as f64 * 1.8);
         assert!(
             (v * 206264.80624709636 - want).abs() <= TABLE + 12.05 * 6e-8,
             "{i}"
         );
     }
-    let (_, d) = export(
-        dir.path(),
-        &["--format", "simplefoc-u16", "--points", "200"],
-    );
-    let body = d.join("\n");
-    let scale: f64 = body
-        .lines()
-        .find_map(|l| l.strip_prefix("#define CALIB_LUT_SCALE_RAD "))
-        .unwrap()
-        .trim_end_matches('f')
-        .parse()
-        .unwrap();
-    let codes: Vec<f64> = c_numbers(&body)
-        .iter()
-        .map(|v| v.parse().unwrap())
-        .collect();
-    assert_eq!(codes.len(), 200);
+    // Without --points: the driver's default 200 entries (this table has no order above 99).
+    let t = table(dir.path());
+    let o = calib(&["export", s(&t), "--format", "simplefoc"]);
     assert_mentions(
-        &body,
-        &["calib_lut_load()", "- 32768) * CALIB_LUT_SCALE_RAD"],
+        &{
+            expect_exit(&o, 0);
+            stdout(&o)
+        },
+        &["calibrationLut[200]"],
     );
-    let quantum = scale * 206264.80624709636;
-    for (i, k) in codes.iter().enumerate() {
-        let got = (k - 32768.0) * quantum;
-        let want = table_at(i as f64 * 1.8);
-        assert!(
-            (got - want).abs() <= quantum / 2.0 + TABLE,
-            "{i}: {got} vs {want}"
-        );
-    }
+    // The code is the driver's: no --scale.
+    let o = calib(&["export", s(&t), "--format", "simplefoc", "--scale", "1"]);
+    assert_mentions(&expect_exit(&o, 2), &["takes no --scale", "LUT_SCALE"]);
 }
 
 #[test]

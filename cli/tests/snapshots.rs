@@ -314,7 +314,7 @@ fn export() {
         ("moteus", &[]),
         ("moteus-config", &[]),
         ("simplefoc", &["--points", "32"]),
-        ("simplefoc-u16", &["--points", "32"]),
+        ("simplefoc-float", &["--points", "32"]),
     ] {
         let mut args = vec!["export", TRUTH_A, "--format", format];
         args.extend_from_slice(extra);

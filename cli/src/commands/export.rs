@@ -32,12 +32,11 @@ pub enum Format {
     /// mjbots moteus: the same settings as `key value` lines with a `#` header, for `moteus_tool
     /// -t ID --restore-config FILE`.
     MoteusConfig,
-    /// SimpleFOC: C++ defining `float calib_lut[N]` for `CalibratedSensor(sensor, N, calib_lut)`
-    /// in the sketch.
+    /// SimpleFOC (Arduino-FOC-drivers since PR #75): `uint16_t calibrationLut[N]`, as printLUT()
+    /// prints it, for `CalibratedSensor(sensor, N, calibrationLut)` in the sketch.
     Simplefoc,
-    /// SimpleFOC: the same table as `const uint16_t` codes (flash), decoded into `calib_lut` by
-    /// `calib_lut_load()` in `setup()`.
-    SimplefocU16,
+    /// SimpleFOC releases before PR #75: `float calib_lut[N]` for their `float*` constructor.
+    SimplefocFloat,
 }
 
 impl Format {
@@ -53,7 +52,7 @@ impl Format {
             Format::Moteus => export::Format::Moteus,
             Format::MoteusConfig => export::Format::MoteusConfig,
             Format::Simplefoc => export::Format::Simplefoc,
-            Format::SimplefocU16 => export::Format::SimplefocU16,
+            Format::SimplefocFloat => export::Format::SimplefocFloat,
         }
     }
 }
@@ -75,16 +74,23 @@ impl Format {
 ///
 /// SimpleFOC: CalibratedSensor(sensor, N, lut) subtracts lut(raw), interpolated linearly between
 /// entries at raw angle i·2π/N of the wrapped sensor's getMechanicalAngle()
-/// (simplefoc/Arduino-FOC-drivers src/encoders/calibrated/CalibratedSensor.cpp, commit 011c612).
-/// No uint16 table was found in the driver: simplefoc-u16 is calib's compact storage, decoded
-/// into the float table the driver takes.
+/// (simplefoc/Arduino-FOC-drivers src/encoders/calibrated/CalibratedSensor.cpp). Since PR #75
+/// (merged 2025-12) the table is uint16_t: entry = round(error·10430.2191955 + 32767), one code
+/// = 19.78″, decoded (code − 32767)/10430.2191955; `simplefoc` writes that (its --points default
+/// is the driver's 200, or more where the table has orders 200 entries cannot hold to the code).
+/// Changed: `simplefoc` used to write the float table of earlier releases, which current ones do
+/// not compile; that is now `simplefoc-float`, and `simplefoc-u16` (calib's own storage for the
+/// float table) is gone.
 ///
-/// --harmonics N / --orders LIST keep only those orders of the table's Fourier series and
-/// evaluate them exactly at the output grid points (smoothing before resampling, so dropped
-/// orders cannot alias); the header says which orders were kept and what the dropped ones amount
-/// to (peak to peak and RMS). Controller formats, and any export with chosen orders, end their
-/// header with the fit: how close the table, decoded and interpolated as the controller does, is
-/// to the source table at its points.
+/// No folding: a table of N entries holds only the orders below N/2. On a grid smaller than the
+/// table, every order the grid holds is kept and evaluated exactly at its points; the orders
+/// above are dropped and named with their peak to peak in the header (resampling by
+/// interpolation would fold them onto lower orders: errors the sensor never had). --harmonics N
+/// / --orders LIST keep only those orders the same way. Controller formats, and any export that
+/// drops orders, end their header with the fit: how close the table, decoded and interpolated as
+/// the controller does, is to the source table at its points, and what it leaves of the table's
+/// error. A table that would leave as much error as it corrects, or more, is refused (exit 1); one
+/// that leaves more than a quarter of its RMS is written with a warning on standard error.
 ///
 /// A range table (a joint that never turns a whole revolution, from calib reference) exports as
 /// a look-up table (lut-*, c-array, csv) whose header names the range: entry i at reading
@@ -100,12 +106,14 @@ pub struct Args {
     /// The output form (see --help for where each is loaded).
     #[arg(long, value_enum)]
     pub format: Format,
-    /// Points of the output grid (default: the table's; moteus: 256, the only size it takes);
-    /// resampled by periodic linear interpolation, or resynthesized from the chosen orders.
+    /// Points of the output grid (default: the table's; moteus: 256, the only size it takes;
+    /// simplefoc: 200, the driver's default, or the fewest that hold the table's orders to the
+    /// code); orders the grid cannot hold are dropped, never folded.
     #[arg(long)]
     pub points: Option<usize>,
-    /// Arcseconds per LSB of integer formats (lut-i8/i16/u16, moteus, simplefoc-u16; default:
-    /// the smallest that holds the table).
+    /// Arcseconds per LSB of integer formats (lut-i8/i16/u16, moteus; default: the smallest that
+    /// holds the table; a scale so large that every code is 0 is refused; simplefoc's code is
+    /// fixed by the driver).
     #[arg(long)]
     pub scale: Option<f64>,
     /// Keep the N orders of largest amplitude (among those the output grid holds); with
@@ -160,11 +168,16 @@ fn parse_orders(text: &str) -> Result<Orders, String> {
     Ok(Orders(orders))
 }
 
-/// An export error as an exit status: each is a choice of options this table cannot be written
-/// with (a scale that saturates, a size or orders the format does not take, a periodic format for
-/// a range table), so a usage error (exit 2).
+/// An export error as an exit status: a table that cannot be written usefully in the format
+/// whatever the options (it would leave its error, or holds a value the format cannot encode) is
+/// a data error (exit 1); the others are a choice of options this table cannot be written with (a
+/// scale that saturates or zeroes every code, a size or orders the format does not take, a
+/// periodic format for a range table), so a usage error (exit 2).
 fn classify(err: ExportError) -> anyhow::Error {
-    Usage(err.to_string()).into()
+    match err {
+        ExportError::NoBetter { .. } | ExportError::OutOfRange { .. } => err.into(),
+        _ => Usage(err.to_string()).into(),
+    }
 }
 
 /// Runs `calib export`.
@@ -224,11 +237,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         Some(path) => {
             calib_io::atomic::write_atomic(path, out.text.as_bytes())?;
             let mut o = format!("wrote {}\n", path.display());
-            let shown = out
-                .header
-                .iter()
-                .skip(1)
-                .filter(|l| uncommented || l.starts_with("fit: "));
+            let shown =
+                out.header.iter().skip(1).filter(|l| {
+                    uncommented || l.starts_with("fit: ") || l.starts_with("warning: ")
+                });
             for line in shown {
                 o.push_str(&format!("  {line}\n"));
             }
@@ -238,6 +250,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             if uncommented {
                 for line in &out.header {
                     eprintln!("# {line}");
+                }
+            } else {
+                // The table goes to standard output; what the user must know, to the terminal.
+                for warning in &out.warnings {
+                    eprintln!("warning: {warning}");
                 }
             }
             Ok(out.text)

@@ -5,6 +5,7 @@ pub mod compare;
 pub mod compose;
 pub mod csrr;
 pub mod export;
+pub mod import;
 pub mod inspect;
 pub mod multihead;
 pub mod reference;
@@ -28,6 +29,7 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Compare(args) => compare::run(&args),
         Command::Reference(args) => reference::run(&args),
         Command::Export(args) => export::run(&args),
+        Command::Import(args) => import::run(&args),
         Command::Tdr(args) => tdr::run(&args),
         Command::Apply(args) => apply::run(&args),
         Command::Compose(args) => compose::run(&args),

@@ -10,6 +10,7 @@
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
 //! - [`export`]: correction tables in the forms controllers load (look-up tables, moteus
 //!   `conf set` lines, SimpleFOC `CalibratedSensor` tables, harmonics).
+//! - [`import`]: the same forms read back into calib tables (a table already on a controller).
 //! - [`atomic`]: output files that appear only when complete.
 //! - [`apply`]: a log rewritten with one channel corrected by an error map.
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
@@ -49,6 +50,7 @@ pub mod compare;
 pub mod csv_log;
 pub mod error;
 pub mod export;
+pub mod import;
 pub mod limits;
 pub mod log;
 pub mod mcap_log;

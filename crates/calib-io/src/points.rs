@@ -8,6 +8,7 @@
 //! `# range_deg: LO to HI` line ([`crate::table`]) gives the table's [`PointTable::range`].
 
 use crate::Error;
+use std::io::{BufRead as _, Read as _};
 use std::path::Path;
 
 /// One row of a point table.
@@ -42,18 +43,23 @@ pub fn read_points(path: &Path) -> Result<PointTable, Error> {
 }
 
 /// [`read_points`] from any reader; `path` names it in errors.
-pub fn parse_points(mut input: impl std::io::Read, path: &Path) -> Result<PointTable, Error> {
+pub fn parse_points(input: impl std::io::Read, path: &Path) -> Result<PointTable, Error> {
     let csv_err = |line: u64, column: Option<&str>, message: String| {
         crate::error::csv_error(path, line, column, message)
     };
-    let mut bytes = Vec::new();
-    input.read_to_end(&mut bytes).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let first = String::from_utf8_lossy(bytes.split(|&b| b == b'\n').next().unwrap_or_default())
-        .trim()
-        .to_string();
+    // Streamed, not read whole: a table is held row by row up to the point limit. The first
+    // line (a range table's marker) is read ahead and given back to the CSV reader.
+    let mut input = std::io::BufReader::new(input);
+    let mut head = Vec::new();
+    input
+        .by_ref()
+        .take(crate::limits::MAX_CSV_LINE_BYTES as u64)
+        .read_until(b'\n', &mut head)
+        .map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let first = String::from_utf8_lossy(&head).trim().to_string();
     let range = match first.strip_prefix("# range_deg:") {
         Some(rest) => {
             let w: Vec<&str> = rest.split_whitespace().collect();
@@ -76,7 +82,7 @@ pub fn parse_points(mut input: impl std::io::Read, path: &Path) -> Result<PointT
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
-        .from_reader(bytes.as_slice());
+        .from_reader(head.as_slice().chain(input));
     let headers = reader
         .headers()
         .map_err(|e| csv_err(1, None, e.to_string()))?
@@ -97,6 +103,10 @@ pub fn parse_points(mut input: impl std::io::Read, path: &Path) -> Result<PointT
             csv_err(line, None, e.to_string())
         })?;
         let line = record.position().map(|p| p.line()).unwrap_or(0);
+        // Held to the limit of the tables calib writes, before the row is held.
+        if points.len() >= crate::limits::MAX_TABLE_POINTS {
+            return Err(csv_err(line, None, crate::table::too_many_rows()));
+        }
         let number = |col: usize| -> Result<Option<f64>, Error> {
             let text = record.get(col).unwrap_or("");
             if text.is_empty() {
@@ -142,6 +152,57 @@ pub fn parse_points(mut input: impl std::io::Read, path: &Path) -> Result<PointT
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `rows` rows of a point table, made as they are read (no file, nothing held).
+    struct Rows {
+        next: usize,
+        rows: usize,
+        pending: Vec<u8>,
+    }
+
+    impl std::io::Read for Rows {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            while self.pending.len() < buf.len() && self.next <= self.rows {
+                let row = if self.next == 0 {
+                    "angle_deg,error_arcsec\n".to_string()
+                } else {
+                    format!("{},0\n", self.next)
+                };
+                self.pending.extend_from_slice(row.as_bytes());
+                self.next += 1;
+            }
+            let n = buf.len().min(self.pending.len());
+            buf[..n].copy_from_slice(&self.pending[..n]);
+            self.pending.drain(..n);
+            Ok(n)
+        }
+    }
+
+    /// Issue 33: a 10⁷-row table took 6.85 GB in `compare`; now the row beyond the limit is
+    /// refused as it is read.
+    #[test]
+    fn tables_beyond_the_point_limit_are_refused_as_they_are_read() {
+        let rows = |rows| Rows {
+            next: 0,
+            rows,
+            pending: Vec::new(),
+        };
+        let limit = crate::limits::MAX_TABLE_POINTS;
+        let err = parse_points(rows(limit + 1), Path::new("big.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!("line {}", limit + 2)) && err.contains("more than 3600000 rows"),
+            "{err}"
+        );
+        assert_eq!(
+            parse_points(rows(limit), Path::new("big.csv"))
+                .unwrap()
+                .points
+                .len(),
+            limit
+        );
+    }
 
     #[test]
     fn reads_optional_columns_and_ignores_others() {

@@ -51,6 +51,7 @@ use crate::csv_log::{
     csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, wrong_width,
 };
 use crate::error::csv_error;
+use crate::limits::MAX_TABLE_POINTS;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::{ErrorMap, RangeMap};
 use csv::ByteRecord;
@@ -459,7 +460,15 @@ fn read_columns<R: std::io::Read>(
     })
 }
 
-/// Reads every row, checking each: numbers in every field, finite values at most
+/// Why a table of more than [`MAX_TABLE_POINTS`] rows is refused, at its first row beyond.
+pub(crate) fn too_many_rows() -> String {
+    format!(
+        "the table has more than {MAX_TABLE_POINTS} rows, the most calib writes or reads (0.36″ \
+         steps, far finer than any map calib estimates); resample it to fewer points"
+    )
+}
+
+/// Reads every row, checking each: at most [`MAX_TABLE_POINTS`] rows, numbers in every field, finite values at most
 /// [`MAX_TABLE_ARCSEC`] in magnitude, non-negative uncertainties, `correction = −error` within
 /// the rounding of the two fields as written; and at least 2 rows.
 fn read_rows<R: std::io::Read>(
@@ -488,6 +497,10 @@ fn read_rows<R: std::io::Read>(
             return Err(wrong_width(path, &record, names));
         }
         let line = || line_of(path, &record);
+        // Held to the limit of the tables calib writes, before the row is held.
+        if rows.angles.len() >= MAX_TABLE_POINTS {
+            return Err(err(line(), None, too_many_rows()));
+        }
         let number = |col: usize| -> Result<f64, Error> {
             let raw = record.get(col).unwrap_or_default();
             let v = parse_f64(raw)
@@ -752,6 +765,27 @@ mod tests {
         assert_eq!(half_unit(b" 12 "), 0.5);
         assert!((half_unit(b"-3e-4") - 0.00005).abs() < 1e-20);
         assert!((half_unit(b"1.5E2") - 5.0).abs() < 1e-12);
+    }
+
+    /// Issue 33: tables read in are held to the limit of tables written, refused at the first row
+    /// beyond it. Ignored: it writes a 130 MB file (`cargo test -p calib-io --lib -- --ignored
+    /// point_limit`).
+    #[test]
+    #[ignore]
+    fn tables_beyond_the_point_limit_are_refused_at_the_row_beyond() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.csv");
+        let n = MAX_TABLE_POINTS + 1;
+        let mut text = String::from("angle_deg,error_arcsec,correction_arcsec\n");
+        for i in 0..n {
+            let _ = writeln!(text, "{:.6},0,0", grid_deg(i, n));
+        }
+        std::fs::write(&path, text).unwrap();
+        let err = read_any_table(&path).unwrap_err().to_string();
+        assert!(
+            err.contains(&format!("line {}", n + 1)) && err.contains("resample it"),
+            "{err}"
+        );
     }
 
     #[test]

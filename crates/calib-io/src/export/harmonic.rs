@@ -41,39 +41,82 @@ pub(super) struct Chosen {
     pub series: FourierSeries,
     /// The kept orders, as chosen (largest first for [`Keep::Largest`], increasing otherwise).
     kept: Vec<usize>,
-    /// [`Keep::Largest`]: the highest order it chose among.
-    among: Option<usize>,
+    /// How they were chosen.
+    by: ChosenBy,
     /// Points of the output grid.
     points: usize,
     /// Orders of the table's series.
     orders: usize,
     /// Peak to peak of the table minus the kept series on the table's grid, radians.
-    dropped_pp: f64,
+    pub dropped_pp: f64,
     /// RMS of the same, radians.
     dropped_rms: f64,
+    /// The largest dropped orders with their own peak to peak (twice the amplitude, radians),
+    /// largest first, at most [`NAMED_DROPPED`].
+    dropped_largest: Vec<(usize, f64)>,
 }
+
+/// How [`Chosen`] orders were chosen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum ChosenBy {
+    /// [`Keep::Largest`], among orders 1 to the given one (those the output grid holds).
+    Largest(usize),
+    /// [`Keep::Orders`].
+    Listed,
+    /// [`Keep::All`] on a grid smaller than the table: every order up to the given one, the
+    /// highest the output grid holds.
+    Held(usize),
+}
+
+/// How many dropped orders a header names with their peak to peak.
+const NAMED_DROPPED: usize = 5;
 
 impl Chosen {
     /// The header line.
     pub fn describe(&self) -> String {
         let list = order_list(&self.kept);
-        let chosen = match self.among {
-            Some(limit) => format!(
+        let chosen = match self.by {
+            ChosenBy::Largest(limit) => format!(
                 "kept the {} largest orders, {list} (among orders 1 to {limit}, those a {}-point \
                  table holds)",
                 self.kept.len(),
                 self.points
             ),
-            None => format!(
+            ChosenBy::Listed => format!(
                 "kept orders {list} ({} of the table's {})",
                 self.kept.len(),
                 self.orders
             ),
+            ChosenBy::Held(limit) => format!(
+                "kept every order a {}-entry table holds, 1 to {limit} (orders below {}/2), \
+                 rather than fold the table's orders {} to {} onto them",
+                self.points,
+                self.points,
+                limit + 1,
+                self.orders
+            ),
         };
         format!(
-            "harmonics: {chosen}, resynthesized on the output grid; the {} other orders of the \
-             table amount to {:.6} arcsec peak-to-peak, {:.6} arcsec RMS",
-            self.orders - self.kept.len(),
+            "harmonics: {chosen}, resynthesized on the output grid; dropped: {}",
+            self.dropped_summary()
+        )
+    }
+
+    /// What was dropped: the largest dropped orders with their p-p, and all of them together.
+    pub fn dropped_summary(&self) -> String {
+        let named: Vec<String> = self
+            .dropped_largest
+            .iter()
+            .map(|(h, pp)| format!("order {h} {:.6} arcsec p-p", pp * ARCSEC_PER_RAD))
+            .collect();
+        let count = self.orders - self.kept.len();
+        let largest = if named.is_empty() {
+            String::new()
+        } else {
+            format!("largest {}; ", named.join(", "))
+        };
+        format!(
+            "{largest}the {count} orders together {:.6} arcsec peak-to-peak, {:.6} arcsec RMS",
             self.dropped_pp * ARCSEC_PER_RAD,
             self.dropped_rms * ARCSEC_PER_RAD
         )
@@ -91,12 +134,15 @@ pub(super) fn choose(
     let series = map.series();
     let orders = series.max_order();
     let holds = (points - 1) / 2;
-    let (kept, among) = match keep {
+    let (kept, by) = match keep {
         Keep::All => return Ok(None),
         Keep::Largest(n) => {
             let limit = holds.min(orders);
             let candidates: Vec<usize> = (1..=limit).collect();
-            (series.only(&candidates).largest_orders(*n), Some(limit))
+            (
+                series.only(&candidates).largest_orders(*n),
+                ChosenBy::Largest(limit),
+            )
         }
         Keep::Orders(list) => {
             let mut list = list.clone();
@@ -116,11 +162,43 @@ pub(super) fn choose(
                     max: holds,
                 });
             }
-            (list, None)
+            (list, ChosenBy::Listed)
         }
     };
-    let series = series.only(&kept);
-    let synthesized = ErrorMap::from_series(&series, map.len());
+    Ok(Some(measure(map, &series, kept, by, points)))
+}
+
+/// Every order of `map` that a grid of `points` holds (below `points/2`), for a grid smaller
+/// than the table: what [`Keep::All`] keeps there instead of folding the higher orders.
+pub(super) fn choose_held(map: &ErrorMap, points: usize) -> Option<Chosen> {
+    let series = map.series();
+    let limit = ((points - 1) / 2).min(series.max_order());
+    let kept = (1..=limit).collect();
+    Some(measure(map, &series, kept, ChosenBy::Held(limit), points))
+}
+
+/// The kept orders of `series` (the series of `map`) and what the rest amount to on `map`'s grid.
+fn measure(
+    map: &ErrorMap,
+    series: &FourierSeries,
+    kept: Vec<usize>,
+    by: ChosenBy,
+    points: usize,
+) -> Chosen {
+    let orders = series.max_order();
+    let mut is_kept = vec![false; orders + 1];
+    kept.iter().for_each(|&h| is_kept[h] = true);
+    let mut dropped_largest: Vec<(usize, f64)> = series
+        .harmonics()
+        .iter()
+        // Tables hold 6 decimals of an arcsecond: below that an order is rounding, not error.
+        .filter(|h| !is_kept[h.order] && h.amplitude * ARCSEC_PER_RAD >= 5e-7)
+        .map(|h| (h.order, 2.0 * h.amplitude))
+        .collect();
+    dropped_largest.sort_by(|a, b| b.1.total_cmp(&a.1));
+    dropped_largest.truncate(NAMED_DROPPED);
+    let kept_series = series.only(&kept);
+    let synthesized = ErrorMap::from_series(&kept_series, map.len());
     let dropped: Vec<f64> = map
         .values()
         .iter()
@@ -130,15 +208,16 @@ pub(super) fn choose(
     let max = dropped.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let min = dropped.iter().copied().fold(f64::INFINITY, f64::min);
     let rms = (dropped.iter().map(|d| d * d).sum::<f64>() / dropped.len() as f64).sqrt();
-    Ok(Some(Chosen {
-        series,
+    Chosen {
+        series: kept_series,
         kept,
-        among,
+        by,
         points,
         orders,
         dropped_pp: max - min,
         dropped_rms: rms,
-    }))
+        dropped_largest,
+    }
 }
 
 /// `--format harmonic`: the header lines and the rows of the correction's harmonics.

@@ -8,18 +8,32 @@
 //!   resynthesized from;
 //! - [`moteus`]: the encoder compensation table of an mjbots moteus `motor_position` source, as
 //!   `conf set` lines;
-//! - [`simplefoc`]: the look-up table of SimpleFOC's `CalibratedSensor`, as C++.
+//! - [`simplefoc`]: the look-up table of SimpleFOC's `CalibratedSensor`, as C++ (the current
+//!   `uint16_t` table, and the `float` table of releases before PR #75).
 //!
 //! # Steps
-//! 1. The values on the output grid (`--points`, or the size a format requires): with
-//!    [`Keep::All`] the table resampled by periodic linear interpolation (the table itself when
-//!    the size is its own); with chosen orders, their Fourier series evaluated exactly at the
-//!    output grid points — smoothing *before* resampling, so the orders left out cannot alias.
-//! 2. The format quantizes them and writes them with a header: calib's sign convention and grid,
+//! 1. The size of the output grid: `--points`, or the size the format requires (moteus 256), or
+//!    the format's default ([`Format::default_points`]: for SimpleFOC the larger of the driver's
+//!    own 200 and the smallest size that holds the table's orders to the firmware's quantum), or
+//!    the table's own size for the generic formats.
+//! 2. The values on the output grid. A table of `N` entries holds only the orders below `N/2`;
+//!    resampling a larger table onto it by interpolation would fold every higher order onto a
+//!    lower one — errors the sensor never had. So with [`Keep::All`] on a grid smaller than the
+//!    table, every order the grid holds is kept, evaluated exactly at its points, and the orders
+//!    above are dropped and named with their peak-to-peak ([`harmonic`]); on a grid at least as
+//!    large, the table is interpolated linearly (which folds nothing). Chosen orders
+//!    ([`Keep::Largest`], [`Keep::Orders`]) are evaluated the same way.
+//! 3. The format quantizes them and writes them with a header: calib's sign convention and grid,
 //!    then what the consumer does with the numbers.
-//! 3. Where it matters (the controller formats, and whenever orders are chosen), the table as the
+//! 4. Where it matters (the controller formats, and whenever orders are dropped), the table as the
 //!    controller will use it — decoded and interpolated linearly — is compared with the source
 //!    table at the source table's points ([`Fit`]), and the header says how close it is.
+//!
+//! # Tables that would not help
+//! The [`Fit`] leaves `RMS(source − table as used)` of the source's `RMS`. A table that leaves
+//! all of it or more (it would make the sensor no better, or worse) is refused
+//! ([`ExportError::NoBetter`]); one that leaves more than [`WARN_LEFT_FRACTION`] of it is written
+//! with a warning ([`Export::warnings`]) that names both figures and what to do.
 //!
 //! # Sign
 //! calib's tables hold `error = reading − true angle`; the correction is `−error`, applied as
@@ -61,10 +75,12 @@ pub enum Format {
     /// The same settings as `key value` lines with a `#` header, for `moteus_tool
     /// --restore-config`.
     MoteusConfig,
-    /// A C++ `float` table for SimpleFOC's `CalibratedSensor`.
+    /// SimpleFOC's `CalibratedSensor` table as current releases take it (since
+    /// simplefoc/Arduino-FOC-drivers PR #75): `uint16_t` codes of the error.
     Simplefoc,
-    /// The same table stored as `uint16_t` codes, decoded into the `float` table at start-up.
-    SimplefocU16,
+    /// SimpleFOC's `CalibratedSensor` table as releases before PR #75 took it: a `float` array
+    /// of the error in radians.
+    SimplefocFloat,
 }
 
 impl Format {
@@ -81,7 +97,18 @@ impl Format {
             Format::Moteus => "moteus",
             Format::MoteusConfig => "moteus-config",
             Format::Simplefoc => "simplefoc",
-            Format::SimplefocU16 => "simplefoc-u16",
+            Format::SimplefocFloat => "simplefoc-float",
+        }
+    }
+
+    /// The number of points written when `--points` is not given, for `map`: the size the format
+    /// requires; for SimpleFOC the larger of the driver's default (200) and the smallest size
+    /// that holds the map's orders to the firmware's quantum ([`simplefoc::default_points`]);
+    /// else the table's own size.
+    pub fn default_points(self, map: &ErrorMap) -> usize {
+        match self {
+            Format::Simplefoc | Format::SimplefocFloat => simplefoc::default_points(map),
+            _ => self.required_points().unwrap_or(map.len()),
         }
     }
 
@@ -102,7 +129,7 @@ impl Format {
                 | Format::Moteus
                 | Format::MoteusConfig
                 | Format::Simplefoc
-                | Format::SimplefocU16
+                | Format::SimplefocFloat
         )
     }
 
@@ -110,7 +137,7 @@ impl Format {
     fn comment(self) -> Option<&'static str> {
         match self {
             Format::Moteus => None,
-            Format::CArray | Format::Simplefoc | Format::SimplefocU16 => Some("//"),
+            Format::CArray | Format::Simplefoc | Format::SimplefocFloat => Some("//"),
             _ => Some("#"),
         }
     }
@@ -119,7 +146,7 @@ impl Format {
     fn always_fit(self) -> bool {
         matches!(
             self,
-            Format::Moteus | Format::MoteusConfig | Format::Simplefoc | Format::SimplefocU16
+            Format::Moteus | Format::MoteusConfig | Format::Simplefoc | Format::SimplefocFloat
         )
     }
 }
@@ -129,7 +156,7 @@ impl Format {
 pub struct ExportOptions {
     /// The output format.
     pub format: Format,
-    /// Points of the output grid; `None`: the size the format requires, else the table's own.
+    /// Points of the output grid; `None`: [`Format::default_points`].
     pub points: Option<usize>,
     /// Arcseconds per LSB of integer formats; `None`: the smallest that holds the table.
     pub scale_arcsec: Option<f64>,
@@ -173,7 +200,15 @@ pub struct Export {
     /// How close the table, as the controller will use it, is to the source table (where
     /// measured; see the [module docs](self)).
     pub fit: Option<Fit>,
+    /// What the user must know before loading the table (also the header's `warning:` lines):
+    /// a table that leaves more than [`WARN_LEFT_FRACTION`] of the error.
+    pub warnings: Vec<String>,
 }
+
+/// The fraction of the source's RMS error a table may leave (as the controller uses it) before
+/// the export warns: a quarter. A table that leaves a quarter still removes most of the error, but
+/// the user should know that a finer table, or another controller setting, would do better.
+pub const WARN_LEFT_FRACTION: f64 = 0.25;
 
 /// Why a table cannot be exported as asked.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -194,6 +229,73 @@ pub enum ExportError {
         max_code: i64,
         /// The smallest scale that holds the table, arcseconds per LSB.
         fits: f64,
+    },
+    /// A `--scale` so coarse that every code rounds to zero: the table would correct nothing.
+    #[error(
+        "the largest |correction| is {largest_arcsec:.6}″, less than half a code at --scale \
+         {scale_arcsec} ″/LSB, so every code would be 0 and the table would correct nothing; use \
+         --scale {fits:.6e} (the finest that holds the table) or any scale up to \
+         {coarsest:.6e}, or leave --scale out"
+    )]
+    ScaleAboveTable {
+        /// The largest magnitude to encode, arcseconds.
+        largest_arcsec: f64,
+        /// The scale asked for, arcseconds per LSB.
+        scale_arcsec: f64,
+        /// The smallest scale that holds the table, arcseconds per LSB.
+        fits: f64,
+        /// Twice the largest magnitude: the coarsest scale that leaves one non-zero code.
+        coarsest: f64,
+    },
+    /// The format's quantum is fixed by its consumer.
+    #[error(
+        "--format {format} takes no --scale: {why}; leave --scale out (or use --format \
+         lut-u16, whose scale is free)"
+    )]
+    FixedScale {
+        /// The format's name.
+        format: &'static str,
+        /// Where the fixed quantum comes from.
+        why: &'static str,
+    },
+    /// A value beyond what the format can encode.
+    #[error(
+        "the error at reading {angle_deg:.6}° is {arcsec:.3}″, beyond the ±{limit_arcsec:.0}″ \
+         --format {format} can encode ({why}); no sensor errs by that much: check the table"
+    )]
+    OutOfRange {
+        /// The format's name.
+        format: &'static str,
+        /// Where the value is, degrees of the reading.
+        angle_deg: f64,
+        /// The value, arcseconds.
+        arcsec: f64,
+        /// The largest magnitude the format holds, arcseconds.
+        limit_arcsec: f64,
+        /// Why.
+        why: &'static str,
+    },
+    /// The table as the controller would use it leaves as much error as it corrects, or more.
+    #[error(
+        "as --format {format} loads it ({points} entries), this table would leave {left_rms:.3}″ \
+         RMS ({left_pp:.3}″ p-p) of the table's {source_rms:.3}″ RMS ({source_pp:.3}″ p-p): it \
+         would make the sensor no better or worse, so it was not written. {advice}"
+    )]
+    NoBetter {
+        /// The format's name.
+        format: &'static str,
+        /// Entries of the output table.
+        points: usize,
+        /// RMS left, arcseconds.
+        left_rms: f64,
+        /// Peak to peak left, arcseconds.
+        left_pp: f64,
+        /// RMS of the source table, arcseconds.
+        source_rms: f64,
+        /// Peak to peak of the source table, arcseconds.
+        source_pp: f64,
+        /// What to do.
+        advice: String,
     },
     /// The consumer takes a table of one size only.
     #[error("--format {format} takes exactly {required} points ({why}); not {given}")]
@@ -340,6 +442,12 @@ pub struct Fit {
     pub max: f64,
     /// Root mean square difference, radians.
     pub rms: f64,
+    /// Peak to peak of the difference (what the sensor is left with), radians.
+    pub left_pp: f64,
+    /// Root mean square of the source table (what it would be left with uncorrected), radians.
+    pub source_rms: f64,
+    /// Peak to peak of the source table, radians.
+    pub source_pp: f64,
     /// Points of the source table compared.
     pub points: usize,
 }
@@ -349,25 +457,44 @@ impl Fit {
     /// against `source`, at each of `source`'s grid points.
     pub fn measure(decoded: &[f64], source: &ErrorMap) -> Fit {
         let (mut max, mut sum) = (0.0f64, 0.0);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for (i, &e) in source.values().iter().enumerate() {
             let d = interpolate_periodic(decoded, source.grid_angle(i)) - e;
             max = max.max(d.abs());
             sum += d * d;
+            lo = lo.min(d);
+            hi = hi.max(d);
         }
         Fit {
             max,
             rms: (sum / source.len() as f64).sqrt(),
+            left_pp: hi - lo,
+            source_rms: source.rms(),
+            source_pp: source.peak_to_peak(),
             points: source.len(),
+        }
+    }
+
+    /// The fraction of the source's RMS the table leaves: `RMS(source − table) / RMS(source)`
+    /// (0 for a source without error).
+    pub fn left_fraction(&self) -> f64 {
+        if self.source_rms > 0.0 {
+            self.rms / self.source_rms
+        } else {
+            0.0
         }
     }
 
     fn describe(&self) -> String {
         format!(
             "fit: interpolated linearly as the controller does, this table is within {:.6} arcsec \
-             of the source table at its {} points (RMS {:.6} arcsec)",
+             of the source table at its {} points (RMS {:.6} arcsec; it leaves {:.6} arcsec p-p \
+             of the table's {:.6} arcsec p-p)",
             self.max * ARCSEC_PER_RAD,
             self.points,
-            self.rms * ARCSEC_PER_RAD
+            self.rms * ARCSEC_PER_RAD,
+            self.left_pp * ARCSEC_PER_RAD,
+            self.source_pp * ARCSEC_PER_RAD
         )
     }
 }
@@ -405,8 +532,9 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
                 why: moteus::SIZE_SOURCE,
             });
         }
-        (Some(required), _) => required,
-        (None, given) => given.unwrap_or(map.len()),
+        (_, Some(given)) => given,
+        (_, None) if span.is_whole() => format.default_points(map),
+        (_, None) => map.len(),
     };
     let resampled = || {
         if points == map.len() {
@@ -450,16 +578,22 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
     if format == Format::Harmonic {
         let (lines, body) = harmonic::listing(&resampled(), opts)?;
         header.extend(lines);
-        return Ok(assemble(format, header, &body, None));
+        return Ok(assemble(format, header, &body, None, Vec::new()));
     }
-    let chosen = harmonic::choose(map, &opts.keep, points)?;
+    // A whole-turn table on a smaller grid keeps the orders the grid holds instead of folding
+    // the others onto them.
+    let chosen = if opts.keep == Keep::All && span.is_whole() && points < map.len() {
+        harmonic::choose_held(map, points)
+    } else {
+        harmonic::choose(map, &opts.keep, points)?
+    };
     let target = match &chosen {
         Some(chosen) => ErrorMap::from_series(&chosen.series, points),
         None => resampled(),
     };
     let rendered = match format {
         Format::Moteus | Format::MoteusConfig => moteus::render(&target, opts)?,
-        Format::Simplefoc | Format::SimplefocU16 => simplefoc::render(&target, opts)?,
+        Format::Simplefoc | Format::SimplefocFloat => simplefoc::render(&target, opts)?,
         _ => lut::render(&target, opts)?,
     };
     header.extend(rendered.lines);
@@ -468,10 +602,64 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
     if let Some(chosen) = &chosen {
         header.push(chosen.describe());
     }
+    let mut warnings = Vec::new();
     if let Some(fit) = &fit {
         header.push(fit.describe());
+        let advice = match &chosen {
+            Some(chosen) if chosen.dropped_pp > fit.rms => format!(
+                "The orders this {points}-entry table cannot hold are most of it ({}): {}",
+                chosen.dropped_summary(),
+                if format.required_points().is_some() {
+                    "this controller's fixed table cannot correct them; correct them elsewhere \
+                     (a finer table in your own firmware: --format lut-*) or accept them"
+                } else {
+                    "export more --points (a table of N entries holds the orders below N/2)"
+                }
+            ),
+            _ => "Check the fit line of the header: the table's quantum (--scale) or its size \
+                  (--points) is too coarse for this table."
+                .to_string(),
+        };
+        warnings.extend(judge(fit, format, points, advice)?);
     }
-    Ok(assemble(format, header, &rendered.body, fit))
+    header.extend(warnings.iter().map(|w| format!("warning: {w}")));
+    Ok(assemble(format, header, &rendered.body, fit, warnings))
+}
+
+/// The verdict on a table that leaves `fit` of its source (see [Tables that would not
+/// help](self#tables-that-would-not-help)): refused if it leaves all of the source's RMS or more,
+/// a warning if more than [`WARN_LEFT_FRACTION`] of it; `advice` says what to do.
+fn judge(
+    fit: &Fit,
+    format: Format,
+    points: usize,
+    advice: String,
+) -> Result<Option<String>, ExportError> {
+    let arcsec = |x: f64| x * ARCSEC_PER_RAD;
+    if fit.left_fraction() >= 1.0 {
+        return Err(ExportError::NoBetter {
+            format: format.name(),
+            points,
+            left_rms: arcsec(fit.rms),
+            left_pp: arcsec(fit.left_pp),
+            source_rms: arcsec(fit.source_rms),
+            source_pp: arcsec(fit.source_pp),
+            advice,
+        });
+    }
+    Ok((fit.left_fraction() > WARN_LEFT_FRACTION).then(|| {
+        format!(
+            "as the controller uses it, this table leaves {:.3} arcsec RMS ({:.3} arcsec p-p) of \
+             the table's {:.3} arcsec RMS ({:.3} arcsec p-p), {:.0} % of the RMS, more than the \
+             {:.0} % calib accepts without a word. {advice}",
+            arcsec(fit.rms),
+            arcsec(fit.left_pp),
+            arcsec(fit.source_rms),
+            arcsec(fit.source_pp),
+            100.0 * fit.left_fraction(),
+            100.0 * WARN_LEFT_FRACTION
+        )
+    }))
 }
 
 /// A range table's values resampled to `points` entries by linear interpolation over the range,
@@ -501,7 +689,13 @@ fn trimmed(x: f64) -> String {
 }
 
 /// The file: the header as comments (where the format has them), then the body.
-fn assemble(format: Format, header: Vec<String>, body: &str, fit: Option<Fit>) -> Export {
+fn assemble(
+    format: Format,
+    header: Vec<String>,
+    body: &str,
+    fit: Option<Fit>,
+    warnings: Vec<String>,
+) -> Export {
     let mut text = String::new();
     if let Some(comment) = format.comment() {
         for line in &header {
@@ -510,13 +704,18 @@ fn assemble(format: Format, header: Vec<String>, body: &str, fit: Option<Fit>) -
         }
     }
     text.push_str(body);
-    Export { text, header, fit }
+    Export {
+        text,
+        header,
+        fit,
+        warnings,
+    }
 }
 
 /// Integer codes for `values` (arcseconds) of at most `max_code` in magnitude: the scale
 /// (arcseconds per LSB) given, or the smallest that holds the largest value, and
 /// `round(value / scale)` for each. A scale too small for the values is refused, never
-/// saturated.
+/// saturated; so is one so large that every code would be 0.
 fn quantize(
     values: &[f64],
     max_code: i64,
@@ -534,6 +733,15 @@ fn quantize(
             code: largest / scale,
             max_code,
             fits,
+        });
+    }
+    // Below half a code every value rounds to 0: a table that corrects nothing.
+    if largest > 0.0 && largest / scale < 0.5 {
+        return Err(ExportError::ScaleAboveTable {
+            largest_arcsec: largest,
+            scale_arcsec: scale,
+            fits,
+            coarsest: 2.0 * largest,
         });
     }
     let codes = values.iter().map(|v| (v / scale).round() as i64).collect();
@@ -596,6 +804,53 @@ mod tests {
         let err = quantize(&[12.75], 127, Some(0.1)).unwrap_err();
         assert!(err.to_string().contains("1.003937e-1"), "{err}");
         assert!(quantize(&[12.74], 127, Some(0.1)).is_ok());
+    }
+
+    #[test]
+    fn tables_that_leave_their_error_are_refused_and_those_that_leave_much_warned() {
+        let fit = |rms: f64| Fit {
+            max: 2.0 * rms,
+            rms,
+            left_pp: 4.0 * rms,
+            source_rms: 1.0,
+            source_pp: 3.0,
+            points: 360,
+        };
+        let judged = |rms| judge(&fit(rms), Format::Moteus, 256, "do this".into());
+        assert_eq!(judged(0.25).unwrap(), None);
+        let warning = judged(0.5).unwrap().unwrap();
+        assert!(warning.contains("50 % of the RMS") && warning.ends_with("do this"));
+        assert!(matches!(
+            judged(1.0),
+            Err(ExportError::NoBetter { points: 256, .. })
+        ));
+        let err = judged(1.5).unwrap_err().to_string();
+        assert!(
+            err.contains("no better or worse") && err.ends_with("do this"),
+            "{err}"
+        );
+        // A source without error leaves nothing to judge.
+        let flat = Fit {
+            source_rms: 0.0,
+            ..fit(0.0)
+        };
+        assert_eq!(flat.left_fraction(), 0.0);
+    }
+
+    #[test]
+    fn a_scale_that_zeroes_every_code_is_refused() {
+        let err = quantize(&[12.0, -3.0], 127, Some(24.5)).unwrap_err();
+        assert!(matches!(err, ExportError::ScaleAboveTable { .. }));
+        let text = err.to_string();
+        assert!(
+            text.contains("12.000000″") && text.contains("2.400000e1"),
+            "{text}"
+        );
+        // Up to twice the largest, one code is left.
+        assert_eq!(
+            quantize(&[12.0, -3.0], 127, Some(23.9)).unwrap().1,
+            vec![1, 0]
+        );
     }
 
     #[test]

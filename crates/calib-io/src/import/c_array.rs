@@ -1,0 +1,266 @@
+//! C and C++ arrays, read back: SimpleFOC's `uint16_t calibrationLut[N] = {…};` (what
+//! `printLUT()` prints and `--format simplefoc` writes), the `float` table of releases before PR
+//! #75 (`--format simplefoc-float`), and calib's `c-array`.
+//!
+//! The first array initialised in the file (`TYPE NAME[SIZE] = { v, v, … };`, comments skipped)
+//! is the table; `SIZE` may be a number, a `#define`d name or empty, and must match the entries
+//! where given. SimpleFOC entries are decoded as the driver does (`decodeOffsetU16` in `f32`,
+//! [`crate::export::simplefoc::decode`]; floats as the `f32` the compiler makes of them) and hold
+//! the error, radians; calib's `c-array` holds the correction, arcseconds.
+//! `printLUT()`'s `zero_electric_angle` and `sensor_direction` lines are reported as notes: they
+//! are the motor's settings, not part of the table.
+
+use super::{at, check_count, data, refuse_range};
+use crate::Error;
+use crate::export::Format;
+use crate::export::simplefoc::decode;
+use calib_core::angle::ARCSEC_PER_RAD;
+use std::path::Path;
+
+/// The errors (radians) of the first array in `text`, and notes.
+pub(super) fn parse(
+    text: &str,
+    path: &Path,
+    format: Format,
+) -> Result<(Vec<f64>, Vec<String>), Error> {
+    let code = strip_comments(text);
+    if let Some(offset) = code.find("CALIB_CORRECTION_START_DEG") {
+        return Err(refuse_range(path, line_at(&code, offset)));
+    }
+    let Some(array) = first_array(&code) else {
+        return Err(data(
+            path,
+            format!(
+                "no array initialiser (`TYPE NAME[N] = {{ … }};`) found; --format {} reads {}",
+                format.name(),
+                expected(format)
+            ),
+        ));
+    };
+    let line = line_at(&code, array.open);
+    let words: Vec<&str> = array.declaration.split_whitespace().collect();
+    let is_u16 = words.contains(&"uint16_t");
+    let is_float = words.contains(&"float");
+    let right = match format {
+        Format::Simplefoc => is_u16,
+        _ => is_float,
+    };
+    if !right {
+        let hint = if is_float && format == Format::Simplefoc {
+            " — a float table is SimpleFOC's before PR #75: --format simplefoc-float"
+        } else if is_u16 {
+            " — a uint16_t table is current SimpleFOC's: --format simplefoc"
+        } else {
+            ""
+        };
+        return Err(at(
+            path,
+            line,
+            format!(
+                "`{}` is not the array --format {} reads ({}){hint}",
+                array.declaration.trim(),
+                format.name(),
+                expected(format)
+            ),
+        ));
+    }
+    let mut values = Vec::new();
+    for (token, offset) in entries(&code, array.open + 1, array.close) {
+        let line = line_at(&code, offset);
+        check_count(path, line, values.len())?;
+        let value = match format {
+            Format::Simplefoc => token
+                .parse::<u16>()
+                .map(|c| f64::from(decode(c)))
+                .map_err(|_| format!("`{token}` is not a uint16_t code (0 to 65535)")),
+            _ => token
+                .trim_end_matches(['f', 'F'])
+                .parse::<f32>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .map(|v| match format {
+                    Format::CArray => -f64::from(v) / ARCSEC_PER_RAD,
+                    _ => f64::from(v),
+                })
+                .ok_or_else(|| format!("`{token}` is not a finite float")),
+        };
+        values.push(value.map_err(|m| at(path, line, m))?);
+    }
+    if let Some(size) = declared_size(&code, &array.declaration) {
+        match size {
+            Ok(n) if n == values.len() => {}
+            Ok(n) => {
+                return Err(at(
+                    path,
+                    line,
+                    format!(
+                        "the array is declared with {n} entries but holds {}; a table cut short \
+                         or pasted twice cannot be read",
+                        values.len()
+                    ),
+                ));
+            }
+            Err(name) => {
+                return Err(at(
+                    path,
+                    line,
+                    format!(
+                        "the array's size `{name}` is neither a number nor #defined in the file"
+                    ),
+                ));
+            }
+        }
+    }
+    let mut notes = vec![match format {
+        Format::Simplefoc => format!(
+            "SimpleFOC uint16_t table of {} entries, decoded as (code - 32767)/10430.2191955 rad: \
+             the error, subtracted by CalibratedSensor",
+            values.len()
+        ),
+        Format::SimplefocFloat => format!(
+            "SimpleFOC float table of {} entries (releases before PR #75): the error in radians, \
+             subtracted by CalibratedSensor",
+            values.len()
+        ),
+        _ => format!(
+            "calib c-array of {} entries: the correction in arcseconds",
+            values.len()
+        ),
+    }];
+    for setting in ["zero_electric_angle", "sensor_direction"] {
+        if let Some(value) = assignment(&code, setting) {
+            notes.push(format!(
+                "{setting} = {value} (the motor's setting, printed beside the table; not part of it)"
+            ));
+        }
+    }
+    Ok((values, notes))
+}
+
+/// What `format` reads, for messages.
+fn expected(format: Format) -> &'static str {
+    match format {
+        Format::Simplefoc => {
+            "SimpleFOC's `uint16_t calibrationLut[N] = {…};` as printLUT() prints it"
+        }
+        Format::SimplefocFloat => "the `float NAME[N] = {…};` of SimpleFOC releases before PR #75",
+        _ => "calib's `static const float calib_correction_arcsec[N] = {…};`",
+    }
+}
+
+/// An array initialiser: its declaration (`uint16_t calibrationLut[200] =`) and the offsets of
+/// its braces.
+struct Array {
+    declaration: String,
+    open: usize,
+    close: usize,
+}
+
+/// The first `{` whose declaration (since the previous `;`, `{` or `}`) has `[` and `=`, with
+/// its closing `}`.
+fn first_array(code: &str) -> Option<Array> {
+    let mut start = 0;
+    for (i, c) in code.char_indices() {
+        match c {
+            ';' | '}' => start = i + 1,
+            '{' => {
+                let declaration = &code[start..i];
+                if declaration.contains('[') && declaration.contains('=') {
+                    let close = i + code[i..].find('}')?;
+                    // Lines of the preprocessor before the declaration are not part of it.
+                    let declaration = declaration
+                        .lines()
+                        .filter(|l| !l.trim_start().starts_with('#'))
+                        .collect::<Vec<_>>()
+                        .join(" ");
+                    return Some(Array {
+                        declaration,
+                        open: i,
+                        close,
+                    });
+                }
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// The entries between `from` and `to`, each with its offset: comma-separated, a trailing comma
+/// allowed.
+fn entries(code: &str, from: usize, to: usize) -> impl Iterator<Item = (&str, usize)> {
+    let mut offset = from;
+    code[from..to].split(',').filter_map(move |part| {
+        let at = offset + (part.len() - part.trim_start().len());
+        offset += part.len() + 1;
+        let token = part.trim();
+        (!token.is_empty()).then_some((token, at))
+    })
+}
+
+/// The declared size: `None` for `[]`, `Ok(n)` for a number or a `#define`d name, `Err(name)`
+/// for a name not defined.
+fn declared_size(code: &str, declaration: &str) -> Option<Result<usize, String>> {
+    let inside = declaration.split_once('[')?.1.split_once(']')?.0.trim();
+    if inside.is_empty() {
+        return None;
+    }
+    if let Ok(n) = inside.parse() {
+        return Some(Ok(n));
+    }
+    let defined = code.lines().find_map(|l| {
+        let mut words = l.split_whitespace();
+        (words.next() == Some("#define") && words.next() == Some(inside))
+            .then(|| words.next().and_then(|v| v.parse().ok()))
+            .flatten()
+    });
+    Some(defined.ok_or_else(|| inside.to_string()))
+}
+
+/// The value assigned to `name` (`… name = VALUE;`), if the file has one.
+fn assignment(code: &str, name: &str) -> Option<String> {
+    let start = code.find(&format!("{name} ="))? + name.len() + 2;
+    let end = start + code[start..].find(';')?;
+    Some(code[start..end].trim().to_string())
+}
+
+/// 1-based line of byte `offset`.
+fn line_at(code: &str, offset: usize) -> usize {
+    code[..offset].matches('\n').count() + 1
+}
+
+/// `text` with `//` and `/* */` comments replaced by spaces (line ends kept, so offsets and
+/// lines stay those of the file).
+fn strip_comments(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        match (c, chars.peek()) {
+            ('/', Some('/')) => {
+                out.push(' ');
+                for c in chars.by_ref() {
+                    if c == '\n' {
+                        out.push('\n');
+                        break;
+                    }
+                    out.push(' ');
+                }
+            }
+            ('/', Some('*')) => {
+                chars.next();
+                out.push_str("  ");
+                let mut last = ' ';
+                for c in chars.by_ref() {
+                    out.push(if c == '\n' { '\n' } else { ' ' });
+                    if last == '*' && c == '/' {
+                        break;
+                    }
+                    last = c;
+                }
+            }
+            _ => out.push(c),
+        }
+    }
+    out
+}
