@@ -12,10 +12,12 @@ mod exit;
 mod input;
 mod method;
 mod output;
+mod overwrite;
 #[cfg(test)]
 mod schema;
 mod summary;
 mod ui;
+mod units;
 
 use clap::Parser;
 use std::io::Write;
