@@ -110,7 +110,7 @@ impl UnitCheck {
                 let turn = (hi + 1.0).log2().ceil().exp2();
                 return Err(Usage(format!(
                     "{shown}: the readings of `{name}` are whole numbers from {} to {}: far \
-                     beyond a turn in degrees, the unit readings are taken in without --unit; \
+                     beyond a turn in degrees (readings are taken as degrees without --unit); \
                      if they are encoder counts, give --unit counts:N with N the counts per turn \
                      (counts:{} if they wrap there), or --unit deg if they are degrees",
                     r(lo),
@@ -121,8 +121,8 @@ impl UnitCheck {
             if lo >= -PI - 1e-9 && hi <= TAU + 1e-9 && hi - lo >= RAD_TURN_SPAN {
                 return Err(Usage(format!(
                     "{shown}: the readings of `{name}` lie from {lo:.4} to {hi:.4}: a whole turn \
-                     in radians, but only {:.2}° in degrees, the unit readings are taken in \
-                     without --unit; if they are radians (as ROS logs them, REP 103), give \
+                     in radians, but only {:.2}° in degrees (readings are taken as degrees \
+                     without --unit); if they are radians (as ROS logs them, REP 103), give \
                      --unit rad, or --unit deg if they are degrees",
                     hi - lo
                 )));
