@@ -13,6 +13,7 @@ mod input;
 mod method;
 mod output;
 mod overwrite;
+mod reference_table;
 #[cfg(test)]
 mod schema;
 mod summary;

@@ -5,11 +5,11 @@
 
 use crate::batch::{self, BatchArgs, Outcome};
 use crate::input::{LogArgs, open_selected, parse_unit};
+use crate::units::UnitCheck;
 use anyhow::Context;
 use calib_core::{AngleUnit, Sample};
 use calib_io::LogReader;
 use calib_io::prefetch::Prefetch;
-use crate::units::UnitCheck;
 use std::path::{Path, PathBuf};
 
 /// The arguments of every method command.

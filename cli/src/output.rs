@@ -117,12 +117,9 @@ pub fn check_replacing(dir: &Path, method: &str, logs: &[PathBuf]) -> anyhow::Re
         return Ok(());
     };
     let same_logs = previous.logs.len() == logs.len()
-        && logs.iter().all(|log| {
-            previous
-                .logs
-                .iter()
-                .any(|p| same_path(Path::new(p), log))
-        });
+        && logs
+            .iter()
+            .all(|log| previous.logs.iter().any(|p| same_path(Path::new(p), log)));
     if previous.method == method && same_logs {
         return Ok(());
     }
@@ -169,8 +166,8 @@ fn previous_run(dir: &Path) -> Option<PreviousRun> {
     {
         let method = text(&report["method"])?;
         let log = text(report["inputs"].get(0)?)?;
-        let command = text(&report["command_line"])
-            .unwrap_or_else(|| format!("calib {method} {log}"));
+        let command =
+            text(&report["command_line"]).unwrap_or_else(|| format!("calib {method} {log}"));
         return Some(PreviousRun {
             method,
             logs: vec![log],
@@ -183,7 +180,12 @@ fn previous_run(dir: &Path) -> Option<PreviousRun> {
     let entries = summary["logs"].as_array()?;
     let logs: Vec<String> = entries.iter().filter_map(|l| text(&l["log"])).collect();
     let mut files = vec!["summary.json".to_string()];
-    files.extend(entries.iter().filter_map(|l| text(&l["output"])).map(|o| o + "/"));
+    files.extend(
+        entries
+            .iter()
+            .filter_map(|l| text(&l["output"]))
+            .map(|o| o + "/"),
+    );
     Some(PreviousRun {
         command: format!("calib {method} {}", logs.join(" ")),
         method,
@@ -239,10 +241,22 @@ pub fn write_outputs(
     };
     // Nothing written may be an input: neither a file of this run nor one of the previous run's
     // files that replacing the folder removes.
-    let folders = std::iter::once((dir, "-o", files.iter().map(|f| f.0.as_str()).chain(["report.html"]).collect::<Vec<_>>()))
-        .chain(plots.as_ref().map(|(folder, plot_files)| {
-            (*folder, "--plots", plot_files.iter().map(|f| f.0.as_str()).collect())
-        }));
+    let folders = std::iter::once((
+        dir,
+        "-o",
+        files
+            .iter()
+            .map(|f| f.0.as_str())
+            .chain(["report.html"])
+            .collect::<Vec<_>>(),
+    ))
+    .chain(plots.as_ref().map(|(folder, plot_files)| {
+        (
+            *folder,
+            "--plots",
+            plot_files.iter().map(|f| f.0.as_str()).collect(),
+        )
+    }));
     for (folder, option, names) in folders {
         let via = format!("{option} {}", crate::ui::shown(folder));
         let previous = calib_io::atomic::read_manifest(folder);

@@ -170,7 +170,11 @@ mod tests {
             dir.join("link.csv"),
         ] {
             let err = guard.check(&spelling, "-o x").unwrap_err().to_string();
-            assert!(err.contains("would replace the log"), "{}: {err}", spelling.display());
+            assert!(
+                err.contains("would replace the log"),
+                "{}: {err}",
+                spelling.display()
+            );
             assert!(err.contains("dut.csv"), "{err}");
         }
         let err = guard
@@ -179,7 +183,11 @@ mod tests {
             .to_string();
         assert!(err.contains("would write into the log"), "{err}");
         // Other files beside the inputs, and the folder holding them, are not inputs.
-        for free in [dir.join("a.csv"), dir.join("sub/dut.csv"), dir.join("new/x")] {
+        for free in [
+            dir.join("a.csv"),
+            dir.join("sub/dut.csv"),
+            dir.join("new/x"),
+        ] {
             assert!(guard.check(&free, "-o x").is_ok(), "{}", free.display());
         }
     }

@@ -61,9 +61,17 @@ fn table(dir: &Path, name: &str, rows: &[(f64, f64)]) -> PathBuf {
 #[track_caller]
 fn refused(o: &Output, input: &Path, before: &[u8], names: &[&str]) -> String {
     let err = expect_exit(o, 2);
-    assert_mentions(&err, &["an input of this run", "never writes over its inputs"]);
+    assert_mentions(
+        &err,
+        &["an input of this run", "never writes over its inputs"],
+    );
     assert_mentions(&err, names);
-    assert_eq!(std::fs::read(input).unwrap(), before, "{} changed", input.display());
+    assert_eq!(
+        std::fs::read(input).unwrap(),
+        before,
+        "{} changed",
+        input.display()
+    );
     err
 }
 
@@ -76,14 +84,32 @@ fn reference_into_the_logs_folder_keeps_the_log() {
     let before = std::fs::read(&log).unwrap();
     let o = calib_in(
         dir.path(),
-        &["reference", "dut.csv", "--dut", "dut", "--ref", "ref", "-o", "."],
+        &[
+            "reference",
+            "dut.csv",
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            ".",
+        ],
     );
     refused(&o, &log, &before, &["-o .", "./dut.csv", "the log dut.csv"]);
     assert!(!dir.path().join("report.json").exists());
     // Into another folder it calibrates.
     let o = calib_in(
         dir.path(),
-        &["reference", "dut.csv", "--dut", "dut", "--ref", "ref", "-o", "out"],
+        &[
+            "reference",
+            "dut.csv",
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            "out",
+        ],
     );
     expect_exit(&o, 0);
 }
@@ -101,7 +127,12 @@ fn csrr_keeps_its_log_and_truth_folder() {
     let truth = dir.path().join("a.truth");
     let truth_a = std::fs::read(truth.join("a.csv")).unwrap();
     let o = calib(&["csrr", s(&log), "--truth", s(&truth), "-o", s(&truth)]);
-    refused(&o, &truth.join("a.csv"), &truth_a, &["would write into the truth"]);
+    refused(
+        &o,
+        &truth.join("a.csv"),
+        &truth_a,
+        &["would write into the truth"],
+    );
     let out = dir.path().join("out");
     let o = calib(&[
         "csrr",
@@ -140,7 +171,12 @@ fn apply_keeps_its_table() {
     }
     // The log itself, as before.
     let o = calib(&["apply", s(&t), s(&log), "-o", s(&log)]);
-    refused(&o, &log, b"t,a,b\n0,10,20\n1,11,21\n", &["the log", "run.csv"]);
+    refused(
+        &o,
+        &log,
+        b"t,a,b\n0,10,20\n1,11,21\n",
+        &["the log", "run.csv"],
+    );
 }
 
 /// `calib export T -o T` and `calib compose T1 R -o R` destroyed their input table, exit 0.
@@ -153,11 +189,20 @@ fn export_and_compose_keep_their_tables() {
     let t = table(dir.path(), "a.csv", &rows);
     let r = table(dir.path(), "r.csv", &rows);
     let before = std::fs::read(&t).unwrap();
-    let o = calib_in(dir.path(), &["export", "a.csv", "--format", "csv", "-o", "./a.csv"]);
+    let o = calib_in(
+        dir.path(),
+        &["export", "a.csv", "--format", "csv", "-o", "./a.csv"],
+    );
     refused(&o, &t, &before, &["-o ./a.csv", "the table a.csv"]);
     let o = calib(&["compose", s(&t), s(&r), "-o", s(&r)]);
     refused(&o, &r, &before, &["the table", "r.csv"]);
-    let o = calib(&["compose", s(&t), s(&r), "-o", s(&dir.path().join("next.csv"))]);
+    let o = calib(&[
+        "compose",
+        s(&t),
+        s(&r),
+        "-o",
+        s(&dir.path().join("next.csv")),
+    ]);
     expect_exit(&o, 0);
 }
 
@@ -252,12 +297,24 @@ fn readings_in_another_unit_are_refused_naming_it() {
     );
     let out = dir.path().join("out");
     let run = |log: &Path, extra: &[&str]| {
-        let mut args = vec!["reference", s(log), "--dut", "dut", "--ref", "ref", "-o", s(&out)];
+        let mut args = vec![
+            "reference",
+            s(log),
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            s(&out),
+        ];
         args.extend_from_slice(extra);
         calib(&args)
     };
     let err = expect_exit(&run(&rad, &[]), 2);
-    assert_mentions(&err, &["rad.csv", "`dut`", "a whole turn in radians", "--unit rad"]);
+    assert_mentions(
+        &err,
+        &["rad.csv", "`dut`", "a whole turn in radians", "--unit rad"],
+    );
     assert_no_output(&out);
     expect_exit(&run(&rad, &["--unit", "rad", "--force"]), 0);
 
@@ -267,7 +324,15 @@ fn readings_in_another_unit_are_refused_naming_it() {
         &convert(&|deg: f64| format!("{}", (deg / 360.0 * 16384.0).floor() as i64 % 16384)),
     );
     let err = expect_exit(&run(&counts, &["--force"]), 2);
-    assert_mentions(&err, &["counts.csv", "whole numbers", "--unit counts:N", "counts:16384"]);
+    assert_mentions(
+        &err,
+        &[
+            "counts.csv",
+            "whole numbers",
+            "--unit counts:N",
+            "counts:16384",
+        ],
+    );
     expect_exit(&run(&counts, &["--unit", "counts:16384", "--force"]), 0);
 }
 
@@ -300,16 +365,31 @@ fn reference_u_says_whether_it_includes_the_reference() {
     let ref_table = write(dir.path(), "ref-table.csv", &text);
     let out = dir.path().join("out");
     let run = |extra: &[&str]| {
-        let mut args = vec!["reference", s(&log), "--dut", "dut", "--ref", "ref", "-o", s(&out)];
+        let mut args = vec![
+            "reference",
+            s(&log),
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            s(&out),
+        ];
         args.extend_from_slice(extra);
         calib(&args)
     };
 
     let o = run(&[]);
     expect_exit(&o, 0);
-    assert_mentions(&stdout(&o), &["max u (excludes the reference)", "u excludes the reference"]);
+    assert_mentions(
+        &stdout(&o),
+        &["max u (excludes the reference)", "u excludes the reference"],
+    );
     let report = std::fs::read_to_string(out.join("report.json")).unwrap();
-    assert_mentions(&report, &["\"u_excludes_reference\": true", "u excludes the reference"]);
+    assert_mentions(
+        &report,
+        &["\"u_excludes_reference\": true", "u excludes the reference"],
+    );
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_mentions(&html, &["u excludes the reference"]);
     let (off, u) = map_off_and_u(&out);
@@ -332,4 +412,71 @@ fn reference_u_says_whether_it_includes_the_reference() {
     // a few thousandths (0.0083″ measured): 0.02″ is far below the 10″ the table takes out.
     assert!(u >= 0.3, "u {u}″ below the reference's own 0.3″");
     assert!(off < 0.02, "off {off}″");
+}
+
+/// `calib csrr --ref ref` printed "→ after 1.446″" where the map was within 0.005″ of the
+/// truth: the figure was the reference's own error. Now it reads "vs reference", and with the
+/// reference's own table it is split into that error and the rest, which is what the truth
+/// says the correction leaves.
+#[test]
+fn after_correction_against_a_reference_is_labelled_and_split() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = quick_with(&[])
+        + r#"
+[[sensor]]
+name = "ref"
+mount = "b"
+harmonics = [{ order = 5, amplitude_arcsec = 1.5, phase_deg = 20.0 }]
+quantization_arcsec = 0.01
+noise_arcsec = 0.0
+"#;
+    let scenario = write(dir.path(), "run.toml", &scenario);
+    let log = simulate(&scenario, dir.path(), "run.csv");
+    let truth = dir.path().join("run.truth");
+    let out = dir.path().join("out");
+    let csrr = |extra: &[&str]| {
+        let mut args = vec!["csrr", s(&log), "-o", s(&out), "--force"];
+        args.extend_from_slice(extra);
+        calib(&args)
+    };
+    let after_b = |field: &str| -> serde_json::Value {
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        report["channels"]["b"]["after_correction"][field].clone()
+    };
+
+    let o = csrr(&["--truth", s(&truth)]);
+    expect_exit(&o, 0);
+    assert_mentions(&stdout(&o), &["vs truth"]);
+    let vs_truth = after_b("peak_to_peak_arcsec").as_f64().unwrap();
+
+    let o = csrr(&["--ref", "ref"]);
+    expect_exit(&o, 0);
+    assert_mentions(&stdout(&o), &["vs reference", "holds the reference's own error"]);
+    let vs_reference = after_b("peak_to_peak_arcsec").as_f64().unwrap();
+    assert_eq!(after_b("against"), "reference");
+    // The reference's 3″ peak-to-peak error is in the figure.
+    assert!(vs_reference > 2.5, "{vs_reference}″");
+
+    let table = truth.join("ref.csv");
+    let o = csrr(&["--ref", "ref", "--ref-table", s(&table)]);
+    expect_exit(&o, 0);
+    assert_mentions(&stdout(&o), &["vs reference = reference's own"]);
+    let split = after_b("reference_split");
+    let own = split["reference_error_arcsec"].as_f64().unwrap();
+    let rest = split["rest_arcsec"].as_f64().unwrap();
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_mentions(&html, &["against the reference: its own error explains"]);
+    eprintln!(
+        "b after correction: vs truth {vs_truth:.4}″, vs reference {vs_reference:.4}″ = \
+         reference's own {own:.4}″ + rest {rest:.4}″"
+    );
+    // The reference's own error is its 1.5″ order-5 sine: 3″ peak to peak at the checked
+    // points (bins a fraction of a degree wide: the sine's peaks are reached to 0.01″).
+    assert!((own - 3.0).abs() < 0.01, "{own}″");
+    // The rest is what the truth says the correction leaves, up to the noise of the binned
+    // check (0.05″ readings averaged over a bin of B's 2 revolutions × 5 sessions).
+    assert!((rest - vs_truth).abs() < 0.1, "rest {rest}″, truth {vs_truth}″");
+    assert!(rest < vs_reference / 3.0, "rest {rest}″");
 }

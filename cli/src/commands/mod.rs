@@ -49,13 +49,22 @@ fn inputs(command: &Command) -> Inputs {
         Command::Csrr(a) => {
             let mut p = logs(&a.common.logs);
             p.extend(a.truth.as_deref().map(|t| (t, "truth")));
+            p.extend(a.ref_table.as_deref().map(|t| (t, "table")));
             p
         }
         Command::Multihead(a) => logs(&a.common.logs),
         Command::Tdr(a) => logs(&a.common.logs),
-        Command::Reference(a) => logs(&a.common.logs),
+        Command::Reference(a) => {
+            let mut p = logs(&a.common.logs);
+            p.extend(a.ref_table.as_deref().map(|t| (t, "table")));
+            p
+        }
         Command::ShiftAngle(a) => {
-            let mut p: Vec<_> = a.readings.iter().map(|r| (r.as_path(), "readings")).collect();
+            let mut p: Vec<_> = a
+                .readings
+                .iter()
+                .map(|r| (r.as_path(), "readings"))
+                .collect();
             p.extend(a.budget.as_deref().map(|b| (b, "budget")));
             p
         }

@@ -5,6 +5,7 @@ use crate::exit::Usage;
 use crate::input::{alignment_detail, alignment_text};
 use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_outputs};
+use crate::reference_table::ReferenceTable;
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
 use calib_core::Report;
@@ -130,7 +131,20 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if let Some(u) = args.ref_u {
         crate::input::check_non_negative("--ref-u", u, "arcseconds")?;
     }
-    let reference = args.ref_table.as_deref().map(load_reference).transpose()?;
+    let reference = args
+        .ref_table
+        .as_deref()
+        .map(ReferenceTable::read)
+        .transpose()?;
+    if let (Some(path), Some(ReferenceTable { u_max: None, .. })) = (&args.ref_table, &reference) {
+        return Err(Usage(format!(
+            "--ref-table {}: the table has no u_arcsec column, so the reference's uncertainty is \
+             still not known; give a table with u_arcsec, or the reference's stated uncertainty \
+             with --ref-u",
+            path.display()
+        ))
+        .into());
+    }
     crate::input::check_non_negative("--approach", args.approach, "degrees")?;
     crate::input::check_range(
         "--min-speed",
@@ -152,49 +166,6 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     })
 }
 
-/// The reference's calibrated table (`--ref-table`): its map, and the largest u of its points,
-/// radians.
-struct ReferenceTable {
-    map: calib_core::ErrorMap,
-    u_max: f64,
-}
-
-/// Reads `--ref-table`: a whole-turn table with u_arcsec (its uncertainty is what it adds).
-fn load_reference(path: &Path) -> anyhow::Result<ReferenceTable> {
-    if !path.exists() {
-        return Err(Usage(format!(
-            "--ref-table {}: no such table; check the path",
-            path.display()
-        ))
-        .into());
-    }
-    let table = match calib_io::table::read_any_table(path)
-        .with_context(|| format!("cannot read the reference's table {}", path.display()))?
-    {
-        calib_io::table::AnyTable::Turn(t) => t,
-        calib_io::table::AnyTable::Range(_) => {
-            return Err(Usage(format!(
-                "--ref-table {}: a range table; the reference's table must cover a whole turn",
-                path.display()
-            ))
-            .into());
-        }
-    };
-    let Some(u) = table.u else {
-        return Err(Usage(format!(
-            "--ref-table {}: the table has no u_arcsec column, so the reference's uncertainty \
-             is still not known; give a table with u_arcsec, or the reference's stated \
-             uncertainty with --ref-u",
-            path.display()
-        ))
-        .into());
-    };
-    Ok(ReferenceTable {
-        u_max: u.iter().fold(0.0f64, |m, v| m.max(*v)),
-        map: table.map,
-    })
-}
-
 /// Calibrates one log into the folder `out`, the reference's readings corrected by its table
 /// where given.
 fn calibrate(
@@ -205,7 +176,7 @@ fn calibrate(
 ) -> anyhow::Result<Outcome> {
     let names = [args.dut.as_str(), args.reference.as_str()];
     let reference_u = match reference {
-        Some(r) => Some(r.u_max),
+        Some(r) => r.u_max,
         None => args.ref_u.map(|u| u / ARCSEC_PER_RAD),
     };
     let reader = args.common.open(log, &names)?;
@@ -238,7 +209,7 @@ fn calibrate(
             &args.reference,
             reference_u.map(|u| u * ARCSEC_PER_RAD),
         )
-            .with_alignment(alignment_detail(&reader)),
+        .with_alignment(alignment_detail(&reader)),
         vec![log.display().to_string()],
         Some(crate::input::command_line()),
         reader.warnings(log),
