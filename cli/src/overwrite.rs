@@ -30,6 +30,10 @@ struct Input {
     folder: bool,
 }
 
+/// The kinds of input that may be folders: a log (a rosbag2 bag directory) and a `--truth`
+/// folder.
+const FOLDER_INPUTS: [&str; 2] = ["log", "truth"];
+
 /// The inputs of the running command, set once by [`protect`].
 static INPUTS: OnceLock<Inputs> = OnceLock::new();
 
@@ -39,13 +43,17 @@ pub struct Inputs(Vec<Input>);
 
 impl Inputs {
     /// The inputs `paths`, each with what it is (`log`, `table`, …). Paths that do not exist
-    /// are left out.
+    /// are left out, and so are folders given where a file is read (a table, a budget): the
+    /// command refuses them as inputs, with its own message.
     pub fn new<'a>(paths: impl IntoIterator<Item = (&'a Path, &'static str)>) -> Self {
         Inputs(
             paths
                 .into_iter()
                 .filter_map(|(path, what)| {
                     let meta = std::fs::metadata(path).ok()?;
+                    if meta.is_dir() && !FOLDER_INPUTS.contains(&what) {
+                        return None;
+                    }
                     Some(Input {
                         given: path.to_path_buf(),
                         what,
