@@ -453,7 +453,10 @@ noise_arcsec = 0.0
 
     let o = csrr(&["--ref", "ref"]);
     expect_exit(&o, 0);
-    assert_mentions(&stdout(&o), &["vs reference", "holds the reference's own error"]);
+    assert_mentions(
+        &stdout(&o),
+        &["vs reference", "holds the reference's own error"],
+    );
     let vs_reference = after_b("peak_to_peak_arcsec").as_f64().unwrap();
     assert_eq!(after_b("against"), "reference");
     // The reference's 3″ peak-to-peak error is in the figure.
@@ -477,6 +480,9 @@ noise_arcsec = 0.0
     assert!((own - 3.0).abs() < 0.01, "{own}″");
     // The rest is what the truth says the correction leaves, up to the noise of the binned
     // check (0.05″ readings averaged over a bin of B's 2 revolutions × 5 sessions).
-    assert!((rest - vs_truth).abs() < 0.1, "rest {rest}″, truth {vs_truth}″");
+    assert!(
+        (rest - vs_truth).abs() < 0.1,
+        "rest {rest}″, truth {vs_truth}″"
+    );
     assert!(rest < vs_reference / 3.0, "rest {rest}″");
 }
