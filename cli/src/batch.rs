@@ -57,6 +57,11 @@ pub struct BatchArgs {
     /// for scripts whose wildcard may match a single file.
     #[arg(long)]
     pub per_log: bool,
+    /// Replace an output folder that holds the results of another command or of other logs
+    /// (without it that is refused, exit 2, naming the run and its files: rerunning the same
+    /// command on the same logs replaces its results without asking).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// What `--max-pp` judges.
@@ -207,8 +212,14 @@ where
     F: Fn(&Path, &Path) -> anyhow::Result<Outcome> + Sync,
 {
     crate::output::prepare_folder(output)?;
+    if !opts.force {
+        crate::output::check_replacing(output, method, logs)?;
+    }
     if let Some(plots) = crate::ui::plots_dir() {
         crate::output::prepare_folder(plots)?;
+    }
+    if let Some(path) = &opts.junit {
+        crate::overwrite::check(path, &format!("--junit {}", crate::ui::shown(path)))?;
     }
     if logs.len() == 1 && !opts.per_log {
         let result = calibrate(&logs[0], output);
@@ -235,6 +246,8 @@ where
         .into());
     }
     let folders = folder_names(logs);
+    let summary_path = output.join("summary.json");
+    crate::overwrite::check(&summary_path, &format!("-o {}", crate::ui::shown(output)))?;
     std::fs::create_dir_all(output)
         .with_context(|| format!("cannot create the output folder {}", output.display()))?;
     let jobs = match opts.jobs {
@@ -278,7 +291,6 @@ where
         logs: &results,
     };
     let summary_json = calib_io::report::render_json(&summary)?;
-    let summary_path = output.join("summary.json");
     calib_io::atomic::write_atomic(&summary_path, summary_json.as_bytes())?;
     if let Some(path) = &opts.junit {
         write_junit(path, method, &results)?;

@@ -12,10 +12,13 @@ mod exit;
 mod input;
 mod method;
 mod output;
+mod overwrite;
+mod reference_table;
 #[cfg(test)]
 mod schema;
 mod summary;
 mod ui;
+mod units;
 
 use clap::Parser;
 use std::io::Write;

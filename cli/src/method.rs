@@ -5,6 +5,7 @@
 
 use crate::batch::{self, BatchArgs, Outcome};
 use crate::input::{LogArgs, open_selected, parse_unit};
+use crate::units::UnitCheck;
 use anyhow::Context;
 use calib_core::{AngleUnit, Sample};
 use calib_io::LogReader;
@@ -21,7 +22,10 @@ pub struct MethodArgs {
     /// Output folder.
     #[arg(short, long = "output", default_value = "calib-out")]
     pub output: PathBuf,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
+    /// Unit of CSV, JSON and std_msgs readings: deg (the default), rad, arcsec, rev, counts:N.
+    /// JointState positions are radians. Without it, readings that fit radians or counts and
+    /// not degrees (a whole turn within [0, 2π), whole numbers beyond 1024) are refused, naming
+    /// the likely unit.
     #[arg(long, value_parser = parse_unit)]
     pub unit: Option<AngleUnit>,
     /// Print report.json on standard output instead of the summary (summary.json with several
@@ -43,6 +47,7 @@ impl MethodArgs {
     where
         F: Fn(&Path, &Path) -> anyhow::Result<Outcome> + Sync,
     {
+        crate::units::declare(self.unit);
         batch::run(
             method,
             &self.logs,
@@ -63,21 +68,26 @@ impl MethodArgs {
 /// Reads every sample of `reader` (opened on `log` by [`MethodArgs::open`]) and calls `push`
 /// with it. Decoding runs ahead on a second thread ([`Prefetch`]) while this one pushes; a
 /// progress bar shows on a terminal; a sample that cannot be read stops the loop with an error
-/// naming the log. Returns the reader, for its warnings and alignment.
+/// naming the log; readings that fit another unit than the default they were read in are a
+/// usage error once all are read ([`UnitCheck`]). Returns the reader, for its warnings and
+/// alignment.
 pub fn for_each_sample(
     log: &Path,
     reader: LogReader,
     mut push: impl FnMut(&Sample),
 ) -> anyhow::Result<LogReader> {
     let bar = crate::ui::reading(log);
+    let mut units = UnitCheck::new(&reader);
     let mut samples = Prefetch::new(reader);
     for (n, sample) in samples.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         if n as u64 % crate::ui::TICK == 0 {
             bar.inc(crate::ui::TICK);
         }
+        units.push(&s.values);
         push(&s);
     }
     bar.finish_and_clear();
+    units.finish(log)?;
     Ok(samples.finish())
 }

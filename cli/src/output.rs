@@ -5,7 +5,7 @@ use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::ErrorMap;
 use calib_report::Document;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Checks, before any reading, that `dir` can be an output folder (an existing folder, or one
 /// that can be created where an existing folder is writable), and removes the temporary files
@@ -106,6 +106,103 @@ fn report_stale(dir: &Path) {
 
 pub use calib_core::report::table_name;
 
+/// Checks, before any reading, that writing the results of `method` on `logs` into `dir`
+/// replaces no other run's results: a folder holding those of another command, or of the same
+/// command on other logs, is a usage error naming that run and its files (`--force` skips this
+/// check). Rerunning a command on the same logs replaces its results. The previous run is
+/// known from the folder's `report.json` (its method and first input, the log) where the
+/// folder holds one run's outputs (its manifest), or from its `summary.json` (several logs).
+pub fn check_replacing(dir: &Path, method: &str, logs: &[PathBuf]) -> anyhow::Result<()> {
+    let Some(previous) = previous_run(dir) else {
+        return Ok(());
+    };
+    let same_logs = previous.logs.len() == logs.len()
+        && logs
+            .iter()
+            .all(|log| previous.logs.iter().any(|p| same_path(Path::new(p), log)));
+    if previous.method == method && same_logs {
+        return Ok(());
+    }
+    let mut files = previous.files.join(", ");
+    if files.len() > 200 {
+        files = format!("{} files", previous.files.len());
+    }
+    Err(Usage(format!(
+        "-o {}: the folder holds the results of `{}` ({files}); this run ({method} of {}) would \
+         replace them: choose another folder with -o, or add --force to replace them",
+        crate::ui::shown(dir),
+        crate::ui::escape_controls(&previous.command),
+        logs.iter()
+            .map(|l| crate::ui::shown(l))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ))
+    .into())
+}
+
+/// The run whose results an output folder holds.
+#[derive(Debug)]
+struct PreviousRun {
+    /// Its method.
+    method: String,
+    /// Its logs, as it was given them.
+    logs: Vec<String>,
+    /// Its command line, or a reconstruction of it.
+    command: String,
+    /// The files and folders of it that a new run replaces.
+    files: Vec<String>,
+}
+
+/// The run whose results `dir` holds, if calib wrote them: one log's outputs (a manifest
+/// beside `report.json`) or several logs' (`summary.json`).
+fn previous_run(dir: &Path) -> Option<PreviousRun> {
+    let read = |name: &str| -> Option<serde_json::Value> {
+        serde_json::from_str(&std::fs::read_to_string(dir.join(name)).ok()?).ok()
+    };
+    let text = |v: &serde_json::Value| v.as_str().map(str::to_string);
+    let files = calib_io::atomic::read_manifest(dir);
+    if !files.is_empty()
+        && let Some(report) = read("report.json")
+    {
+        let method = text(&report["method"])?;
+        let log = text(report["inputs"].get(0)?)?;
+        let command =
+            text(&report["command_line"]).unwrap_or_else(|| format!("calib {method} {log}"));
+        return Some(PreviousRun {
+            method,
+            logs: vec![log],
+            command,
+            files,
+        });
+    }
+    let summary = read("summary.json")?;
+    let method = text(&summary["method"])?;
+    let entries = summary["logs"].as_array()?;
+    let logs: Vec<String> = entries.iter().filter_map(|l| text(&l["log"])).collect();
+    let mut files = vec!["summary.json".to_string()];
+    files.extend(
+        entries
+            .iter()
+            .filter_map(|l| text(&l["output"]))
+            .map(|o| o + "/"),
+    );
+    Some(PreviousRun {
+        command: format!("calib {method} {}", logs.join(" ")),
+        method,
+        logs,
+        files,
+    })
+}
+
+/// Whether two paths name the same file: by their canonical paths where both exist, else as
+/// written.
+fn same_path(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
+}
+
 /// Writes one table per `(channel, map, standard uncertainty)`, `report.json` and the document
 /// as `report.html` into `dir`; returns the names of the files written. See [`write_outputs`].
 pub fn write_tables_and_report(
@@ -142,6 +239,31 @@ pub fn write_outputs(
         Some(p) => Some((p, document.plot_files()?)),
         None => None,
     };
+    // Nothing written may be an input: neither a file of this run nor one of the previous run's
+    // files that replacing the folder removes.
+    let folders = std::iter::once((
+        dir,
+        "-o",
+        files
+            .iter()
+            .map(|f| f.0.as_str())
+            .chain(["report.html"])
+            .collect::<Vec<_>>(),
+    ))
+    .chain(plots.as_ref().map(|(folder, plot_files)| {
+        (
+            *folder,
+            "--plots",
+            plot_files.iter().map(|f| f.0.as_str()).collect(),
+        )
+    }));
+    for (folder, option, names) in folders {
+        let via = format!("{option} {}", crate::ui::shown(folder));
+        let previous = calib_io::atomic::read_manifest(folder);
+        for name in names.into_iter().chain(previous.iter().map(String::as_str)) {
+            crate::overwrite::check(&folder.join(name), &via)?;
+        }
+    }
     let mut outputs = calib_io::atomic::OutputSet::new();
     for (folder, what) in
         std::iter::once((dir, "output")).chain(plots.as_ref().map(|p| (p.0, "plots")))

@@ -143,7 +143,7 @@ fn usage_errors_exit_2_and_write_nothing() {
         ]),
         2,
     );
-    assert_mentions(&err, &["is the input log itself"]);
+    assert_mentions(&err, &["would replace the log", "an input of this run"]);
     assert_eq!(
         std::fs::read_to_string(&log).unwrap(),
         "t,a,b\n0,10,20\n1,11,21\n"

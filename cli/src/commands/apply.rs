@@ -10,7 +10,7 @@ use calib_io::LogFormat;
 use calib_io::apply::{Applied, ApplyOptions, MapRef, apply_map};
 use calib_io::table::AnyTable;
 use std::fmt::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// How the channel's readings are wrapped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -126,13 +126,10 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
             .ok_or_else(|| Usage("name the channel to correct with --channel".into()))?,
     };
     crate::input::check_log_path(&args.log)?;
-    if same_file(&args.log, &args.output) {
-        return Err(Usage(format!(
-            "-o {} is the input log itself; write the corrected log to another file",
-            args.output.display()
-        ))
-        .into());
-    }
+    crate::overwrite::check(
+        &args.output,
+        &format!("-o {}", crate::ui::shown(&args.output)),
+    )?;
     crate::output::prepare_file(&args.output, "-o")?;
     let format = LogFormat::detect(&args.log)?;
     if format == LogFormat::Rosbag {
@@ -262,23 +259,4 @@ fn short(x: f64) -> String {
     let s = format!("{x:.6}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" { "0".into() } else { s.into() }
-}
-
-/// Whether `output` names the file `input` is (through links or `..` too). An output that does
-/// not exist yet is compared by its folder and name.
-fn same_file(input: &Path, output: &Path) -> bool {
-    let Ok(input) = input.canonicalize() else {
-        return false;
-    };
-    if let Ok(output) = output.canonicalize() {
-        return input == output;
-    }
-    let parent = match output.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    match (parent.canonicalize(), output.file_name()) {
-        (Ok(dir), Some(name)) => dir.join(name) == input,
-        _ => false,
-    }
 }

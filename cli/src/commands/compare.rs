@@ -70,6 +70,8 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             return Err(crate::exit::Usage(format!("{flag} {v}: give a number ≥ 0")).into());
         }
     }
+    let csv_path = args.output.join("compare.csv");
+    crate::overwrite::check(&csv_path, &format!("-o {}", crate::ui::shown(&args.output)))?;
     let t1 = calib_io::points::read_points(&args.map1)?;
     let t2 = calib_io::points::read_points(&args.map2)?;
     let mut m1 = with_expanded(&t1, &args.map1, args.u1, args.k, "--U1")?;
@@ -109,7 +111,6 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             args.output.display()
         )
     })?;
-    let csv_path = args.output.join("compare.csv");
     calib_io::atomic::write_atomic(
         &csv_path,
         calib_io::compare::render_compare_csv(&c).as_bytes(),

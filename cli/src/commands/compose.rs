@@ -58,6 +58,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     crate::input::check_points(args.points)?;
+    crate::overwrite::check(
+        &args.output,
+        &format!("-o {}", crate::ui::shown(&args.output)),
+    )?;
     let first = load(&args.first)?;
     let residual = load(&args.residual)?;
     let points = args

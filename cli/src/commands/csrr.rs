@@ -6,6 +6,7 @@ use crate::exit::Usage;
 use crate::input::{alignment_detail, alignment_text};
 use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_tables_and_report};
+use crate::reference_table::ReferenceTable;
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
 use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
@@ -60,9 +61,16 @@ pub struct Args {
     /// Channel of sensor B.
     #[arg(long, default_value = "b")]
     pub b: String,
-    /// Channel of a reference encoder on B's shaft, to check the result against.
+    /// Channel of a reference encoder on B's shaft, to check the result against: what
+    /// correction leaves of the error it sees ("after, vs reference") holds the reference's own
+    /// error too.
     #[arg(long = "ref")]
     pub reference: Option<String>,
+    /// The reference's own calibrated or simulated error table (a whole turn): B's error left
+    /// after correction against the reference is split into the part the reference's own error
+    /// explains and the rest.
+    #[arg(long, value_name = "FILE", requires = "reference")]
+    pub ref_table: Option<PathBuf>,
     /// A folder of true error tables `<a>.csv`, `<b>.csv` (as `calib simulate` writes beside a
     /// simulated log) to compare the maps with in report.html.
     #[arg(long, value_name = "DIR")]
@@ -182,6 +190,11 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         .as_deref()
         .map(|dir| read_truth(dir, args))
         .transpose()?;
+    let reference_table = args
+        .ref_table
+        .as_deref()
+        .map(ReferenceTable::read)
+        .transpose()?;
     let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
     let (mut travel_a, mut travel_b) = (
@@ -231,9 +244,18 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         }
     })?;
     let truth = truth.as_ref().map(|(a, b)| (a, b));
-    let section = cal
+    let mut section = cal
         .report_section((&args.a, &args.b), args.reference.as_deref(), truth)
         .with_alignment(alignment_detail(&reader));
+    if let Some(table) = &reference_table
+        && let Some(after) = section
+            .channels
+            .get_mut(&args.b)
+            .and_then(|ch| ch.after_correction.as_mut())
+            .filter(|a| a.against == "reference")
+    {
+        after.reference_split = cal.reference_split(&table.map);
+    }
     let report = Report::new(
         section,
         vec![log.display().to_string()],
@@ -433,7 +455,13 @@ fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -
             .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
             .collect();
         let after = ch.after_correction.as_ref().map_or("—".to_string(), |a| {
-            format!("{:.3}″", a.peak_to_peak_arcsec)
+            let split = a.reference_split.as_ref().map_or(String::new(), |s| {
+                format!(
+                    " = reference's own {:.3}″ + rest {:.3}″",
+                    s.reference_error_arcsec, s.rest_arcsec
+                )
+            });
+            format!("{:.3}″ vs {}{split}", a.peak_to_peak_arcsec, a.against)
         });
         t.row(vec![
             name.clone(),
@@ -452,6 +480,16 @@ fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -
         let _ = writeln!(
             o,
             "  (→ after: the error left after correction, known with --truth DIR or --ref NAME)"
+        );
+    } else if report.channels.values().any(|c| {
+        c.after_correction
+            .as_ref()
+            .is_some_and(|a| a.against == "reference" && a.reference_split.is_none())
+    }) {
+        let _ = writeln!(
+            o,
+            "  (→ after vs reference: measured by the reference, so it holds the reference's own \
+             error too; --ref-table FILE splits it off)"
         );
     }
     let files = vec![

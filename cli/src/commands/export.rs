@@ -190,6 +190,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.harmonics == Some(0) {
         return Err(Usage("--harmonics 0 is outside its range: at least 1".into()).into());
     }
+    if let Some(path) = &args.output {
+        crate::overwrite::check(path, &format!("-o {}", crate::ui::shown(path)))?;
+    }
     if !args.table.exists() {
         return Err(Usage(format!(
             "{}: no such file; check the path",

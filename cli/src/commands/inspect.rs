@@ -31,7 +31,8 @@ use std::path::PathBuf;
 pub struct Args {
     /// The log (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file).
     pub log: PathBuf,
-    /// Unit of CSV and JSON readings: deg, rad, arcsec, rev, counts:N.
+    /// Unit of CSV, JSON and std_msgs readings: deg (the default), rad, arcsec, rev, counts:N.
+    /// JointState positions are radians.
     #[arg(long, value_parser = parse_unit)]
     pub unit: Option<AngleUnit>,
     /// First channel of the pair to segment (default: `a`, else the log's first channel).

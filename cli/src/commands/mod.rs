@@ -15,10 +15,13 @@ pub mod tdr;
 pub mod uncertainty;
 
 use crate::cli::{Cli, Command};
+use crate::overwrite::Inputs;
+use std::path::{Path, PathBuf};
 
 /// Runs a command; returns what to print on standard output.
 pub fn run(cli: Cli) -> anyhow::Result<String> {
     crate::ui::set(cli.global);
+    crate::overwrite::protect(inputs(&cli.command));
     match cli.command {
         Command::Inspect(args) => inspect::run(&args),
         Command::Simulate(args) => simulate::run(&args),
@@ -34,4 +37,44 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Apply(args) => apply::run(&args),
         Command::Compose(args) => compose::run(&args),
     }
+}
+
+/// Every path a command reads, with what it is: none of them may be written
+/// ([`crate::overwrite`]). A new command or input option is listed here.
+fn inputs(command: &Command) -> Inputs {
+    fn logs(logs: &[PathBuf]) -> Vec<(&Path, &'static str)> {
+        logs.iter().map(|l| (l.as_path(), "log")).collect()
+    }
+    let paths: Vec<(&Path, &'static str)> = match command {
+        Command::Inspect(a) => vec![(&a.log, "log")],
+        Command::Simulate(a) => vec![(&a.scenario, "scenario")],
+        Command::Csrr(a) => {
+            let mut p = logs(&a.common.logs);
+            p.extend(a.truth.as_deref().map(|t| (t, "truth")));
+            p.extend(a.ref_table.as_deref().map(|t| (t, "table")));
+            p
+        }
+        Command::Multihead(a) => logs(&a.common.logs),
+        Command::Tdr(a) => logs(&a.common.logs),
+        Command::Reference(a) => {
+            let mut p = logs(&a.common.logs);
+            p.extend(a.ref_table.as_deref().map(|t| (t, "table")));
+            p
+        }
+        Command::ShiftAngle(a) => {
+            let mut p: Vec<_> = a
+                .readings
+                .iter()
+                .map(|r| (r.as_path(), "readings"))
+                .collect();
+            p.extend(a.budget.as_deref().map(|b| (b, "budget")));
+            p
+        }
+        Command::Uncertainty(a) => vec![(&a.budget, "budget")],
+        Command::Compare(a) => vec![(&a.map1, "table"), (&a.map2, "table")],
+        Command::Apply(a) => vec![(&a.table, "table"), (&a.log, "log")],
+        Command::Compose(a) => vec![(&a.first, "table"), (&a.residual, "table")],
+        Command::Export(a) => vec![(&a.table, "table")],
+    };
+    Inputs::new(paths)
 }

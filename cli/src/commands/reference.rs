@@ -5,6 +5,7 @@ use crate::exit::Usage;
 use crate::input::{alignment_detail, alignment_text};
 use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_outputs};
+use crate::reference_table::ReferenceTable;
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
 use calib_core::Report;
@@ -13,7 +14,7 @@ use calib_core::reference_cal::{
     ReferenceCal, ReferenceCalibration, ReferenceOptions, TableMap, Targets,
 };
 use std::fmt::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Calibrate an encoder (the DUT) against a better reference encoder on the same shaft.
 ///
@@ -55,9 +56,16 @@ pub struct Args {
     /// Channel of the reference encoder.
     #[arg(long = "ref")]
     pub reference: String,
-    /// The reference's stated standard uncertainty, arcseconds (combined into u_arcsec).
-    #[arg(long, default_value_t = 0.0)]
-    pub ref_u: f64,
+    /// The reference's stated standard uncertainty, arcseconds, combined into every u_arcsec.
+    /// Without it (or --ref-table) the reference's uncertainty is not known: u excludes the
+    /// reference, which the summary, the report and a warning say (--fail-on-warning fails).
+    #[arg(long, value_name = "ARCSEC", conflicts_with = "ref_table")]
+    pub ref_u: Option<f64>,
+    /// The reference's own calibrated table (angle_deg, error_arcsec, correction_arcsec,
+    /// u_arcsec; a whole turn, e.g. from an earlier `calib reference` or `calib csrr` of it):
+    /// its readings are corrected by it, and its largest u is combined into every u_arcsec.
+    #[arg(long, value_name = "FILE")]
+    pub ref_table: Option<PathBuf>,
     /// Points of the output table.
     #[arg(long, default_value_t = 3600)]
     pub points: usize,
@@ -120,7 +128,23 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     crate::input::check_points(Some(args.points))?;
-    crate::input::check_non_negative("--ref-u", args.ref_u, "arcseconds")?;
+    if let Some(u) = args.ref_u {
+        crate::input::check_non_negative("--ref-u", u, "arcseconds")?;
+    }
+    let reference = args
+        .ref_table
+        .as_deref()
+        .map(ReferenceTable::read)
+        .transpose()?;
+    if let (Some(path), Some(ReferenceTable { u_max: None, .. })) = (&args.ref_table, &reference) {
+        return Err(Usage(format!(
+            "--ref-table {}: the table has no u_arcsec column, so the reference's uncertainty is \
+             still not known; give a table with u_arcsec, or the reference's stated uncertainty \
+             with --ref-u",
+            path.display()
+        ))
+        .into());
+    }
     crate::input::check_non_negative("--approach", args.approach, "degrees")?;
     crate::input::check_range(
         "--min-speed",
@@ -137,25 +161,40 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    args.common
-        .run("reference", |log, out| calibrate(args, log, out))
+    args.common.run("reference", |log, out| {
+        calibrate(args, reference.as_ref(), log, out)
+    })
 }
 
-/// Calibrates one log into the folder `out`.
-fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
+/// Calibrates one log into the folder `out`, the reference's readings corrected by its table
+/// where given.
+fn calibrate(
+    args: &Args,
+    reference: Option<&ReferenceTable>,
+    log: &Path,
+    out: &Path,
+) -> anyhow::Result<Outcome> {
     let names = [args.dut.as_str(), args.reference.as_str()];
+    let reference_u = match reference {
+        Some(r) => r.u_max,
+        None => args.ref_u.map(|u| u / ARCSEC_PER_RAD),
+    };
     let reader = args.common.open(log, &names)?;
     let (id, ir) = (0, 1);
     let mut cal = ReferenceCal::new(ReferenceOptions {
         points: args.points,
         min_speed: args.min_speed.to_radians(),
-        reference_u: args.ref_u / ARCSEC_PER_RAD,
+        reference_u: reference_u.unwrap_or(0.0),
         follow_tol: args.follow_tol.to_radians(),
         approach: args.approach.to_radians(),
         max_gap: args.bridge_gap.to_radians(),
         targets: args.targets.clone(),
     });
-    let reader = for_each_sample(log, reader, |s| cal.push(s.t, s.values[id], s.values[ir]))?;
+    // A calibrated reference reads r − error(r) (its table's correction applied).
+    let corrected = |r: f64| reference.map_or(r, |t| r - t.map.eval_linear(r));
+    let reader = for_each_sample(log, reader, |s| {
+        cal.push(s.t, s.values[id], corrected(s.values[ir]));
+    })?;
     let cal = cal.finish().with_context(|| {
         format!(
             "{}: DUT `{}`, reference `{}`",
@@ -165,8 +204,12 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         )
     })?;
     let report = Report::new(
-        cal.report_section(&args.dut, &args.reference, args.ref_u)
-            .with_alignment(alignment_detail(&reader)),
+        cal.report_section(
+            &args.dut,
+            &args.reference,
+            reference_u.map(|u| u * ARCSEC_PER_RAD),
+        )
+        .with_alignment(alignment_detail(&reader)),
         vec![log.display().to_string()],
         Some(crate::input::command_line()),
         reader.warnings(log),
@@ -198,6 +241,11 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         warnings: report.warnings,
         files,
     })
+}
+
+/// Whether the report's u leaves the reference out (its uncertainty not given).
+pub fn excludes_reference(report: &Report) -> bool {
+    matches!(&report.details, calib_core::report::Details::Reference(d) if d.u_excludes_reference)
 }
 
 fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &Report) -> String {
@@ -258,7 +306,13 @@ fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &
         .take(3)
         .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
         .collect();
-    let mut t = TextTable::new(&["channel", "p-p before", "rms", "max u", "largest orders"]);
+    let excludes = excludes_reference(report);
+    let u_label = if excludes {
+        "max u (excludes the reference)"
+    } else {
+        "max u"
+    };
+    let mut t = TextTable::new(&["channel", "p-p before", "rms", u_label, "largest orders"]);
     t.row(vec![
         args.dut.clone(),
         format!("{:.3}″", ch.peak_to_peak_arcsec),

@@ -52,6 +52,8 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     })?;
     crate::input::check_points(Some(args.points))?;
     calib_io::LogFormat::for_output(&args.output).map_err(|e| Usage(e.to_string()))?;
+    let via = format!("-o {}", crate::ui::shown(&args.output));
+    crate::overwrite::check(&args.output, &via)?;
 
     let channels = scenario.channels();
     let samples = scenario.samples()?;
@@ -80,6 +82,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     // than a whole turn.
     let ranges = scenario.range_truth(args.points)?;
     let dir = truth_dir(&args.output);
+    for (name, _) in &truths {
+        crate::overwrite::check(&dir.join(table_name(name)), &via)?;
+    }
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut written = Vec::new();
     let mut peaks = Vec::new();

@@ -162,12 +162,24 @@ fn summary(names: (&str, &str), cal: &Calibration, report: &Report) -> Section {
     );
     for name in [names.0, names.1] {
         if let Some(ch) = report.channels.get(name) {
-            let after = ch
-                .after_correction
-                .as_ref()
-                .map_or("— (no truth or reference)".to_string(), |a| {
-                    format!("{} ({})", num(a.peak_to_peak_arcsec, 3), a.against)
-                });
+            let after = ch.after_correction.as_ref().map_or(
+                "— (no truth or reference)".to_string(),
+                |a| match (&a.reference_split, a.against.as_str()) {
+                    (Some(s), _) => format!(
+                        "{} against the reference: its own error explains {}, the rest is {}",
+                        num(a.peak_to_peak_arcsec, 3),
+                        num(s.reference_error_arcsec, 3),
+                        num(s.rest_arcsec, 3)
+                    ),
+                    (None, "reference") => format!(
+                        "{} against the reference (its own error included)",
+                        num(a.peak_to_peak_arcsec, 3)
+                    ),
+                    (None, against) => {
+                        format!("{} against the {against}", num(a.peak_to_peak_arcsec, 3))
+                    }
+                },
+            );
             channels = channels.row([
                 name.to_string(),
                 ch.table.clone(),

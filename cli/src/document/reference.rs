@@ -42,6 +42,12 @@ pub fn document(
     );
     doc.warnings = report.warnings.clone();
     let u_max = cal.u.iter().fold(0.0f64, |m, u| m.max(*u)) * ARCSEC_PER_RAD;
+    // Next to every u: whether it leaves the reference out.
+    let excludes = if crate::commands::reference::excludes_reference(report) {
+        ", u excludes the reference"
+    } else {
+        ""
+    };
     let facts = Table::new("Run", &["quantity", "value"])
         .row(["revolutions".to_string(), num(cal.revolutions, 2)])
         .row([
@@ -49,7 +55,7 @@ pub fn document(
             format!("{} / {}", cal.min_passes.0, cal.min_passes.1),
         ])
         .row([
-            "largest standard uncertainty u (″)".to_string(),
+            format!("largest standard uncertainty u (″){excludes}"),
             num(u_max, 4),
         ])
         .row([
@@ -104,7 +110,7 @@ pub fn document(
         .map(|(p, u)| (p.0, K * u * ARCSEC_PER_RAD))
         .collect();
     let layers = MapLayers::of_points(points.clone())
-        .with_band(&format!("expanded uncertainty (k = {K})"), band);
+        .with_band(&format!("expanded uncertainty (k = {K}){excludes}"), band);
     let mut s = Section::new(&format!("Error map of {dut}")).text(&format!(
         "Error = {dut} − {reference} (mean of both directions, zero mean), as a function of \
          {dut}'s reading; the reference's own error is part of it."

@@ -523,8 +523,10 @@ impl Staged {
     }
 }
 
-/// The file names listed in `folder`'s manifest (empty if it has none).
-fn read_manifest(folder: &Path) -> Vec<String> {
+/// The file names listed in `folder`'s manifest (empty if it has none): the files a previous
+/// run wrote there, which the next [`OutputSet`] into `folder` removes where it does not write
+/// them again.
+pub fn read_manifest(folder: &Path) -> Vec<String> {
     std::fs::read_to_string(folder.join(MANIFEST))
         .map(|s| {
             s.lines()

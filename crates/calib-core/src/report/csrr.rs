@@ -1,8 +1,8 @@
 //! The report section of a CSRR calibration ([`crate::csrr`]).
 
 use super::{
-    AfterCorrection, ChannelReport, Details, ReportSection, SessionReport, UncertaintyReport,
-    arcsec,
+    AfterCorrection, ChannelReport, Details, ReferenceSplit, ReportSection, SessionReport,
+    UncertaintyReport, arcsec,
 };
 
 use crate::csrr::{Calibration, EffectiveRange, EpsHarmonic, Method, observability};
@@ -163,6 +163,15 @@ impl Calibration {
             &r.b_vs_reference
         };
         AfterCorrection::of_map("reference", map, check)
+    }
+
+    /// How B's error left after correction against the reference splits into the reference's
+    /// own error `reference_error` (known from its calibration or a simulation) and the rest
+    /// ([`ReferenceSplit`]). Only B's: the reference is on B's shaft, so B's check sees its error
+    /// at B's own angle, while A's sees it shifted by each session's relative rotation.
+    pub fn reference_split(&self, reference_error: &ErrorMap) -> Option<ReferenceSplit> {
+        let check = &self.reference.as_ref()?.b_vs_reference;
+        ReferenceSplit::of(&self.b, check, reference_error)
     }
 
     /// The report section of channels `a` and `b`: their maps, each with what correction

@@ -224,6 +224,53 @@ pub struct AfterCorrection {
     pub against: String,
     /// `max r − min r` over the checked points, arcsec.
     pub peak_to_peak_arcsec: f64,
+    /// Against a reference whose own error is known (it was calibrated, or simulated): how
+    /// much of the figure that error explains, and the rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_split: Option<ReferenceSplit>,
+}
+
+/// The error left after correction against a reference, split into the part the reference's
+/// own error explains and the rest.
+///
+/// The check measures `c_j = e(θ_j) − e_ref(θ_j)` (reading − reference reading, on one shaft),
+/// so `r_j = c_j − m(θ_j)` holds the reference's error `−e_ref` besides what the map `m` misses.
+/// With `e_ref` known the rest is `r_j + e_ref(θ_j) = e(θ_j) − m(θ_j)`: what the correction
+/// leaves of the sensor's own error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceSplit {
+    /// Peak to peak of the reference's own error `e_ref(θ_j)` over the checked points, arcsec.
+    pub reference_error_arcsec: f64,
+    /// Peak to peak of `r_j + e_ref(θ_j)`, the rest: what the map leaves of the sensor's own
+    /// error, arcsec.
+    pub rest_arcsec: f64,
+}
+
+impl ReferenceSplit {
+    /// The split of the check `(θ, c)` (radians) of `map` against a reference whose own error
+    /// is `reference_error` (a whole turn, as a function of its reading); `None` without points.
+    pub fn of(map: &ErrorMap, check: &[(f64, f64)], reference_error: &ErrorMap) -> Option<Self> {
+        let own = AfterCorrection::from_pairs(
+            "reference",
+            check
+                .iter()
+                .map(|&(theta, _)| (reference_error.eval_linear(theta), 0.0)),
+        )?;
+        let rest = AfterCorrection::from_pairs(
+            "reference",
+            check.iter().map(|&(theta, c)| {
+                (
+                    c + reference_error.eval_linear(theta),
+                    map.eval_linear(theta),
+                )
+            }),
+        )?;
+        Some(ReferenceSplit {
+            reference_error_arcsec: own.peak_to_peak_arcsec,
+            rest_arcsec: rest.peak_to_peak_arcsec,
+        })
+    }
 }
 
 impl AfterCorrection {
@@ -238,6 +285,7 @@ impl AfterCorrection {
         (lo <= hi).then(|| AfterCorrection {
             against: against.to_string(),
             peak_to_peak_arcsec: (hi - lo) * ARCSEC_PER_RAD,
+            reference_split: None,
         })
     }
 

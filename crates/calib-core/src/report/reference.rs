@@ -6,14 +6,28 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// The warning of a calibration whose reference's uncertainty is not known: its u leaves the
+/// reference out. A map against a reference measures DUT − reference, so the reference's own
+/// error is in the map and its uncertainty belongs in u (GUM, JCGM 100:2008 §5.1); without it
+/// u states only how repeatably the DUT was measured against it.
+pub const U_EXCLUDES_REFERENCE: &str = "u excludes the reference: its uncertainty is not known, \
+     so every u here is the DUT's repeatability against it alone and the map may be off by the \
+     reference's own error; give the reference's stated standard uncertainty (--ref-u ARCSEC) or \
+     its calibrated table (--ref-table FILE)";
+
 /// `details` of `calib reference`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ReferenceDetails {
     /// The reference's channel.
     pub reference: String,
-    /// The reference's own standard uncertainty as given (`--ref-u`), arcsec.
+    /// The reference's own standard uncertainty combined into every point's u (`--ref-u`, or
+    /// the largest u of its calibrated table), arcsec; 0 where it is not known.
     pub reference_u_arcsec: f64,
+    /// The reference's uncertainty is not known, so no u of the table includes it: u is the
+    /// DUT's repeatability alone, and the map may be off by the reference's own error.
+    #[serde(default)]
+    pub u_excludes_reference: bool,
     /// Revolutions (or, over a range, passes' travel in revolutions) of the run.
     pub revolutions: f64,
     /// The fewest passes over any grid point, per direction.
@@ -165,12 +179,13 @@ impl ReferenceCalibration {
     }
 
     /// The report section of the DUT channel `dut` against the `reference` channel, whose own
-    /// standard uncertainty was given as `reference_u_arcsec`.
+    /// standard uncertainty combined into u was `reference_u_arcsec` (`None`: not known, and
+    /// left out of u).
     pub fn report_section(
         &self,
         dut: &str,
         reference: &str,
-        reference_u_arcsec: f64,
+        reference_u_arcsec: Option<f64>,
     ) -> ReportSection {
         let mut ch = match &self.map {
             TableMap::Turn(m) => ChannelReport::of_map(&table_name(dut), m, 10),
@@ -189,7 +204,8 @@ impl ReferenceCalibration {
         let a = |v: Option<f64>| v.map(arcsec);
         let details = ReferenceDetails {
             reference: reference.to_string(),
-            reference_u_arcsec,
+            reference_u_arcsec: reference_u_arcsec.unwrap_or(0.0),
+            u_excludes_reference: reference_u_arcsec.is_none(),
             revolutions: self.revolutions,
             min_passes: MinPasses {
                 increasing: self.min_passes.0,
@@ -242,11 +258,15 @@ impl ReferenceCalibration {
             repeat_spread_deg: self.repeat_spread.map(f64::to_degrees),
             alignment: None,
         };
+        let mut warnings = self.warnings.clone();
+        if reference_u_arcsec.is_none() {
+            warnings.push(U_EXCLUDES_REFERENCE.to_string());
+        }
         ReportSection {
             method: "reference",
             channels: BTreeMap::from([(dut.to_string(), ch)]),
             sessions: Vec::new(),
-            warnings: self.warnings.clone(),
+            warnings,
             details: Details::Reference(details),
         }
     }
