@@ -106,6 +106,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
+    crate::overwrite::check(
+        &args.output,
+        &format!("-o {}", crate::ui::shown(&args.output)),
+    )?;
     let mut opts = ImportOptions::new(args.format.to_io());
     opts.moteus_source = args.source;
     opts.scale_arcsec = args.scale;

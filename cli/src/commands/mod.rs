@@ -75,6 +75,7 @@ fn inputs(command: &Command) -> Inputs {
         Command::Apply(a) => vec![(&a.table, "table"), (&a.log, "log")],
         Command::Compose(a) => vec![(&a.first, "table"), (&a.residual, "table")],
         Command::Export(a) => vec![(&a.table, "table")],
+        Command::Import(a) => vec![(&a.file, "table")],
     };
     Inputs::new(paths)
 }
