@@ -6,6 +6,7 @@ pub mod compose;
 pub mod csrr;
 pub mod export;
 pub mod inspect;
+pub mod moteus_dump;
 pub mod multihead;
 pub mod reference;
 pub mod shift_angle;
@@ -27,6 +28,7 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Uncertainty(args) => uncertainty::run(&args),
         Command::Compare(args) => compare::run(&args),
         Command::Reference(args) => reference::run(&args),
+        Command::MoteusDump(args) => moteus_dump::run(&args),
         Command::Export(args) => export::run(&args),
         Command::Tdr(args) => tdr::run(&args),
         Command::Apply(args) => apply::run(&args),

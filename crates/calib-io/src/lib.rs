@@ -52,6 +52,7 @@ pub mod export;
 pub mod limits;
 pub mod log;
 pub mod mcap_log;
+pub mod moteus_dump;
 pub mod naming;
 pub mod points;
 pub mod prefetch;
