@@ -54,7 +54,11 @@ fn at(rows: &[(f64, f64, f64)], deg: f64, periodic: bool) -> Option<f64> {
 
 /// `(max |map − truth|, rms, fraction within 2u)` over the map's points, the common constant
 /// removed, arcsec.
-fn against_truth(got: &[(f64, f64, f64)], truth: &[(f64, f64, f64)], periodic: bool) -> (f64, f64, f64) {
+fn against_truth(
+    got: &[(f64, f64, f64)],
+    truth: &[(f64, f64, f64)],
+    periodic: bool,
+) -> (f64, f64, f64) {
     let pairs: Vec<(f64, f64)> = got
         .iter()
         .filter_map(|&(a, e, u)| at(truth, a, periodic).map(|t| (e - t, u)))
@@ -79,7 +83,11 @@ fn against_truth(got: &[(f64, f64, f64)], truth: &[(f64, f64, f64)], periodic: b
 #[test]
 fn latency_is_estimated_and_removed() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(&testdata("scenarios/latency.toml"), dir.path(), "latency.csv");
+    let log = simulate(
+        &testdata("scenarios/latency.toml"),
+        dir.path(),
+        "latency.csv",
+    );
     let out = dir.path().join("out");
     let o = reference(&log, "dut", "ref", &out, &[]);
     let summary = expect_exit(&o, 0);
@@ -92,16 +100,25 @@ fn latency_is_estimated_and_removed() {
     assert_eq!(d["latency"]["source"], "estimated");
     let truth = table(&dir.path().join("latency.truth/dut.csv")).1;
     let (max, rms, covered) = against_truth(&table(&out.join("dut.csv")).1, &truth, true);
-    println!("map − truth: max {max:.3}″, rms {rms:.3}″, {:.1} % within 2u", 100.0 * covered);
+    println!(
+        "map − truth: max {max:.3}″, rms {rms:.3}″, {:.1} % within 2u",
+        100.0 * covered
+    );
     assert!(max < 1.5 && covered >= 0.85, "{max} {covered}");
 
     let out0 = dir.path().join("out0");
-    expect_exit(&reference(&log, "dut", "ref", &out0, &["--latency", "0"]), 0);
+    expect_exit(
+        &reference(&log, "dut", "ref", &out0, &["--latency", "0"]),
+        0,
+    );
     let (max0, _, _) = against_truth(&table(&out0.join("dut.csv")).1, &truth, true);
     println!("with --latency 0: max {max0:.1}″");
     assert!(max0 > 100.0, "{max0}");
     let given = dir.path().join("given");
-    expect_exit(&reference(&log, "dut", "ref", &given, &["--latency", "0.02"]), 0);
+    expect_exit(
+        &reference(&log, "dut", "ref", &given, &["--latency", "0.02"]),
+        0,
+    );
     let (max_given, _, _) = against_truth(&table(&given.join("dut.csv")).1, &truth, true);
     assert!(max_given < 1.5, "{max_given}");
 }
@@ -115,22 +132,38 @@ fn latency_is_estimated_and_removed() {
 #[test]
 fn backlash_at_the_ends_of_a_range_across_zero() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(&testdata("scenarios/backlash.toml"), dir.path(), "backlash.csv");
+    let log = simulate(
+        &testdata("scenarios/backlash.toml"),
+        dir.path(),
+        "backlash.csv",
+    );
     let out = dir.path().join("out");
     let summary = expect_exit(&reference(&log, "dut", "ref", &out, &[]), 0);
-    assert_mentions(&summary, &["one direction", "half the reversal", "across 0°"]);
+    assert_mentions(
+        &summary,
+        &["one direction", "half the reversal", "across 0°"],
+    );
     let (range, got) = table(&out.join("dut.csv"));
     let (lo, hi) = range.unwrap();
     println!("range {lo}° to {hi}°");
-    assert!(lo < -39.0 && lo > -41.0 && hi > 94.0 && hi < 96.0, "{lo} {hi}");
+    assert!(
+        lo < -39.0 && lo > -41.0 && hi > 94.0 && hi < 96.0,
+        "{lo} {hi}"
+    );
     assert!(got.iter().all(|r| r.0 < 360.0));
     let truth = table(&dir.path().join("backlash.truth/dut.csv")).1;
     let (max, rms, covered) = against_truth(&got, &truth, false);
-    println!("map − truth: max {max:.3}″, rms {rms:.3}″, {:.1} % within 2u", 100.0 * covered);
+    println!(
+        "map − truth: max {max:.3}″, rms {rms:.3}″, {:.1} % within 2u",
+        100.0 * covered
+    );
     assert!(max < 0.5 && covered >= 0.9, "{max} {covered}");
     let report = read_json(&out.join("report.json"));
     let ends = &report["details"]["one_direction_points"];
-    assert!((ends["max_correction_arcsec"].as_f64().unwrap() - 15.0).abs() < 1.0, "{ends}");
+    assert!(
+        (ends["max_correction_arcsec"].as_f64().unwrap() - 15.0).abs() < 1.0,
+        "{ends}"
+    );
     assert!(report["details"]["range"]["start_deg"].as_f64().unwrap() < 0.0);
 }
 
@@ -143,13 +176,20 @@ fn backlash_at_the_ends_of_a_range_across_zero() {
 #[test]
 fn a_commanded_reference_has_its_ripple_taken_out() {
     let dir = tempfile::tempdir().unwrap();
-    let log = simulate(&testdata("scenarios/commanded.toml"), dir.path(), "commanded.csv");
+    let log = simulate(
+        &testdata("scenarios/commanded.toml"),
+        dir.path(),
+        "commanded.csv",
+    );
     let out = dir.path().join("out");
     let extra = ["--ref-kind", "commanded", "--pole-pairs", "21"];
     let summary = expect_exit(&reference(&log, "encoder", "commanded", &out, &extra), 0);
     assert_mentions(&summary, &["motor ripple", "order 126"]);
     let report = read_json(&out.join("report.json"));
-    let terms = report["details"]["ripple"]["terms"].as_array().unwrap().clone();
+    let terms = report["details"]["ripple"]["terms"]
+        .as_array()
+        .unwrap()
+        .clone();
     let amp = |k: u64| {
         terms.iter().find(|t| t["harmonic"] == k).unwrap()["amplitude_arcsec"]
             .as_f64()
@@ -157,19 +197,30 @@ fn a_commanded_reference_has_its_ripple_taken_out() {
     };
     println!("ripple k=6: {}″, k=12: {}″", amp(6), amp(12));
     assert!((amp(6) - 700.0).abs() < 7.0 && (amp(12) - 150.0).abs() < 1.5);
-    let orders = report["channels"]["encoder"]["harmonics"].as_array().unwrap().clone();
+    let orders = report["channels"]["encoder"]["harmonics"]
+        .as_array()
+        .unwrap()
+        .clone();
     let order = |h: u64| {
         orders
             .iter()
             .find(|o| o["order"] == h)
             .map_or(0.0, |o| o["amplitude_arcsec"].as_f64().unwrap())
     };
-    println!("orders 1, 2, 126: {}″ {}″ {}″", order(1), order(2), order(126));
+    println!(
+        "orders 1, 2, 126: {}″ {}″ {}″",
+        order(1),
+        order(2),
+        order(126)
+    );
     assert!((order(1) - 800.0).abs() < 2.0 && (order(2) - 650.0).abs() < 2.0);
     assert!(order(126) < 5.0);
     let truth = table(&dir.path().join("commanded.truth/encoder.csv")).1;
     let (max, rms, covered) = against_truth(&table(&out.join("encoder.csv")).1, &truth, true);
-    println!("map − truth: max {max:.3}″, rms {rms:.3}″, {:.1} % within 2u", 100.0 * covered);
+    println!(
+        "map − truth: max {max:.3}″, rms {rms:.3}″, {:.1} % within 2u",
+        100.0 * covered
+    );
     assert!(max < 3.0, "{max}");
 
     let plain = dir.path().join("plain");
@@ -211,7 +262,9 @@ fn reference_kind_and_latency_usage_errors() {
 fn moteus_dump_is_calibrated_within_its_tolerance() {
     let dir = tempfile::tempdir().unwrap();
     let p = 21.0;
-    let e = |th: f64| 0.2f64.to_radians() * (th + 0.5).cos() + 0.15f64.to_radians() * (2.0 * th - 1.0).cos();
+    let e = |th: f64| {
+        0.2f64.to_radians() * (th + 0.5).cos() + 0.15f64.to_radians() * (2.0 * th - 1.0).cos()
+    };
     let rho = |phi: f64| 0.15f64.to_radians() * (6.0 * phi + 0.3).cos();
     let mut text = String::from("CAL start\n");
     let n = 1060usize;
@@ -219,7 +272,9 @@ fn moteus_dump_is_calibrated_within_its_tolerance() {
         let phase = k as f64 * p * 65536.0 / n as f64; // electrical phase, counts
         let c = phase / 65536.0 * TAU / p + 1.0; // commanded shaft angle
         let theta = c + rho(p * (c - 1.0));
-        let enc = ((theta + e(theta)) / TAU * 65536.0).round().rem_euclid(65536.0) as u32;
+        let enc = ((theta + e(theta)) / TAU * 65536.0)
+            .round()
+            .rem_euclid(65536.0) as u32;
         format!("{dir} {} {enc}\n", (phase.round() as u64 % 65536))
     };
     for k in 0..n + 4 {
@@ -249,6 +304,9 @@ fn moteus_dump_is_calibrated_within_its_tolerance() {
         })
         .collect();
     let (max, rms, covered) = against_truth(&table(&out.join("encoder.csv")).1, &truth, true);
-    println!("map − truth: max {max:.3}″, rms {rms:.3}″, {:.1} % within 2u", 100.0 * covered);
+    println!(
+        "map − truth: max {max:.3}″, rms {rms:.3}″, {:.1} % within 2u",
+        100.0 * covered
+    );
     assert!(max < 12.0, "{max}");
 }

@@ -5,9 +5,7 @@ use crate::summary::key_values;
 use anyhow::Context;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{
-    Latency, ReferenceCal, ReferenceKind, ReferenceOptions, TableMap,
-};
+use calib_core::reference_cal::{Latency, ReferenceCal, ReferenceKind, ReferenceOptions, TableMap};
 use calib_io::export::{self, ExportOptions};
 use calib_io::moteus_dump::{SETTLING_SAMPLES, read_cal_dump};
 use std::fmt::Write;
@@ -29,7 +27,8 @@ use std::path::PathBuf;
 ///
 /// Writes DIR/encoder.csv (the calib table with u_arcsec, of the raw encoder reading),
 /// DIR/moteus.txt (the 256-entry compensation table as `conf set` lines, see `calib export
-/// --help`), DIR/report.json and DIR/report.html, and prints a summary with the ripple, the
+/// --help`; the map's orders 1 to pole pairs − 1, below the electrical frequency, which is what
+/// moteus' own average leaves and what 256 entries hold), DIR/report.json and DIR/report.html, and prints a summary with the ripple, the
 /// table's u and how closely the moteus table holds the map. An encoder that counts against the
 /// phase is calibrated in its raw reading (the commanded angle negated): a source with `sign`
 /// −1 needs the table of the reading it uses.
@@ -83,9 +82,12 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         cal.push(t, encoder, commanded);
     }
     let (dut, reference) = ("encoder", "commanded");
-    let cal = cal
-        .finish()
-        .with_context(|| format!("{}: the encoder against the commanded angle", args.dump.display()))?;
+    let cal = cal.finish().with_context(|| {
+        format!(
+            "{}: the encoder against the commanded angle",
+            args.dump.display()
+        )
+    })?;
     let TableMap::Turn(map) = &cal.map else {
         anyhow::bail!(
             "{}: the encoder covered only part of a turn; moteus' table needs a whole turn (record the calibration \
@@ -109,12 +111,21 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     );
     let json = calib_io::report::render_json(&report)?;
     let doc = crate::document::reference::document(dut, reference, &cal, &report);
-    let table = calib_io::table::render_table(map, Some(&cal.u)).context("the table of the encoder")?;
+    let table =
+        calib_io::table::render_table(map, Some(&cal.u)).context("the table of the encoder")?;
     let mut opts = ExportOptions::new(
         export::Format::Moteus,
-        format!("calib {} moteus-dump of {}", env!("CARGO_PKG_VERSION"), args.dump.display()),
+        format!(
+            "calib {} moteus-dump of {}",
+            env!("CARGO_PKG_VERSION"),
+            args.dump.display()
+        ),
     );
     opts.moteus_source = args.moteus_source;
+    // The orders below the electrical frequency: what the firmware's own average over an
+    // electrical period leaves, and all a 256-entry table holds without aliasing the rotor's
+    // motion between the samples into it.
+    opts.keep = export::Keep::Orders((1..pole_pairs.max(2) as usize).collect());
     let moteus = export::export(map, &opts).context("the moteus table")?;
     write_outputs(
         &args.output,
@@ -143,7 +154,14 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         terms
             .iter()
             .take(2)
-            .map(|t| format!("order {} {:.3}″ ± {:.3}″", t.order, t.amplitude * ARCSEC_PER_RAD, t.u_amplitude * ARCSEC_PER_RAD))
+            .map(|t| {
+                format!(
+                    "order {} {:.3}″ ± {:.3}″",
+                    t.order,
+                    t.amplitude * ARCSEC_PER_RAD,
+                    t.u_amplitude * ARCSEC_PER_RAD
+                )
+            })
             .collect::<Vec<_>>()
             .join(", ")
     });
@@ -175,7 +193,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
                 || "written".to_string(),
                 |f| {
                     format!(
-                        "256 entries; as the firmware interpolates them, within {:.3}″ of the map (rms {:.3}″)",
+                        "256 entries holding the map's orders 1–{}; as the firmware interpolates them they differ from the \
+                         whole map (all its orders) by at most {:.3}″, rms {:.3}″",
+                        pole_pairs.max(2) - 1,
                         f.max * ARCSEC_PER_RAD,
                         f.rms * ARCSEC_PER_RAD
                     )

@@ -404,7 +404,9 @@ fn range_text(lo: f64, hi: f64) -> String {
             hi - 360.0
         )
     } else {
-        format!("range table from {lo:.3}° to {hi:.3}° ({span:.3}° of the DUT's reading; no whole turn)")
+        format!(
+            "range table from {lo:.3}° to {hi:.3}° ({span:.3}° of the DUT's reading; no whole turn)"
+        )
     }
 }
 

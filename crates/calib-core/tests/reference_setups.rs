@@ -9,11 +9,19 @@ use calib_core::reference_cal::{
 use calib_core::simulate::Scenario;
 
 fn scenario(name: &str) -> Scenario {
-    let path = format!("{}/../../testdata/scenarios/{name}", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/../../testdata/scenarios/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    );
     toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-fn calibrate(s: &Scenario, dut: usize, reference: usize, opts: ReferenceOptions) -> ReferenceCalibration {
+fn calibrate(
+    s: &Scenario,
+    dut: usize,
+    reference: usize,
+    opts: ReferenceOptions,
+) -> ReferenceCalibration {
     let mut cal = ReferenceCal::new(opts);
     for sample in s.samples().unwrap() {
         cal.push(sample.t, sample.values[dut], sample.values[reference]);
@@ -50,9 +58,15 @@ fn latency_is_estimated_and_removed() {
     let truth = &s.truth(3600).unwrap()[0].1;
     let e = errors(&cal, |a| Some(truth.eval_linear(a)));
     let (max, rms, covered) = summary(&e);
-    eprintln!("max {max} rms {rms} covered {covered} warnings {:?}", cal.warnings);
+    eprintln!(
+        "max {max} rms {rms} covered {covered} warnings {:?}",
+        cal.warnings
+    );
     assert_eq!(l.source, LatencySource::Estimated);
+    // τ within 5 % (issue 24's bar; measured 20.0000 ms), the map within 1.5″ (measured 0.59″;
+    // the reasons are in cli/tests/reference_setups_cli.rs).
     assert!((f.tau - 0.02).abs() < 0.001, "{}", f.tau);
+    assert!(max < 1.5 && covered >= 0.85, "{max} {rms} {covered}");
 }
 
 #[test]
@@ -60,12 +74,35 @@ fn backlash_at_the_ends() {
     let s = scenario("backlash.toml");
     let cal = calibrate(&s, 0, 1, ReferenceOptions::default());
     let truth = s.range_truth(36000).unwrap().unwrap()[0].1.clone().unwrap();
-    let TableMap::Range(m) = &cal.map else { panic!() };
-    eprintln!("range {} {} ends {:?} latency {:?}", m.start().to_degrees(), m.end().to_degrees(), cal.ends, cal.latency);
+    let TableMap::Range(m) = &cal.map else {
+        panic!()
+    };
+    eprintln!(
+        "range {} {} ends {:?} latency {:?}",
+        m.start().to_degrees(),
+        m.end().to_degrees(),
+        cal.ends,
+        cal.latency
+    );
     let e = errors(&cal, |a| truth.eval_linear(a));
     let (max, rms, covered) = summary(&e);
-    eprintln!("max {max} rms {rms} covered {covered} n {} warnings {:?}", e.len(), cal.warnings);
-    for k in [0, 1, 2, 10, 50, 100, e.len() - 101, e.len() - 50, e.len() - 11, e.len() - 1] {
+    eprintln!(
+        "max {max} rms {rms} covered {covered} n {} warnings {:?}",
+        e.len(),
+        cal.warnings
+    );
+    for k in [
+        0,
+        1,
+        2,
+        10,
+        50,
+        100,
+        e.len() - 101,
+        e.len() - 50,
+        e.len() - 11,
+        e.len() - 1,
+    ] {
         eprintln!("{k} {:?}", e[k]);
     }
 }
@@ -82,5 +119,8 @@ fn commanded_reference_ripple() {
     let e = errors(&cal, |a| Some(truth.eval_linear(a)));
     let (max, rms, covered) = summary(&e);
     eprintln!("ripple {:?}", cal.ripple);
-    eprintln!("max {max} rms {rms} covered {covered} warnings {:?} lat {:?}", cal.warnings, cal.latency);
+    eprintln!(
+        "max {max} rms {rms} covered {covered} warnings {:?} lat {:?}",
+        cal.warnings, cal.latency
+    );
 }

@@ -83,7 +83,11 @@ pub fn read_cal_dump(path: &Path, pole_pairs: Option<u32>) -> Result<CalDump, Er
         return Err(error(path, 1, format!("the file is empty: {hint}")));
     };
     if !first.starts_with("CAL start") {
-        return Err(error(path, first_no, format!("`{first}` is not `CAL start`: {hint}")));
+        return Err(error(
+            path,
+            first_no,
+            format!("`{first}` is not `CAL start`: {hint}"),
+        ));
     }
     let (last_no, last) = lines[lines.len() - 1];
     if lines.len() < 2 || !last.starts_with("CAL done") {
@@ -104,7 +108,10 @@ pub fn read_cal_dump(path: &Path, pole_pairs: Option<u32>) -> Result<CalDump, Er
                     error(
                         path,
                         n,
-                        format!("`{line}`: field {} ({what}) is not an integer 0–65535; {hint}", k + 1),
+                        format!(
+                            "`{line}`: field {} ({what}) is not an integer 0–65535; {hint}",
+                            k + 1
+                        ),
                     )
                 })
         };
@@ -113,7 +120,9 @@ pub fn read_cal_dump(path: &Path, pole_pairs: Option<u32>) -> Result<CalDump, Er
             return Err(error(
                 path,
                 n,
-                format!("`{line}`: direction {direction} is neither 1 (phase rising) nor 2 (falling)"),
+                format!(
+                    "`{line}`: direction {direction} is neither 1 (phase rising) nor 2 (falling)"
+                ),
             ));
         }
         rows.push((direction as u8, parse(1, "phase")?, parse(2, "encoder")?));
@@ -142,7 +151,8 @@ pub fn read_cal_dump(path: &Path, pole_pairs: Option<u32>) -> Result<CalDump, Er
         return Err(error(
             path,
             1,
-            "the encoder did not move while the phase rose: is it on the motor's shaft?".to_string(),
+            "the encoder did not move while the phase rose: is it on the motor's shaft?"
+                .to_string(),
         ));
     }
     let ratio = phase / encoder;
@@ -234,7 +244,12 @@ mod tests {
         let e = read_cal_dump(&path, None).unwrap_err().to_string();
         assert!(e.contains("line 2") && e.contains("encoder"), "{e}");
         std::fs::write(&path, "CAL start\n1 2 3\n").unwrap();
-        assert!(read_cal_dump(&path, None).unwrap_err().to_string().contains("CAL done"));
+        assert!(
+            read_cal_dump(&path, None)
+                .unwrap_err()
+                .to_string()
+                .contains("CAL done")
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

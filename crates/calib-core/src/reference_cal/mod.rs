@@ -753,7 +753,8 @@ impl ReferenceCal {
             Latency::Fixed(tau) => {
                 if !sorted {
                     return Err(ReferenceError::Options(
-                        "a latency can only be removed from a log whose time stamps increase".to_string(),
+                        "a latency can only be removed from a log whose time stamps increase"
+                            .to_string(),
                     ));
                 }
                 let result = LatencyResult {
@@ -889,6 +890,11 @@ impl ReferenceCal {
         };
         let mut raw: Vec<f64> = bins.iter().map(|&i| measured(i).unwrap_or(0.0)).collect();
         let (pool_up, pool_down) = (pooled(&self.up), pooled(&self.down));
+        // A direction never crossed twice at a point has no repeatability: a pass's noise is
+        // then taken from the scatter of the reversal between neighbouring points.
+        let scatter = reversal_scatter(&self.up, &self.down, &bins);
+        let from_scatter = scatter.is_some() && (pool_up.is_none() || pool_down.is_none());
+        let (pool_up, pool_down) = (pool_up.or(scatter), pool_down.or(scatter));
         let sem2_of = |w: &Welford, pool: Option<f64>| -> f64 {
             let s = if w.n >= 2 {
                 Some((w.m2.max(0.0) / f64::from(w.n - 1)).sqrt())
@@ -963,15 +969,15 @@ impl ReferenceCal {
                     .map(|(&i, &x)| i as f64 * step - x - u0 + r0)
                     .collect();
                 let per_sample = crossings / self.steps.max(1) as f64;
-                let (fit, value, u_fit) =
-                    ripple::fit(&raw, &reference, n, pole_pairs, turn, per_sample).map_err(
-                        |ripple::RippleProblem::TooShort { periods }| {
-                            ReferenceError::CommandedTooShort {
-                                periods,
-                                pole_pairs,
-                            }
-                        },
-                    )?;
+                let (fit, value, u_fit) = ripple::fit(
+                    &raw, &reference, n, pole_pairs, turn, per_sample,
+                )
+                .map_err(|ripple::RippleProblem::TooShort { periods }| {
+                    ReferenceError::CommandedTooShort {
+                        periods,
+                        pole_pairs,
+                    }
+                })?;
                 for j in 0..raw.len() {
                     raw[j] -= value[j];
                     extra_u2[j] += u_fit[j] * u_fit[j];
@@ -1068,6 +1074,13 @@ impl ReferenceCal {
                  uncertainty; record several passes to estimate the repeatability"
                     .to_string(),
             );
+        } else if from_scatter {
+            warnings.push(
+                "no point was crossed twice in one direction: u_arcsec takes a pass's noise from the scatter of the \
+                 reversal between neighbouring points (a lower bound: noise common to neighbours is not in it); record \
+                 several passes to estimate the repeatability"
+                    .to_string(),
+            );
         }
         let (has_up, has_down) = (min_passes.0 > 0, min_passes.1 > 0);
         if has_up && has_down {
@@ -1145,16 +1158,21 @@ fn latency_warning(l: &LatencyResult) -> Option<String> {
         return None;
     }
     let speed = f.mean_speed.to_degrees();
+    // Speeds to three significant figures at most, whatever their size.
+    let decimals = |v: f64| (2.0 - v.abs().max(1e-9).log10().floor()).clamp(0.0, 6.0) as usize;
+    let (fast, slow) = (speed, speed / 3.0);
     Some(format!(
-        "the increasing and decreasing passes differ by {:.1}″ at one speed per direction (about {speed:.1}°/s): this is \
+        "the increasing and decreasing passes differ by {:.1}″ at one speed per direction (about {fast:.a$}°/s): this is \
          either a latency of {:.1} ms between the channels (the DUT's samples older if positive) or a backlash or \
          hysteresis of {:.1}″; at one speed the two read the same, so neither was removed (the map, the mean of both \
          directions, holds neither where both went at the same speed). To separate them record passes at two speeds \
-         in each direction (e.g. {speed:.0}°/s and {:.0}°/s), or give --latency SECONDS if the interfaces' delay is known",
+         in each direction (e.g. {fast:.a$}°/s and {slow:.b$}°/s), or give --latency SECONDS if the interfaces' delay is \
+         known",
         f.reversal_if_no_latency * ARCSEC_PER_RAD,
         f.tau_if_no_backlash * 1e3,
         f.reversal_if_no_latency * ARCSEC_PER_RAD,
-        speed / 3.0
+        a = decimals(fast),
+        b = decimals(slow),
     ))
 }
 
@@ -1274,6 +1292,30 @@ fn target_points(
     points.sort_unstable();
     points.dedup();
     Ok(points)
+}
+
+/// A pass's standard deviation from the reversals `B_i = x̄_i↑ − x̄_i↓` of the points crossed
+/// both ways, in grid order: each minus the mean of its 20 neighbours, `r`, has variance
+/// `var(B)·(1 + 1/20)` for noise independent between points, and `var(B) = 2σ²` for one pass
+/// each way. `None` with fewer than 21 such points.
+fn reversal_scatter(up: &[Welford], down: &[Welford], bins: &[usize]) -> Option<f64> {
+    const HALF: usize = 10;
+    let b: Vec<f64> = bins
+        .iter()
+        .filter(|&&i| up[i].n > 0 && down[i].n > 0)
+        .map(|&i| up[i].mean - down[i].mean)
+        .collect();
+    if b.len() < 2 * HALF + 1 {
+        return None;
+    }
+    let residuals: Vec<f64> = (HALF..b.len() - HALF)
+        .map(|j| {
+            let local = (b[j - HALF..=j + HALF].iter().sum::<f64>() - b[j]) / (2 * HALF) as f64;
+            b[j] - local
+        })
+        .collect();
+    let var = residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64;
+    Some((var / (1.0 + 1.0 / (2 * HALF) as f64) / 2.0).sqrt())
 }
 
 /// The pooled standard deviation of a direction's points with `n ≥ 2`.

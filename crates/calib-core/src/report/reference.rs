@@ -311,7 +311,11 @@ impl ReferenceCalibration {
                 .collect(),
             range: self.map.range().map(|(lo, hi)| {
                 // Across the reading 0: the signed form, as the table writes it.
-                let turn = if hi > std::f64::consts::TAU { 360.0 } else { 0.0 };
+                let turn = if hi > std::f64::consts::TAU {
+                    360.0
+                } else {
+                    0.0
+                };
                 RangeReport {
                     start_deg: lo.to_degrees() - turn,
                     end_deg: hi.to_degrees() - turn,
