@@ -892,7 +892,15 @@ impl ReferenceCal {
         let (pool_up, pool_down) = (pooled(&self.up), pooled(&self.down));
         // A direction never crossed twice at a point has no repeatability: a pass's noise is
         // then taken from the scatter of the reversal between neighbouring points.
-        let scatter = reversal_scatter(&self.up, &self.down, &bins);
+        // Neighbouring points between the same two samples share their noise, which the
+        // scatter between neighbours does not see: scaled by the grid points per sample step.
+        let per_step = bins
+            .iter()
+            .map(|&i| f64::from(self.up[i].n + self.down[i].n))
+            .sum::<f64>()
+            / self.steps.max(1) as f64;
+        let scatter =
+            reversal_scatter(&self.up, &self.down, &bins).map(|s| s * per_step.max(1.0).sqrt());
         let from_scatter = scatter.is_some() && (pool_up.is_none() || pool_down.is_none());
         let (pool_up, pool_down) = (pool_up.or(scatter), pool_down.or(scatter));
         let sem2_of = |w: &Welford, pool: Option<f64>| -> f64 {
