@@ -16,9 +16,11 @@ use reference::reference;
 use std::f64::consts::TAU;
 use std::path::Path;
 
-/// A table's `(range, rows)`: the `# range_deg:` line's `(lo, hi)` if any, and its rows
-/// `(angle_deg, error_arcsec, u_arcsec)`.
-fn table(path: &Path) -> (Option<(f64, f64)>, Vec<(f64, f64, f64)>) {
+/// A table's rows `(angle_deg, error_arcsec, u_arcsec)`.
+type Rows = Vec<(f64, f64, f64)>;
+
+/// A table's `(range, rows)`: the `# range_deg:` line's `(lo, hi)` if any, and its rows.
+fn table(path: &Path) -> (Option<(f64, f64)>, Rows) {
     let text = std::fs::read_to_string(path).unwrap();
     let mut range = None;
     let mut rows = Vec::new();

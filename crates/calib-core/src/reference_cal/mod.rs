@@ -749,7 +749,7 @@ impl ReferenceCal {
         let samples = std::mem::take(&mut self.samples);
         let sorted = self.sorted;
         match self.opts.latency {
-            Latency::Fixed(tau) if tau == 0.0 => self.finish_map(None),
+            Latency::Fixed(0.0) => self.finish_map(None),
             Latency::Fixed(tau) => {
                 if !sorted {
                     return Err(ReferenceError::Options(

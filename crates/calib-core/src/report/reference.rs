@@ -39,13 +39,13 @@ pub struct ReferenceDetails {
     pub latency_s: Option<f64>,
     /// How the lag was found and what the run says of it; absent with `--latency 0`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub latency: Option<LatencyReport>,
+    pub latency: Option<Box<LatencyReport>>,
     /// Points measured in one direction only, corrected by half the reversal next to them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub one_direction_points: Option<EndsReport>,
+    pub one_direction_points: Option<Box<EndsReport>>,
     /// The motor's ripple taken out of the map of a commanded reference.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub ripple: Option<RippleReport>,
+    pub ripple: Option<Box<RippleReport>>,
 }
 
 /// The lag between the channels.
@@ -332,44 +332,50 @@ impl ReferenceCalibration {
             repeat_spread_deg: self.repeat_spread.map(f64::to_degrees),
             alignment: None,
             latency_s: self.latency.map(|l| l.applied),
-            latency: self.latency.map(|l| LatencyReport {
-                source: match l.source {
-                    LatencySource::Given => "given",
-                    LatencySource::Estimated => "estimated",
-                    LatencySource::Insignificant => "insignificant",
-                    LatencySource::Ambiguous => "ambiguous",
-                    LatencySource::Unavailable => "unavailable",
-                }
-                .to_string(),
-                applied_s: l.applied,
-                estimate_s: l.fit.map(|f| f.tau),
-                u_s: l.fit.map(|f| f.u_tau).filter(|u| u.is_finite()),
-                if_no_backlash_s: l.fit.map(|f| f.tau_if_no_backlash),
-                if_no_latency_reversal_arcsec: l.fit.map(|f| arcsec(f.reversal_if_no_latency)),
-                speed_direction_correlation: l.fit.map(|f| f.speed_direction_correlation),
-                mean_speed_deg_s: l.fit.map(|f| f.mean_speed.to_degrees()),
+            latency: self.latency.map(|l| {
+                Box::new(LatencyReport {
+                    source: match l.source {
+                        LatencySource::Given => "given",
+                        LatencySource::Estimated => "estimated",
+                        LatencySource::Insignificant => "insignificant",
+                        LatencySource::Ambiguous => "ambiguous",
+                        LatencySource::Unavailable => "unavailable",
+                    }
+                    .to_string(),
+                    applied_s: l.applied,
+                    estimate_s: l.fit.map(|f| f.tau),
+                    u_s: l.fit.map(|f| f.u_tau).filter(|u| u.is_finite()),
+                    if_no_backlash_s: l.fit.map(|f| f.tau_if_no_backlash),
+                    if_no_latency_reversal_arcsec: l.fit.map(|f| arcsec(f.reversal_if_no_latency)),
+                    speed_direction_correlation: l.fit.map(|f| f.speed_direction_correlation),
+                    mean_speed_deg_s: l.fit.map(|f| f.mean_speed.to_degrees()),
+                })
             }),
-            one_direction_points: self.ends.map(|e| EndsReport {
-                points: e.points,
-                corrected_by: "half the reversal next to them".to_string(),
-                max_correction_arcsec: arcsec(e.max_correction),
-                max_u_arcsec: arcsec(e.max_u),
+            one_direction_points: self.ends.map(|e| {
+                Box::new(EndsReport {
+                    points: e.points,
+                    corrected_by: "half the reversal next to them".to_string(),
+                    max_correction_arcsec: arcsec(e.max_correction),
+                    max_u_arcsec: arcsec(e.max_u),
+                })
             }),
-            ripple: self.ripple.as_ref().map(|r| RippleReport {
-                pole_pairs: r.pole_pairs,
-                peak_to_peak_arcsec: arcsec(r.peak_to_peak),
-                fitted_points: r.fitted_points,
-                terms: r
-                    .terms
-                    .iter()
-                    .map(|t| RippleTermReport {
-                        harmonic: t.harmonic,
-                        order: t.order,
-                        amplitude_arcsec: arcsec(t.amplitude),
-                        u_amplitude_arcsec: arcsec(t.u_amplitude),
-                        phase_deg: t.phase.to_degrees(),
-                    })
-                    .collect(),
+            ripple: self.ripple.as_ref().map(|r| {
+                Box::new(RippleReport {
+                    pole_pairs: r.pole_pairs,
+                    peak_to_peak_arcsec: arcsec(r.peak_to_peak),
+                    fitted_points: r.fitted_points,
+                    terms: r
+                        .terms
+                        .iter()
+                        .map(|t| RippleTermReport {
+                            harmonic: t.harmonic,
+                            order: t.order,
+                            amplitude_arcsec: arcsec(t.amplitude),
+                            u_amplitude_arcsec: arcsec(t.u_amplitude),
+                            phase_deg: t.phase.to_degrees(),
+                        })
+                        .collect(),
+                })
             }),
         };
         ReportSection {
