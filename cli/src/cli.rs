@@ -37,6 +37,7 @@ pub enum Command {
     Tdr(commands::tdr::Args),
     ShiftAngle(commands::shift_angle::Args),
     Reference(commands::reference::Args),
+    MoteusDump(commands::moteus_dump::Args),
     Uncertainty(commands::uncertainty::Args),
     Compare(commands::compare::Args),
     Apply(commands::apply::Args),

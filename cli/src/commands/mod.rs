@@ -7,6 +7,7 @@ pub mod csrr;
 pub mod export;
 pub mod import;
 pub mod inspect;
+pub mod moteus_dump;
 pub mod multihead;
 pub mod reference;
 pub mod shift_angle;
@@ -31,6 +32,7 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Uncertainty(args) => uncertainty::run(&args),
         Command::Compare(args) => compare::run(&args),
         Command::Reference(args) => reference::run(&args),
+        Command::MoteusDump(args) => moteus_dump::run(&args),
         Command::Export(args) => export::run(&args),
         Command::Import(args) => import::run(&args),
         Command::Tdr(args) => tdr::run(&args),

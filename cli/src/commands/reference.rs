@@ -11,7 +11,8 @@ use anyhow::Context;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
-    ReferenceCal, ReferenceCalibration, ReferenceOptions, TableMap, Targets,
+    Latency, LatencySource, ReferenceCal, ReferenceCalibration, ReferenceKind, ReferenceOptions,
+    TableMap, Targets,
 };
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -90,9 +91,72 @@ pub struct Args {
     /// approach: backlash settles).
     #[arg(long, default_value_t = 1.0)]
     pub approach: f64,
+    /// The DUT's lag behind the reference, removed from the map: `auto` fits it jointly with the
+    /// map (the difference then carries lag × speed) and removes it where the run tells it from
+    /// backlash — passes at two or more speeds in the same direction — and it differs from 0 by
+    /// more than 3 standard uncertainties; at one speed per direction a warning names both
+    /// readings (a lag in ms or a backlash in ″). SECONDS removes this lag (positive: the DUT's
+    /// sample is older than its stamp; a resolver terminal, SSI/BiSS or CAN encoder lags
+    /// 1–50 ms); `0` assumes none. report.json: details.latency_s and details.latency.
+    #[arg(long, default_value = "auto", value_parser = parse_latency, value_name = "SECONDS|auto")]
+    pub latency: Latency,
+    /// What the reference is: `encoder`, a better encoder on the DUT's shaft; or `commanded`,
+    /// the commanded angle of a motor driven open loop (a firmware calibration: moteus,
+    /// SimpleFOC, ODrive), whose rotor follows with the motor's ripple. With `commanded` the
+    /// components periodic in the electrical angle (orders k × --pole-pairs) are fitted, taken
+    /// out of the map and reported as the motor's ripple (details.ripple); the DUT's own error
+    /// at those orders cannot be told from it.
+    #[arg(long, value_enum, default_value_t = RefKind::Encoder)]
+    pub ref_kind: RefKind,
+    /// Pole pairs of the motor of a commanded reference (needs --ref-kind commanded).
+    #[arg(long)]
+    pub pole_pairs: Option<u32>,
     /// Logs, output, unit, output form, gates, timing.
     #[command(flatten)]
     pub common: MethodArgs,
+}
+
+/// What `--ref` is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RefKind {
+    /// A better encoder on the DUT's shaft.
+    Encoder,
+    /// The commanded angle of a motor driven open loop.
+    Commanded,
+}
+
+/// `--latency`: `auto` or seconds (`0.02`, `-0.005`).
+fn parse_latency(text: &str) -> Result<Latency, String> {
+    let text = text.trim();
+    if text.eq_ignore_ascii_case("auto") {
+        return Ok(Latency::Auto);
+    }
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= 10.0 => Ok(Latency::Fixed(v)),
+        _ => Err(format!(
+            "`{text}`: give `auto` or the DUT's lag in seconds, within ±10 (e.g. 0.02 for 20 ms; 0 for none)"
+        )),
+    }
+}
+
+/// The reference kind of the options, checked against `--pole-pairs`.
+fn reference_kind(args: &Args) -> Result<ReferenceKind, Usage> {
+    match (args.ref_kind, args.pole_pairs) {
+        (RefKind::Encoder, None) => Ok(ReferenceKind::Encoder),
+        (RefKind::Encoder, Some(_)) => Err(Usage(
+            "--pole-pairs is for a commanded reference: add --ref-kind commanded, or drop --pole-pairs".to_string(),
+        )),
+        (RefKind::Commanded, None) => Err(Usage(
+            "--ref-kind commanded needs the motor's --pole-pairs (moteus: motor.poles / 2; a 42-pole motor has 21)"
+                .to_string(),
+        )),
+        (RefKind::Commanded, Some(p)) if p == 0 || args.points < 8 * p as usize => Err(Usage(format!(
+            "--pole-pairs {p} needs at least 1 and --points of at least 8 per pole pair ({}): the ripple is fitted \
+             on the table's grid",
+            8 * p.max(1)
+        ))),
+        (RefKind::Commanded, Some(p)) => Ok(ReferenceKind::Commanded { pole_pairs: p }),
+    }
 }
 
 /// `--targets`: a count (`20`) or a comma-separated list of degrees (`15,30.5,45`).
@@ -161,6 +225,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
+    reference_kind(args)?;
     args.common.run("reference", |log, out| {
         calibrate(args, reference.as_ref(), log, out)
     })
@@ -189,6 +254,8 @@ fn calibrate(
         approach: args.approach.to_radians(),
         max_gap: args.bridge_gap.to_radians(),
         targets: args.targets.clone(),
+        latency: args.latency,
+        reference_kind: reference_kind(args)?,
     });
     // A calibrated reference reads r − error(r) (its table's correction applied).
     let corrected = |r: f64| reference.map_or(r, |t| r - t.map.eval_linear(r));
@@ -264,12 +331,7 @@ fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &
     };
     let u_max = cal.u.iter().fold(0.0f64, |m, u| m.max(*u)) * ARCSEC_PER_RAD;
     let coverage = match (cal.map.range(), cal.gap) {
-        (Some((lo, hi)), _) => format!(
-            "range table from {:.3}° to {:.3}° ({:.3}° of the DUT's reading; no whole turn)",
-            lo.to_degrees(),
-            hi.to_degrees(),
-            (hi - lo).to_degrees()
-        ),
+        (Some((lo, hi)), _) => range_text(lo, hi),
         (None, Some(g)) => format!(
             "whole turn, {:.3}° never reached between {:.3}° and {:.3}° (bridged)",
             g.size.to_degrees(),
@@ -287,6 +349,7 @@ fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &
             ),
         ),
         ("map", coverage),
+        ("latency", latency_text(cal)),
         (
             "ISO 230-2",
             format!(
@@ -299,6 +362,44 @@ fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &
             ),
         ),
     ]);
+    if let Some(e) = cal.ends {
+        o += &key_values(&[(
+            "one direction",
+            format!(
+                "{} point(s) at the ends measured one way only: corrected by half the reversal next to them \
+                 (at most {:.3}″, its u at most {:.3}″, in u_arcsec)",
+                e.points,
+                e.max_correction * ARCSEC_PER_RAD,
+                e.max_u * ARCSEC_PER_RAD
+            ),
+        )]);
+    }
+    if let Some(r) = &cal.ripple {
+        let mut terms: Vec<_> = r.terms.iter().collect();
+        terms.sort_by(|a, b| b.amplitude.total_cmp(&a.amplitude));
+        let top: Vec<String> = terms
+            .iter()
+            .take(3)
+            .map(|t| {
+                format!(
+                    "order {} ({}/electrical turn) {:.3}″ ± {:.3}″",
+                    t.order,
+                    t.harmonic,
+                    t.amplitude * ARCSEC_PER_RAD,
+                    t.u_amplitude * ARCSEC_PER_RAD
+                )
+            })
+            .collect();
+        o += &key_values(&[(
+            "motor ripple",
+            format!(
+                "{} pole pairs, {:.3}″ peak-to-peak taken out of the map: {}",
+                r.pole_pairs,
+                r.peak_to_peak * ARCSEC_PER_RAD,
+                top.join(", ")
+            ),
+        )]);
+    }
     let ch = &report.channels[&args.dut];
     let top: Vec<String> = ch
         .harmonics
@@ -341,4 +442,52 @@ fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &
         },
     );
     o
+}
+
+/// The summary's line on a range: in the signed convention when it crosses the reading 0
+/// (−40° to 95°, never above 360°), with the readings of a sensor that reads 0…360°.
+fn range_text(lo: f64, hi: f64) -> String {
+    let span = (hi - lo).to_degrees();
+    let (lo, hi) = (lo.to_degrees(), hi.to_degrees());
+    if hi > 360.0 {
+        format!(
+            "range table from {:.3}° to {:.3}° ({span:.3}° of the DUT's reading across 0°, i.e. {lo:.3}°…360° and \
+             0°…{:.3}° read in [0, 360); no whole turn)",
+            lo - 360.0,
+            hi - 360.0,
+            hi - 360.0
+        )
+    } else {
+        format!(
+            "range table from {lo:.3}° to {hi:.3}° ({span:.3}° of the DUT's reading; no whole turn)"
+        )
+    }
+}
+
+/// The summary's line on the lag between the channels.
+fn latency_text(cal: &ReferenceCalibration) -> String {
+    let Some(l) = cal.latency else {
+        return "assumed 0 (--latency 0)".to_string();
+    };
+    let ms = |s: f64| s * 1e3;
+    match (l.source, l.fit) {
+        (LatencySource::Given, _) => format!("{:.3} ms given (--latency), removed", ms(l.applied)),
+        (LatencySource::Estimated, Some(f)) => format!(
+            "the DUT lags the reference by {:.3} ± {:.3} ms (estimated, removed)",
+            ms(f.tau),
+            ms(f.u_tau)
+        ),
+        (LatencySource::Insignificant, Some(f)) => format!(
+            "{:.3} ± {:.3} ms estimated: not different from 0, not removed",
+            ms(f.tau),
+            ms(f.u_tau)
+        ),
+        (LatencySource::Ambiguous, Some(f)) => format!(
+            "not separable from backlash at one speed per direction: {:.1} ms, or a backlash of {:.1}″ (not removed)",
+            ms(f.tau_if_no_backlash),
+            f.reversal_if_no_latency * ARCSEC_PER_RAD
+        ),
+        _ => "the run cannot estimate it (too few points crossed twice, or time stamps out of order); not removed"
+            .to_string(),
+    }
 }

@@ -54,6 +54,7 @@ pub mod import;
 pub mod limits;
 pub mod log;
 pub mod mcap_log;
+pub mod moteus_dump;
 pub mod naming;
 pub mod points;
 pub mod prefetch;

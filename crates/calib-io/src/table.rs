@@ -38,9 +38,11 @@
 //!
 //! The `# range_deg:` line is what makes a table a range table ([`read_any_table`]); a table
 //! without it is a whole-turn table and must follow the whole-turn grid above, so a whole-turn
-//! table with rows missing is still an error, never mistaken for a range. `lo` lies in
-//! `[0, 360)`; `hi` may exceed 360 for a range across the reading 0 (330° to 390° for a joint
-//! swept from −30° to +30°). Its mean is zero over the range ([`RangeMap`]). Read it with a
+//! table with rows missing is still an error, never mistaken for a range. A range across the
+//! reading 0 is written from a negative `lo` (−30° to 30° for a joint swept from −30° to +30°,
+//! whether the sensor reads −30° or 330° there), never with angles above 360°; a table whose
+//! `lo` lies in `[0, 360)` and `hi` above 360 (330° to 390°, as calib wrote before) reads the
+//! same. Its mean is zero over the range ([`RangeMap`]). Read it with a
 //! CSV reader that skips `#` lines (pandas: `read_csv(path, comment="#")`). Rows may lie up to
 //! [`RANGE_GRID_TOLERANCE_DEG`] from the grid, twice the whole-turn tolerance, since both ends
 //! of the grid are themselves written with 6 decimals.
@@ -235,6 +237,12 @@ fn push_rows(
 pub fn render_range_table(map: &RangeMap, u: Option<&[f64]>) -> Result<String, RenderError> {
     let n = map.len();
     let (lo, hi) = (map.start().to_degrees(), map.end().to_degrees());
+    // Across the reading 0: the signed form, never angles above 360°.
+    let (lo, hi) = if hi > 360.0 {
+        (lo - 360.0, hi - 360.0)
+    } else {
+        (lo, hi)
+    };
     let mut out = String::with_capacity(48 * (n + 2));
     out.push_str(RANGE_MARKER);
     out.push(' ');
@@ -331,14 +339,14 @@ fn range_marker(path: &Path) -> Result<Option<(f64, f64, u64)>, Error> {
                 ),
             });
         };
-        if !((0.0..360.0).contains(&lo) && hi > lo && hi - lo < 360.0) {
+        if !((-360.0..360.0).contains(&lo) && hi > lo && hi - lo < 360.0) {
             return Err(Error::Csv {
                 path: path.to_path_buf(),
                 line: line_no,
                 channel: None,
                 message: format!(
-                    "the range {lo}° to {hi}° is not a range table's: LO must lie in [0, 360) and HI above LO by less \
-                     than 360° (a whole turn is a whole-turn table, without the range line)"
+                    "the range {lo}° to {hi}° is not a range table's: LO must lie in [−360, 360) and HI above LO by \
+                     less than 360° (a whole turn is a whole-turn table, without the range line)"
                 ),
             });
         }

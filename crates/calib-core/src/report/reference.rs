@@ -1,7 +1,7 @@
 //! The report section of a calibration against a reference encoder ([`crate::reference_cal`]).
 
 use super::{AfterCorrection, ChannelReport, Details, ReportSection, arcsec, table_name};
-use crate::reference_cal::{PointStats, ReferenceCalibration, TableMap};
+use crate::reference_cal::{LatencySource, PointStats, ReferenceCalibration, TableMap};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -47,6 +47,87 @@ pub struct ReferenceDetails {
     /// How the channels were aligned on one clock, where anything was interpolated or dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<super::Alignment>,
+    /// The DUT's lag behind the reference, seconds (positive: the DUT's sample is older), as
+    /// removed from the map (0 where none was); absent with `--latency 0`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latency_s: Option<f64>,
+    /// How the lag was found and what the run says of it; absent with `--latency 0`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latency: Option<Box<LatencyReport>>,
+    /// Points measured in one direction only, corrected by half the reversal next to them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub one_direction_points: Option<Box<EndsReport>>,
+    /// The motor's ripple taken out of the map of a commanded reference.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ripple: Option<Box<RippleReport>>,
+}
+
+/// The lag between the channels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LatencyReport {
+    /// `given` (--latency SECONDS), `estimated` (fitted and removed), `insignificant` (fitted,
+    /// within 3 u of 0, not removed), `ambiguous` (one speed per direction: latency and backlash
+    /// read the same, not removed), `unavailable` (the run cannot give it).
+    pub source: String,
+    /// The lag removed, seconds.
+    pub applied_s: f64,
+    /// The fitted lag (jointly with a constant reversal), seconds.
+    pub estimate_s: Option<f64>,
+    /// Its standard uncertainty, seconds.
+    pub u_s: Option<f64>,
+    /// The lag if the whole reversal were latency, seconds.
+    pub if_no_backlash_s: Option<f64>,
+    /// The reversal if it were all backlash, arcsec.
+    pub if_no_latency_reversal_arcsec: Option<f64>,
+    /// Squared correlation of direction and speed within points (1: one speed each way).
+    pub speed_direction_correlation: Option<f64>,
+    /// Mean absolute speed of the reference at the crossings, degrees per second.
+    pub mean_speed_deg_s: Option<f64>,
+}
+
+/// Points measured in one direction only.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EndsReport {
+    /// Points corrected.
+    pub points: usize,
+    /// How: `half the reversal next to them`.
+    pub corrected_by: String,
+    /// Largest correction applied, arcsec.
+    pub max_correction_arcsec: f64,
+    /// Largest standard uncertainty of the correction, arcsec (in u_arcsec).
+    pub max_u_arcsec: f64,
+}
+
+/// The ripple of a commanded reference.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RippleReport {
+    /// Pole pairs of the motor.
+    pub pole_pairs: u32,
+    /// Peak-to-peak of the ripple removed, arcsec.
+    pub peak_to_peak_arcsec: f64,
+    /// Grid points the fit used.
+    pub fitted_points: usize,
+    /// The terms `amplitude·cos(k·φ + phase)`, `φ` the reference's electrical angle.
+    pub terms: Vec<RippleTermReport>,
+}
+
+/// One term of the ripple.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RippleTermReport {
+    /// Cycles per electrical turn.
+    pub harmonic: usize,
+    /// Cycles per revolution (harmonic × pole pairs).
+    pub order: usize,
+    /// Amplitude, arcsec.
+    pub amplitude_arcsec: f64,
+    /// Its standard uncertainty, arcsec.
+    pub u_amplitude_arcsec: f64,
+    /// Phase, degrees.
+    pub phase_deg: f64,
 }
 
 /// Passes per direction.
@@ -119,7 +200,8 @@ pub struct DirectionReport {
     pub repeatability_arcsec: Option<f64>,
 }
 
-/// A range table's range, degrees.
+/// A range table's range, degrees: `start` in `[0, 360)`, or negative for a range across the
+/// reading 0 (−40 to 95), as the table writes it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RangeReport {
@@ -243,10 +325,18 @@ impl ReferenceCalibration {
                         .then(|| arcsec(t.up.mean - t.down.mean)),
                 })
                 .collect(),
-            range: self.map.range().map(|(lo, hi)| RangeReport {
-                start_deg: lo.to_degrees(),
-                end_deg: hi.to_degrees(),
-                span_deg: (hi - lo).to_degrees(),
+            range: self.map.range().map(|(lo, hi)| {
+                // Across the reading 0: the signed form, as the table writes it.
+                let turn = if hi > std::f64::consts::TAU {
+                    360.0
+                } else {
+                    0.0
+                };
+                RangeReport {
+                    start_deg: lo.to_degrees() - turn,
+                    end_deg: hi.to_degrees() - turn,
+                    span_deg: (hi - lo).to_degrees(),
+                }
             }),
             gap: self.gap.map(|g| GapReport {
                 from_deg: g.from.to_degrees(),
@@ -257,6 +347,52 @@ impl ReferenceCalibration {
             }),
             repeat_spread_deg: self.repeat_spread.map(f64::to_degrees),
             alignment: None,
+            latency_s: self.latency.map(|l| l.applied),
+            latency: self.latency.map(|l| {
+                Box::new(LatencyReport {
+                    source: match l.source {
+                        LatencySource::Given => "given",
+                        LatencySource::Estimated => "estimated",
+                        LatencySource::Insignificant => "insignificant",
+                        LatencySource::Ambiguous => "ambiguous",
+                        LatencySource::Unavailable => "unavailable",
+                    }
+                    .to_string(),
+                    applied_s: l.applied,
+                    estimate_s: l.fit.map(|f| f.tau),
+                    u_s: l.fit.map(|f| f.u_tau).filter(|u| u.is_finite()),
+                    if_no_backlash_s: l.fit.map(|f| f.tau_if_no_backlash),
+                    if_no_latency_reversal_arcsec: l.fit.map(|f| arcsec(f.reversal_if_no_latency)),
+                    speed_direction_correlation: l.fit.map(|f| f.speed_direction_correlation),
+                    mean_speed_deg_s: l.fit.map(|f| f.mean_speed.to_degrees()),
+                })
+            }),
+            one_direction_points: self.ends.map(|e| {
+                Box::new(EndsReport {
+                    points: e.points,
+                    corrected_by: "half the reversal next to them".to_string(),
+                    max_correction_arcsec: arcsec(e.max_correction),
+                    max_u_arcsec: arcsec(e.max_u),
+                })
+            }),
+            ripple: self.ripple.as_ref().map(|r| {
+                Box::new(RippleReport {
+                    pole_pairs: r.pole_pairs,
+                    peak_to_peak_arcsec: arcsec(r.peak_to_peak),
+                    fitted_points: r.fitted_points,
+                    terms: r
+                        .terms
+                        .iter()
+                        .map(|t| RippleTermReport {
+                            harmonic: t.harmonic,
+                            order: t.order,
+                            amplitude_arcsec: arcsec(t.amplitude),
+                            u_amplitude_arcsec: arcsec(t.u_amplitude),
+                            phase_deg: t.phase.to_degrees(),
+                        })
+                        .collect(),
+                })
+            }),
         };
         let mut warnings = self.warnings.clone();
         if reference_u_arcsec.is_none() {

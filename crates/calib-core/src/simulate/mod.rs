@@ -240,6 +240,10 @@ impl Scenario {
                     quantum: s.quantization_arcsec / ARCSEC_PER_RAD,
                     noise: s.noise_arcsec / ARCSEC_PER_RAD,
                     rng: Rng::new(self.seed, stream),
+                    delay: s.delay_s,
+                    half_play: 0.5 * s.backlash_arcsec / ARCSEC_PER_RAD,
+                    follower: None,
+                    commanded: s.commanded,
                 }
             })
             .collect();
@@ -251,6 +255,7 @@ impl Scenario {
             need_b,
             powers_a: Powers::default(),
             powers_b: Powers::default(),
+            powers_scratch: Powers::default(),
             rotation: None,
             windows,
             window: 0,
@@ -484,6 +489,14 @@ struct ChannelSim {
     /// Noise σ, radians.
     noise: f64,
     rng: Rng,
+    /// How much older than its stamp the channel's sample is, seconds.
+    delay: f64,
+    /// Half the play of its coupling, radians (0: rigid).
+    half_play: f64,
+    /// Where the coupled side sits (with play).
+    follower: Option<f64>,
+    /// Reads the commanded angle `φ`, not the rotor.
+    commanded: bool,
 }
 
 /// What moves the rotors: the CSRR procedure or a free coast-down.
@@ -506,14 +519,22 @@ impl Motion {
     fn state(&mut self, t: f64) -> State {
         match self {
             Motion::Procedure(tl) => tl.state(t),
-            Motion::Coast(c) => State {
-                theta_b: c.theta(t),
-                delta: 0.0,
-            },
-            Motion::Sweep(s) => State {
-                theta_b: s.theta(t),
-                delta: 0.0,
-            },
+            Motion::Coast(c) => {
+                let theta = c.theta(t);
+                State {
+                    phi: theta,
+                    theta_b: theta,
+                    delta: 0.0,
+                }
+            }
+            Motion::Sweep(s) => {
+                let (phi, theta) = s.angles(t);
+                State {
+                    phi,
+                    theta_b: theta,
+                    delta: 0.0,
+                }
+            }
         }
     }
 }
@@ -532,6 +553,8 @@ pub struct Samples {
     need_b: usize,
     powers_a: Powers,
     powers_b: Powers,
+    /// Powers for a channel that is not at its rotor's angle (delayed, with play, commanded).
+    powers_scratch: Powers,
     /// The last relative rotation Δ and its `(sin Δ, cos Δ)`: Δ changes only during turns.
     rotation: Option<(f64, (f64, f64))>,
     channels: Vec<ChannelSim>,
@@ -609,19 +632,37 @@ impl Samples {
             }
         }
         let mut values = Vec::with_capacity(self.channels.len());
+        let motion = &mut self.motion;
         for ch in &mut self.channels {
-            let theta = match ch.mount {
-                Mount::A => state.theta_b + state.delta,
-                Mount::B => state.theta_b,
+            let special = ch.delay != 0.0 || ch.half_play > 0.0 || ch.commanded;
+            let at = |s: &State| match ch.mount {
+                _ if ch.commanded => s.phi,
+                Mount::A => s.theta_b + s.delta,
+                Mount::B => s.theta_b,
             };
+            let mut theta = if ch.delay != 0.0 {
+                at(&motion.state(instant - ch.delay))
+            } else {
+                at(&state)
+            };
+            if ch.half_play > 0.0 {
+                // The coupled side stays put until the play is taken up, then is dragged along.
+                let f = ch.follower.get_or_insert(theta);
+                *f = f.clamp(theta - ch.half_play, theta + ch.half_play);
+                theta = *f;
+            }
             if let Some(truth) = truth.as_deref_mut() {
                 truth.push(theta);
             }
-            let powers = match ch.mount {
-                Mount::A => &self.powers_a,
-                Mount::B => &self.powers_b,
+            let error = if special {
+                ch.series.eval(theta, &mut self.powers_scratch)
+            } else {
+                ch.series.eval_powers(match ch.mount {
+                    Mount::A => &self.powers_a,
+                    Mount::B => &self.powers_b,
+                })
             };
-            let mut r = theta + ch.offset + ch.series.eval_powers(powers);
+            let mut r = theta + ch.offset + error;
             if ch.noise > 0.0 {
                 r += ch.noise * ch.rng.normal();
             }

@@ -64,6 +64,9 @@ pub(crate) struct Timing {
 /// The state of both rotors at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct State {
+    /// Nominal (commanded) angle of the driven shaft, radians, accumulated: `θ_B` without the
+    /// modulation of eq. (9).
+    pub(crate) phi: f64,
     /// True angle of the driven shaft (rotor B), radians, accumulated.
     pub(crate) theta_b: f64,
     /// Relative rotation `θ_A − θ_B`, radians.
@@ -154,6 +157,7 @@ impl Timeline {
     pub(crate) fn state(&mut self, t: f64) -> State {
         let Some(last) = self.segments.len().checked_sub(1) else {
             return State {
+                phi: 0.0,
                 theta_b: 0.0,
                 delta: 0.0,
             };
@@ -184,6 +188,7 @@ impl Timeline {
             }
         };
         State {
+            phi,
             // ε_θ(φ) of eq. (9).
             theta_b: phi + self.modulation.eval(phi, &mut self.powers),
             delta,

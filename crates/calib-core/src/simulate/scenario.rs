@@ -158,6 +158,25 @@ pub struct Sensor {
     /// sample and channel, added before quantization.
     #[serde(default)]
     pub noise_arcsec: f64,
+    /// Latency of the channel, seconds (default 0): the sample stamped `t` is the reading at
+    /// `t − delay_s` (an interface that samples earlier than the log's clock says).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub delay_s: f64,
+    /// Play of the coupling between the shaft and this sensor, arcseconds (default 0): the
+    /// sensor's side stays put until the shaft has taken up the play, then is dragged along
+    /// `backlash_arcsec / 2` behind it (a reversal of ISO 230-2's `B = backlash_arcsec`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub backlash_arcsec: f64,
+    /// The channel reads the drive's commanded (nominal) angle `φ`, not the rotor's true angle
+    /// (default `false`): an open-loop reference, which the rotor follows with the `[speed]`
+    /// modulation as its ripple (`[[speed.harmonic]]` at orders `k·p` for a motor of `p` pole
+    /// pairs). Not allowed with `scale`.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub commanded: bool,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// The CSRR procedure (paper section III-B): sessions at constant speed, rotor A locked to the
@@ -545,12 +564,24 @@ impl Scenario {
                 s.noise_arcsec >= 0.0,
                 "≥ 0",
             )?;
+            check(|| field("delay_s"), s.delay_s, true, "finite")?;
+            check(
+                || field("backlash_arcsec"),
+                s.backlash_arcsec,
+                s.backlash_arcsec >= 0.0,
+                "≥ 0 (0: a rigid coupling)",
+            )?;
             let conflict = |problem| ScenarioError::Conflict {
                 sensor: s.name.clone(),
                 problem,
             };
             match &s.scale {
                 Some(scale) => {
+                    if s.commanded {
+                        return Err(conflict(
+                            "`commanded` is not allowed with `scale`: a commanded angle is the drive's, not a head's",
+                        ));
+                    }
                     if s.mount.is_some() {
                         return Err(conflict(
                             "`mount` is not allowed with `scale`: a head turns with its scale; set `mount` in the [[scale]]",

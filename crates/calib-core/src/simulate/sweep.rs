@@ -106,8 +106,8 @@ impl SweepTimeline {
         self.duration
     }
 
-    /// The shaft's true angle at `t` (clamped to the run).
-    pub(crate) fn theta(&mut self, t: f64) -> f64 {
+    /// The shaft's nominal and true angles `(φ, θ)` at `t` (clamped to the run).
+    pub(crate) fn angles(&mut self, t: f64) -> (f64, f64) {
         let phi = match self.strokes.len() {
             0 => self.start,
             n => {
@@ -125,13 +125,19 @@ impl SweepTimeline {
                 }
             }
         };
-        phi + self.modulation.eval(phi, &mut self.powers)
+        (phi, phi + self.modulation.eval(phi, &mut self.powers))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    impl SweepTimeline {
+        fn theta(&mut self, t: f64) -> f64 {
+            self.angles(t).1
+        }
+    }
 
     #[test]
     fn strokes_reach_their_ends_and_return() {

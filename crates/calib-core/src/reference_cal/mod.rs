@@ -26,6 +26,33 @@
 //!   range's ends one direction only, within the approach after each reversal). Nothing outside
 //!   the data is extrapolated; points never crossed inside the range are an error.
 //!
+//! A range that crosses the reading 0 is held from `start` in `[0, 2π)` to `end` above 2π;
+//! tables and reports write it in the signed form (−40° to 95°), never above 360°.
+//!
+//! # Latency
+//! A constant lag `τ` of the DUT's samples behind the reference's (two interfaces sampling at
+//! different instants) adds `−τ·ω(t)` to the difference, which looks like a reversal at one speed
+//! and like noise at several. With [`Latency::Auto`] (the default) `τ` is fitted jointly with the
+//! map and a constant reversal from the differences between passes over the same point
+//! ([`LatencyFit`]; module `latency`), and removed — the reference re-read at `t − τ` — where the
+//! run tells it from backlash (passes at different speeds in one direction) and it differs from
+//! 0 by more than 3 standard uncertainties. At one speed per direction a warning names both
+//! readings of the reversal (a lag in ms, or a backlash in ″) and how to record a run that
+//! separates them. An estimated `τ` adds `u(τ)·|ω̄_i|` to the point's `u`, `ω̄_i` the mean
+//! signed speed of its crossings (zero where both directions went at the same speed).
+//!
+//! # One direction at the ends
+//! Where a point was crossed in one direction only (the ends of a swept range, within the
+//! approach after each reversal), its value is that direction's mean corrected by half the
+//! reversal measured at the nearest points crossed both ways, with the correction's
+//! uncertainty in `u` ([`EndCorrection`]; module `ends`), so that the map is the bidirectional
+//! mean everywhere.
+//!
+//! # Commanded reference
+//! With [`ReferenceKind::Commanded`] the reference is an open-loop commanded angle; the motor's
+//! ripple, periodic in the electrical angle, is fitted and taken out of the map
+//! ([`Ripple`]; module `ripple`).
+//!
 //! # Does the reference follow the DUT?
 //! A DUT's error, however large (a resolver's ±15°), is a function of the angle: the difference
 //! `d` at a grid point is the same on every pass. A reference on another shaft, slipping, counting
@@ -76,9 +103,18 @@
 //! interpolation is in the DUT's reading, so a steep error (degrees per degree) only changes the
 //! spacing of the nodes. No absolute offset (maps are zero-mean, over their range).
 
+mod ends;
+mod latency;
+mod ripple;
+
+pub use ends::EndCorrection;
+pub use latency::{LatencyFit, MIN_SPEED_SPREAD};
+pub use ripple::{Ripple, RippleTerm};
+
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper, wrap_2pi};
 use crate::error_map::ErrorMap;
 use crate::range_map::RangeMap;
+use latency::Crossing;
 use std::f64::consts::{PI, TAU};
 
 /// Settings of a reference calibration.
@@ -103,6 +139,33 @@ pub struct ReferenceOptions {
     pub max_gap: f64,
     /// Where ISO 230-2's target positions lie (default: 20, see [`Targets`]).
     pub targets: Targets,
+    /// The time offset between the channels (default [`Latency::Auto`]).
+    pub latency: Latency,
+    /// What the reference is (default [`ReferenceKind::Encoder`]).
+    pub reference_kind: ReferenceKind,
+}
+
+/// The DUT's lag behind the reference (see [Latency](self#latency)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Latency {
+    /// Estimated from the run; removed where the run separates it from backlash and it differs
+    /// from 0 by more than 3 standard uncertainties, else reported and left at 0.
+    Auto,
+    /// This lag, seconds (positive: the DUT's sample is older than its stamp says), removed.
+    Fixed(f64),
+}
+
+/// What the reference channel measures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReferenceKind {
+    /// An encoder on the DUT's shaft.
+    Encoder,
+    /// The commanded angle of a motor driven open loop with `pole_pairs` pole pairs: the ripple
+    /// periodic in the electrical angle is taken out of the map and reported (see [`Ripple`]).
+    Commanded {
+        /// Pole pairs of the motor (≥ 1).
+        pole_pairs: u32,
+    },
 }
 
 /// The target positions of ISO 230-2, at which its figures are evaluated.
@@ -126,6 +189,8 @@ impl Default for ReferenceOptions {
             approach: 1f64.to_radians(),
             max_gap: 5f64.to_radians(),
             targets: Targets::Count(20),
+            latency: Latency::Auto,
+            reference_kind: ReferenceKind::Encoder,
         }
     }
 }
@@ -200,6 +265,17 @@ pub enum ReferenceError {
         revolutions: f64,
         /// The tolerance, degrees.
         tol_deg: f64,
+    },
+    /// A commanded reference's range is too short to separate the motor's ripple.
+    #[error(
+        "the range holds {periods:.2} electrical period(s) of the motor ({pole_pairs} pole pairs); the ripple of a commanded \
+         reference is separated over at least 2: sweep a wider range, or check --pole-pairs"
+    )]
+    CommandedTooShort {
+        /// Electrical periods in the map's range.
+        periods: f64,
+        /// Pole pairs given.
+        pole_pairs: u32,
     },
     /// The options cannot work.
     #[error("invalid options: {0}")]
@@ -391,8 +467,41 @@ pub struct ReferenceCalibration {
     /// direction), radians: how well the reference followed; `None` if no point was crossed
     /// twice.
     pub repeat_spread: Option<f64>,
+    /// The time offset between the channels: what was estimated and what was removed.
+    pub latency: Option<LatencyResult>,
+    /// The correction of points measured in one direction only, where there were any next to
+    /// points measured both ways.
+    pub ends: Option<EndCorrection>,
+    /// The motor's ripple taken out of the map (a commanded reference).
+    pub ripple: Option<Ripple>,
     /// What the user should know about the result.
     pub warnings: Vec<String>,
+}
+
+/// The time offset between the channels in a calibration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LatencyResult {
+    /// The lag removed from the map, seconds (0: none).
+    pub applied: f64,
+    /// Where it comes from.
+    pub source: LatencySource,
+    /// The fit of the run (`None` with a given lag, or where the run cannot give one).
+    pub fit: Option<LatencyFit>,
+}
+
+/// Where the lag removed comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LatencySource {
+    /// Given by the user.
+    Given,
+    /// Estimated and removed.
+    Estimated,
+    /// Estimated, not different from 0 by 3 standard uncertainties: not removed.
+    Insignificant,
+    /// The run has one speed per direction: latency and backlash read the same; not removed.
+    Ambiguous,
+    /// The run cannot estimate it (too few points crossed twice, time stamps out of order).
+    Unavailable,
 }
 
 /// A reference calibration fed one synchronized sample at a time.
@@ -417,12 +526,27 @@ pub struct ReferenceCal {
     run: Option<(bool, f64)>,
     /// The last moving step, whose crossings wait for the next sample (the cubic's outer node).
     pending: Option<Step>,
+    /// `(t, unwrapped DUT, unwrapped reference)` of every sample, kept while a lag may have to
+    /// be removed (the reference is then re-read at `t − τ`).
+    samples: Vec<(f64, f64, f64)>,
+    keep_samples: bool,
+    /// Whether the kept samples' times increase.
+    sorted: bool,
+    /// Every crossing, kept to estimate the lag.
+    crossings: Option<Vec<Crossing>>,
+    /// Moving sample steps.
+    steps: usize,
+    /// Sum of the reference's speed over each grid point's crossings, rad/s.
+    speed_sum: Vec<f64>,
 }
 
 /// A step between two consecutive moving samples: DUT readings `u` (unwrapped) and differences
 /// `d` at both ends, the run's travel before it, and the sample before it if the run goes on.
 #[derive(Debug, Clone, Copy)]
 struct Step {
+    /// Time at the step's start and end.
+    t0: f64,
+    t1: f64,
     u0: f64,
     d0: f64,
     u1: f64,
@@ -453,7 +577,14 @@ impl ReferenceCal {
     /// A calibration with these options.
     pub fn new(opts: ReferenceOptions) -> Self {
         let n = opts.points;
+        let keep = opts.latency != Latency::Fixed(0.0);
         ReferenceCal {
+            samples: Vec::new(),
+            keep_samples: keep,
+            sorted: true,
+            crossings: (opts.latency == Latency::Auto).then(Vec::new),
+            steps: 0,
+            speed_sum: vec![0.0; n],
             opts,
             dut: Unwrapper::new(),
             reference: Unwrapper::new(),
@@ -476,12 +607,18 @@ impl ReferenceCal {
     /// non-finite value are skipped (and break the interpolation between neighbours).
     pub fn push(&mut self, t: f64, dut: f64, reference: f64) {
         if !(t.is_finite() && dut.is_finite() && reference.is_finite()) {
+            if self.keep_samples && t.is_finite() {
+                self.keep(t, f64::NAN, f64::NAN);
+            }
             self.flush();
             self.last = None;
             return;
         }
         let u = self.dut.unwrap(dut);
         let r = self.reference.unwrap(reference);
+        if self.keep_samples {
+            self.keep(t, u, r);
+        }
         let (u0, r0) = *self.first.get_or_insert((u, r));
         let d = (u - u0) - (r - r0);
         let previous = self.last.replace((t, u, d));
@@ -494,6 +631,7 @@ impl ReferenceCal {
             self.flush();
             return;
         }
+        self.steps += 1;
         self.travel += du.abs();
         self.reference_travel += (d_prev - d + du).abs();
         self.d_min = self.d_min.min(d).min(d_prev);
@@ -505,6 +643,8 @@ impl ReferenceCal {
         };
         self.run = Some((increasing, travelled + du.abs()));
         let mut step = Step {
+            t0: t_prev,
+            t1: t,
             u0: u_prev,
             d0: d_prev,
             u1: u,
@@ -526,6 +666,13 @@ impl ReferenceCal {
         self.pending = Some(step);
     }
 
+    fn keep(&mut self, t: f64, u: f64, r: f64) {
+        if self.samples.last().is_some_and(|&(t0, _, _)| t <= t0) {
+            self.sorted = false;
+        }
+        self.samples.push((t, u, r));
+    }
+
     /// Crossings of a pending step, interpolated linearly (no outer node to use).
     fn flush(&mut self) {
         if let Some(p) = self.pending.take() {
@@ -544,6 +691,8 @@ impl ReferenceCal {
         }
         let grid = TAU / n as f64;
         let du = s.u1 - s.u0;
+        // The reference's speed over the step: its reading is `u − d` plus a constant.
+        let speed = (du - (s.d1 - s.d0)) / (s.t1 - s.t0);
         let (lo, hi) = if du > 0.0 { (s.u0, s.u1) } else { (s.u1, s.u0) };
         // Readings so large that grid indices lose precision cannot be placed on the grid.
         if lo.abs().max(hi.abs()) / grid > 1e15 {
@@ -576,11 +725,110 @@ impl ReferenceCal {
             }
             self.low[i] = self.low[i].min(x);
             self.high[i] = self.high[i].max(x);
+            self.speed_sum[i] += speed;
+            if let Some(c) = self.crossings.as_mut() {
+                c.push(Crossing {
+                    bin: i as u32,
+                    up: du > 0.0,
+                    x,
+                    w: speed,
+                });
+            }
         }
     }
 
     /// The calibration from the samples pushed.
+    ///
+    /// With [`Latency::Auto`] the lag is first fitted on the crossings ([`LatencyFit`]); where
+    /// it is removed, the map is computed again from the kept samples with the reference read at
+    /// `t − τ` (a cubic in time), the fit is repeated on that map for what is left of `τ`, and
+    /// the map computed once more with the sum. A given lag ([`Latency::Fixed`]) is removed the
+    /// same way.
     pub fn finish(mut self) -> Result<ReferenceCalibration, ReferenceError> {
+        self.flush();
+        let samples = std::mem::take(&mut self.samples);
+        let sorted = self.sorted;
+        match self.opts.latency {
+            Latency::Fixed(0.0) => self.finish_map(None),
+            Latency::Fixed(tau) => {
+                if !sorted {
+                    return Err(ReferenceError::Options(
+                        "a latency can only be removed from a log whose time stamps increase"
+                            .to_string(),
+                    ));
+                }
+                let result = LatencyResult {
+                    applied: tau,
+                    source: LatencySource::Given,
+                    fit: None,
+                };
+                self.again(&samples, tau, false).finish_map(Some(result))
+            }
+            Latency::Auto => {
+                let first = self
+                    .crossings
+                    .as_deref()
+                    .and_then(|c| latency::fit(c, self.opts.points, self.steps));
+                let source = match first {
+                    None => LatencySource::Unavailable,
+                    Some(_) if !sorted => LatencySource::Unavailable,
+                    Some(f) if !f.separable() => LatencySource::Ambiguous,
+                    Some(f) if !f.significant() => LatencySource::Insignificant,
+                    Some(_) => LatencySource::Estimated,
+                };
+                let (Some(f), LatencySource::Estimated) = (first, source) else {
+                    let result = LatencyResult {
+                        applied: 0.0,
+                        source,
+                        fit: first,
+                    };
+                    return self.finish_map(Some(result));
+                };
+                let second = self.again(&samples, f.tau, true);
+                let rest = second
+                    .crossings
+                    .as_deref()
+                    .and_then(|c| latency::fit(c, second.opts.points, second.steps));
+                let (tau, u_tau) = rest.map_or((f.tau, f.u_tau), |r| (f.tau + r.tau, r.u_tau));
+                let result = LatencyResult {
+                    applied: tau,
+                    source,
+                    fit: Some(LatencyFit { tau, u_tau, ..f }),
+                };
+                if tau == f.tau {
+                    second.finish_map(Some(result))
+                } else {
+                    self.again(&samples, tau, false).finish_map(Some(result))
+                }
+            }
+        }
+    }
+
+    /// A calibration of the kept samples with the reference read at `t − τ`, its crossings
+    /// recorded if `record`.
+    fn again(&self, samples: &[(f64, f64, f64)], tau: f64, record: bool) -> ReferenceCal {
+        let mut cal = ReferenceCal::new(ReferenceOptions {
+            latency: Latency::Fixed(0.0),
+            ..self.opts.clone()
+        });
+        if record {
+            cal.crossings = Some(Vec::new());
+        }
+        let reference: Vec<(f64, f64)> = samples.iter().map(|&(t, _, r)| (t, r)).collect();
+        for &(t, u, _) in samples {
+            let r = latency::interpolate(&reference, t - tau).unwrap_or(f64::NAN);
+            cal.push(t, u, r);
+        }
+        cal.flush();
+        cal
+    }
+
+    /// The calibration from the crossings gathered, `latency` saying what lag they were
+    /// gathered with.
+    fn finish_map(
+        mut self,
+        latency: Option<LatencyResult>,
+    ) -> Result<ReferenceCalibration, ReferenceError> {
         self.flush();
         let n = self.opts.points;
         if n < 2 {
@@ -641,6 +889,56 @@ impl ReferenceCal {
             _ => Some(0.5 * (self.up[i].mean + self.down[i].mean)),
         };
         let mut raw: Vec<f64> = bins.iter().map(|&i| measured(i).unwrap_or(0.0)).collect();
+        let (pool_up, pool_down) = (pooled(&self.up), pooled(&self.down));
+        // A direction never crossed twice at a point has no repeatability: a pass's noise is
+        // then taken from the scatter of the reversal between neighbouring points.
+        // Neighbouring points between the same two samples share their noise, which the
+        // scatter between neighbours does not see: scaled by the grid points per sample step.
+        let per_step = bins
+            .iter()
+            .map(|&i| f64::from(self.up[i].n + self.down[i].n))
+            .sum::<f64>()
+            / self.steps.max(1) as f64;
+        let scatter =
+            reversal_scatter(&self.up, &self.down, &bins).map(|s| s * per_step.max(1.0).sqrt());
+        let from_scatter = scatter.is_some() && (pool_up.is_none() || pool_down.is_none());
+        let (pool_up, pool_down) = (pool_up.or(scatter), pool_down.or(scatter));
+        let sem2_of = |w: &Welford, pool: Option<f64>| -> f64 {
+            let s = if w.n >= 2 {
+                Some((w.m2.max(0.0) / f64::from(w.n - 1)).sqrt())
+            } else {
+                pool
+            };
+            s.map_or(0.0, |s| s * s / f64::from(w.n))
+        };
+        // Points measured one way only: corrected by half the reversal next to them.
+        let directions: Vec<ends::Directions> = bins
+            .iter()
+            .map(|&i| {
+                let (a, b) = (&self.up[i], &self.down[i]);
+                ends::Directions {
+                    up: (a.n > 0).then(|| (a.mean, sem2_of(a, pool_up))),
+                    down: (b.n > 0).then(|| (b.mean, sem2_of(b, pool_down))),
+                }
+            })
+            .collect();
+        let turn = matches!(layout, Layout::Turn { .. });
+        let mut extra_u2 = vec![0.0; bins.len()];
+        let mut end_correction: Option<EndCorrection> = None;
+        for (j, c) in ends::corrections(&directions, turn).into_iter().enumerate() {
+            if let Some((add, u)) = c {
+                raw[j] += add;
+                extra_u2[j] += u * u;
+                let e = end_correction.get_or_insert(EndCorrection {
+                    points: 0,
+                    max_correction: 0.0,
+                    max_u: 0.0,
+                });
+                e.points += 1;
+                e.max_correction = e.max_correction.max(add.abs());
+                e.max_u = e.max_u.max(u);
+            }
+        }
         let gap = match layout {
             Layout::Turn {
                 gap: Some((before, points)),
@@ -663,6 +961,53 @@ impl ReferenceCal {
             }
             _ => None,
         };
+        let crossings: f64 = bins
+            .iter()
+            .map(|&i| f64::from(self.up[i].n + self.down[i].n))
+            .sum();
+        let ripple = match self.opts.reference_kind {
+            ReferenceKind::Encoder => None,
+            ReferenceKind::Commanded { pole_pairs } => {
+                let (u0, r0) = self.first.unwrap_or((0.0, 0.0));
+                // The reference's own reading at each point: the DUT's reading minus the
+                // difference (`d = (u − u₀) − (r − r₀)`).
+                let reference: Vec<f64> = bins
+                    .iter()
+                    .zip(&raw)
+                    .map(|(&i, &x)| i as f64 * step - x - u0 + r0)
+                    .collect();
+                let per_sample = crossings / self.steps.max(1) as f64;
+                let (fit, value, u_fit) = ripple::fit(
+                    &raw, &reference, n, pole_pairs, turn, per_sample,
+                )
+                .map_err(|ripple::RippleProblem::TooShort { periods }| {
+                    ReferenceError::CommandedTooShort {
+                        periods,
+                        pole_pairs,
+                    }
+                })?;
+                for j in 0..raw.len() {
+                    raw[j] -= value[j];
+                    extra_u2[j] += u_fit[j] * u_fit[j];
+                }
+                Some(fit)
+            }
+        };
+        if let Some(LatencyResult {
+            source: LatencySource::Estimated,
+            fit: Some(f),
+            ..
+        }) = latency
+        {
+            // The lag's uncertainty moves a point by u(τ)·ω̄, ω̄ the mean signed speed of its
+            // crossings (nothing where both directions went at the same speed).
+            for (j, &i) in bins.iter().enumerate() {
+                let count = f64::from(self.up[i].n + self.down[i].n);
+                if count > 0.0 {
+                    extra_u2[j] += (f.u_tau * self.speed_sum[i] / count).powi(2);
+                }
+            }
+        }
         let offset = raw.iter().sum::<f64>() / raw.len() as f64;
         let stats = |w: &Welford| PointStats {
             n: w.n,
@@ -671,7 +1016,6 @@ impl ReferenceCal {
         };
         let up: Vec<PointStats> = bins.iter().map(|&i| stats(&self.up[i])).collect();
         let down: Vec<PointStats> = bins.iter().map(|&i| stats(&self.down[i])).collect();
-        let (pool_up, pool_down) = (pooled(&self.up), pooled(&self.down));
         let sem2 = |p: &PointStats, pool: Option<f64>| -> Option<f64> {
             let s = p.s.or(pool)?;
             Some(s * s / f64::from(p.n))
@@ -680,7 +1024,8 @@ impl ReferenceCal {
         let mut u: Vec<Option<f64>> = up
             .iter()
             .zip(&down)
-            .map(|(a, b)| {
+            .zip(&extra_u2)
+            .map(|((a, b), extra)| {
                 let var = match (a.n, b.n) {
                     (0, 0) => return None,
                     (0, _) => sem2(b, pool_down),
@@ -693,7 +1038,7 @@ impl ReferenceCal {
                     no_repeatability = true;
                     0.0
                 });
-                Some((var + self.opts.reference_u.powi(2)).sqrt())
+                Some((var + extra + self.opts.reference_u.powi(2)).sqrt())
             })
             .collect();
         if let Some(g) = gap {
@@ -737,6 +1082,13 @@ impl ReferenceCal {
                  uncertainty; record several passes to estimate the repeatability"
                     .to_string(),
             );
+        } else if from_scatter {
+            warnings.push(
+                "no point was crossed twice in one direction: u_arcsec takes a pass's noise from the scatter of the \
+                 reversal between neighbouring points (a lower bound: noise common to neighbours is not in it); record \
+                 several passes to estimate the repeatability"
+                    .to_string(),
+            );
         }
         let (has_up, has_down) = (min_passes.0 > 0, min_passes.1 > 0);
         if has_up && has_down {
@@ -753,8 +1105,9 @@ impl ReferenceCal {
             };
             if (0..len).any(|j| inner(j) && (up[j].n == 0) != (down[j].n == 0)) {
                 warnings.push(
-                    "some points were crossed in one direction only, others in both: the map mixes unidirectional and \
-                     bidirectional means; record the motion over the whole range in each direction"
+                    "some points inside the range were crossed in one direction only, others in both: their values are \
+                     corrected by half the reversal measured next to them (an extrapolation, in their u); record the \
+                     motion over the whole range in each direction"
                         .to_string(),
                 );
             }
@@ -768,6 +1121,9 @@ impl ReferenceCal {
                     "only {m} pass(es) at some points with {name} readings; ISO 230-2 asks for 5 per direction"
                 ));
             }
+        }
+        if let Some(w) = latency.as_ref().and_then(latency_warning) {
+            warnings.push(w);
         }
         if let Some(g) = gap {
             warnings.push(format!(
@@ -792,9 +1148,40 @@ impl ReferenceCal {
             min_passes,
             gap,
             repeat_spread: repeat.map(|r| r.0),
+            latency,
+            ends: end_correction,
+            ripple,
             warnings,
         })
     }
+}
+
+/// The warning of a run whose reversal may be latency or backlash: one speed per direction,
+/// and a reversal larger than 3 of its standard uncertainties.
+fn latency_warning(l: &LatencyResult) -> Option<String> {
+    let f = l.fit?;
+    if l.source != LatencySource::Ambiguous
+        || f.reversal_if_no_latency.abs() <= 3.0 * f.u_reversal_if_no_latency
+    {
+        return None;
+    }
+    let speed = f.mean_speed.to_degrees();
+    // Speeds to three significant figures at most, whatever their size.
+    let decimals = |v: f64| (2.0 - v.abs().max(1e-9).log10().floor()).clamp(0.0, 6.0) as usize;
+    let (fast, slow) = (speed, speed / 3.0);
+    Some(format!(
+        "the increasing and decreasing passes differ by {:.1}″ at one speed per direction (about {fast:.a$}°/s): this is \
+         either a latency of {:.1} ms between the channels (the DUT's samples older if positive) or a backlash or \
+         hysteresis of {:.1}″; at one speed the two read the same, so neither was removed (the map, the mean of both \
+         directions, holds neither where both went at the same speed). To separate them record passes at two speeds \
+         in each direction (e.g. {fast:.a$}°/s and {slow:.b$}°/s), or give --latency SECONDS if the interfaces' delay is \
+         known",
+        f.reversal_if_no_latency * ARCSEC_PER_RAD,
+        f.tau_if_no_backlash * 1e3,
+        f.reversal_if_no_latency * ARCSEC_PER_RAD,
+        a = decimals(fast),
+        b = decimals(slow),
+    ))
 }
 
 /// Which grid points a map holds.
@@ -913,6 +1300,30 @@ fn target_points(
     points.sort_unstable();
     points.dedup();
     Ok(points)
+}
+
+/// A pass's standard deviation from the reversals `B_i = x̄_i↑ − x̄_i↓` of the points crossed
+/// both ways, in grid order: each minus the mean of its 20 neighbours, `r`, has variance
+/// `var(B)·(1 + 1/20)` for noise independent between points, and `var(B) = 2σ²` for one pass
+/// each way. `None` with fewer than 21 such points.
+fn reversal_scatter(up: &[Welford], down: &[Welford], bins: &[usize]) -> Option<f64> {
+    const HALF: usize = 10;
+    let b: Vec<f64> = bins
+        .iter()
+        .filter(|&&i| up[i].n > 0 && down[i].n > 0)
+        .map(|&i| up[i].mean - down[i].mean)
+        .collect();
+    if b.len() < 2 * HALF + 1 {
+        return None;
+    }
+    let residuals: Vec<f64> = (HALF..b.len() - HALF)
+        .map(|j| {
+            let local = (b[j - HALF..=j + HALF].iter().sum::<f64>() - b[j]) / (2 * HALF) as f64;
+            b[j] - local
+        })
+        .collect();
+    let var = residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64;
+    Some((var / (1.0 + 1.0 / (2 * HALF) as f64) / 2.0).sqrt())
 }
 
 /// The pooled standard deviation of a direction's points with `n ≥ 2`.
