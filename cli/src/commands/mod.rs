@@ -78,6 +78,7 @@ fn inputs(command: &Command) -> Inputs {
         Command::Compose(a) => vec![(&a.first, "table"), (&a.residual, "table")],
         Command::Export(a) => vec![(&a.table, "table")],
         Command::Import(a) => vec![(&a.file, "table")],
+        Command::MoteusDump(a) => vec![(&a.dump, "dump")],
     };
     Inputs::new(paths)
 }
