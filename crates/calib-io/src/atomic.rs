@@ -757,6 +757,21 @@ mod tests {
     }
 
     #[test]
+    fn a_temporary_folder_is_live_until_dropped_and_named_for_stale_removal() {
+        let folder = TempFolder::create("bag").unwrap();
+        let path = folder.path().to_path_buf();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        // Removed by a later run once this one has died (SIGKILL), as the other temporaries.
+        assert_eq!(stale_owner(&name), Some(std::process::id()), "{name}");
+        // Removed by the SIGINT/SIGTERM handler while alive.
+        assert!(lock_live().contains(&path));
+        std::fs::write(path.join("bag_0.db3"), "x").unwrap();
+        drop(folder);
+        assert!(!path.exists());
+        assert!(!lock_live().contains(&path));
+    }
+
+    #[test]
     fn a_missing_directory_is_an_error_naming_the_target() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("no/such/dir/t.csv");
