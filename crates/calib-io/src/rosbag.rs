@@ -501,7 +501,7 @@ fn merge_mcap(
             records::Stream::new(std::io::BufReader::new(input), options, skip_damaged);
         let last = k + 1 == files.len();
         let mut index = 0u64;
-        while let Some(message) = stream.next() {
+        for message in stream.by_ref() {
             let message = match message {
                 Ok(message) => message,
                 Err(records::StreamError::Mcap(mcap::McapError::UnexpectedEof)) if last => {
