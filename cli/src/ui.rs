@@ -48,14 +48,20 @@ pub fn shown(path: &Path) -> String {
     escape_controls(&path.display().to_string())
 }
 
-/// `text` with control characters escaped as Rust escapes them (`\0`, `\n`, `\u{1b}`).
+/// `text` with control characters escaped as Rust escapes them (`\0`, `\n`, `\u{1b}`), and
+/// the Unicode bidirectional controls too (`\u{202e}`): a right-to-left override in a file or
+/// channel name would otherwise reorder the rest of the line on the terminal.
 pub fn escape_controls(text: &str) -> String {
-    if !text.chars().any(char::is_control) {
+    let hidden = |c: char| {
+        c.is_control()
+            || matches!(c, '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}' | '\u{200E}' | '\u{200F}' | '\u{061C}')
+    };
+    if !text.chars().any(hidden) {
         return text.to_string();
     }
     text.chars()
         .map(|c| {
-            if c.is_control() {
+            if hidden(c) {
                 c.escape_default().to_string()
             } else {
                 c.to_string()

@@ -182,6 +182,42 @@ pub(crate) fn temp_file_beside(target: &Path) -> io::Result<NamedTempFile> {
     builder.tempfile_in(parent_of(target))
 }
 
+/// A temporary folder of this run in the system's temporary directory (a bag's decompressed or
+/// merged splits), named as calib's other temporaries (`.<name>.calib-<pid>.<random>.tmp`):
+/// removed when dropped, by [`remove_live_and_exit`] on SIGINT/SIGTERM, and by [`remove_stale`]
+/// of the temporary directory (which [`TempFolder::create`] runs first) once its run has died
+/// without either.
+#[derive(Debug)]
+pub struct TempFolder {
+    dir: tempfile::TempDir,
+}
+
+impl TempFolder {
+    /// Creates one for `name`, after removing those of dead runs.
+    pub fn create(name: &str) -> io::Result<Self> {
+        let parent = std::env::temp_dir();
+        remove_stale(&parent);
+        let dir = tempfile::Builder::new()
+            .prefix(&temp_prefix(name))
+            .suffix(".tmp")
+            .tempdir_in(&parent)?;
+        register(dir.path());
+        Ok(TempFolder { dir })
+    }
+
+    /// Its path.
+    pub fn path(&self) -> &Path {
+        self.dir.path()
+    }
+}
+
+impl Drop for TempFolder {
+    fn drop(&mut self) {
+        // The `TempDir` dropped after this removes the folder.
+        lock_live().retain(|p| p != self.dir.path());
+    }
+}
+
 /// The temporary files and folders of this run not yet renamed into place or removed.
 static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
@@ -720,6 +756,21 @@ mod tests {
         std::fs::write(dir.path().join(&mine), "x").unwrap();
         assert_eq!(remove_stale(dir.path()), 2);
         assert_eq!(entries(dir.path()), [mine]);
+    }
+
+    #[test]
+    fn a_temporary_folder_is_live_until_dropped_and_named_for_stale_removal() {
+        let folder = TempFolder::create("bag").unwrap();
+        let path = folder.path().to_path_buf();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        // Removed by a later run once this one has died (SIGKILL), as the other temporaries.
+        assert_eq!(stale_owner(&name), Some(std::process::id()), "{name}");
+        // Removed by the SIGINT/SIGTERM handler while alive.
+        assert!(lock_live().contains(&path));
+        std::fs::write(path.join("bag_0.db3"), "x").unwrap();
+        drop(folder);
+        assert!(!path.exists());
+        assert!(!lock_live().contains(&path));
     }
 
     #[test]

@@ -93,6 +93,28 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// The error with its file renamed where `renames` lists it (`(from, to)`): a bag's
+    /// temporary copies named as the splits they came from.
+    pub(crate) fn renamed(mut self, renames: &[(PathBuf, PathBuf)]) -> Self {
+        let path = match &mut self {
+            Error::Io { path, .. }
+            | Error::UnknownFormat { path }
+            | Error::Csv { path, .. }
+            | Error::Mcap { path, .. }
+            | Error::Bag { path, .. }
+            | Error::Write { path, .. }
+            | Error::Empty { path }
+            | Error::Data { path, .. }
+            | Error::Budget { path, .. } => path,
+        };
+        if let Some((_, to)) = renames.iter().find(|(from, _)| from == path) {
+            *path = to.clone();
+        }
+        self
+    }
+}
+
 /// An [`Error::Csv`] for `path` at a 1-based `line`, naming `column` where one is concerned.
 pub(crate) fn csv_error(
     path: &std::path::Path,

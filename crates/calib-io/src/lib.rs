@@ -63,6 +63,7 @@ pub mod report;
 pub mod rosbag;
 pub mod scenario;
 pub mod shift_angle;
+mod stamps;
 pub mod table;
 
 pub use error::Error;
@@ -144,6 +145,15 @@ impl DamagedChunk {
             ),
             e => format!("its records cannot be decoded ({e})"),
         };
+        Self::because(span, position, reason)
+    }
+
+    /// The chunk `span` (or the chunk at `position`) damaged as `reason` says.
+    pub(crate) fn because(
+        span: Option<mcap::sans_io::ChunkSpan>,
+        position: u64,
+        reason: String,
+    ) -> Self {
         DamagedChunk {
             byte_offset: span.map_or(position, |s| s.offset),
             log_time_ns: span

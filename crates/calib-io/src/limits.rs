@@ -31,13 +31,93 @@ pub const MAX_CSV_LINE_BYTES: usize = 1 << 20;
 /// huge chunks costs no memory for them, and reads the same either way.
 pub const MAX_PARALLEL_CHUNK_BYTES: usize = 16 << 20;
 
+/// The longest MCAP record calib reads where the file is shorter than it, bytes (64 MiB). A
+/// record inside a compressed chunk can be longer than the whole file (one large, compressible
+/// message), so the file's length alone would refuse a valid log; beyond this, a length is a
+/// damaged one, and refusing it keeps a corrupt length from driving a large allocation.
+pub const MAX_MCAP_RECORD_BYTES: usize = 64 << 20;
+
+/// The record length limit of an MCAP file of `len` bytes: its length, or
+/// [`MAX_MCAP_RECORD_BYTES`] if that is more.
+pub(crate) fn mcap_record_limit(len: u64) -> usize {
+    usize::try_from(len)
+        .unwrap_or(usize::MAX)
+        .max(MAX_MCAP_RECORD_BYTES)
+}
+
+/// The most a bag's split compressed whole (`compression_mode: FILE`) may grow when
+/// decompressed, as a multiple of its compressed size (1000×, with at least 1 GiB allowed):
+/// recorded data compresses 3–20×, and a SQLite file of empty pages a few hundred times. Checked
+/// while decompressing, so a small damaged split is refused after writing at most this much.
+pub const MAX_DECOMPRESSION_RATIO: u64 = 1000;
+
+/// The decompressed size allowed a split of `compressed` bytes (see
+/// [`MAX_DECOMPRESSION_RATIO`]).
+pub(crate) fn decompressed_limit(compressed: u64) -> u64 {
+    compressed
+        .saturating_mul(MAX_DECOMPRESSION_RATIO)
+        .max(1 << 30)
+}
+
+/// The largest message payload a bag's message-compressed rows (`compression_mode: MESSAGE`)
+/// may decompress to, bytes (16 MiB: a JointState of [`MAX_JOINTS`] joints is under 1 MiB).
+pub const MAX_PAYLOAD_BYTES: usize = 16 << 20;
+
+/// Bytes as a message shows them: printable ASCII as it is, anything else as `\xNN`.
+pub(crate) fn shown_bytes(bytes: &[u8]) -> String {
+    let text: String = bytes
+        .iter()
+        .flat_map(|&b| std::ascii::escape_default(b))
+        .map(char::from)
+        .collect();
+    format!("`{text}`")
+}
+
+/// The most topics an MCAP file or a bag may have (10,000: a whole robot records a few hundred).
+/// Checked from the summary or the bag's `topics` table before any message is read, and again as
+/// the data section adds channels.
+pub const MAX_TOPICS: usize = 10_000;
+
+/// The most joints one JointState (or DynamicJointState) message may name (10,000: a robot has
+/// tens). Checked before the names are read.
+pub const MAX_JOINTS: usize = 10_000;
+
+/// The most fields a JSON message may have (10,000).
+pub const MAX_JSON_FIELDS: usize = 10_000;
+
+/// The most message types a message definition may hold (1,000: a JointState's holds three, a
+/// large driver message a few dozen).
+pub const MAX_MESSAGE_TYPES: usize = 1_000;
+
+/// The most columns a CSV log may have (10,000: a channel per column).
+pub const MAX_CSV_COLUMNS: usize = 10_000;
+
+/// Names listed in a message: at most this many, then how many more.
+const LISTED: usize = 20;
+
+/// `names` as a message lists them: comma-separated, the first [`LISTED`] and then how many more,
+/// so that a file of 100,000 fields does not make a 789 KB error line.
+pub(crate) fn listed(names: &[impl AsRef<str>]) -> String {
+    let shown: Vec<&str> = names.iter().take(LISTED).map(AsRef::as_ref).collect();
+    let mut text = shown.join(", ");
+    if names.len() > LISTED {
+        text.push_str(&format!(", … ({} more)", names.len() - LISTED));
+    }
+    text
+}
+
 /// The limits as the command line's `--help` lists them.
 pub fn help_text() -> String {
     format!(
         "Limits (checked before any work): --points at most {MAX_TABLE_POINTS} for every table; \
          calib simulate writes at most {MAX_SIMULATED_SAMPLES} samples unless --force; CSV lines \
-         at most {MAX_CSV_LINE_BYTES} bytes; readings within ±{MAX_READING_REV:e} revolutions and \
-         time stamps within ±{MAX_TIME_S:e} s."
+         at most {MAX_CSV_LINE_BYTES} bytes and {MAX_CSV_COLUMNS} columns; readings within \
+         ±{MAX_READING_REV:e} revolutions and time stamps within ±{MAX_TIME_S:e} s; MCAP files and \
+         bags at most {MAX_TOPICS} topics, {MAX_JOINTS} joints per JointState message, \
+         {MAX_JSON_FIELDS} fields per JSON message and {MAX_MESSAGE_TYPES} types per message \
+         definition; MCAP records inside chunks at most {MAX_MCAP_RECORD_BYTES} bytes (or the \
+         file's length); bag payloads at most {MAX_PAYLOAD_BYTES} bytes decompressed, bag splits \
+         at most {MAX_DECOMPRESSION_RATIO}× their compressed size."
     )
 }
 

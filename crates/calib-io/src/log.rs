@@ -184,9 +184,11 @@ pub struct LogReader {
     selection: Option<(Vec<usize>, Vec<Channel>)>,
     /// A bag directory of MCAP storage without `metadata.yaml`: the warning to give.
     bag_warnings: Vec<String>,
+    /// A bag's temporary files and the splits (or bag) errors name instead.
+    renames: Vec<(std::path::PathBuf, std::path::PathBuf)>,
     /// A bag's decompressed or merged files, removed when the reader is dropped (after it:
     /// fields drop in order).
-    _temp: Option<tempfile::TempDir>,
+    _temp: Option<crate::atomic::TempFolder>,
 }
 
 enum Inner {
@@ -200,22 +202,22 @@ impl LogReader {
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
         let mut bag_warnings = Vec::new();
         let mut temp = None;
+        let mut renames = Vec::new();
         let inner = match LogFormat::detect(path)? {
             LogFormat::Csv => Inner::Csv(CsvReader::open(path, opts)?),
             LogFormat::Mcap => Inner::Mcap(McapReader::open(path, opts)?),
             LogFormat::Rosbag => {
-                let bag = rosbag::prepare(path)?;
+                let bag = rosbag::prepare_with(path, opts.skip_damaged)?;
                 temp = bag.temp;
+                renames = bag.renames;
+                let rename = |e: Error| e.renamed(&renames);
                 match bag.storage {
-                    PreparedStorage::Sqlite3(files) => Inner::Bag(BagReader::open(
-                        path,
-                        files,
-                        bag.compressed_messages,
-                        bag.warnings,
-                        opts,
-                    )?),
+                    PreparedStorage::Sqlite3(files) => Inner::Bag(
+                        BagReader::open(path, files, bag.compressed_messages, bag.warnings, opts)
+                            .map_err(rename)?,
+                    ),
                     PreparedStorage::Mcap(file) => {
-                        let reader = McapReader::open(&file, opts)?;
+                        let reader = McapReader::open(&file, opts).map_err(rename)?;
                         bag_warnings = bag.warnings;
                         Inner::Mcap(reader)
                     }
@@ -236,6 +238,7 @@ impl LogReader {
             names,
             selection: None,
             bag_warnings,
+            renames,
             _temp: temp,
         })
     }
@@ -398,8 +401,8 @@ impl Iterator for LogReader {
                     (other, _) => other,
                 })
             }
-            Inner::Mcap(r) => r.next(),
-            Inner::Bag(r) => r.next(),
+            Inner::Mcap(r) => r.next().map(|s| s.map_err(|e| e.renamed(&self.renames))),
+            Inner::Bag(r) => r.next().map(|s| s.map_err(|e| e.renamed(&self.renames))),
         }
     }
 }

@@ -50,13 +50,23 @@ pub fn names_of<'a>(
             None => ChannelName::plain(name),
         })
         .collect();
-    for i in 0..names.len() {
-        let unique = names.iter().filter(|n| n.short == names[i].short).count() == 1;
-        names[i].display = if unique {
-            names[i].short.clone()
-        } else {
-            names[i].qualified.clone()
-        };
+    // Counted once: a count per name instead of a scan per name (60,000 joints took 48 s).
+    let mut count: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+    for n in &names {
+        *count.entry(n.short.as_str()).or_default() += 1;
+    }
+    let display: Vec<String> = names
+        .iter()
+        .map(|n| {
+            if count[n.short.as_str()] == 1 {
+                n.short.clone()
+            } else {
+                n.qualified.clone()
+            }
+        })
+        .collect();
+    for (n, d) in names.iter_mut().zip(display) {
+        n.display = d;
     }
     names
 }
@@ -65,7 +75,10 @@ pub fn names_of<'a>(
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ChannelLookup {
     /// No channel has that name.
-    #[error("no channel `{name}` in the log (it has: {}); pick one of those names", available.join(", "))]
+    #[error(
+        "no channel `{name}` in the log (it has: {}); pick one of those names",
+        crate::limits::listed(available)
+    )]
     Unknown {
         /// The name asked for.
         name: String,
@@ -73,7 +86,7 @@ pub enum ChannelLookup {
         available: Vec<String>,
     },
     /// Several channels have that short name.
-    #[error("channel `{name}` is ambiguous: {} topics carry it ({}); name one as TOPIC/{name}", candidates.len(), candidates.join(", "))]
+    #[error("channel `{name}` is ambiguous: {} topics carry it ({}); name one as TOPIC/{name}", candidates.len(), crate::limits::listed(candidates))]
     Ambiguous {
         /// The name asked for.
         name: String,

@@ -32,6 +32,7 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, sync_channel};
@@ -45,6 +46,7 @@ use crate::mcap_log::read::{
 };
 use crate::mcap_log::{IgnoredTopic, JOINT_STATE_SCHEMA, PEEK_WINDOW, TopicInfo};
 use crate::naming::ChannelName;
+use crate::stamps::StampOrder;
 use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource};
 
 /// The first 16 bytes of every SQLite 3 database file.
@@ -99,8 +101,13 @@ pub struct PreparedBag {
     pub compressed_messages: bool,
     /// Warnings (a missing `metadata.yaml`).
     pub warnings: Vec<String>,
-    /// The folder of decompressed or merged files, removed when dropped.
-    pub temp: Option<tempfile::TempDir>,
+    /// The files of the temporary folder and what messages call them: the split each was
+    /// decompressed or copied from, or the bag for the merged file (the temporary paths are gone
+    /// once calib exits).
+    pub renames: Vec<(PathBuf, PathBuf)>,
+    /// The folder of decompressed or merged files, removed when dropped (and on SIGINT/SIGTERM,
+    /// or by a later run if this one is killed).
+    pub temp: Option<crate::atomic::TempFolder>,
 }
 
 /// What [`PreparedBag`] reads.
@@ -177,6 +184,27 @@ pub fn bag_files(path: &Path) -> Result<BagFiles, Error> {
         let (storage_id, relative) = (parsed.storage, parsed.files);
         let mut files = Vec::with_capacity(relative.len());
         for (k, rel) in relative.iter().enumerate() {
+            let outside = Path::new(rel).components().any(|c| {
+                !matches!(
+                    c,
+                    std::path::Component::Normal(_) | std::path::Component::CurDir
+                )
+            });
+            if outside {
+                return Err(bag_error(
+                    &metadata,
+                    None,
+                    None,
+                    None,
+                    format!(
+                        "relative_file_paths entry {} names `{}`, a path outside the bag \
+                         directory; rosbag2 lists its splits by their names inside it: fix the \
+                         entry, or remove it from {METADATA} to read the other splits",
+                        k + 1,
+                        rel
+                    ),
+                ));
+            }
             let file = locate_split(path, rel).ok_or_else(|| {
                 bag_error(
                     &metadata,
@@ -184,10 +212,11 @@ pub fn bag_files(path: &Path) -> Result<BagFiles, Error> {
                     None,
                     None,
                     format!(
-                        "relative_file_paths entry {} names the split `{rel}`, which is not in \
+                        "relative_file_paths entry {} names the split `{}`, which is not in \
                          the bag directory {}; copy the whole bag directory, or remove the \
                          entry from {METADATA} to read the other splits",
                         k + 1,
+                        rel,
                         path.display()
                     ),
                 )
@@ -277,18 +306,23 @@ pub fn bag_files(path: &Path) -> Result<BagFiles, Error> {
 /// into one file, in a temporary folder. The whole recording is then on disk uncompressed:
 /// SQLite reads a database from a file, and the MCAP reader reads one file.
 pub fn prepare(path: &Path) -> Result<PreparedBag, Error> {
+    prepare_with(path, false)
+}
+
+/// [`prepare`], leaving out the damaged chunks of MCAP splits where `skip_damaged` (as
+/// [`ReadOptions::skip_damaged`] does for one file) and listing them in the warnings.
+pub fn prepare_with(path: &Path, skip_damaged: bool) -> Result<PreparedBag, Error> {
     let found = bag_files(path)?;
+    let mut warnings = found.warnings.clone();
+    let renames = std::cell::RefCell::new(Vec::new());
     let mut temp = None;
-    let mut folder = |split: &Path| -> Result<PathBuf, Error> {
+    let mut folder = || -> Result<PathBuf, Error> {
         if temp.is_none() {
             temp = Some(
-                tempfile::Builder::new()
-                    .prefix("calib-bag-")
-                    .tempdir()
-                    .map_err(|source| Error::Io {
-                        path: split.to_path_buf(),
-                        source,
-                    })?,
+                crate::atomic::TempFolder::create("bag").map_err(|source| Error::Io {
+                    path: std::env::temp_dir(),
+                    source,
+                })?,
             );
         }
         Ok(temp
@@ -302,21 +336,44 @@ pub fn prepare(path: &Path) -> Result<PreparedBag, Error> {
         files
             .iter()
             .map(|split| {
-                let dir = folder(split)?;
-                decompress(split, &dir)
+                let dir = folder()?;
+                let out = decompress(split, &dir)?;
+                renames.borrow_mut().push((out.clone(), split.clone()));
+                Ok(out)
             })
             .collect()
     };
     let storage = match found.storage {
-        Storage::Sqlite3(files) => PreparedStorage::Sqlite3(unpack(files)?),
-        Storage::Mcap(files) => {
-            let files = unpack(files)?;
+        Storage::Sqlite3(files) => {
+            let mut files = unpack(files)?;
+            // A WAL-mode split whose log beside it holds data: read from a copy of both, so
+            // that nothing is written beside the recording (SQLite would add its `-shm` file,
+            // and cannot open it at all in a read-only folder).
+            for file in &mut files {
+                if is_wal(file) && has_wal_log(file) {
+                    let copy = copy_with_wal(file, &folder()?)?;
+                    renames.borrow_mut().push((copy.clone(), file.clone()));
+                    *file = copy;
+                }
+            }
+            PreparedStorage::Sqlite3(files)
+        }
+        Storage::Mcap(originals) => {
+            let files = unpack(originals.clone())?;
             match <[PathBuf; 1]>::try_from(files) {
                 Ok([file]) => PreparedStorage::Mcap(file),
                 Err(files) => {
                     let name = path.file_name().unwrap_or_default().to_string_lossy();
-                    let merged = folder(path)?.join(format!("{name}.merged.mcap"));
-                    merge_mcap(&files, &merged)?;
+                    let merged = folder()?.join(format!("{name}.merged.mcap"));
+                    let splits: Vec<(&Path, &Path)> = files
+                        .iter()
+                        .zip(&originals)
+                        .map(|(f, o)| (f.as_path(), o.as_path()))
+                        .collect();
+                    warnings.extend(merge_mcap(&splits, &merged, skip_damaged)?);
+                    renames
+                        .borrow_mut()
+                        .push((merged.clone(), path.to_path_buf()));
                     PreparedStorage::Mcap(merged)
                 }
             }
@@ -325,7 +382,8 @@ pub fn prepare(path: &Path) -> Result<PreparedBag, Error> {
     Ok(PreparedBag {
         storage,
         compressed_messages: found.compression == Compression::Message,
-        warnings: found.warnings,
+        warnings,
+        renames: renames.into_inner(),
         temp,
     })
 }
@@ -341,21 +399,60 @@ fn decompress(split: &Path, dir: &Path) -> Result<PathBuf, Error> {
         source,
     };
     let input = std::fs::File::open(split).map_err(io)?;
-    let output = std::fs::File::create(&out).map_err(|source| Error::Io {
+    let compressed = input.metadata().map_err(io)?.len();
+    let fail = |message: String| bag_error(split, None, None, None, message);
+    let undecodable = |e: std::io::Error| {
+        fail(format!(
+            "cannot decompress the split ({e}); the bag's metadata says its files are \
+             zstd-compressed (compression_mode: FILE): the file is damaged or not zstd"
+        ))
+    };
+    let mut decoder = zstd::stream::read::Decoder::new(input).map_err(undecodable)?;
+    // What the split must start with once decompressed: checked before anything is written, so
+    // that a small damaged or foreign file writes nothing.
+    let magic: &[u8] = if name.ends_with(".mcap") {
+        mcap::MAGIC
+    } else {
+        SQLITE_MAGIC
+    };
+    let mut head = vec![0u8; magic.len()];
+    decoder.read_exact(&mut head).map_err(undecodable)?;
+    if head != magic {
+        return Err(fail(format!(
+            "the split decompresses to something that is not {} (it starts with {}); the file \
+             is damaged or not part of this bag",
+            if magic == mcap::MAGIC {
+                "MCAP"
+            } else {
+                "SQLite"
+            },
+            crate::limits::shown_bytes(&head)
+        )));
+    }
+    let limit = crate::limits::decompressed_limit(compressed);
+    let mut output =
+        std::io::BufWriter::new(std::fs::File::create(&out).map_err(|source| Error::Io {
+            path: out.clone(),
+            source,
+        })?);
+    output.write_all(&head).map_err(|source| Error::Io {
         path: out.clone(),
         source,
     })?;
-    zstd::stream::copy_decode(input, std::io::BufWriter::new(output)).map_err(|e| {
-        bag_error(
-            split,
-            None,
-            None,
-            None,
-            format!(
-                "cannot decompress the split ({e}); the bag's metadata says its files are \
-                 zstd-compressed (compression_mode: FILE): the file is damaged or not zstd"
-            ),
-        )
+    // Bounded while decompressing: one byte past the limit is enough to refuse the split.
+    let written = std::io::copy(&mut (&mut decoder).take(limit), &mut output)
+        .map_err(undecodable)?
+        + head.len() as u64;
+    if written >= limit {
+        return Err(fail(format!(
+            "the split decompresses to more than {limit} bytes, {}× its {compressed} bytes \
+             (more than a recording compresses); the file is damaged",
+            crate::limits::MAX_DECOMPRESSION_RATIO
+        )));
+    }
+    output.flush().map_err(|source| Error::Io {
+        path: out.clone(),
+        source,
     })?;
     Ok(out)
 }
@@ -363,7 +460,17 @@ fn decompress(split: &Path, dir: &Path) -> Result<PathBuf, Error> {
 /// Writes the messages of the MCAP splits `files`, split after split, each in its order, to
 /// the MCAP file `out`: the bag as one recording. Channels of equal topic, message encoding and
 /// schema share one channel.
-fn merge_mcap(files: &[PathBuf], out: &Path) -> Result<(), Error> {
+///
+/// Each split is `(file, name)`: the file read (a decompressed copy in the temporary folder, or
+/// the split itself) and the split as the bag holds it, which errors and warnings name (a
+/// temporary copy is gone once calib exits). The last split cut short (a crashed recording)
+/// gives the messages before the cut, as one file alone does, with a warning; with
+/// `skip_damaged`, damaged chunks are left out and listed in a warning. Returns the warnings.
+fn merge_mcap(
+    files: &[(&Path, &Path)],
+    out: &Path,
+    skip_damaged: bool,
+) -> Result<Vec<String>, Error> {
     use crate::mcap_log::records;
     use mcap::sans_io::LinearReaderOptions;
     let write_error = |e: mcap::McapError| Error::Write {
@@ -379,27 +486,50 @@ fn merge_mcap(files: &[PathBuf], out: &Path) -> Result<(), Error> {
         .create(std::io::BufWriter::new(file))
         .map_err(write_error)?;
     let mut channels: HashMap<(String, String, String), u16> = HashMap::new();
-    for split in files {
+    let mut warnings = Vec::new();
+    for (k, &(split, name)) in files.iter().enumerate() {
         let io = |source| Error::Io {
-            path: split.clone(),
+            path: name.to_path_buf(),
             source,
         };
         let input = std::fs::File::open(split).map_err(io)?;
         let len = input.metadata().map_err(io)?.len();
         let options = LinearReaderOptions::default()
             .with_skip_end_magic(true)
-            .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
-        let stream = records::Stream::new(std::io::BufReader::new(input), options, false);
-        for (index, message) in stream.enumerate() {
-            let message = message.map_err(|e| Error::Mcap {
-                path: split.clone(),
-                message_index: Some(index as u64),
-                channel: None,
-                message: format!(
-                    "the split is damaged here ({e}); recover it with `mcap recover`, or \
-                     remove it from {METADATA} to read the other splits"
-                ),
-            })?;
+            .with_record_length_limit(crate::limits::mcap_record_limit(len));
+        let mut stream =
+            records::Stream::new(std::io::BufReader::new(input), options, skip_damaged);
+        let last = k + 1 == files.len();
+        let mut index = 0u64;
+        for message in stream.by_ref() {
+            let message = match message {
+                Ok(message) => message,
+                Err(records::StreamError::Mcap(mcap::McapError::UnexpectedEof)) if last => {
+                    warnings.push(format!(
+                        "{}: the last split ends early (a crashed recording?): the {index} \
+                         messages before the break were used",
+                        name.display()
+                    ));
+                    break;
+                }
+                Err(e) => {
+                    return Err(Error::Mcap {
+                        path: name.to_path_buf(),
+                        message_index: Some(index),
+                        channel: None,
+                        message: format!(
+                            "the split is damaged here ({e}); {}recover it with `mcap \
+                             recover`, or remove it from {METADATA} to read the other splits",
+                            if matches!(e, records::StreamError::Damaged(_)) {
+                                "run with --skip-damaged to leave the damaged chunk out, "
+                            } else {
+                                ""
+                            }
+                        ),
+                    });
+                }
+            };
+            index += 1;
             let c = &message.channel;
             let schema = c.schema.as_ref();
             let key = (
@@ -433,9 +563,18 @@ fn merge_mcap(files: &[PathBuf], out: &Path) -> Result<(), Error> {
                 .write_to_known_channel(&header, &message.data)
                 .map_err(write_error)?;
         }
+        if !stream.damaged().is_empty() {
+            let list: Vec<String> = stream.damaged().iter().map(|c| c.to_string()).collect();
+            warnings.push(format!(
+                "{}: skipped {} damaged chunk(s) and their messages (--skip-damaged): {}",
+                name.display(),
+                list.len(),
+                list.join("; ")
+            ));
+        }
     }
     writer.finish().map_err(write_error)?;
-    Ok(())
+    Ok(warnings)
 }
 
 /// A split named by the metadata, relative to the bag directory. Bags from ROS 2 Foxy and
@@ -561,12 +700,66 @@ struct Row {
 /// The topics of each file to read: per file, the `topic_id`s and the reader's topic of each.
 type Wanted = Vec<Vec<(i64, usize)>>;
 
+/// Whether the SQLite file at `path` is in WAL mode (its header's read and write versions are
+/// 2); a file that cannot be read is not.
+fn is_wal(path: &Path) -> bool {
+    let mut head = [0u8; 20];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| head.starts_with(SQLITE_MAGIC) && head[18] == 2 && head[19] == 2)
+}
+
+/// The write-ahead log beside a SQLite file (`bag_0.db3-wal`).
+fn wal_log(path: &Path) -> PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push("-wal");
+    PathBuf::from(name)
+}
+
+/// Whether the SQLite file at `path` has a non-empty write-ahead log beside it: transactions
+/// not yet copied into the file (a recording that stopped without closing it).
+fn has_wal_log(path: &Path) -> bool {
+    std::fs::metadata(wal_log(path)).is_ok_and(|m| m.len() > 0)
+}
+
+/// Copies the WAL-mode split `split` and its write-ahead log into `dir`; the copy's path.
+fn copy_with_wal(split: &Path, dir: &Path) -> Result<PathBuf, Error> {
+    let name = split.file_name().unwrap_or_default();
+    let out = dir.join(name);
+    for (from, to) in [
+        (split.to_path_buf(), out.clone()),
+        (wal_log(split), wal_log(&out)),
+    ] {
+        std::fs::copy(&from, &to).map_err(|source| Error::Io { path: from, source })?;
+    }
+    Ok(out)
+}
+
+/// A `file:` URI of `path` opening it immutable: SQLite then takes no lock and writes no `-shm`
+/// or `-wal` file beside it, which a WAL-mode file otherwise needs even to be read.
+fn immutable_uri(path: &Path) -> String {
+    let mut uri = String::from("file:");
+    for &b in path.as_os_str().as_encoded_bytes() {
+        if b.is_ascii_alphanumeric() || b"/-_.~".contains(&b) {
+            uri.push(char::from(b));
+        } else {
+            uri.push_str(&format!("%{b:02X}"));
+        }
+    }
+    uri.push_str("?immutable=1");
+    uri
+}
+
+/// Opens a `.db3` file read-only, writing nothing beside it: a WAL-mode file without a
+/// write-ahead log to replay is opened immutable (one with one was copied by [`prepare`]).
 fn open_db(path: &Path) -> Result<Connection, Error> {
-    Connection::open_with_flags(
-        path,
-        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
-    )
-    .map_err(|e| {
+    let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+    let opened = if is_wal(path) && !has_wal_log(path) {
+        Connection::open_with_flags(immutable_uri(path), flags | OpenFlags::SQLITE_OPEN_URI)
+    } else {
+        Connection::open_with_flags(path, flags)
+    };
+    opened.map_err(|e| {
         bag_error(
             path,
             None,
@@ -626,18 +819,8 @@ fn scan(
             let timestamp: i64 = row.get(2).map_err(column)?;
             let mut data: Vec<u8> = row.get(3).map_err(column)?;
             if compressed {
-                data = zstd::stream::decode_all(data.as_slice()).map_err(|e| {
-                    bag_error(
-                        path,
-                        Some("messages"),
-                        Some(id),
-                        None,
-                        format!(
-                            "the payload cannot be decompressed ({e}); the bag's metadata says \
-                             each message is zstd-compressed (compression_mode: MESSAGE)"
-                        ),
-                    )
-                })?;
+                data = decompress_payload(&data)
+                    .map_err(|m| bag_error(path, Some("messages"), Some(id), None, m))?;
             }
             let Some(&topic) = of_id.get(&topic_id) else {
                 continue;
@@ -654,6 +837,29 @@ fn scan(
         }
     }
     Ok(())
+}
+
+/// A zstd-compressed message payload (`compression_mode: MESSAGE`) decompressed, at most
+/// [`MAX_PAYLOAD_BYTES`](crate::limits::MAX_PAYLOAD_BYTES): bounded while decompressing, so
+/// that a small damaged payload cannot take gigabytes of memory.
+fn decompress_payload(data: &[u8]) -> Result<Vec<u8>, String> {
+    let limit = crate::limits::MAX_PAYLOAD_BYTES as u64;
+    let mut out = Vec::new();
+    zstd::stream::read::Decoder::new(data)
+        .and_then(|decoder| decoder.take(limit + 1).read_to_end(&mut out))
+        .map_err(|e| {
+            format!(
+                "the payload cannot be decompressed ({e}); the bag's metadata says each \
+                 message is zstd-compressed (compression_mode: MESSAGE)"
+            )
+        })?;
+    if out.len() as u64 > limit {
+        return Err(format!(
+            "the payload decompresses to more than {limit} bytes, more than any message calib \
+             reads; the row is damaged"
+        ));
+    }
+    Ok(out)
 }
 
 /// Reads a rosbag2 bag with SQLite storage as a stream of [`Sample`]s (see the
@@ -680,6 +886,20 @@ pub struct BagReader {
     warnings: Vec<String>,
     done: bool,
     failed: bool,
+    /// The raw index of the clock channel (the first selected).
+    clock: usize,
+    /// The clock's stamps so far (see [`crate::stamps`]).
+    order: StampOrder,
+    /// Pass on clock stamps that do not increase (`calib inspect` counts them).
+    allow_unordered_time: bool,
+    /// The selected channels (raw indices), in the order of each sample's values.
+    selected: Vec<usize>,
+    /// One topic whose messages carry every joint, each channel selected at most once: every
+    /// message is a sample, exact on its stamp, without the aligner (as the MCAP reader's fast
+    /// path), so that stamps out of order reach `calib inspect` to be counted.
+    fast: bool,
+    /// Samples emitted by the fast path.
+    fast_samples: u64,
 }
 
 /// The MCAP message a bag row stands for: log and publish time the row's `timestamp`.
@@ -711,26 +931,33 @@ impl BagReader {
         let mut topic_channels: Vec<Arc<mcap::Channel<'static>>> = Vec::new();
         let mut stats: Vec<TopicStats> = Vec::new();
         let mut wanted: Wanted = Vec::with_capacity(files.len());
-        for file in &files {
+        // Each topic's index by name, and the file that listed it first.
+        let mut by_name: HashMap<String, (usize, usize)> = HashMap::new();
+        for (f, file) in files.iter().enumerate() {
             let db = open_db(file)?;
             check_tables(&db, file)?;
             let topics = read_topics(&db, file)?;
             let counts = read_counts(&db, file)?;
             let mut of_file = Vec::new();
             for (id, name, kind, format) in topics {
-                let k = match topic_channels.iter().position(|c| c.topic == name) {
-                    Some(k) => {
+                let k = match by_name.get(&name).copied() {
+                    Some((k, first_file)) => {
                         let c = &topic_channels[k];
                         let known = c.schema.as_ref().map_or("", |s| s.name.as_str());
                         if known != kind || c.message_encoding != format {
+                            let where_else = if first_file == f {
+                                "in another row of this file's `topics` table"
+                            } else {
+                                "in an earlier split"
+                            };
                             return Err(bag_error(
                                 file,
                                 Some("topics"),
                                 None,
                                 Some(&name),
                                 format!(
-                                    "the topic is {kind} ({format}) here but {known} ({}) in an \
-                                     earlier split; calib cannot read one topic as two types",
+                                    "the topic is {kind} ({format}) here but {known} ({}) \
+                                     {where_else}; calib cannot read one topic as two types",
                                     c.message_encoding
                                 ),
                             ));
@@ -760,6 +987,7 @@ impl BagReader {
                             metadata: Default::default(),
                         }));
                         stats.push(TopicStats::default());
+                        by_name.insert(name.clone(), (topic_channels.len() - 1, f));
                         topic_channels.len() - 1
                     }
                 };
@@ -808,7 +1036,7 @@ impl BagReader {
             match registry.resolve(&msg.channel) {
                 Ok(Resolved::NewTopic(encoding)) => match first_message(&msg, encoding, scale) {
                     Ok(topic) => {
-                        registry.topics.push(topic);
+                        registry.add_topic(topic);
                         // Resolve again to record the channel's slot.
                         let _ = registry.resolve(&msg.channel);
                     }
@@ -881,6 +1109,12 @@ impl BagReader {
             warnings,
             done: false,
             failed: false,
+            clock: 0,
+            order: StampOrder::default(),
+            allow_unordered_time: opts.allow_unordered_time,
+            selected: Vec::new(),
+            fast: false,
+            fast_samples: 0,
         };
         let all: Vec<usize> = (0..width).collect();
         reader.select(&all, AlignOptions::default());
@@ -902,6 +1136,13 @@ impl BagReader {
     /// the first one's stamps ([`crate::align`]). Call it before reading any sample.
     pub fn select(&mut self, channels: &[usize], opts: AlignOptions) {
         self.aligner = Aligner::new(channels.to_vec(), opts);
+        self.clock = channels.first().copied().unwrap_or(0);
+        let distinct = channels
+            .iter()
+            .enumerate()
+            .all(|(k, c)| *c < self.raw.len() && !channels[..k].contains(c));
+        self.fast = self.registry.topics.len() == 1 && !self.registry.topics[0].subset && distinct;
+        self.selected = channels.to_vec();
         self.channels = channels
             .iter()
             .map(|&i| self.all_channels[i].clone())
@@ -912,7 +1153,13 @@ impl BagReader {
     /// iteration has ended).
     pub fn alignment(&self) -> Alignment {
         let names: Vec<String> = self.names.iter().map(|n| n.display.clone()).collect();
-        self.aligner.report(&names)
+        let mut alignment = self.aligner.report(&names);
+        alignment.clock_samples += self.fast_samples;
+        alignment.samples += self.fast_samples;
+        for c in &mut alignment.channels {
+            c.exact += self.fast_samples;
+        }
+        alignment
     }
 
     /// What the reader noticed so far.
@@ -986,11 +1233,27 @@ impl BagReader {
         topic.stats.note(msg.log_time);
         let range = topic.offset..topic.offset + topic.names.len();
         self.raw.fill(f64::NAN);
-        let (stamp, _) =
+        let (stamp, full) =
             decode(topic, &msg, self.time, &mut self.raw[range]).map_err(|(c, m)| match c {
                 Some(joint) => fail(format!("joint `{joint}`: {m}")),
                 None => fail(m),
             })?;
+        if !self.allow_unordered_time && !self.raw[self.clock].is_nan() {
+            self.order.check(stamp, row.id).map_err(|b| {
+                fail(b.describe(&self.names[self.clock].display, "message id", self.time))
+            })?;
+        }
+        if self.fast && full {
+            self.fast_samples += 1;
+            return Ok(Some(Sample {
+                t: seconds(stamp),
+                values: self.selected.iter().map(|&i| self.raw[i]).collect(),
+                session: None,
+            }));
+        }
+        // A message with a subset of the joints: from here on, through the aligner (empty so
+        // far, so the order of samples is kept).
+        self.fast = false;
         self.aligner.push(stamp, seconds(stamp), &self.raw, None);
         Ok(self.aligner.pop())
     }
@@ -1078,12 +1341,27 @@ fn check_tables(db: &Connection, file: &Path) -> Result<(), Error> {
 
 /// `(id, name, type, serialization_format)` of each row of `topics`, by id.
 fn read_topics(db: &Connection, file: &Path) -> Result<Vec<(i64, String, String, String)>, Error> {
+    // One row past the limit is enough to refuse the file, before any message is read.
     let rows: Result<Vec<_>, rusqlite::Error> = db
-        .prepare("SELECT id, name, type, serialization_format FROM topics ORDER BY id")
+        .prepare("SELECT id, name, type, serialization_format FROM topics ORDER BY id LIMIT ?1")
         .and_then(|mut s| {
-            s.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)))?
-                .collect()
+            s.query_map([crate::limits::MAX_TOPICS as i64 + 1], |r| {
+                Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?))
+            })?
+            .collect()
         });
+    if rows
+        .as_ref()
+        .is_ok_and(|r: &Vec<_>| r.len() > crate::limits::MAX_TOPICS)
+    {
+        return Err(bag_error(
+            file,
+            Some("topics"),
+            None,
+            None,
+            crate::mcap_log::read::too_many_topics(),
+        ));
+    }
     rows.map_err(|e| {
         bag_error(
             file,

@@ -97,9 +97,8 @@ fn linear(mut file: File, len: u64, at: u64, skip_damaged: bool) -> io::Result<S
         BufReader::with_capacity(256 * 1024, file),
         LinearReaderOptions::default()
             .with_skip_start_magic(at > 0)
-            // No record can be longer than the file; a corrupt length must not drive an
-            // allocation.
-            .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX)),
+            // The readers' record length limit: the same messages as they read.
+            .with_record_length_limit(crate::limits::mcap_record_limit(len)),
         skip_damaged,
     )))
 }

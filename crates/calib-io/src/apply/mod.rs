@@ -179,12 +179,29 @@ pub fn apply_map(
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
     };
     if range.count == 0 {
-        return Err(Error::Data {
-            path: input.to_path_buf(),
-            message: format!(
+        // `TOPIC.field.path` channels are read through their message definition, which `apply`
+        // does not rewrite: say so rather than that the channel has no readings.
+        let field_path = format == LogFormat::Mcap
+            && opts
+                .channel
+                .split_once('.')
+                .is_some_and(|(topic, path)| topic.starts_with('/') && !path.is_empty());
+        let message = if field_path {
+            format!(
+                "`{}` names a field by path (TOPIC.field.path); calib reads such fields but \
+                 apply rewrites only JointState joints and JSON fields: correct the readings \
+                 where they are published, or apply the table to a CSV export of the channel",
+                opts.channel
+            )
+        } else {
+            format!(
                 "the log holds no readings of channel `{}`; nothing to correct",
                 opts.channel
-            ),
+            )
+        };
+        return Err(Error::Data {
+            path: input.to_path_buf(),
+            message,
         });
     }
     let wrapping = opts

@@ -95,6 +95,18 @@ impl CsvReader {
                     .into(),
             ));
         }
+        if record.len() > crate::limits::MAX_CSV_COLUMNS {
+            return Err(err(
+                line_of(path, &record),
+                None,
+                format!(
+                    "the header has {} columns, more than the {} calib reads (a column per \
+                     channel); keep the time and the encoders' columns",
+                    record.len(),
+                    crate::limits::MAX_CSV_COLUMNS
+                ),
+            ));
+        }
         let names = fields::header_names(path, &record)?;
         let header_line = line_of(path, &record);
         let unit = opts.unit.unwrap_or(AngleUnit::Deg);

@@ -65,6 +65,11 @@ pub(crate) enum CdrError {
         /// Values counted.
         values: usize,
     },
+    /// The message names more joints than [`MAX_JOINTS`](crate::limits::MAX_JOINTS).
+    TooManyJoints {
+        /// The count the message gives.
+        count: usize,
+    },
     /// A joint name is not UTF-8.
     NameNotUtf8 {
         /// Index of the name in `name`.
@@ -75,6 +80,19 @@ pub(crate) enum CdrError {
 impl fmt::Display for CdrError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            // The first bytes of a zstd frame (28 b5 2f fd): a compressed payload.
+            CdrError::Encapsulation([0x28, 0xb5]) => f.write_str(
+                "the message is zstd-compressed (it starts with the zstd magic 28 b5 2f fd), \
+                 not CDR; a bag whose messages are compressed says so in its metadata.yaml \
+                 (compression_format: zstd, compression_mode: MESSAGE): restore that file, or \
+                 read the bag directory rather than the .db3 file alone",
+            ),
+            CdrError::TooManyJoints { count } => write!(
+                f,
+                "the message names {count} joints, more than the {} calib reads in one \
+                 message; the message is damaged",
+                crate::limits::MAX_JOINTS
+            ),
             CdrError::Encapsulation(h) => write!(
                 f,
                 "unsupported CDR encapsulation {:02x} {:02x}; calib reads plain CDR \
@@ -322,6 +340,9 @@ impl<'a> JointState<'a> {
         let (sec, nanosec) = c.header()?;
         // Each name takes at least its 4-byte length.
         let name_count = c.count("name", 4)?;
+        if name_count > crate::limits::MAX_JOINTS {
+            return Err(CdrError::TooManyJoints { count: name_count });
+        }
         let name_start = c.pos;
         for _ in 0..name_count {
             c.string("name")?;

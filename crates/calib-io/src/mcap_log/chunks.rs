@@ -133,13 +133,17 @@ fn u32_at(bytes: &[u8], at: usize) -> Option<u32> {
     Some(u32::from_le_bytes(b.try_into().ok()?))
 }
 
-/// Whether `records` is a sequence of whole records, none longer than the file (the streaming
-/// reader's record length limit).
+/// Whether `records` is a sequence of whole records that may lie in a chunk, none longer than
+/// the streaming reader's record length limit.
 fn tiles(mut records: &[u8], file_len: u64) -> bool {
     while !records.is_empty() {
-        let Some(n) = u64_at(records, 1).filter(|&n| n <= file_len) else {
+        let limit = crate::limits::mcap_record_limit(file_len) as u64;
+        let Some(n) = u64_at(records, 1).filter(|&n| n <= limit) else {
             return false;
         };
+        if !super::records::may_be_in_chunk(records[0]) {
+            return false;
+        }
         let next = usize::try_from(n)
             .ok()
             .and_then(|n| n.checked_add(PREFIX))

@@ -185,6 +185,14 @@ impl Definition {
             }
             sections[last].1.push((n + 1, line));
         }
+        if sections.len() > crate::limits::MAX_MESSAGE_TYPES {
+            return Err(format!(
+                "it holds {} message types, more than the {} calib reads; the message \
+                 definition is damaged",
+                sections.len(),
+                crate::limits::MAX_MESSAGE_TYPES
+            ));
+        }
         if let Some((_, lines)) = sections.iter().skip(1).find(|(name, _)| name.is_empty()) {
             let at = lines.first().map_or(0, |(n, _)| *n);
             return Err(format!(

@@ -62,6 +62,7 @@ use super::records::{self, StreamError};
 use super::{DYNAMIC_JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA};
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::naming::{ChannelName, names_of};
+use crate::stamps::StampOrder;
 use crate::{DamagedChunk, Error, ReadDiagnostics, ReadOptions, TimeSource, Truncation};
 
 /// Chunks a file's summary must list for them to be read on worker threads: a file of one chunk
@@ -187,6 +188,12 @@ pub struct McapReader {
     skip_damaged: bool,
     /// Messages the streaming reader skips after taking over: those handed on already.
     skip: u64,
+    /// The raw index of the clock channel (the first selected).
+    clock: usize,
+    /// The clock's stamps so far (see [`crate::stamps`]).
+    order: StampOrder,
+    /// Pass on clock stamps that do not increase (`calib inspect` counts them).
+    allow_unordered_time: bool,
 }
 
 /// Read buffer of the stream: large enough that reading costs few system calls, small against
@@ -220,8 +227,8 @@ fn stream(mut file: File, len: u64, skip_damaged: bool) -> io::Result<(Stream, A
     let options = LinearReaderOptions::default()
         // The stream stops at the data end record; a file cut between two records just ends.
         .with_skip_end_magic(true)
-        // No record can be longer than the file; a corrupt length must not drive an allocation.
-        .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
+        // No record is longer than the file or a limit; a corrupt length drives no allocation.
+        .with_record_length_limit(crate::limits::mcap_record_limit(len));
     Ok((
         records::Stream::new(source, options, skip_damaged),
         consumed,
@@ -255,7 +262,7 @@ fn main_stream(
 pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<mcap::Summary> {
     let options = SummaryReaderOptions::default()
         .with_file_size(len)
-        .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
+        .with_record_length_limit(crate::limits::mcap_record_limit(len));
     let mut reader = SummaryReader::new_with_options(options);
     while let Some(event) = reader.next_event() {
         match event.ok()? {
@@ -358,6 +365,12 @@ pub(crate) struct Registry {
     pub(crate) ignored_stats: Vec<TopicStats>,
     /// The schema encoding and text of each skipped topic, for field paths.
     definitions: Vec<Option<(String, Vec<u8>)>>,
+    /// The index of each topic read by name.
+    topic_by_name: std::collections::HashMap<String, usize>,
+    /// Whether each skipped topic's definition came from the data section.
+    from_data: Vec<bool>,
+    /// The index of each skipped topic by name: a lookup that does not grow with their number.
+    ignored_by_name: std::collections::HashMap<String, usize>,
 }
 
 /// What a channel ID resolves to when first seen.
@@ -406,15 +419,19 @@ impl Registry {
                 Slot::Unknown => {}
             }
         }
+        if self.topics.len() + self.ignored.len() >= crate::limits::MAX_TOPICS {
+            return Err(too_many_topics());
+        }
         if self.slots.len() <= id {
             self.slots.resize(id + 1, Slot::Unknown);
         }
         let Some(encoding) = Encoding::of(channel) else {
             // A topic whose fields are read by path: first met after they were added.
             if let Some(k) = self
-                .topics
-                .iter()
-                .position(|t| t.encoding == Encoding::Field && t.name == channel.topic)
+                .topic_by_name
+                .get(&channel.topic)
+                .copied()
+                .filter(|&k| self.topics[k].encoding == Encoding::Field)
             {
                 self.slots[id] = Slot::Topic(k);
                 return Ok(Resolved::Topic(k));
@@ -423,7 +440,7 @@ impl Registry {
             self.slots[id] = Slot::Ignored(k);
             return Ok(Resolved::Ignored(k));
         };
-        match self.topics.iter().position(|t| t.name == channel.topic) {
+        match self.topic_by_name.get(&channel.topic).copied() {
             Some(k) if self.topics[k].encoding == encoding => {
                 self.slots[id] = Slot::Topic(k);
                 Ok(Resolved::Topic(k))
@@ -437,11 +454,35 @@ impl Registry {
         }
     }
 
+    /// Adds a topic read (from its first message).
+    pub(crate) fn add_topic(&mut self, topic: Topic) {
+        self.topic_by_name
+            .insert(topic.name.clone(), self.topics.len());
+        self.topics.push(topic);
+    }
+
+    /// Takes the message definition of skipped topic `k` from `channel` as the data section
+    /// holds it, once: the summary's copy, which the summary's CRC may not cover, is replaced by
+    /// the one the messages were written with.
+    pub(crate) fn adopt_definition(&mut self, k: usize, channel: &mcap::Channel) {
+        if self.from_data[k] {
+            return;
+        }
+        self.from_data[k] = true;
+        self.definitions[k] = channel
+            .schema
+            .as_ref()
+            .map(|s| (s.encoding.clone(), s.data.to_vec()));
+    }
+
     /// Lists a topic calib does not read; its index in the list.
     fn ignore(&mut self, channel: &mcap::Channel) -> usize {
-        if let Some(k) = self.ignored.iter().position(|t| t.topic == channel.topic) {
+        if let Some(&k) = self.ignored_by_name.get(&channel.topic) {
             return k;
         }
+        self.ignored_by_name
+            .insert(channel.topic.clone(), self.ignored.len());
+        self.from_data.push(false);
         self.ignored.push(IgnoredTopic {
             topic: channel.topic.clone(),
             schema: schema_name(channel),
@@ -528,6 +569,13 @@ impl Registry {
         let skipped = self.ignored.remove(k);
         self.ignored_stats.remove(k);
         self.definitions.remove(k);
+        self.from_data.remove(k);
+        self.ignored_by_name.remove(&skipped.topic);
+        for j in self.ignored_by_name.values_mut() {
+            if *j > k {
+                *j -= 1;
+            }
+        }
         let new = self.topics.len();
         for slot in &mut self.slots {
             match *slot {
@@ -536,7 +584,7 @@ impl Registry {
                 _ => {}
             }
         }
-        self.topics.push(Topic {
+        self.add_topic(Topic {
             name: skipped.topic,
             schema: skipped.schema,
             message_encoding: skipped.message_encoding,
@@ -554,6 +602,15 @@ impl Registry {
         });
         Ok(())
     }
+}
+
+/// The error for a file with more than [`MAX_TOPICS`](crate::limits::MAX_TOPICS) topics.
+pub(crate) fn too_many_topics() -> String {
+    format!(
+        "the file has more than {} topics, more than calib reads; record the encoders' topics \
+         alone, or filter the file (`mcap filter`, `ros2 bag convert`)",
+        crate::limits::MAX_TOPICS
+    )
 }
 
 fn schema_name(channel: &mcap::Channel) -> String {
@@ -641,15 +698,31 @@ impl McapReader {
         let mut registry = Registry::default();
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
         let summary = records::read_summary(&mut file, len);
+        if summary
+            .as_ref()
+            .is_some_and(|s| s.channels.len() > crate::limits::MAX_TOPICS)
+        {
+            return Err(mcap_error(path, None, None, too_many_topics()));
+        }
         let parallel = summary
             .as_ref()
             .is_some_and(|s| s.chunks >= parallel_chunks);
-        let expected = summary.map(|summary| expected_topics(&summary, &mut registry));
+        let expected = summary.and_then(|summary| expected_topics(&summary, &mut registry));
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut peek = Peek::default();
-        if expected.as_ref().is_none_or(|e| !e.is_empty()) {
+        let field_topics = field_topics(&opts.fields);
+        // Topics read by field path take their definitions from the data section: peek for
+        // them even where the summary lists no topic calib reads otherwise.
+        if expected.as_ref().is_none_or(|e| !e.is_empty()) || !field_topics.is_empty() {
             let (stream, _) = stream(file, len, opts.skip_damaged).map_err(io)?;
-            file = peek.learn_topics(path, stream, expected.as_deref(), &mut registry, scale)?;
+            file = peek.learn_topics(
+                path,
+                stream,
+                expected.as_deref(),
+                &field_topics,
+                &mut registry,
+                scale,
+            )?;
         }
         registry
             .read_wanted_fields(&opts.fields, scale)
@@ -684,6 +757,9 @@ impl McapReader {
             reopen,
             skip_damaged: opts.skip_damaged,
             skip: 0,
+            clock: 0,
+            order: StampOrder::default(),
+            allow_unordered_time: opts.allow_unordered_time,
         };
         let all: Vec<usize> = (0..width).collect();
         reader.select(&all, AlignOptions::default());
@@ -714,6 +790,7 @@ impl McapReader {
         self.fast = self.registry.topics.len() == 1 && !self.registry.topics[0].subset && distinct;
         self.pick = (!channels.iter().copied().eq(0..width)).then(|| channels.to_vec());
         self.aligner = Aligner::new(channels.to_vec(), opts);
+        self.clock = channels.first().copied().unwrap_or(0);
         self.channels = channels
             .iter()
             .map(|&i| self.all_channels[i].clone())
@@ -791,6 +868,12 @@ impl McapReader {
                     (stamp, full, values)
                 }
             };
+            if values
+                .get(self.clock_in_sample())
+                .is_some_and(|v| !v.is_nan())
+            {
+                self.check_stamp(stamp, index)?;
+            }
             if full {
                 self.fast_samples += 1;
                 return Ok(Some(Sample {
@@ -812,8 +895,39 @@ impl McapReader {
         self.raw.fill(f64::NAN);
         let (stamp, _) = decode(topic, message, self.time, &mut self.raw[range])
             .map_err(|(c, m)| fail(&c.unwrap_or_else(|| topic.name.clone()), m))?;
+        if !self.raw[self.clock].is_nan() {
+            self.check_stamp(stamp, index)?;
+        }
         self.aligner.push(stamp, seconds(stamp), &self.raw, None);
         Ok(self.aligner.pop())
+    }
+
+    /// Where the clock channel sits in the fast path's values: first of a selection, else at
+    /// its raw index.
+    fn clock_in_sample(&self) -> usize {
+        if self.pick.is_some() { 0 } else { self.clock }
+    }
+
+    /// Refuses a clock stamp that does not increase (see [`crate::stamps`]), unless told to
+    /// pass it on.
+    fn check_stamp(&mut self, stamp: i64, index: u64) -> Result<(), Error> {
+        if self.allow_unordered_time {
+            return Ok(());
+        }
+        let message = i64::try_from(index).unwrap_or(i64::MAX);
+        self.order.check(stamp, message).map_err(|b| {
+            let topic = self
+                .registry
+                .topics
+                .iter()
+                .find(|t| (t.offset..t.offset + t.names.len()).contains(&self.clock));
+            mcap_error(
+                &self.path,
+                Some(index),
+                topic.map(|t| t.name.as_str()),
+                b.describe(&self.names[self.clock].display, "message", self.time),
+            )
+        })
     }
 
     /// Hands reading over from the chunks read in parallel to the streaming reader, from the
@@ -1003,11 +1117,28 @@ impl Peek {
         path: &Path,
         mut peek: Stream,
         expected: Option<&[String]>,
+        field_topics: &[&str],
         registry: &mut Registry,
         scale: f64,
     ) -> Result<File, Error> {
         // Messages since every expected topic showed itself.
         let mut after_all: Option<u64> = None;
+        // Expected topics not met yet, counted down as each first message comes: a check per
+        // message that does not grow with the number of topics.
+        let mut unmet: std::collections::HashSet<&str> = expected
+            .unwrap_or_default()
+            .iter()
+            .map(String::as_str)
+            .collect();
+        // Topics whose fields are read by path, until their definition from the data section
+        // has been met.
+        let mut unmet_fields: Vec<&str> = field_topics
+            .iter()
+            .copied()
+            .filter(|t| expected.is_none() || registry.ignored_by_name.contains_key(*t))
+            .collect();
+        // Whether a topic's messages carry different joint sets (then every message is read).
+        let mut subset = false;
         for (index, message) in (&mut peek).enumerate() {
             // Errors here are reported by the iteration, at the same message, unless no
             // usable topic comes before them.
@@ -1024,27 +1155,27 @@ impl Peek {
             match registry.resolve(&message.channel).map_err(fail)? {
                 Resolved::NewTopic(encoding) => {
                     let topic = first_message(&message, encoding, scale).map_err(fail)?;
-                    registry.topics.push(topic);
+                    unmet.remove(topic.name.as_str());
+                    registry.add_topic(topic);
                     // Resolve again to record the channel ID's slot.
                     registry.resolve(&message.channel).map_err(fail)?;
                 }
                 // A bad message is reported by the iteration, at the same message.
                 Resolved::Topic(k) => {
                     let _ = registry.topics[k].learn(&message);
+                    subset |= registry.topics[k].subset;
                 }
-                Resolved::Ignored(_) => {}
+                Resolved::Ignored(k) => {
+                    registry.adopt_definition(k, &message.channel);
+                    unmet_fields.retain(|t| *t != message.channel.topic);
+                }
             }
             if let Some(n) = &mut after_all {
                 *n += 1;
-            } else if expected.is_some_and(|e| {
-                e.iter()
-                    .all(|t| registry.topics.iter().any(|k| &k.name == t))
-            }) {
+            } else if expected.is_some() && unmet.is_empty() {
                 after_all = Some(0);
             }
-            if after_all.is_some_and(|n| n >= PEEK_WINDOW)
-                && !registry.topics.iter().any(|t| t.subset)
-            {
+            if after_all.is_some_and(|n| n >= PEEK_WINDOW) && unmet_fields.is_empty() && !subset {
                 break;
             }
         }
@@ -1175,23 +1306,47 @@ fn damaged_error(path: &Path, index: u64, e: &StreamError) -> Error {
     mcap_error(path, Some(index), None, format!("{e}; {what}"))
 }
 
-fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Vec<String> {
+/// The topics calib reads that the summary lists with messages, to be met by the peek pass;
+/// `None` if the summary lists such topics but claims none of them holds a message (a damaged or
+/// wrongly written statistics record must not hide an intact log: the file is then scanned as if
+/// it had no summary). Topics calib skips are listed in `registry`.
+fn expected_topics(summary: &records::Summary, registry: &mut Registry) -> Option<Vec<String>> {
     let mut channels: Vec<_> = summary.channels.values().collect();
     channels.sort_by_key(|c| c.id);
     let mut topics = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    let mut claimed_empty = false;
     for channel in channels {
         let has_messages = summary
             .message_counts
             .as_ref()
             .and_then(|counts| counts.get(&channel.id))
             .is_none_or(|&n| n > 0);
+        let readable = Encoding::of(channel).is_some();
         if !has_messages {
+            claimed_empty |= readable;
             continue;
         }
-        if Encoding::of(channel).is_none() {
+        if !readable {
             registry.ignore(channel);
-        } else if !topics.contains(&channel.topic) {
+        } else if seen.insert(channel.topic.as_str()) {
             topics.push(channel.topic.clone());
+        }
+    }
+    (!topics.is_empty() || !claimed_empty).then_some(topics)
+}
+
+/// The topics of the `TOPIC.field.path` names among `fields` (split at the first `.`, as
+/// [`Registry::read_wanted_fields`] splits them), whose definitions the peek pass takes from the
+/// data section.
+fn field_topics(fields: &[String]) -> Vec<&str> {
+    let mut topics = Vec::new();
+    for name in fields {
+        if let Some((topic, path)) = name.split_once('.')
+            && !path.is_empty()
+            && !topics.contains(&topic)
+        {
+            topics.push(topic);
         }
     }
     topics
@@ -1248,7 +1403,16 @@ pub(crate) fn first_message(
             }
         }
         Encoding::Json => {
+            let mut fields = 0;
             json::for_each_field(&message.data, |key, value| {
+                fields += 1;
+                if fields > crate::limits::MAX_JSON_FIELDS {
+                    return Err(format!(
+                        "the topic's first JSON message has more than {} fields, more than \
+                         calib reads in one message; publish one numeric field per encoder",
+                        crate::limits::MAX_JSON_FIELDS
+                    ));
+                }
                 if value.is_some() {
                     topic.names.push(key.to_string());
                 }
@@ -1368,7 +1532,7 @@ impl Topic {
                     "joint `{name}` is new: the topic's joints [{}] were gathered from its \
                      first messages when the file was opened; calib needs every joint to \
                      appear early: split the recording where the joint set changes",
-                    self.names.join(", ")
+                    crate::limits::listed(&self.names)
                 ));
             };
             if i != NO_POSITION && layout.contains(&i) {
@@ -1541,7 +1705,7 @@ pub(crate) fn decode(
                         "numeric field `{key}` is new (the topic's first message has [{}]); \
                          calib needs one channel set per topic: split the recording where it \
                          changes",
-                        names.join(", ")
+                        crate::limits::listed(names)
                     )),
                     (None, None) => Ok(()),
                 }

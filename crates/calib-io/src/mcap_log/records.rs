@@ -121,6 +121,33 @@ impl Fields<'_> {
     }
 }
 
+/// Whether a record of `opcode` may lie inside a chunk: the MCAP format puts schemas, channels
+/// and messages there, and leaves room for records it does not define (skipped); the records
+/// that frame the file (header, footer, chunk, indexes, data end, ...) may not.
+pub(crate) fn may_be_in_chunk(opcode: u8) -> bool {
+    matches!(opcode, op::SCHEMA | op::CHANNEL | op::MESSAGE) || opcode > op::DATA_END
+}
+
+/// The MCAP name of a record type, for messages.
+fn opcode_name(opcode: u8) -> String {
+    let name = match opcode {
+        op::HEADER => "header",
+        op::FOOTER => "footer",
+        op::CHUNK => "chunk",
+        op::MESSAGE_INDEX => "message index",
+        op::CHUNK_INDEX => "chunk index",
+        op::ATTACHMENT => "attachment",
+        op::ATTACHMENT_INDEX => "attachment index",
+        op::STATISTICS => "statistics",
+        op::METADATA => "metadata",
+        op::METADATA_INDEX => "metadata index",
+        op::SUMMARY_OFFSET => "summary offset",
+        op::DATA_END => "data end",
+        _ => return format!("{opcode:#04x}"),
+    };
+    name.to_string()
+}
+
 /// Checks the inner lengths of a schema or channel record.
 fn check(opcode: u8, body: &[u8]) -> Result<(), StreamError> {
     match opcode {
@@ -202,8 +229,18 @@ impl<R: Read> Checked<R> {
     /// then abandoned to skip it; a CRC mismatch is met after it): skipped, or the end of the
     /// stream.
     fn damaged(&mut self, span: Option<ChunkSpan>, error: McapError, in_chunk: bool) {
-        self.held.clear();
         let damage = crate::DamagedChunk::new(span, self.reader.position(), &error);
+        self.note_damage(damage, in_chunk);
+    }
+
+    /// [`damaged`](Self::damaged), for a reason the `mcap` crate does not check.
+    fn damaged_because(&mut self, span: Option<ChunkSpan>, reason: String, in_chunk: bool) {
+        let damage = crate::DamagedChunk::because(span, self.reader.position(), reason);
+        self.note_damage(damage, in_chunk);
+    }
+
+    fn note_damage(&mut self, damage: crate::DamagedChunk, in_chunk: bool) {
+        self.held.clear();
         if self.skip_damaged && (!in_chunk || self.reader.skip_chunk()) {
             self.damaged.push(damage);
         } else {
@@ -256,6 +293,18 @@ impl<R: Read> Checked<R> {
                 }
                 Ok(LinearReadEvent::Record { opcode, data }) => {
                     let record = (opcode, data.to_vec(), self.consumed);
+                    if self.reader.in_chunk() && !may_be_in_chunk(opcode) {
+                        // A data end record inside a chunk would end the data section for the
+                        // methods while `apply` read on past it: the chunk is damaged.
+                        let span = self.reader.last_chunk();
+                        let reason = format!(
+                            "it holds a {} record, which the MCAP format allows only outside \
+                             chunks",
+                            opcode_name(opcode)
+                        );
+                        self.damaged_because(span, reason, true);
+                        continue;
+                    }
                     if self.reader.in_chunk() {
                         self.held.push_back(record);
                     } else {
@@ -486,6 +535,19 @@ pub(crate) struct Summary {
     pub chunks: usize,
 }
 
+/// A CRC-32 as an [`io::Write`] sink.
+struct Crc(crc32fast::Hasher);
+
+impl io::Write for Crc {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.0.update(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
 /// The length of the footer record: opcode, length, summary start, summary offset start, CRC.
 const FOOTER_LEN: u64 = 1 + 8 + 8 + 8 + 4;
 
@@ -509,6 +571,20 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
     let end = if offsets != 0 { offsets } else { footer_at };
     if start == 0 || start < magic || start > end || end > footer_at {
         return None;
+    }
+    // The summary's CRC covers it from its start to the footer's CRC field: a summary that does
+    // not match is not used (the file is then read as if it had none), so that no channel or
+    // message definition comes from damaged bytes.
+    let crc = u32::from_le_bytes(tail[25..29].try_into().unwrap_or_default());
+    if crc != 0 {
+        file.seek(SeekFrom::Start(start)).ok()?;
+        let mut hasher = Crc(crc32fast::Hasher::new());
+        let covered = footer_at + 25 - start;
+        if io::copy(&mut (&mut *file).take(covered), &mut hasher).ok()? != covered
+            || hasher.0.finalize() != crc
+        {
+            return None;
+        }
     }
     file.seek(SeekFrom::Start(start)).ok()?;
     let mut file = BufReader::new(file.take(end - start));

@@ -834,6 +834,32 @@ impl LinearReader {
                                 // `self.file_data`. This can happen when a compressor adds extra
                                 // bytes after its last frame. We need to treat this as "padding
                                 // after the chunk" and skip over it before reading the next record.
+                                //
+                                // calib: unless the frame itself goes on: a chunk whose header
+                                // declares less than its frame holds would otherwise lose the
+                                // rest of its records silently. A frame still open once the
+                                // declared size is out (the decoder asks for more input) is fed
+                                // what is left of the chunk: output from it is an error.
+                                if state.compressed_remaining > 0
+                                    && state.uncompressed_len > 0
+                                    && decompressor.next_read_size() != 0
+                                {
+                                    let left = check!(check_len(
+                                        state.compressed_remaining,
+                                        self.options.record_length_limit
+                                    )
+                                    .ok_or(McapError::ChunkTooLarge(state.compressed_remaining)));
+                                    let rest = load!(left);
+                                    let mut probe = [0u8; 64];
+                                    let more = check!(decompressor.decompress(rest, &mut probe));
+                                    if more.wrote > 0 {
+                                        return Some(Err(McapError::DecompressionError(format!(
+                                            "the chunk's data decompresses to more than the {} \
+                                             bytes its header declares",
+                                            state.uncompressed_len
+                                        ))));
+                                    }
+                                }
                                 state.padding_after_compressed_data += check!(check_len(
                                     state.compressed_remaining,
                                     self.options.record_length_limit
