@@ -84,13 +84,14 @@ def test_table_write_read_round_trip_and_correct(tmp_path):
     np.testing.assert_allclose(back.error_arcsec, error, atol=5e-7)
     np.testing.assert_allclose(back.u_arcsec, u, atol=5e-7)
     np.testing.assert_allclose(back.angle_deg, np.arange(n) * 0.1)
-    # Correcting readings that carry the table's error gives back the true angles: exact at
-    # grid points, within the interpolation error (A·h²·Δ²/8 = 20·64·(2π/3600)²/8 = 0.0005″)
-    # between them.
-    truth = np.linspace(0, 2 * np.pi, 1001, endpoint=False)
-    readings = truth + np.interp(truth, grid, error, period=2 * np.pi) / (180 / np.pi * 3600)
+    # The table is the error as a function of the reading: a reading r is of the true angle
+    # r − e(r), with e interpolated linearly and periodically between the grid points, as
+    # numpy's periodic interp does; `correct` gives it back to rounding (1e-6″ is thousands of
+    # times the float64 spacing of angles near 2π, 2·10⁻¹⁰″).
+    readings = np.linspace(-1.0, 2 * np.pi + 1.0, 1001)
+    truth = readings - np.interp(readings, grid, error, period=2 * np.pi) / (180 / np.pi * 3600)
     corrected = table.correct(readings)
-    assert np.max(np.abs(corrected - truth)) * 180 / np.pi * 3600 < 0.01
+    assert np.max(np.abs(corrected - truth)) * 180 / np.pi * 3600 < 1e-6
 
 
 def test_export_and_compose():
