@@ -1,0 +1,182 @@
+"""Type stubs of the native module ``calib._calib`` (use the ``calib`` package itself)."""
+
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+class CalibError(Exception): ...
+class DataError(CalibError): ...
+class UsageError(CalibError): ...
+
+F64 = npt.NDArray[np.float64]
+
+def read(
+    path: str,
+    channels: Optional[List[str]] = None,
+    time: str = "header",
+    unit: Optional[str] = None,
+    max_gap: Optional[float] = None,
+    time_column: Optional[str] = None,
+    time_unit: Optional[str] = None,
+) -> Dict[str, Any]: ...
+def csrr(
+    a: F64,
+    b: F64,
+    t: Optional[F64] = None,
+    sessions: Optional[npt.NDArray[np.int64]] = None,
+    ref: Optional[F64] = None,
+    *,
+    names: Tuple[str, str] = ("a", "b"),
+    rate_hz: float = 1000.0,
+    method: str = "joint",
+    max_order: Optional[int] = None,
+    points: Optional[int] = None,
+    session_tol: float = 1.0,
+    min_speed: float = 1.0,
+    detect_sessions: bool = False,
+    min_observability: float = 0.01,
+    benchmarks: Tuple[float, float] = (0.0, 0.0),
+) -> Dict[str, Any]: ...
+def csrr_log(
+    path: str,
+    *,
+    a: str = "a",
+    b: str = "b",
+    ref: Optional[str] = None,
+    method: str = "joint",
+    max_order: Optional[int] = None,
+    points: Optional[int] = None,
+    session_tol: float = 1.0,
+    min_speed: float = 1.0,
+    detect_sessions: bool = False,
+    min_observability: float = 0.01,
+    benchmarks: Tuple[float, float] = (0.0, 0.0),
+    unit: Optional[str] = None,
+    time: str = "header",
+    max_gap: Optional[float] = None,
+    time_column: Optional[str] = None,
+    time_unit: Optional[str] = None,
+) -> Dict[str, Any]: ...
+def reference(
+    dut: F64,
+    ref: F64,
+    t: Optional[F64] = None,
+    *,
+    names: Tuple[str, str] = ("dut", "ref"),
+    rate_hz: float = 1000.0,
+    ref_u: float = 0.0,
+    points: int = 3600,
+    min_speed: float = 1.0,
+    follow_tol: float = 5.0,
+    bridge_gap: float = 5.0,
+    targets: Union[int, Sequence[float], None] = None,
+    approach: float = 1.0,
+) -> Dict[str, Any]: ...
+def reference_log(
+    path: str,
+    *,
+    dut: str,
+    ref: str,
+    ref_u: float = 0.0,
+    points: int = 3600,
+    min_speed: float = 1.0,
+    follow_tol: float = 5.0,
+    bridge_gap: float = 5.0,
+    targets: Union[int, Sequence[float], None] = None,
+    approach: float = 1.0,
+    unit: Optional[str] = None,
+    time: str = "header",
+    max_gap: Optional[float] = None,
+    time_column: Optional[str] = None,
+    time_unit: Optional[str] = None,
+) -> Dict[str, Any]: ...
+def read_table(path: str) -> Tuple[F64, Optional[F64]]: ...
+def write_table(path: str, error_arcsec: F64, u_arcsec: Optional[F64] = None) -> None: ...
+def correct(error_arcsec: F64, readings: F64) -> F64: ...
+def export(
+    error_arcsec: F64,
+    format: str,
+    *,
+    points: Optional[int] = None,
+    scale: Optional[float] = None,
+    orders: Optional[List[int]] = None,
+    largest: Optional[int] = None,
+    min_amplitude: float = 0.01,
+    moteus_source: int = 0,
+    title: str = "calib correction table",
+) -> Tuple[str, List[str]]: ...
+def compose(
+    first_arcsec: F64, residual_arcsec: F64, factor: float = 1.0, points: Optional[int] = None
+) -> Tuple[F64, float, float]: ...
+def simulate(text: str, is_json: bool, points: int = 36000) -> Dict[str, Any]: ...
+def inspect(
+    path: str,
+    a: Optional[str] = None,
+    b: Optional[str] = None,
+    time: str = "header",
+    unit: Optional[str] = None,
+    max_gap: Optional[float] = None,
+    time_column: Optional[str] = None,
+    time_unit: Optional[str] = None,
+) -> str: ...
+def tdr(
+    t: F64,
+    readings: F64,
+    ref: Optional[F64] = None,
+    *,
+    name: str = "encoder",
+    max_order: Optional[int] = None,
+    max_drag_order: int = 16,
+    motion_degree: Optional[int] = None,
+    min_revolutions: float = 10.0,
+    points: int = 3600,
+) -> Dict[str, Any]: ...
+def tdr_log(
+    path: str,
+    *,
+    channel: str,
+    ref: Optional[str] = None,
+    max_order: Optional[int] = None,
+    max_drag_order: int = 16,
+    motion_degree: Optional[int] = None,
+    min_revolutions: float = 10.0,
+    points: int = 3600,
+    unit: Optional[str] = None,
+    time: str = "header",
+    max_gap: Optional[float] = None,
+    time_column: Optional[str] = None,
+    time_unit: Optional[str] = None,
+) -> Dict[str, Any]: ...
+def multihead(
+    names: List[str],
+    readings: List[F64],
+    nominal_deg: List[float],
+    *,
+    method: str = "joint",
+    sets: Optional[List[List[str]]] = None,
+    max_order: Optional[int] = None,
+    points: Optional[int] = None,
+    min_observability: float = 0.01,
+) -> Dict[str, Any]: ...
+def multihead_log(
+    path: str,
+    names: List[str],
+    nominal_deg: List[float],
+    *,
+    method: str = "joint",
+    sets: Optional[List[List[str]]] = None,
+    max_order: Optional[int] = None,
+    points: Optional[int] = None,
+    min_observability: float = 0.01,
+    unit: Optional[str] = None,
+    time: str = "header",
+    max_gap: Optional[float] = None,
+    time_column: Optional[str] = None,
+    time_unit: Optional[str] = None,
+) -> Dict[str, Any]: ...
+def shift_angle(
+    path: str, *, method: str = "joint", faces: Optional[int] = None, budget: Optional[str] = None
+) -> Dict[str, Any]: ...

@@ -1,0 +1,260 @@
+//! Reading logs: `calib.read`, and the opening and streaming the `*_log` methods share.
+
+use crate::errors::{data, usage};
+use calib_core::{AngleUnit, Sample};
+use calib_io::align::AlignOptions;
+use calib_io::prefetch::Prefetch;
+use calib_io::{LogReader, ReadOptions, TimeSource};
+use numpy::PyArray1;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::{Path, PathBuf};
+
+/// How a log is read: the keyword arguments of the CLI's `--unit`, `--time`, `--max-gap`,
+/// `--time-column` and `--time-unit`.
+pub struct LogOptions {
+    read: ReadOptions,
+    align: AlignOptions,
+}
+
+impl LogOptions {
+    /// The options from the keyword arguments, checked.
+    pub fn new(
+        unit: Option<&str>,
+        time: &str,
+        max_gap: Option<f64>,
+        time_column: Option<String>,
+        time_unit: Option<&str>,
+    ) -> PyResult<Self> {
+        let unit = unit
+            .map(|u| u.parse::<AngleUnit>())
+            .transpose()
+            .map_err(|e| usage(format!("unit: {e}")))?;
+        let time = match time {
+            "header" => TimeSource::Header,
+            "log" => TimeSource::Log,
+            other => {
+                return Err(usage(format!(
+                    "time=`{other}`: give \"header\" (the message's header.stamp) or \"log\" (the \
+                     time the recorder logged it)"
+                )));
+            }
+        };
+        if max_gap.is_some_and(|g| !(g > 0.0 && g.is_finite())) {
+            return Err(usage("max_gap must be a positive number of seconds"));
+        }
+        let time_unit = time_unit
+            .map(|u| u.parse())
+            .transpose()
+            .map_err(|e: String| usage(format!("time_unit: {e}")))?;
+        Ok(LogOptions {
+            read: ReadOptions {
+                unit,
+                time,
+                time_column,
+                time_unit,
+                ..ReadOptions::default()
+            },
+            align: AlignOptions { max_gap_s: max_gap },
+        })
+    }
+}
+
+/// Checks that `path` can be a log (it exists; a folder only if it is a rosbag2 bag), as the
+/// CLI does before opening it.
+fn check_log_path(path: &Path) -> PyResult<()> {
+    let shown = path.display();
+    match std::fs::metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            Err(usage(format!("{shown}: no such file; check the path")))
+        }
+        Ok(meta) if meta.is_dir() && !calib_io::rosbag::is_bag_dir(path) => Err(usage(format!(
+            "{shown}: this is a folder, not a log nor a rosbag2 bag directory (which holds \
+             metadata.yaml or .db3 files); name the .csv or .mcap file inside it, or the bag \
+             directory"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// Opens the log at `path` reading the channels `names` only (every channel if `None`), in
+/// this order, the first setting the clock.
+pub fn open(path: &Path, names: Option<&[String]>, opts: &LogOptions) -> PyResult<LogReader> {
+    check_log_path(path)?;
+    let mut read = opts.read.clone();
+    read.fields = names.map(<[String]>::to_vec).unwrap_or_default();
+    let mut reader = LogReader::open(path, &read)
+        .map_err(|e| data(format!("cannot read {}: {e}", path.display())))?;
+    if let Some(names) = names {
+        let indices = names
+            .iter()
+            .map(|n| {
+                reader
+                    .resolve(n)
+                    .map_err(|e| usage(format!("{}: {e}", path.display())))
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        reader.select(&indices, opts.align);
+    }
+    Ok(reader)
+}
+
+/// Calls `push` with every sample of `reader` (opened on `path`), decoding on a second thread
+/// while this one pushes. Returns the reader, for its warnings and alignment, or the message
+/// of the first sample that cannot be read.
+pub fn for_each_sample(
+    path: &Path,
+    reader: LogReader,
+    mut push: impl FnMut(&Sample),
+) -> Result<LogReader, String> {
+    let mut samples = Prefetch::new(reader);
+    for sample in samples.by_ref() {
+        let s = sample.map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        push(&s);
+    }
+    Ok(samples.finish())
+}
+
+/// The alignment of a log read as JSON (report.json's `details.alignment`), `None` where every
+/// channel was read at the clock's own stamps with nothing dropped.
+pub fn alignment(reader: &LogReader) -> Option<calib_core::report::Alignment> {
+    reader.alignment().filter(|a| !a.is_exact())
+}
+
+/// Reads a whole log into numpy arrays (see `calib.read`).
+#[pyfunction]
+#[pyo3(signature = (path, channels=None, time="header", unit=None, max_gap=None, time_column=None, time_unit=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn read<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    channels: Option<Vec<String>>,
+    time: &str,
+    unit: Option<&str>,
+    max_gap: Option<f64>,
+    time_column: Option<String>,
+    time_unit: Option<&str>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let opts = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    let reader = open(&path, channels.as_deref(), &opts)?;
+    let names: Vec<String> = match &channels {
+        Some(c) => c.clone(),
+        None => reader.channels().iter().map(|c| c.name.clone()).collect(),
+    };
+    let marks = reader.has_session_marks();
+    let (t, values, sessions, reader) = py
+        .detach(|| {
+            let mut t = Vec::new();
+            let mut values = vec![Vec::new(); names.len()];
+            let mut sessions = Vec::new();
+            let reader = for_each_sample(&path, reader, |s| {
+                t.push(s.t);
+                for (column, v) in values.iter_mut().zip(&s.values) {
+                    column.push(*v);
+                }
+                if marks {
+                    sessions.push(s.session.map_or(-1, i64::from));
+                }
+            })?;
+            Ok::<_, String>((t, values, sessions, reader))
+        })
+        .map_err(data)?;
+    let out = PyDict::new(py);
+    out.set_item("t", PyArray1::from_vec(py, t))?;
+    let columns = PyDict::new(py);
+    for (name, column) in names.iter().zip(values) {
+        columns.set_item(name, PyArray1::from_vec(py, column))?;
+    }
+    out.set_item("channels", columns)?;
+    out.set_item("session", marks.then(|| PyArray1::from_vec(py, sessions)))?;
+    let alignment = alignment(&reader)
+        .map(|a| serde_json::to_string(&a))
+        .transpose()
+        .map_err(|e| data(e.to_string()))?;
+    out.set_item("alignment_json", alignment)?;
+    out.set_item("warnings", reader.warnings(&path))?;
+    out.set_item("notes", reader.notes())?;
+    Ok(out)
+}
+
+/// What a log holds, as `calib inspect --json` prints it (see `calib.inspect`): the keys of
+/// every object in alphabetical order.
+#[pyfunction]
+#[pyo3(signature = (path, a=None, b=None, time="header", unit=None, max_gap=None, time_column=None, time_unit=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn inspect(
+    py: Python<'_>,
+    path: PathBuf,
+    a: Option<String>,
+    b: Option<String>,
+    time: &str,
+    unit: Option<&str>,
+    max_gap: Option<f64>,
+    time_column: Option<String>,
+    time_unit: Option<&str>,
+) -> PyResult<String> {
+    let opts = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    check_log_path(&path)?;
+    let read = ReadOptions {
+        allow_unordered_time: true,
+        fields: [&a, &b].into_iter().flatten().cloned().collect(),
+        ..opts.read
+    };
+    let mut reader = LogReader::open(&path, &read)
+        .map_err(|e| data(format!("cannot read {}: {e}", path.display())))?;
+    let names: Vec<String> = reader.names().iter().map(|n| n.display.clone()).collect();
+    let resolve = |name: &str| {
+        reader
+            .resolve(name)
+            .map_err(|e| usage(format!("{}: {e}", path.display())))
+    };
+    let pick = |given: &Option<String>, default: &str, fallback: usize| match given {
+        Some(name) => resolve(name).map(Some),
+        None if names.iter().any(|n| n == default) => resolve(default).map(Some),
+        None => Ok((fallback < names.len()).then_some(fallback)),
+    };
+    let pair = match (pick(&a, "a", 0)?, pick(&b, "b", 1)?) {
+        (Some(a), Some(b)) if a != b => Some((a, b)),
+        _ => None,
+    };
+    // Every channel, the pair's first (or the log's first) leading: it sets the clock.
+    let clock = pair.map_or(0, |(a, _)| a);
+    let order: Vec<usize> = std::iter::once(clock)
+        .chain((0..names.len()).filter(|&i| i != clock))
+        .collect();
+    reader.select(&order, opts.align);
+    let at = |raw: usize| order.iter().position(|&i| i == raw).unwrap_or(0);
+    let pair = pair.map(|(a, b)| (at(a), at(b)));
+    let mut inspector = calib_core::inspect::Inspector::new(
+        reader.channels(),
+        pair,
+        calib_core::segment::SegmentOptions {
+            use_marks: reader.has_session_marks(),
+            ..calib_core::segment::SegmentOptions::default()
+        },
+    );
+    let (result, reader) = py
+        .detach(|| {
+            let reader =
+                for_each_sample(&path, reader, |s| inspector.push(s.t, &s.values, s.session))?;
+            Ok::<_, String>((inspector.finish(), reader))
+        })
+        .map_err(data)?;
+    if result.samples == 0 {
+        return Err(data(format!(
+            "{}: the log holds no samples",
+            path.display()
+        )));
+    }
+    let mut warnings = reader.warnings(&path);
+    warnings.extend(reader.notes());
+    let json = serde_json::json!({
+        "schema_version": calib_core::report::SCHEMA_VERSION,
+        "log": path.display().to_string(),
+        "topics": reader.topics(),
+        "alignment": reader.alignment(),
+        "inspection": result,
+        "warnings": warnings,
+    });
+    calib_io::report::render_json(&json).map_err(|e| data(e.to_string()))
+}

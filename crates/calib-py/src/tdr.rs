@@ -1,0 +1,187 @@
+//! The spin-down (TDR) method on arrays and on logs: `tdr`, `tdr_log` (`calib tdr`).
+
+use crate::errors::{check_points, data, usage};
+use crate::logs::{LogOptions, alignment, for_each_sample, open};
+use crate::methods::{result, same_length, turn};
+use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
+use numpy::PyReadonlyArray1;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+
+/// The largest `max_order`, `max_drag_order` and `motion_degree` (the CLI's).
+const MAX_ORDER: usize = 1000;
+const MAX_DRAG_ORDER: usize = 100;
+const MAX_DEGREE: usize = 60;
+
+/// The TDR options from the keyword arguments, checked as `calib tdr` checks its options.
+fn options(
+    max_order: Option<usize>,
+    max_drag_order: usize,
+    motion_degree: Option<usize>,
+    min_revolutions: f64,
+    points: usize,
+) -> PyResult<TdrOptions> {
+    check_points(Some(points))?;
+    if let Some(h) = max_order.filter(|h| !(1..=MAX_ORDER).contains(h)) {
+        return Err(usage(format!(
+            "max_order={h} is outside its range, 1 to {MAX_ORDER}"
+        )));
+    }
+    if max_drag_order > MAX_DRAG_ORDER {
+        return Err(usage(format!(
+            "max_drag_order={max_drag_order} is outside its range, 0 to {MAX_DRAG_ORDER}"
+        )));
+    }
+    if let Some(p) = motion_degree.filter(|p| !(1..=MAX_DEGREE).contains(p)) {
+        return Err(usage(format!(
+            "motion_degree={p} is outside its range, 1 to {MAX_DEGREE}"
+        )));
+    }
+    if !(min_revolutions.is_finite() && min_revolutions >= 1.0) {
+        return Err(usage(format!(
+            "min_revolutions={} is outside its range, 1 or more",
+            calib_io::limits::readable(min_revolutions)
+        )));
+    }
+    Ok(TdrOptions {
+        max_order,
+        max_drag_order,
+        motion_degree,
+        points,
+        min_revolutions,
+        ..TdrOptions::default()
+    })
+}
+
+/// The result dictionary of a TDR calibration.
+fn tdr_result<'py>(
+    py: Python<'py>,
+    cal: &TdrCalibration,
+    (channel, reference, max_drag_order): (&str, Option<&str>, usize),
+    inputs: Vec<String>,
+    warnings: Vec<String>,
+    aligned: Option<calib_core::report::Alignment>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let section = cal
+        .report_section(channel, reference, max_drag_order)
+        .with_alignment(aligned);
+    let table = turn(channel, &cal.map, Some(&cal.uncertainty.u));
+    result(py, section, inputs, warnings, &[table])
+}
+
+/// Spin-down self-calibration of one encoder from arrays (see `calib.tdr`).
+#[pyfunction]
+#[pyo3(signature = (t, readings, r#ref=None, *, name="encoder".to_string(), max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=3600))]
+#[allow(clippy::too_many_arguments)]
+pub fn tdr<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    readings: PyReadonlyArray1<'py, f64>,
+    r#ref: Option<PyReadonlyArray1<'py, f64>>,
+    name: String,
+    max_order: Option<usize>,
+    max_drag_order: usize,
+    motion_degree: Option<usize>,
+    min_revolutions: f64,
+    points: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (t, x) = (t.as_slice()?, readings.as_slice()?);
+    same_length("readings", x, t.len())?;
+    let r = r#ref.as_ref().map(|r| r.as_slice()).transpose()?;
+    if let Some(r) = r {
+        same_length("ref", r, t.len())?;
+    }
+    let opts = options(
+        max_order,
+        max_drag_order,
+        motion_degree,
+        min_revolutions,
+        points,
+    )?;
+    let cal = py.detach(|| {
+        let mut tdr = Tdr::new(opts);
+        for i in 0..t.len() {
+            match r {
+                Some(r) => tdr.push_with_reference(t[i], x[i], r[i]),
+                None => tdr.push(t[i], x[i]),
+            }
+        }
+        tdr.finish()
+    });
+    let cal = cal.map_err(|e| data(format!("the arrays: channel `{name}`: {e}")))?;
+    let reference = r.map(|_| "ref");
+    tdr_result(
+        py,
+        &cal,
+        (&name, reference, max_drag_order),
+        vec![],
+        vec![],
+        None,
+    )
+}
+
+/// Spin-down self-calibration of a log's channel (see `calib.tdr_log`).
+#[pyfunction]
+#[pyo3(signature = (path, *, channel, r#ref=None, max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=3600, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn tdr_log<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    channel: String,
+    r#ref: Option<String>,
+    max_order: Option<usize>,
+    max_drag_order: usize,
+    motion_degree: Option<usize>,
+    min_revolutions: f64,
+    points: usize,
+    unit: Option<&str>,
+    time: &str,
+    max_gap: Option<f64>,
+    time_column: Option<String>,
+    time_unit: Option<&str>,
+) -> PyResult<Bound<'py, PyDict>> {
+    if r#ref.as_ref() == Some(&channel) {
+        return Err(usage(format!(
+            "channel and ref both name `{channel}`: name the encoder to calibrate and a different \
+             reference"
+        )));
+    }
+    let opts = options(
+        max_order,
+        max_drag_order,
+        motion_degree,
+        min_revolutions,
+        points,
+    )?;
+    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    let mut names = vec![channel.clone()];
+    names.extend(r#ref.clone());
+    let reader = open(&path, Some(&names), &log)?;
+    let what = path.display().to_string();
+    let with_ref = r#ref.is_some();
+    let (cal, reader) = py
+        .detach(|| {
+            let mut tdr = Tdr::new(opts);
+            let reader = for_each_sample(&path, reader, |s| {
+                if with_ref {
+                    tdr.push_with_reference(s.t, s.values[0], s.values[1]);
+                } else {
+                    tdr.push(s.t, s.values[0]);
+                }
+            })?;
+            let cal = tdr
+                .finish()
+                .map_err(|e| format!("{what}: channel `{channel}`: {e}"))?;
+            Ok::<_, String>((cal, reader))
+        })
+        .map_err(data)?;
+    tdr_result(
+        py,
+        &cal,
+        (&channel, r#ref.as_deref(), max_drag_order),
+        vec![what],
+        reader.warnings(&path),
+        alignment(&reader),
+    )
+}

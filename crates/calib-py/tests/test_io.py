@@ -1,0 +1,160 @@
+"""Reading logs, the report against the command line's, tables, and errors."""
+
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import calib
+from conftest import REPO, TESTDATA, calib_binary
+
+QUICK = "testdata/examples/quick.mcap"
+
+
+def test_read_gives_time_and_radians_per_channel():
+    log = calib.read(TESTDATA / "examples" / "quick.mcap")
+    assert set(log.channels) == {"a", "b"}
+    assert len(log.t) == len(log["a"]) == len(log["b"]) > 3000
+    assert np.all(np.diff(log.t) > 0)
+    # JointState positions are radians, wrapped to one turn by the scenario (wrap = true).
+    assert 0.0 <= log["a"].min() and log["a"].max() < 2 * np.pi
+    assert log["a"].dtype == np.float64
+
+
+def test_read_a_csv_with_its_unit_and_sessions(tmp_path):
+    path = tmp_path / "run.csv"
+    path.write_text("t,a,b,session\n0,10,20,0\n0.5,11,21,0\n1,12,22,-1\n")
+    log = calib.read(path, channels=["b", "a"], unit="deg")
+    assert list(log.channels) == ["b", "a"]
+    np.testing.assert_allclose(log["a"], np.radians([10, 11, 12]))
+    np.testing.assert_array_equal(log.session, [0, 0, -1])
+    np.testing.assert_array_equal(log.t, [0, 0.5, 1])
+
+
+def test_csrr_log_report_is_the_command_lines_apart_from_provenance(tmp_path):
+    """`calib csrr testdata/examples/quick.mcap`'s report.json, key for key and number for
+    number, but for `command_line` (the CLI's own invocation)."""
+    binary = calib_binary()
+    if binary is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must set CALIB_BIN (or build target/*/calib) for this test")
+        pytest.skip("no calib command line built to compare with (set CALIB_BIN)")
+    out = tmp_path / "out"
+    subprocess.run([binary, "csrr", QUICK, "-o", str(out)], cwd=REPO, check=True, capture_output=True)
+    cli = json.loads((out / "report.json").read_text())
+    cwd = os.getcwd()
+    os.chdir(REPO)
+    try:
+        res = calib.csrr_log(QUICK)
+    finally:
+        os.chdir(cwd)
+    assert cli.pop("command_line").startswith("calib csrr")
+    assert "command_line" not in res.report
+    assert res.report == cli
+    # The tables too: the CLI's CSV rounds to 6 decimals.
+    for name in ("a", "b"):
+        table = calib.Table.read(out / f"{name}.csv")
+        ch = res.channels[name]
+        np.testing.assert_allclose(ch.error_arcsec, table.error_arcsec, atol=1e-6)
+        np.testing.assert_allclose(ch.u_arcsec, table.u_arcsec, atol=1e-6)
+        np.testing.assert_allclose(ch.angle_deg, table.angle_deg, atol=1e-9)
+
+
+def test_csrr_log_agrees_with_the_arrays_read():
+    log = calib.read(TESTDATA / "examples" / "quick.mcap")
+    from_log = calib.csrr_log(TESTDATA / "examples" / "quick.mcap")
+    from_arrays = calib.csrr(log["a"], log["b"], t=log.t)
+    np.testing.assert_array_equal(
+        from_log.channels["a"].error_arcsec, from_arrays.channels["a"].error_arcsec
+    )
+    assert from_arrays.report["inputs"] == []
+
+
+def test_table_write_read_round_trip_and_correct(tmp_path):
+    n = 3600
+    grid = np.arange(n) * 2 * np.pi / n
+    error = 20.0 * np.cos(8 * grid + 0.3) + 5.0 * np.sin(3 * grid)
+    u = np.full(n, 0.01)
+    table = calib.Table(error, u)
+    table.write(tmp_path / "a.csv")
+    back = calib.Table.read(tmp_path / "a.csv")
+    # Written with 6 decimals.
+    np.testing.assert_allclose(back.error_arcsec, error, atol=5e-7)
+    np.testing.assert_allclose(back.u_arcsec, u, atol=5e-7)
+    np.testing.assert_allclose(back.angle_deg, np.arange(n) * 0.1)
+    # The table is the error as a function of the reading: a reading r is of the true angle
+    # r − e(r), with e interpolated linearly and periodically between the grid points, as
+    # numpy's periodic interp does; `correct` gives it back to rounding (1e-6″ is thousands of
+    # times the float64 spacing of angles near 2π, 2·10⁻¹⁰″).
+    readings = np.linspace(-1.0, 2 * np.pi + 1.0, 1001)
+    truth = readings - np.interp(readings, grid, error, period=2 * np.pi) / (180 / np.pi * 3600)
+    corrected = table.correct(readings)
+    assert np.max(np.abs(corrected - truth)) * 180 / np.pi * 3600 < 1e-6
+
+
+def test_export_and_compose():
+    n = 512
+    grid = np.arange(n) * 2 * np.pi / n
+    table = calib.Table(30.0 * np.cos(7 * grid))
+    text = calib.export(table, "moteus")
+    assert text.startswith("conf set")
+    harmonic = calib.export(table, "harmonic")
+    assert "7" in harmonic
+    # Composing with a zero residual gives the first table back.
+    zero = calib.Table(np.zeros(n))
+    both = calib.compose(table, zero)
+    np.testing.assert_allclose(both.error_arcsec, table.error_arcsec, atol=1e-9)
+
+
+def test_errors_are_the_right_exceptions(tmp_path):
+    with pytest.raises(calib.UsageError, match="no such file"):
+        calib.read(tmp_path / "missing.mcap")
+    with pytest.raises(calib.UsageError, match="nope"):
+        calib.csrr_log(TESTDATA / "examples" / "quick.mcap", a="nope")
+    with pytest.raises(calib.UsageError, match="session_tol"):
+        calib.csrr_log(TESTDATA / "examples" / "quick.mcap", session_tol=-1)
+    with pytest.raises(calib.UsageError, match="format"):
+        calib.export(calib.Table(np.zeros(8)), "nope")
+    # Data that cannot be calibrated: a sensor that never moves.
+    still = np.zeros(5000)
+    with pytest.raises(calib.DataError):
+        calib.csrr(still, still)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,a,b\n0,1,2\n1,x,3\n")
+    with pytest.raises(calib.DataError, match="bad.csv"):
+        calib.read(bad)
+    table = tmp_path / "t.csv"
+    table.write_text("angle_deg,error_arcsec,correction_arcsec\n0,1,-1\n90,2,-2\n")
+    with pytest.raises(calib.DataError, match="t.csv"):
+        calib.Table.read(table)
+    assert issubclass(calib.DataError, calib.CalibError)
+    assert issubclass(calib.UsageError, calib.CalibError)
+
+
+def _in_repo(f):
+    cwd = os.getcwd()
+    os.chdir(REPO)
+    try:
+        return f()
+    finally:
+        os.chdir(cwd)
+
+
+def test_inspect_is_the_command_lines_json():
+    binary = calib_binary()
+    if binary is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must set CALIB_BIN (or build target/*/calib) for this test")
+        pytest.skip("no calib command line built to compare with (set CALIB_BIN)")
+    done = subprocess.run(
+        [binary, "inspect", "--json", QUICK], cwd=REPO, check=True, capture_output=True, text=True
+    )
+    assert _in_repo(lambda: calib.inspect(QUICK)) == json.loads(done.stdout)
+
+
+def test_a_table_from_a_result_exports_for_moteus():
+    res = calib.csrr_log(TESTDATA / "examples" / "quick.mcap")
+    text = calib.export(res.channels["a"], "moteus")
+    assert text.count("conf set") > 10
