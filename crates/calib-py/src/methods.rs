@@ -376,7 +376,7 @@ fn parse_targets(targets: &Bound<'_, PyAny>) -> Option<PyResult<Targets>> {
 
 /// The reference calibration's options from its keyword arguments (`calib reference`'s).
 fn reference_options(
-    ref_u: f64,
+    ref_u: Option<f64>,
     points: usize,
     min_speed: f64,
     follow_tol: f64,
@@ -385,7 +385,9 @@ fn reference_options(
     approach: f64,
 ) -> PyResult<ReferenceOptions> {
     check_points(Some(points))?;
-    check_non_negative("ref_u", ref_u, "arcseconds")?;
+    if let Some(u) = ref_u {
+        check_non_negative("ref_u", u, "arcseconds")?;
+    }
     check_non_negative("approach", approach, "degrees")?;
     check_range("min_speed", min_speed, 0.0, 360_000.0, "degrees per second")?;
     check_range("follow_tol", follow_tol, 0.0, 180.0, "degrees")?;
@@ -406,7 +408,7 @@ fn reference_options(
     Ok(ReferenceOptions {
         points,
         min_speed: min_speed.to_radians(),
-        reference_u: ref_u / ARCSEC_PER_RAD,
+        reference_u: ref_u.unwrap_or(0.0) / ARCSEC_PER_RAD,
         follow_tol: follow_tol.to_radians(),
         approach: approach.to_radians(),
         max_gap: bridge_gap.to_radians(),
@@ -419,7 +421,7 @@ fn reference_options(
 fn reference_result<'py>(
     py: Python<'py>,
     cal: &calib_core::reference_cal::ReferenceCalibration,
-    (dut, reference, ref_u): (&str, &str, f64),
+    (dut, reference, ref_u): (&str, &str, Option<f64>),
     inputs: Vec<String>,
     warnings: Vec<String>,
     aligned: Option<calib_core::report::Alignment>,
@@ -444,7 +446,7 @@ fn reference_result<'py>(
 
 /// Cross-calibration against a reference encoder from arrays (see `calib.reference`).
 #[pyfunction]
-#[pyo3(signature = (dut, r#ref, t=None, *, names=("dut".to_string(), "ref".to_string()), rate_hz=1000.0, ref_u=0.0, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0))]
+#[pyo3(signature = (dut, r#ref, t=None, *, names=("dut".to_string(), "ref".to_string()), rate_hz=1000.0, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference<'py>(
     py: Python<'py>,
@@ -453,7 +455,7 @@ pub fn reference<'py>(
     t: Option<PyReadonlyArray1<'py, f64>>,
     names: (String, String),
     rate_hz: f64,
-    ref_u: f64,
+    ref_u: Option<f64>,
     points: usize,
     min_speed: f64,
     follow_tol: f64,
@@ -493,14 +495,14 @@ pub fn reference<'py>(
 /// Cross-calibration of a log's DUT channel against its reference channel (see
 /// `calib.reference_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, dut, r#ref, ref_u=0.0, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, dut, r#ref, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference_log<'py>(
     py: Python<'py>,
     path: PathBuf,
     dut: String,
     r#ref: String,
-    ref_u: f64,
+    ref_u: Option<f64>,
     points: usize,
     min_speed: f64,
     follow_tol: f64,

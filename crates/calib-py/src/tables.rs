@@ -24,7 +24,7 @@ const FORMATS: [Format; 11] = [
     Format::Moteus,
     Format::MoteusConfig,
     Format::Simplefoc,
-    Format::SimplefocU16,
+    Format::SimplefocFloat,
 ];
 
 /// The map of errors given in arcseconds, checked as a table's would be.

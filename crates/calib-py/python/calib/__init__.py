@@ -495,7 +495,7 @@ def reference(
     *,
     names: Tuple[str, str] = ("dut", "ref"),
     rate_hz: float = 1000.0,
-    ref_u: float = 0.0,
+    ref_u: Optional[float] = None,
     points: int = 3600,
     min_speed: float = 1.0,
     follow_tol: float = 5.0,
@@ -510,7 +510,9 @@ def reference(
         dut, ref: the readings of the DUT and the reference, radians.
         t: time stamps, seconds (None: samples ``1/rate_hz`` apart).
         names: the names of the DUT and the reference in the result and report.
-        ref_u: the reference's own standard uncertainty, arcseconds (added to every point's u).
+        ref_u: the reference's own standard uncertainty, arcseconds (added to every point's u);
+            None (the default): not known, left out of u, and the result warns that u excludes
+            the reference.
         points: points of the table.
         min_speed: speed below which the shaft counts as stopped, degrees per second.
         follow_tol: largest difference between the two readings, degrees (beyond: not the same
@@ -546,7 +548,7 @@ def reference_log(
     *,
     dut: str,
     ref: str,
-    ref_u: float = 0.0,
+    ref_u: Optional[float] = None,
     points: int = 3600,
     min_speed: float = 1.0,
     follow_tol: float = 5.0,
