@@ -2,7 +2,7 @@
 
 use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{alignment_detail, alignment_text};
+use crate::input::{alignment_detail, alignment_text, channel, open_log_with};
 use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_outputs};
 use crate::summary::{TextTable, ending, key_values};
@@ -12,6 +12,8 @@ use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
     ReferenceCal, ReferenceCalibration, ReferenceOptions, TableMap, Targets,
 };
+use calib_core::reference_points::{PointOptions, calibrate_points};
+use calib_io::{LogReader, ReadOptions};
 use std::fmt::Write;
 use std::path::Path;
 
@@ -37,7 +39,16 @@ use std::path::Path;
 /// map with its uncertainty band, the ISO 230-2 figures), and prints a summary. With several
 /// logs, each log's files go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
 ///
-/// Channels are named by their CSV column; in MCAP and rosbag2 bags by the joint name
+/// A CSV file without a time column is a list of stationary points, one row per stop of the
+/// shaft in the order measured (a protractor table, a rotary table stepped through ISO 230-2
+/// targets, the MagAlpha tool's input): each row's DUT − reference is one measurement; rows whose
+/// DUT readings lie within --target-tol are one target measured again (a cycle), approached in
+/// the direction of the step that led there. The map joins the targets' means by straight lines;
+/// the ISO 230-2 figures are taken at the targets (--targets and the options of motion do not
+/// apply). A whole turn if the targets go round evenly, else a range table. When the reference
+/// readings are in a file of their own, one per row in the same order, name it with --ref-file.
+///
+/// Channels are named by their CSV column (`1`, `2`, … in a file without a header row); in MCAP and rosbag2 bags by the joint name
 /// (JointState, DynamicJointState) or field (JSON) where no other topic carries that name, by the
 /// topic for std_msgs scalars, as TOPIC.field.path for a numeric field of another message whose
 /// MCAP file carries its definition (/motor/state.position), and always accepted as TOPIC/NAME
@@ -82,6 +93,19 @@ pub struct Args {
     /// approach: backlash settles).
     #[arg(long, default_value_t = 1.0)]
     pub approach: f64,
+    /// Point lists: the reference's readings are in this file, one row per point in the same
+    /// order as the log's rows (a protractor's readings noted beside the encoder's); --ref names
+    /// its column (`1` in a file without a header row). The two must have as many points.
+    #[arg(long, value_name = "FILE")]
+    pub ref_file: Option<std::path::PathBuf>,
+    /// The reference counts the other way round: its readings are negated (a protractor read as
+    /// 180° − reading; the constant does not matter, maps are zero-mean).
+    #[arg(long)]
+    pub ref_reversed: bool,
+    /// Point lists: points whose DUT readings lie within this many degrees of each other are one
+    /// target measured again (default: a tenth of the median step between consecutive points).
+    #[arg(long, value_name = "DEG")]
+    pub target_tol: Option<f64>,
     /// Logs, output, unit, output form, gates, timing.
     #[command(flatten)]
     pub common: MethodArgs,
@@ -112,7 +136,8 @@ fn parse_targets(text: &str) -> Result<Targets, String> {
 
 /// Runs `calib reference`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    if args.dut == args.reference {
+    // With --ref-file the two name columns of different files.
+    if args.dut == args.reference && args.ref_file.is_none() {
         return Err(Usage(format!(
             "--dut and --ref both name `{}`: name the encoder to calibrate and the reference",
             args.dut
@@ -130,6 +155,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         "degrees per second",
     )?;
     crate::input::check_range("--follow-tol", args.follow_tol, 0.0, 180.0, "degrees")?;
+    if let Some(tol) = args.target_tol {
+        crate::input::check_range("--target-tol", tol, 0.0, 180.0, "degrees")?;
+    }
     if !(args.bridge_gap.is_finite() && (0.0..360.0).contains(&args.bridge_gap)) {
         return Err(Usage(format!(
             "--bridge-gap {} is outside its range: at least 0 and below 360 degrees",
@@ -141,29 +169,116 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .run("reference", |log, out| calibrate(args, log, out))
 }
 
+/// Opens `log` (a timed log or a point list) reading the channels `names`, in this order.
+fn open(args: &Args, log: &Path, names: &[&str]) -> anyhow::Result<LogReader> {
+    let (read, align) = args.common.input.options(args.common.unit)?;
+    let read = ReadOptions {
+        fields: names.iter().map(|n| n.to_string()).collect(),
+        allow_point_list: true,
+        ..read
+    };
+    let mut reader = open_log_with(log, read)?;
+    let indices = names
+        .iter()
+        .map(|n| channel(&reader, log, n))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    reader.select(&indices, align);
+    Ok(reader)
+}
+
+/// Every sample's values of a point list.
+fn read_points(log: &Path, reader: LogReader) -> anyhow::Result<(Vec<Vec<f64>>, LogReader)> {
+    let mut values = Vec::new();
+    let reader = for_each_sample(log, reader, |s| values.push(s.values.clone()))?;
+    Ok((values, reader))
+}
+
+/// The reference's readings of a point list from `--ref-file`, paired by row with `dut`'s
+/// points.
+fn reference_file(args: &Args, log: &Path, file: &Path, points: usize) -> anyhow::Result<Vec<f64>> {
+    let reader = open(args, file, &[args.reference.as_str()])?;
+    if !reader.is_point_list() {
+        anyhow::bail!(
+            "{}: --ref-file pairs the rows of two point lists, but this file has a time column; \
+             give the reference as a channel of the log with --ref instead",
+            file.display()
+        );
+    }
+    let (values, _) = read_points(file, reader)?;
+    if values.len() != points {
+        anyhow::bail!(
+            "{} holds {} point(s) and {} holds {}: --ref-file pairs the two lists row by row, so \
+             they must hold as many points; remove the rows that have no partner in the other file",
+            log.display(),
+            points,
+            file.display(),
+            values.len()
+        );
+    }
+    Ok(values.into_iter().map(|v| v[0]).collect())
+}
+
 /// Calibrates one log into the folder `out`.
 fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
-    let names = [args.dut.as_str(), args.reference.as_str()];
-    let reader = args.common.open(log, &names)?;
-    let (id, ir) = (0, 1);
-    let mut cal = ReferenceCal::new(ReferenceOptions {
-        points: args.points,
-        min_speed: args.min_speed.to_radians(),
-        reference_u: args.ref_u / ARCSEC_PER_RAD,
-        follow_tol: args.follow_tol.to_radians(),
-        approach: args.approach.to_radians(),
-        max_gap: args.bridge_gap.to_radians(),
-        targets: args.targets.clone(),
-    });
-    let reader = for_each_sample(log, reader, |s| cal.push(s.t, s.values[id], s.values[ir]))?;
-    let cal = cal.finish().with_context(|| {
+    let names: &[&str] = match args.ref_file {
+        Some(_) => &[args.dut.as_str()],
+        None => &[args.dut.as_str(), args.reference.as_str()],
+    };
+    let reader = open(args, log, names)?;
+    let sign = if args.ref_reversed { -1.0 } else { 1.0 };
+    let context = || {
         format!(
             "{}: DUT `{}`, reference `{}`",
             log.display(),
             args.dut,
             args.reference
         )
-    })?;
+    };
+    let (cal, reader, points) = if reader.is_point_list() {
+        let (values, reader) = read_points(log, reader)?;
+        let reference: Vec<f64> = match &args.ref_file {
+            Some(file) => reference_file(args, log, file, values.len())?,
+            None => values.iter().map(|v| v[1]).collect(),
+        };
+        let points: Vec<(f64, f64)> = values
+            .iter()
+            .zip(&reference)
+            .map(|(v, &r)| (v[0], sign * r))
+            .collect();
+        let opts = PointOptions {
+            points: args.points,
+            reference_u: args.ref_u / ARCSEC_PER_RAD,
+            follow_tol: args.follow_tol.to_radians(),
+            max_gap: args.bridge_gap.to_radians(),
+            target_tol: args.target_tol.map(f64::to_radians),
+        };
+        let cal = calibrate_points(&points, &opts).with_context(context)?;
+        (cal, reader, Some(points.len()))
+    } else {
+        if let Some(file) = &args.ref_file {
+            return Err(Usage(format!(
+                "--ref-file {} pairs the rows of two point lists, but {} has a time column; name \
+                 the reference as a channel of the log with --ref",
+                file.display(),
+                log.display()
+            ))
+            .into());
+        }
+        let (id, ir) = (0, 1);
+        let mut cal = ReferenceCal::new(ReferenceOptions {
+            points: args.points,
+            min_speed: args.min_speed.to_radians(),
+            reference_u: args.ref_u / ARCSEC_PER_RAD,
+            follow_tol: args.follow_tol.to_radians(),
+            approach: args.approach.to_radians(),
+            max_gap: args.bridge_gap.to_radians(),
+            targets: args.targets.clone(),
+        });
+        let reader = for_each_sample(log, reader, |s| {
+            cal.push(s.t, s.values[id], sign * s.values[ir])
+        })?;
+        (cal.finish().with_context(context)?, reader, None)
+    };
     let report = Report::new(
         cal.report_section(&args.dut, &args.reference, args.ref_u)
             .with_alignment(alignment_detail(&reader)),
@@ -189,7 +304,8 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let text = if args.common.json {
         json
     } else {
-        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
+        alignment_text(reader.alignment().as_ref())
+            + &render_summary(args, out, &cal, &report, points)
     };
     Ok(Outcome {
         text,
@@ -200,7 +316,14 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     })
 }
 
-fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &Report) -> String {
+/// The summary; `points`: the number of points of a point list.
+fn render_summary(
+    args: &Args,
+    out: &Path,
+    cal: &ReferenceCalibration,
+    report: &Report,
+    points: Option<usize>,
+) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,
@@ -231,13 +354,25 @@ fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &
         (None, None) => "whole turn".to_string(),
     };
     o += &key_values(&[
-        (
-            "run",
-            format!(
-                "{:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
-                cal.revolutions, cal.min_passes.0, cal.min_passes.1
+        match points {
+            Some(n) => (
+                "points",
+                format!(
+                    "{n} stationary points at {} targets, at least {} measurement(s) increasing, \
+                     {} decreasing",
+                    cal.targets.len(),
+                    cal.min_passes.0,
+                    cal.min_passes.1
+                ),
             ),
-        ),
+            None => (
+                "run",
+                format!(
+                    "{:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
+                    cal.revolutions, cal.min_passes.0, cal.min_passes.1
+                ),
+            ),
+        },
         ("map", coverage),
         (
             "ISO 230-2",
