@@ -215,8 +215,8 @@ fn magalpha_like_point_list_gives_its_orders() {
         &out,
         &[],
     );
-    let err = expect_exit(&o, 0);
-    assert_mentions(&err, &["measured twice"]);
+    expect_exit(&o, 0);
+    assert_mentions(&stdout(&o), &["measured twice"]);
     assert_mentions(&stdout(&o), &["200 stationary points at 200 targets"]);
     let report = read_json(&out.join("report.json"));
     let ch = &report["channels"]["Measured Angle [degree]"];
@@ -284,7 +284,8 @@ fn arm_joint_encoder_file_pairs_with_a_protractor_file() {
     let worst = max_diff_zero_mean(&table, truth);
     assert!(worst < 720.0, "map − truth: {worst}″");
 
-    // The same without --ref-reversed: the reference runs the other way round.
+    // The same without --ref-reversed: the reference runs the other way round, and the
+    // difference changes by twice the encoder's step from point to point.
     let o = reference(
         &enc,
         "1",
@@ -508,7 +509,9 @@ fn integer_time_keeps_its_precision() {
     let i = &v["inspection"];
     assert_eq!(i["start_s"].as_f64(), Some(0.0));
     assert!((i["end_s"].as_f64().unwrap() - 49e-6).abs() < 1e-15, "{i}");
-    assert!(i["interval_jitter_s"].as_f64().unwrap() < 1e-15, "{i}");
+    // Through f64 seconds of the absolute stamps the 1 µs intervals would be multiples of
+    // 2.4e-7 s (jitter ~1e-7 s); counted in integers they are equal to rounding (~1e-14 s).
+    assert!(i["interval_jitter_s"].as_f64().unwrap() < 1e-12, "{i}");
 }
 
 #[test]

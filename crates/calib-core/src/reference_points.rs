@@ -67,6 +67,35 @@ pub struct PointOptions {
     pub target_tol: Option<f64>,
 }
 
+/// Why a calibration from points cannot be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PointError {
+    /// As for a timed run.
+    #[error(transparent)]
+    Reference(#[from] ReferenceError),
+    /// The difference of the readings changes between consecutive points by about as much as
+    /// the DUT moves.
+    #[error(
+        "the reference does not follow the DUT: between consecutive points the difference of their \
+         readings changes by {ratio:.2} times the DUT's step (the median of {steps} steps; an \
+         encoder's error changes much less than its reading, at most {MAX_SLOPE} times it is \
+         allowed). The reference counts the other way round (give --ref-reversed), is in another \
+         unit, or its rows are not paired with the DUT's"
+    )]
+    NotFollowing {
+        /// The median of |Δ(DUT − ref)| / |ΔDUT| over the steps.
+        ratio: f64,
+        /// Steps it is the median of.
+        steps: usize,
+    },
+}
+
+/// The largest median change of the error per unit of the DUT's step between consecutive
+/// points: an encoder whose error changed by more than half its reading's change would barely
+/// count forward; a reference counting the other way round gives 2, one in radians against
+/// degrees 0.98.
+pub const MAX_SLOPE: f64 = 0.5;
+
 impl Default for PointOptions {
     fn default() -> Self {
         PointOptions {
@@ -119,19 +148,20 @@ fn stats(x: &[f64], offset: f64) -> PointStats {
 pub fn calibrate_points(
     points: &[(f64, f64)],
     opts: &PointOptions,
-) -> Result<ReferenceCalibration, ReferenceError> {
+) -> Result<ReferenceCalibration, PointError> {
     if opts.points < 2 {
         return Err(ReferenceError::Options(format!(
             "the map needs at least 2 points, {} asked for",
             opts.points
-        )));
+        ))
+        .into());
     }
     let too_few = |crossed| ReferenceError::TooLittleMotion {
         revolutions: 0.0,
         crossed,
     };
     let Some(&(dut0, ref0)) = points.first() else {
-        return Err(too_few(0));
+        return Err(too_few(0).into());
     };
     let c0 = dut0 - ref0;
     let errors: Vec<f64> = points.iter().map(|&(d, r)| wrap_pi(d - r - c0)).collect();
@@ -146,7 +176,7 @@ pub fn calibrate_points(
         .sum();
     let mut moves: Vec<f64> = steps.iter().map(|s| s.abs()).filter(|&s| s > 0.0).collect();
     if moves.is_empty() {
-        return Err(too_few(1));
+        return Err(too_few(1).into());
     }
     moves.sort_by(f64::total_cmp);
     let tol = opts.target_tol.unwrap_or(0.1 * moves[moves.len() / 2]);
@@ -154,7 +184,8 @@ pub fn calibrate_points(
         return Err(ReferenceError::ReferenceStill {
             reference_deg: reference_travel.to_degrees(),
             dut_deg: travel.to_degrees(),
-        });
+        }
+        .into());
     }
 
     // Direction of approach: the step into the point, else the next step that moves.
@@ -174,7 +205,7 @@ pub fn calibrate_points(
 
     let targets = group(points, &errors, &up, tol);
     if targets.len() < 2 {
-        return Err(too_few(targets.len()));
+        return Err(too_few(targets.len()).into());
     }
     for t in &targets {
         let (lo, hi) =
@@ -188,8 +219,26 @@ pub fn calibrate_points(
                 spread_deg: (hi - lo).to_degrees(),
                 at_deg: t.position.to_degrees(),
                 tol_deg: opts.follow_tol.to_degrees(),
-            });
+            }
+            .into());
         }
+    }
+    // Points met once each cannot repeat: the error's change from point to point must then be
+    // small against the DUT's step.
+    let mut slopes: Vec<f64> = steps
+        .iter()
+        .zip(errors.windows(2))
+        .filter(|(s, _)| s.abs() > tol)
+        .map(|(s, e)| wrap_pi(e[1] - e[0]).abs() / s.abs())
+        .collect();
+    slopes.sort_by(f64::total_cmp);
+    if let Some(&ratio) = slopes.get(slopes.len() / 2)
+        && ratio > MAX_SLOPE
+    {
+        return Err(PointError::NotFollowing {
+            ratio,
+            steps: slopes.len(),
+        });
     }
     let repeat_spread = targets
         .iter()
@@ -322,7 +371,8 @@ pub fn calibrate_points(
         TableMap::Turn(ErrorMap::new(raw))
     } else {
         TableMap::Range(
-            RangeMap::new(start, step, raw).map_err(|e| ReferenceError::Options(e.to_string()))?,
+            RangeMap::new(start, step, raw)
+                .map_err(|e| PointError::from(ReferenceError::Options(e.to_string())))?,
         )
     };
     let target_stats: Vec<TargetStats> = order
@@ -629,7 +679,21 @@ mod tests {
         );
         assert!(matches!(
             calibrate_points(&p, &PointOptions::default()),
-            Err(ReferenceError::NotRepeating { .. })
+            Err(PointError::Reference(ReferenceError::NotRepeating { .. }))
         ));
+        // Met once each, a reference counting the other way round changes the difference by
+        // twice the DUT's step.
+        let p: Vec<(f64, f64)> = (0..20)
+            .map(|k| {
+                let a = (5.0 * k as f64).to_radians();
+                (a, -a)
+            })
+            .collect();
+        match calibrate_points(&p, &PointOptions::default()) {
+            Err(PointError::NotFollowing { ratio, steps }) => {
+                assert!((ratio - 2.0).abs() < 1e-9 && steps == 19, "{ratio} {steps}");
+            }
+            other => panic!("{other:?}"),
+        }
     }
 }
