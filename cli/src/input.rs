@@ -36,7 +36,8 @@ pub struct LogArgs {
     /// suffix such as ` [s]`, `_ms` or ` (us)` honoured).
     #[arg(long, value_name = "NAME")]
     pub time_column: Option<String>,
-    /// Unit of a CSV log's time column: s, ms, us or ns (default: its name's suffix, else s).
+    /// Unit of a CSV log's time column: s, ms, us, ns or 100ns (FILETIME ticks) (default: its
+    /// name's suffix, else the units row's entry, else s).
     #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
     pub time_unit: Option<TimeUnit>,
 }

@@ -54,6 +54,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let (opts, align) = args.input.options(args.unit)?;
     let opts = ReadOptions {
         allow_unordered_time: true,
+        allow_point_list: true,
         fields: [&args.a, &args.b].into_iter().flatten().cloned().collect(),
         ..opts
     };
@@ -72,9 +73,15 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let a = pick(&args.a, "a", 0)?;
     let b = pick(&args.b, "b", 1)?;
     let pair = match (a, b) {
-        (Some(a), Some(b)) if a != b => Some((a, b)),
+        // A point list has no motion to segment.
+        (Some(a), Some(b)) if a != b && !reader.is_point_list() => Some((a, b)),
         _ => None,
     };
+    let point_list = reader.is_point_list();
+    let layout = reader
+        .csv_dialect()
+        .filter(|d| !d.is_plain())
+        .map(|d| d.describe());
     // Every channel, the pair's first (or the log's first) leading: it sets the clock.
     let clock = pair.map_or(0, |(a, _)| a);
     let order: Vec<usize> = std::iter::once(clock)
@@ -121,10 +128,21 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             &json,
         )?)?);
     }
-    Ok(
-        render(&args.log, &result, &render_topics(&topics), &warnings)
-            + &alignment_text(alignment.as_ref()),
-    )
+    if point_list {
+        return Ok(render_points(
+            &args.log,
+            &result,
+            layout.as_deref(),
+            &warnings,
+        ));
+    }
+    let mut text = render(&args.log, &result, &render_topics(&topics), &warnings);
+    if let Some(layout) = layout {
+        // After the file's name: how it was read.
+        let at = text.find('\n').map_or(text.len(), |i| i + 1);
+        text.insert_str(at, &format!("  read as: {layout}\n"));
+    }
+    Ok(text + &alignment_text(alignment.as_ref()))
 }
 
 /// `calib inspect --json`.
@@ -194,6 +212,49 @@ fn render_topics(topics: &[TopicInfo]) -> String {
         }
     }
     let _ = writeln!(o);
+    o
+}
+
+/// The human report of a point list: its points and channels, and how to calibrate from it.
+fn render_points(
+    path: &std::path::Path,
+    r: &Inspection,
+    layout: Option<&str>,
+    warnings: &[String],
+) -> String {
+    let mut o = String::new();
+    let _ = writeln!(o, "{}", path.display());
+    if let Some(layout) = layout {
+        let _ = writeln!(o, "  read as: {layout}");
+    }
+    let _ = writeln!(
+        o,
+        "  a list of {} stationary points (no time column): each row one measurement, in the \
+         order measured",
+        r.samples
+    );
+    let _ = writeln!(o, "\nchannels");
+    let mut channels = TextTable::new(&["name", "unit", "min", "max", "revs"]);
+    for c in &r.channels {
+        channels.row(vec![
+            c.name.clone(),
+            c.unit.to_string(),
+            format!("{:.6}", c.min),
+            format!("{:.6}", c.max),
+            format!("{:.3}", c.revolutions),
+        ]);
+    }
+    o.push_str(&channels.render());
+    let _ = writeln!(
+        o,
+        "\ncalibrate an encoder against a reference from it: calib reference {} --dut ENCODER \
+         --ref REFERENCE, naming two of the channels above (the reference's readings may come \
+         from a second list with the same rows: --ref-file FILE)",
+        path.display(),
+    );
+    for w in warnings {
+        let _ = writeln!(o, "\nwarning: {w}");
+    }
     o
 }
 

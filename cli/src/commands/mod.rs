@@ -61,6 +61,7 @@ fn inputs(command: &Command) -> Inputs {
         Command::Reference(a) => {
             let mut p = logs(&a.common.logs);
             p.extend(a.ref_table.as_deref().map(|t| (t, "table")));
+            p.extend(a.ref_file.as_deref().map(|f| (f, "reference file")));
             p
         }
         Command::ShiftAngle(a) => {

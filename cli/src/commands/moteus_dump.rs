@@ -104,7 +104,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         );
     }
     let report = Report::new(
-        cal.report_section(dut, reference, 0.0),
+        cal.report_section(dut, reference, None),
         vec![args.dump.display().to_string()],
         Some(crate::input::command_line()),
         warnings,

@@ -2,7 +2,7 @@
 
 use crate::batch::{ChannelFigures, Outcome};
 use crate::exit::Usage;
-use crate::input::{alignment_detail, alignment_text};
+use crate::input::{alignment_detail, alignment_text, channel, open_log_with};
 use crate::method::{MethodArgs, for_each_sample};
 use crate::output::{table_name, write_outputs};
 use crate::reference_table::ReferenceTable;
@@ -14,6 +14,8 @@ use calib_core::reference_cal::{
     Latency, LatencySource, ReferenceCal, ReferenceCalibration, ReferenceKind, ReferenceOptions,
     TableMap, Targets,
 };
+use calib_core::reference_points::{PointOptions, calibrate_points};
+use calib_io::{LogReader, ReadOptions};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
@@ -39,7 +41,16 @@ use std::path::{Path, PathBuf};
 /// map with its uncertainty band, the ISO 230-2 figures), and prints a summary. With several
 /// logs, each log's files go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
 ///
-/// Channels are named by their CSV column; in MCAP and rosbag2 bags by the joint name
+/// A CSV file without a time column is a list of stationary points, one row per stop of the
+/// shaft in the order measured (a protractor table, a rotary table stepped through ISO 230-2
+/// targets, the MagAlpha tool's input): each row's DUT − reference is one measurement; rows whose
+/// DUT readings lie within --target-tol are one target measured again (a cycle), approached in
+/// the direction of the step that led there. The map joins the targets' means by straight lines;
+/// the ISO 230-2 figures are taken at the targets (--targets and the options of motion do not
+/// apply). A whole turn if the targets go round evenly, else a range table. When the reference
+/// readings are in a file of their own, one per row in the same order, name it with --ref-file.
+///
+/// Channels are named by their CSV column (`1`, `2`, … in a file without a header row); in MCAP and rosbag2 bags by the joint name
 /// (JointState, DynamicJointState) or field (JSON) where no other topic carries that name, by the
 /// topic for std_msgs scalars, as TOPIC.field.path for a numeric field of another message whose
 /// MCAP file carries its definition (/motor/state.position), and always accepted as TOPIC/NAME
@@ -111,6 +122,19 @@ pub struct Args {
     /// Pole pairs of the motor of a commanded reference (needs --ref-kind commanded).
     #[arg(long)]
     pub pole_pairs: Option<u32>,
+    /// Point lists: the reference's readings are in this file, one row per point in the same
+    /// order as the log's rows (a protractor's readings noted beside the encoder's); --ref names
+    /// its column (`1` in a file without a header row). The two must have as many points.
+    #[arg(long, value_name = "FILE")]
+    pub ref_file: Option<std::path::PathBuf>,
+    /// The reference counts the other way round: its readings are negated (a protractor read as
+    /// 180° − reading; the constant does not matter, maps are zero-mean).
+    #[arg(long)]
+    pub ref_reversed: bool,
+    /// Point lists: points whose DUT readings lie within this many degrees of each other are one
+    /// target measured again (default: a tenth of the median step between consecutive points).
+    #[arg(long, value_name = "DEG")]
+    pub target_tol: Option<f64>,
     /// Logs, output, unit, output form, gates, timing.
     #[command(flatten)]
     pub common: MethodArgs,
@@ -184,7 +208,8 @@ fn parse_targets(text: &str) -> Result<Targets, String> {
 
 /// Runs `calib reference`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    if args.dut == args.reference {
+    // With --ref-file the two name columns of different files.
+    if args.dut == args.reference && args.ref_file.is_none() {
         return Err(Usage(format!(
             "--dut and --ref both name `{}`: name the encoder to calibrate and the reference",
             args.dut
@@ -218,6 +243,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         "degrees per second",
     )?;
     crate::input::check_range("--follow-tol", args.follow_tol, 0.0, 180.0, "degrees")?;
+    if let Some(tol) = args.target_tol {
+        crate::input::check_range("--target-tol", tol, 0.0, 180.0, "degrees")?;
+    }
     if !(args.bridge_gap.is_finite() && (0.0..360.0).contains(&args.bridge_gap)) {
         return Err(Usage(format!(
             "--bridge-gap {} is outside its range: at least 0 and below 360 degrees",
@@ -231,6 +259,55 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     })
 }
 
+/// Opens `log` (a timed log or a point list) reading the channels `names`, in this order.
+fn open(args: &Args, log: &Path, names: &[&str]) -> anyhow::Result<LogReader> {
+    let (read, align) = args.common.input.options(args.common.unit)?;
+    let read = ReadOptions {
+        fields: names.iter().map(|n| n.to_string()).collect(),
+        allow_point_list: true,
+        ..read
+    };
+    let mut reader = open_log_with(log, read)?;
+    let indices = names
+        .iter()
+        .map(|n| channel(&reader, log, n))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    reader.select(&indices, align);
+    Ok(reader)
+}
+
+/// Every sample's values of a point list.
+fn read_points(log: &Path, reader: LogReader) -> anyhow::Result<(Vec<Vec<f64>>, LogReader)> {
+    let mut values = Vec::new();
+    let reader = for_each_sample(log, reader, |s| values.push(s.values.clone()))?;
+    Ok((values, reader))
+}
+
+/// The reference's readings of a point list from `--ref-file`, paired by row with `dut`'s
+/// points.
+fn reference_file(args: &Args, log: &Path, file: &Path, points: usize) -> anyhow::Result<Vec<f64>> {
+    let reader = open(args, file, &[args.reference.as_str()])?;
+    if !reader.is_point_list() {
+        anyhow::bail!(
+            "{}: --ref-file pairs the rows of two point lists, but this file has a time column; \
+             give the reference as a channel of the log with --ref instead",
+            file.display()
+        );
+    }
+    let (values, _) = read_points(file, reader)?;
+    if values.len() != points {
+        anyhow::bail!(
+            "{} holds {} point(s) and {} holds {}: --ref-file pairs the two lists row by row, so \
+             they must hold as many points; remove the rows that have no partner in the other file",
+            log.display(),
+            points,
+            file.display(),
+            values.len()
+        );
+    }
+    Ok(values.into_iter().map(|v| v[0]).collect())
+}
+
 /// Calibrates one log into the folder `out`, the reference's readings corrected by its table
 /// where given.
 fn calibrate(
@@ -239,37 +316,74 @@ fn calibrate(
     log: &Path,
     out: &Path,
 ) -> anyhow::Result<Outcome> {
-    let names = [args.dut.as_str(), args.reference.as_str()];
     let reference_u = match reference {
         Some(r) => r.u_max,
         None => args.ref_u.map(|u| u / ARCSEC_PER_RAD),
     };
-    let reader = args.common.open(log, &names)?;
-    let (id, ir) = (0, 1);
-    let mut cal = ReferenceCal::new(ReferenceOptions {
-        points: args.points,
-        min_speed: args.min_speed.to_radians(),
-        reference_u: reference_u.unwrap_or(0.0),
-        follow_tol: args.follow_tol.to_radians(),
-        approach: args.approach.to_radians(),
-        max_gap: args.bridge_gap.to_radians(),
-        targets: args.targets.clone(),
-        latency: args.latency,
-        reference_kind: reference_kind(args)?,
-    });
-    // A calibrated reference reads r − error(r) (its table's correction applied).
+    // A calibrated reference reads r − error(r) (its table's correction applied), before a
+    // reversed one is negated.
     let corrected = |r: f64| reference.map_or(r, |t| r - t.map.eval_linear(r));
-    let reader = for_each_sample(log, reader, |s| {
-        cal.push(s.t, s.values[id], corrected(s.values[ir]));
-    })?;
-    let cal = cal.finish().with_context(|| {
+    let names: &[&str] = match args.ref_file {
+        Some(_) => &[args.dut.as_str()],
+        None => &[args.dut.as_str(), args.reference.as_str()],
+    };
+    let reader = open(args, log, names)?;
+    let sign = if args.ref_reversed { -1.0 } else { 1.0 };
+    let context = || {
         format!(
             "{}: DUT `{}`, reference `{}`",
             log.display(),
             args.dut,
             args.reference
         )
-    })?;
+    };
+    let (cal, reader, points) = if reader.is_point_list() {
+        let (values, reader) = read_points(log, reader)?;
+        let reference: Vec<f64> = match &args.ref_file {
+            Some(file) => reference_file(args, log, file, values.len())?,
+            None => values.iter().map(|v| v[1]).collect(),
+        };
+        let points: Vec<(f64, f64)> = values
+            .iter()
+            .zip(&reference)
+            .map(|(v, &r)| (v[0], sign * corrected(r)))
+            .collect();
+        let opts = PointOptions {
+            points: args.points,
+            reference_u: reference_u.unwrap_or(0.0),
+            follow_tol: args.follow_tol.to_radians(),
+            max_gap: args.bridge_gap.to_radians(),
+            target_tol: args.target_tol.map(f64::to_radians),
+        };
+        let cal = calibrate_points(&points, &opts).with_context(context)?;
+        (cal, reader, Some(points.len()))
+    } else {
+        if let Some(file) = &args.ref_file {
+            return Err(Usage(format!(
+                "--ref-file {} pairs the rows of two point lists, but {} has a time column; name \
+                 the reference as a channel of the log with --ref",
+                file.display(),
+                log.display()
+            ))
+            .into());
+        }
+        let (id, ir) = (0, 1);
+        let mut cal = ReferenceCal::new(ReferenceOptions {
+            points: args.points,
+            min_speed: args.min_speed.to_radians(),
+            reference_u: reference_u.unwrap_or(0.0),
+            follow_tol: args.follow_tol.to_radians(),
+            approach: args.approach.to_radians(),
+            max_gap: args.bridge_gap.to_radians(),
+            targets: args.targets.clone(),
+            latency: args.latency,
+            reference_kind: reference_kind(args)?,
+        });
+        let reader = for_each_sample(log, reader, |s| {
+            cal.push(s.t, s.values[id], sign * corrected(s.values[ir]))
+        })?;
+        (cal.finish().with_context(context)?, reader, None)
+    };
     let report = Report::new(
         cal.report_section(
             &args.dut,
@@ -299,7 +413,8 @@ fn calibrate(
     let text = if args.common.json {
         json
     } else {
-        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
+        alignment_text(reader.alignment().as_ref())
+            + &render_summary(args, out, &cal, &report, points)
     };
     Ok(Outcome {
         text,
@@ -315,7 +430,14 @@ pub fn excludes_reference(report: &Report) -> bool {
     matches!(&report.details, calib_core::report::Details::Reference(d) if d.u_excludes_reference)
 }
 
-fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &Report) -> String {
+/// The summary; `points`: the number of points of a point list.
+fn render_summary(
+    args: &Args,
+    out: &Path,
+    cal: &ReferenceCalibration,
+    report: &Report,
+    points: Option<usize>,
+) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,
@@ -341,13 +463,25 @@ fn render_summary(args: &Args, out: &Path, cal: &ReferenceCalibration, report: &
         (None, None) => "whole turn".to_string(),
     };
     o += &key_values(&[
-        (
-            "run",
-            format!(
-                "{:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
-                cal.revolutions, cal.min_passes.0, cal.min_passes.1
+        match points {
+            Some(n) => (
+                "points",
+                format!(
+                    "{n} stationary points at {} targets, at least {} measurement(s) increasing, \
+                     {} decreasing",
+                    cal.targets.len(),
+                    cal.min_passes.0,
+                    cal.min_passes.1
+                ),
             ),
-        ),
+            None => (
+                "run",
+                format!(
+                    "{:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
+                    cal.revolutions, cal.min_passes.0, cal.min_passes.1
+                ),
+            ),
+        },
         ("map", coverage),
         ("latency", latency_text(cal)),
         (

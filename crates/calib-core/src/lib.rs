@@ -83,6 +83,7 @@ pub mod multihead;
 pub mod nufft2d;
 pub mod range_map;
 pub mod reference_cal;
+pub mod reference_points;
 pub mod report;
 pub mod sample;
 pub mod segment;

@@ -80,6 +80,11 @@ pub struct ReadOptions {
     /// Pass CSV rows whose time stamp repeats or goes back instead of failing on them (for
     /// `calib inspect`, which reports them). Methods need increasing stamps and leave it off.
     pub allow_unordered_time: bool,
+    /// Read a CSV file without a time column as a list of stationary points, in row order,
+    /// timed by the row index (0, 1, 2, … s; see [`LogReader::is_point_list`]), instead of
+    /// refusing it. For the commands that calibrate from points (`reference`) or describe a
+    /// file (`inspect`).
+    pub allow_point_list: bool,
     /// MCAP: leave out chunks that do not match their CRC (or cannot be decoded), listing them in
     /// [`ReadDiagnostics::damaged_chunks`], instead of failing on the first.
     pub skip_damaged: bool,

@@ -166,7 +166,7 @@ impl<R: Read> Read for LineLimit<R> {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         let n = self.inner.read(buf)?;
         let got = &buf[..n];
-        match got.iter().rposition(|&b| b == b'\n') {
+        match got.iter().rposition(|&b| b == b'\n' || b == b'\r') {
             Some(last) => {
                 self.newlines += got.iter().filter(|&&b| b == b'\n').count() as u64;
                 self.run = n - last - 1;

@@ -1,6 +1,6 @@
 //! Any log calib reads, behind one interface: [`LogReader`] and [`LogWriter`].
 
-use crate::align::{AlignOptions, Alignment};
+use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
@@ -99,7 +99,8 @@ impl LogFormat {
         }
         match extension(path).as_deref() {
             Some("mcap") => Ok(LogFormat::Mcap),
-            Some("csv") => Ok(LogFormat::Csv),
+            // Text exports: TwinCAT, MATLAB and numpy write `.txt` and `.dat` as often as `.csv`.
+            Some("csv" | "txt" | "dat" | "tsv") => Ok(LogFormat::Csv),
             Some("db3") => Ok(LogFormat::Rosbag),
             _ => Err(Error::UnknownFormat {
                 path: path.to_path_buf(),
@@ -182,6 +183,9 @@ pub struct LogReader {
     names: Vec<ChannelName>,
     /// CSV: the selected columns and their channels (MCAP selects itself).
     selection: Option<(Vec<usize>, Vec<Channel>)>,
+    /// A sparse CSV's selected channels aligned on the first one's stamps, as MCAP topics are;
+    /// `true` once the file is read to its end.
+    csv_aligner: Option<(Aligner, bool)>,
     /// A bag directory of MCAP storage without `metadata.yaml`: the warning to give.
     bag_warnings: Vec<String>,
     /// A bag's temporary files and the splits (or bag) errors name instead.
@@ -237,6 +241,7 @@ impl LogReader {
             inner,
             names,
             selection: None,
+            csv_aligner: None,
             bag_warnings,
             renames,
             _temp: temp,
@@ -262,6 +267,9 @@ impl LogReader {
             Inner::Csv(r) => {
                 let all = r.channels();
                 let chosen = channels.iter().map(|&i| all[i].clone()).collect();
+                if r.is_sparse() && !channels.is_empty() {
+                    self.csv_aligner = Some((Aligner::new(channels.to_vec(), opts), false));
+                }
                 self.selection = Some((channels.to_vec(), chosen));
             }
             Inner::Mcap(r) => r.select(channels, opts),
@@ -276,6 +284,21 @@ impl LogReader {
             (Inner::Csv(r), None) => r.channels(),
             (Inner::Mcap(r), None) => r.channels(),
             (Inner::Bag(r), None) => r.channels(),
+        }
+    }
+
+    /// Whether the log is a list of stationary points without time (a CSV file without a time
+    /// column, read with [`ReadOptions::allow_point_list`]): its samples are its rows in order,
+    /// timed by their index.
+    pub fn is_point_list(&self) -> bool {
+        matches!(&self.inner, Inner::Csv(r) if r.is_point_list())
+    }
+
+    /// The layout of a CSV log; `None` for the other formats.
+    pub fn csv_dialect(&self) -> Option<&crate::csv_log::dialect::Dialect> {
+        match &self.inner {
+            Inner::Csv(r) => Some(r.dialect()),
+            _ => None,
         }
     }
 
@@ -297,10 +320,13 @@ impl LogReader {
     }
 
     /// How the channels were aligned on the first one's clock (complete once the iterator is
-    /// exhausted); `None` for a CSV log, whose rows hold every channel at one stamp.
+    /// exhausted); `None` for a CSV log whose rows hold every channel at one stamp.
     pub fn alignment(&self) -> Option<Alignment> {
         match &self.inner {
-            Inner::Csv(_) => None,
+            Inner::Csv(r) => self.csv_aligner.as_ref().map(|(a, _)| {
+                let names: Vec<String> = r.channels().iter().map(|c| c.name.clone()).collect();
+                a.report(&names)
+            }),
             Inner::Mcap(r) => Some(r.alignment()),
             Inner::Bag(r) => Some(r.alignment()),
         }
@@ -391,6 +417,30 @@ impl Iterator for LogReader {
     type Item = Result<Sample, Error>;
     fn next(&mut self) -> Option<Self::Item> {
         match &mut self.inner {
+            Inner::Csv(r) if self.csv_aligner.is_some() => {
+                let (aligner, ended) = self.csv_aligner.as_mut()?;
+                loop {
+                    if let Some(s) = aligner.pop() {
+                        return Some(Ok(s));
+                    }
+                    if *ended {
+                        return None;
+                    }
+                    match r.next() {
+                        Some(Ok(s)) => {
+                            aligner.push((s.t * 1e9).round() as i64, s.t, &s.values, s.session)
+                        }
+                        Some(Err(e)) => {
+                            *ended = true;
+                            return Some(Err(e));
+                        }
+                        None => {
+                            *ended = true;
+                            aligner.finish();
+                        }
+                    }
+                }
+            }
             Inner::Csv(r) => {
                 let sample = r.next()?;
                 Some(match (sample, &self.selection) {

@@ -1350,7 +1350,7 @@ fn max(values: impl Iterator<Item = f64>) -> Option<f64> {
 }
 
 /// The ISO 230-2 figures from the per-point statistics (see the module doc).
-fn iso_230_2(up: &[PointStats], down: &[PointStats]) -> Iso230_2 {
+pub(crate) fn iso_230_2(up: &[PointStats], down: &[PointStats]) -> Iso230_2 {
     let with_data =
         |p: &[PointStats]| -> Vec<PointStats> { p.iter().copied().filter(|p| p.n > 0).collect() };
     let (u, d) = (with_data(up), with_data(down));

@@ -50,6 +50,19 @@ impl Records {
             source,
         };
         let (file, dialect) = dialect::open(path).map_err(io)?;
+        if !dialect.is_plain() {
+            return Err(csv_error(
+                path,
+                1,
+                None,
+                format!(
+                    "this file is laid out as {}: the methods read it, but `apply` rewrites only \
+                     CSV logs with one header row and `,` `;` or tab separators; apply the table \
+                     to a copy in that layout (as `calib simulate` writes)",
+                    dialect.describe()
+                ),
+            ));
+        }
         let records = Records {
             path: path.to_path_buf(),
             input: BufReader::with_capacity(1 << 16, LineLimit::new(file)),

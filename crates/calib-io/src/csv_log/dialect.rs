@@ -1,15 +1,31 @@
-//! CSV dialects as lab software writes them: the separator, lines before the header, and the
-//! name and unit of the time column.
+//! CSV dialects as lab software writes them: the separator, the decimal mark, lines before the
+//! header, a units row, files without a header, TwinCAT Scope's property block, and the name
+//! and unit of the time column.
 //!
 //! TwinCAT Scope, LabVIEW, oscilloscopes and DAQ tools write `;` or tab separators, a few lines
 //! of metadata (instrument, date, sample rate) before the header, and a time column called
-//! `Time [s]`, `time`, `timestamp_ms`, …. This module finds, from the first [`SNIFF_BYTES`] of the
-//! file:
-//! - the **separator**: `,`, `;` or tab, whichever gives a header with the most columns;
-//! - the **header**: the first line whose fields (at least two) are all non-numeric and that is
-//!   followed by a line of as many fields, most of them numeric (a bad field in the first row is
-//!   then reported at its line and column, not as a missing header). The lines before it are
-//!   skipped;
+//! `Time [s]`, `time`, `timestamp_ms`, …; MATLAB and `numpy.savetxt` write numbers separated by
+//! spaces without any header. This module finds, from the first [`SNIFF_BYTES`] of the file:
+//! - the **separator**: `,`, `;` or tab, whichever gives a header with the most columns; runs of
+//!   spaces and tabs ([`WHITESPACE`]) where none of these gives one;
+//! - the **decimal mark**: a comma where the separator is not one and the data rows hold
+//!   numbers such as `1,25` ([`Dialect::decimal_comma`]);
+//! - **sparse rows** ([`Dialect::sparse`]): data rows with empty cells (a plotting tool's export
+//!   where each channel has its own stamps) make each channel a series of its own;
+//! - the **header** ([`Header`]):
+//!   - a row: the first line whose fields (at least two) are all non-numeric and that is
+//!     followed by a line of as many fields, most of them numeric (a bad field in the first row
+//!     is then reported at its line and column, not as a missing header); the lines before it
+//!     are skipped. A line of units between the header and the data (`s,deg,deg`: every field
+//!     empty or a time or angle unit, bare or in brackets) is skipped too, its time and angle
+//!     units taken where no option gives them;
+//!   - TwinCAT Scope's property block ([`Properties`]): a `Name` row naming the channels
+//!     followed by rows of channel properties (`Data-Type`, `SampleTime`, `Unit`, …) and, after
+//!     them, the data rows: the first column a Windows FILETIME (100 ns ticks since 1601) if the
+//!     data rows have one field more than there are channels, else the time is the row index
+//!     times `SampleTime` (ms);
+//!   - none: the first line is already numeric (a matrix of numbers); the columns are named
+//!     `1`, `2`, … and the file has no time column.
 //! - the **time column** ([`time_column`]): the one `--time-column` names, else one whose name
 //!   is `t`, `time` or `timestamp` (any case), bare or with a unit suffix ` [s]`, `[ms]`, ` (us)`,
 //!   `_ns`, …; its unit from the suffix, or `--time-unit`, else seconds.
@@ -17,7 +33,8 @@
 //! A file in which no header can be found this way (a header with no data rows, say) is read as
 //! the plain dialect — `,` and the header on line 1 — so that its errors stay the usual ones.
 
-use super::fields::parse_f64;
+use super::fields::{parse_f64, parse_f64_comma};
+use calib_core::AngleUnit;
 use std::fs::File;
 use std::io::{self, Read, Seek};
 use std::path::Path;
@@ -32,13 +49,57 @@ const SNIFF_RECORDS: usize = 256;
 /// The separators tried, in order of preference on a tie.
 const SEPARATORS: [u8; 3] = [b',', b';', b'\t'];
 
+/// The separator that stands for runs of spaces and tabs (leading and trailing ones ignored).
+pub const WHITESPACE: u8 = b' ';
+
+/// Rows of a TwinCAT property block looked through for its `Data-Type` or `SampleTime` row.
+const PROPERTY_ROWS: usize = 64;
+
 /// How a CSV file is laid out.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Dialect {
-    /// The field separator.
+    /// The field separator; [`WHITESPACE`] for runs of spaces and tabs.
     pub separator: u8,
-    /// Records (lines) before the header, skipped.
+    /// Records (non-blank lines) before the header, skipped; for [`Header::None`] and
+    /// [`Header::Properties`], before the first data row.
     pub skip: usize,
+    /// Numbers are written with a decimal comma (`1,25`); never with the `,` separator.
+    pub decimal_comma: bool,
+    /// Data rows leave a channel's cell empty where it has no sample (PlotJuggler, Foxglove):
+    /// each channel is a series of its own (only with [`Header::Row`]).
+    pub sparse: bool,
+    /// Where the column names come from.
+    pub header: Header,
+}
+
+/// Where a file's column names come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Header {
+    /// The record after the skipped ones; `units` holds the units row that follows it, if any.
+    Row {
+        /// The units row's fields, trimmed (one per column).
+        units: Option<Vec<String>>,
+    },
+    /// No header: the columns are named `1`, `2`, … .
+    None {
+        /// Fields of the first data row.
+        columns: usize,
+    },
+    /// TwinCAT Scope's property block.
+    Properties(Properties),
+}
+
+/// What a TwinCAT Scope export's property block says of its channels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Properties {
+    /// The channels' names (the `Name` row).
+    pub names: Vec<String>,
+    /// The channels' units (the `Unit` row; `(None)` where none is set), if the row is there.
+    pub units: Vec<String>,
+    /// The first channel's `SampleTime`, seconds (the row gives ms), if given.
+    pub sample_time_s: Option<f64>,
+    /// The data rows start with a FILETIME column (one field more than there are channels).
+    pub filetime: bool,
 }
 
 impl Default for Dialect {
@@ -46,7 +107,55 @@ impl Default for Dialect {
         Dialect {
             separator: b',',
             skip: 0,
+            decimal_comma: false,
+            sparse: false,
+            header: Header::Row { units: None },
         }
+    }
+}
+
+impl Dialect {
+    /// A few words naming the layout, for messages and `inspect`.
+    pub fn describe(&self) -> String {
+        if self.header == (Header::None { columns: 1 }) {
+            return "one number per line, no header (column 1)".to_string();
+        }
+        let separator = match self.separator {
+            b',' => "`,`",
+            b';' => "`;`",
+            b'\t' => "tab",
+            _ => "whitespace",
+        };
+        let layout = match &self.header {
+            Header::Row { units: None } => "a header row",
+            Header::Row { units: Some(_) } => "a header row and a units row",
+            Header::None { .. } => "no header (columns 1, 2, …)",
+            Header::Properties(p) if p.filetime => {
+                "TwinCAT Scope's property block, FILETIME time stamps"
+            }
+            Header::Properties(_) => "TwinCAT Scope's property block, time from SampleTime",
+        };
+        format!(
+            "{separator}-separated{}{}, {layout}",
+            if self.decimal_comma {
+                ", decimal commas"
+            } else {
+                ""
+            },
+            if self.sparse {
+                ", sparse rows (each channel its own series)"
+            } else {
+                ""
+            }
+        )
+    }
+
+    /// The plain dialect calib writes: `,`, a header row and nothing else before the data.
+    pub fn is_plain(&self) -> bool {
+        self.separator != WHITESPACE
+            && !self.decimal_comma
+            && !self.sparse
+            && self.header == Header::Row { units: None }
     }
 }
 
@@ -61,6 +170,8 @@ pub enum TimeUnit {
     Us,
     /// Nanoseconds.
     Ns,
+    /// Ticks of 100 ns (Windows FILETIME, .NET).
+    Ticks,
 }
 
 impl TimeUnit {
@@ -71,16 +182,18 @@ impl TimeUnit {
             TimeUnit::Ms => 1e-3,
             TimeUnit::Us => 1e-6,
             TimeUnit::Ns => 1e-9,
+            TimeUnit::Ticks => 1e-7,
         }
     }
 
-    /// The unit a suffix names: `s`, `ms`, `us`, `µs`, `ns` (any case).
+    /// The unit a suffix names: `s`, `ms`, `us`, `µs`, `ns`, `100ns` (any case).
     pub fn from_suffix(s: &str) -> Option<Self> {
         match s.to_ascii_lowercase().as_str() {
             "s" | "sec" => Some(TimeUnit::S),
             "ms" => Some(TimeUnit::Ms),
             "us" | "µs" | "μs" => Some(TimeUnit::Us),
             "ns" => Some(TimeUnit::Ns),
+            "100ns" | "ticks" => Some(TimeUnit::Ticks),
             _ => None,
         }
     }
@@ -90,8 +203,27 @@ impl std::str::FromStr for TimeUnit {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         TimeUnit::from_suffix(s)
-            .ok_or_else(|| format!("unknown time unit `{s}`; use s, ms, us or ns"))
+            .ok_or_else(|| format!("unknown time unit `{s}`; use s, ms, us, ns or 100ns"))
     }
+}
+
+/// An angle unit as a units row or a TwinCAT `Unit` row writes it: `deg`, `°`, `rad`, …,
+/// bare or in brackets.
+pub fn angle_unit(text: &str) -> Option<AngleUnit> {
+    match unbracket(text) {
+        "°" | "degree" | "Degree" | "DEG" | "Deg" => Some(AngleUnit::Deg),
+        u => u.parse().ok(),
+    }
+}
+
+/// `text` trimmed and without one pair of surrounding brackets.
+pub(crate) fn unbracket(text: &str) -> &str {
+    let t = text.trim();
+    t.strip_prefix('[')
+        .and_then(|r| r.strip_suffix(']'))
+        .or_else(|| t.strip_prefix('(').and_then(|r| r.strip_suffix(')')))
+        .unwrap_or(t)
+        .trim()
 }
 
 /// Opens `path` and finds its dialect from its first [`SNIFF_BYTES`]; the file is handed back
@@ -106,37 +238,234 @@ pub fn open(path: &Path) -> io::Result<(File, Dialect)> {
     Ok((file, sniff(&head)))
 }
 
+/// A sniffed record: its fields.
+type Fields = Vec<Vec<u8>>;
+
+/// The first [`SNIFF_RECORDS`] records of `head` split at `separator` as the reader splits them
+/// (blank lines skipped).
+fn records(head: &[u8], separator: u8) -> Vec<Fields> {
+    if separator == WHITESPACE {
+        return head
+            .split(|&b| b == b'\n' || b == b'\r')
+            .map(|line| {
+                line.split(u8::is_ascii_whitespace)
+                    .filter(|w| !w.is_empty())
+                    .map(<[u8]>::to_vec)
+                    .collect::<Fields>()
+            })
+            .filter(|r| !r.is_empty())
+            .take(SNIFF_RECORDS)
+            .collect();
+    }
+    csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .delimiter(separator)
+        .from_reader(head)
+        .byte_records()
+        .take(SNIFF_RECORDS)
+        .map_while(Result::ok)
+        .map(|r| r.iter().map(<[u8]>::to_vec).collect())
+        .collect()
+}
+
 /// The dialect of a file starting with `head` (see the [module docs](self)).
 pub fn sniff(head: &[u8]) -> Dialect {
     let mut best: Option<(usize, Dialect)> = None;
     for separator in SEPARATORS {
-        let records: Vec<csv::ByteRecord> = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .flexible(true)
-            .delimiter(separator)
-            .from_reader(head)
-            .byte_records()
-            .take(SNIFF_RECORDS)
-            .map_while(Result::ok)
-            .collect();
-        let numeric =
-            |r: &csv::ByteRecord| 2 * r.iter().filter(|f| parse_f64(f).is_some()).count() > r.len();
-        let header = records.windows(2).position(|w| {
-            w[0].len() >= 2
-                && w[0].len() == w[1].len()
-                && w[0]
-                    .iter()
-                    .all(|f| !f.trim_ascii().is_empty() && parse_f64(f).is_none())
-                && numeric(&w[1])
-        });
-        if let Some(skip) = header {
-            let columns = records[skip].len();
-            if best.is_none_or(|(c, _)| columns > c) {
-                best = Some((columns, Dialect { separator, skip }));
+        let records = records(head, separator);
+        if let Some(d) = properties(&records, separator) {
+            return d;
+        }
+        if let Some(d) = header_row(&records, separator) {
+            let columns = records[d.skip].len();
+            if best.as_ref().is_none_or(|(c, _)| columns > *c) {
+                best = Some((columns, d));
             }
         }
     }
+    if let Some((_, d)) = best {
+        return d;
+    }
+    if let Some(d) = header_row(&records(head, WHITESPACE), WHITESPACE) {
+        return d;
+    }
+    // No header: a matrix of numbers, the separator that gives the most columns.
+    let mut best: Option<(usize, Dialect)> = None;
+    for separator in SEPARATORS.into_iter().chain([WHITESPACE]) {
+        let records = records(head, separator);
+        let Some(first) = records.first() else {
+            continue;
+        };
+        let comma = separator != b',';
+        let width = first.len();
+        let matrix = records
+            .iter()
+            .take(8)
+            .all(|r| r.len() == width && r.iter().all(|f| number(f, comma)));
+        if matrix && best.as_ref().is_none_or(|(c, _)| width > *c) {
+            best = Some((
+                width,
+                Dialect {
+                    separator,
+                    skip: 0,
+                    decimal_comma: comma && has_comma_numbers(&records),
+                    sparse: false,
+                    header: Header::None { columns: width },
+                },
+            ));
+        }
+    }
     best.map(|(_, d)| d).unwrap_or_default()
+}
+
+/// Whether the data rows `data` of a header `width` wide are sparse: a time and at least two
+/// channels (`width ≥ 3`), some row with an empty cell, and every column filled in some row.
+fn sparse(data: &[Fields], width: usize) -> bool {
+    let rows = || data.iter().filter(|d| d.len() == width);
+    let empty = |f: &Vec<u8>| f.trim_ascii().is_empty();
+    width >= 3
+        && rows().any(|d| d.iter().any(empty))
+        && (0..width).all(|c| rows().any(|d| !empty(&d[c])))
+}
+
+/// Whether `field` is a number (with a decimal comma if `comma`).
+fn number(field: &[u8], comma: bool) -> bool {
+    parse_f64(field).is_some() || (comma && parse_f64_comma(field).is_some())
+}
+
+/// Whether most of `record`'s non-empty fields are numbers (empty ones are a sparse row's
+/// channels without a sample).
+fn numeric(record: &Fields, comma: bool) -> bool {
+    let filled = record.iter().filter(|f| !f.trim_ascii().is_empty()).count();
+    2 * record.iter().filter(|f| number(f, comma)).count() > filled
+}
+
+/// Whether some field of `records` is a number written with a decimal comma.
+fn has_comma_numbers(records: &[Fields]) -> bool {
+    records
+        .iter()
+        .flatten()
+        .any(|f| f.contains(&b',') && parse_f64_comma(f).is_some())
+}
+
+/// The header-row dialect of `records`, if one has a header row followed by data.
+fn header_row(records: &[Fields], separator: u8) -> Option<Dialect> {
+    let comma = separator != b',';
+    let names = |r: &Fields| {
+        r.len() >= 2
+            && r.iter()
+                .all(|f| !f.trim_ascii().is_empty() && !number(f, comma))
+    };
+    for (i, r) in records.iter().enumerate() {
+        if !names(r) {
+            continue;
+        }
+        let data = |j: usize| {
+            records
+                .get(j)
+                .is_some_and(|d| d.len() == r.len() && numeric(d, comma))
+        };
+        let units = records.get(i + 1).filter(|u| {
+            u.len() == r.len()
+                && u.iter().all(|f| is_unit(f))
+                && u.iter().any(|f| !f.trim_ascii().is_empty())
+        });
+        let (units, first_data) = match units {
+            Some(u) if data(i + 2) => (
+                Some(
+                    u.iter()
+                        .map(|f| String::from_utf8_lossy(f.trim_ascii()).into_owned())
+                        .collect(),
+                ),
+                i + 2,
+            ),
+            _ if data(i + 1) => (None, i + 1),
+            _ => continue,
+        };
+        return Some(Dialect {
+            separator,
+            skip: i,
+            decimal_comma: comma && has_comma_numbers(&records[first_data..]),
+            sparse: sparse(&records[first_data..], r.len()),
+            header: Header::Row { units },
+        });
+    }
+    None
+}
+
+/// Whether a units row's field names a unit (or is empty).
+fn is_unit(field: &[u8]) -> bool {
+    let Ok(text) = std::str::from_utf8(field) else {
+        return false;
+    };
+    let u = unbracket(text);
+    u.is_empty() || u == "-" || TimeUnit::from_suffix(u).is_some() || angle_unit(u).is_some()
+}
+
+/// TwinCAT Scope's dialect, if `records` hold its property block (see the [module docs](self)).
+fn properties(records: &[Fields], separator: u8) -> Option<Dialect> {
+    let text = |f: &[u8]| String::from_utf8_lossy(f.trim_ascii()).into_owned();
+    let key = |r: &Fields| r.first().map(|f| text(f)).unwrap_or_default();
+    let comma = separator != b',';
+    // A property row starts with its name; a data row with a number.
+    let is_data = |r: &Fields| {
+        r.len() >= 2 && r.first().is_some_and(|f| number(f, comma)) && numeric(r, comma)
+    };
+    for (i, r) in records.iter().enumerate() {
+        if key(r) != "Name" {
+            continue;
+        }
+        let block: Vec<&Fields> = records[i + 1..]
+            .iter()
+            .take_while(|r| !is_data(r))
+            .take(PROPERTY_ROWS)
+            .collect();
+        if !block
+            .iter()
+            .any(|r| matches!(key(r).as_str(), "Data-Type" | "SampleTime"))
+        {
+            continue;
+        }
+        let mut names: Vec<String> = r[1..].iter().map(|f| text(f)).collect();
+        while names.last().is_some_and(String::is_empty) {
+            names.pop();
+        }
+        let data = i + 1 + block.len();
+        let width = records.get(data)?.len();
+        let filetime = if width == names.len() + 1 {
+            true
+        } else if width == names.len() {
+            false
+        } else {
+            continue;
+        };
+        let row = |name: &str| -> Vec<String> {
+            block
+                .iter()
+                .find(|r| key(r) == name)
+                .map(|r| r[1..].iter().map(|f| text(f)).collect())
+                .unwrap_or_default()
+        };
+        let sample_time_s = row("SampleTime")
+            .first()
+            .and_then(|s| s.replace(',', ".").parse::<f64>().ok())
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .map(|ms| ms * 1e-3);
+        return Some(Dialect {
+            separator,
+            skip: data,
+            decimal_comma: comma && has_comma_numbers(&records[data..]),
+            sparse: false,
+            header: Header::Properties(Properties {
+                names,
+                units: row("Unit"),
+                sample_time_s,
+                filetime,
+            }),
+        });
+    }
+    None
 }
 
 /// The time column among `names` and its unit: the one `wanted` names, else the first whose name
@@ -164,10 +493,16 @@ pub fn time_column(
     Some((i, unit.or(suffix_unit).unwrap_or(TimeUnit::S)))
 }
 
+/// The unit a time column's name gives (`time_ms`, `Time [s]`), if it gives one.
+pub(crate) fn time_unit_of(name: &str) -> Option<TimeUnit> {
+    parse_time_name(name).and_then(|(_, u)| u)
+}
+
 /// A time column's name split into its base (`t`, `time`, `timestamp`) and unit suffix
 /// (` [s]`, `(ms)`, `_us`, …), if it is one.
 fn parse_time_name(name: &str) -> Option<(&str, Option<TimeUnit>)> {
-    let name = name.trim();
+    // PlotJuggler's `__time`.
+    let name = name.trim().trim_start_matches('_');
     let lower = name.to_ascii_lowercase();
     for base in ["timestamp", "time", "t"] {
         let Some(rest) = lower.strip_prefix(base) else {
@@ -203,7 +538,8 @@ mod tests {
             sniff(twincat),
             Dialect {
                 separator: b';',
-                skip: 2
+                skip: 2,
+                ..Dialect::default()
             }
         );
         let tabs = b"# DAQ export\ntime\ta\tb\tc\n0\t1\t2\t3\n";
@@ -211,11 +547,80 @@ mod tests {
             sniff(tabs),
             Dialect {
                 separator: b'\t',
-                skip: 1
+                skip: 1,
+                ..Dialect::default()
             }
         );
         // No data row: the plain dialect, whose reader reports what is missing.
         assert_eq!(sniff(b"t;a;b\n"), Dialect::default());
+    }
+
+    #[test]
+    fn lab_dialects_are_found() {
+        let d = sniff(b"Time [s];a;b\r\n0,001;1,5;-2,25\r\n0,002;1,6;2\r\n");
+        assert_eq!((d.separator, d.decimal_comma), (b';', true));
+        let d = sniff(b"t\ta\n0\t1,5\n");
+        assert_eq!((d.separator, d.decimal_comma), (b'\t', true));
+        // Integers only: nothing says the mark is a comma.
+        assert!(!sniff(b"t;a\n0;1\n").decimal_comma);
+        let d = sniff(b"  t   a  b\n 0.0  1.5 2\n");
+        assert_eq!((d.separator, d.skip), (WHITESPACE, 0));
+        assert_eq!(d.header, Header::Row { units: None });
+        // numpy.savetxt / MATLAB: no header at all.
+        let d = sniff(b"100.5 -65.9 336.5\n97.2 -65.9 336.5\n");
+        assert_eq!(d.separator, WHITESPACE);
+        assert_eq!(d.header, Header::None { columns: 3 });
+        assert_eq!(sniff(b"79.9\n83.4\n").header, Header::None { columns: 1 });
+        // A units row between the header and the data.
+        let d = sniff(b"t,a,b\nms,deg,[deg]\n0,1,2\n");
+        assert_eq!(d.skip, 0);
+        assert_eq!(
+            d.header,
+            Header::Row {
+                units: Some(vec!["ms".into(), "deg".into(), "[deg]".into()])
+            }
+        );
+        // Metadata of the header's width is not taken for units.
+        let d = sniff(b"Instrument;Foo;Bar\nTime [s];a;b\n0;1;2\n");
+        assert_eq!((d.skip, d.header), (1, Header::Row { units: None }));
+        // CR-only line ends.
+        assert_eq!(sniff(b"t,a\r0,1\r1,2\r"), Dialect::default());
+        // PlotJuggler: a channel's cell empty where it has no sample.
+        let d = sniff(b"__time,/a,/b,/c\n0.0,1.5,,\n0.005,,2.5,\n0.01,1.6,,3\n");
+        assert!(d.sparse && d.header == Header::Row { units: None });
+        assert!(!sniff(b"t,a\n0,1\n").sparse);
+    }
+
+    #[test]
+    fn twincat_property_block_is_read() {
+        let head = b"Name;Scope;\r\nStarttime of export;132900081483250000;Tuesday;13:55\r\n\r\n\
+            Name;fActPosition (Internal Counter);fActVelocity;fActPosition (Resolver)\r\n\
+            Data-Type;REAL64;REAL64;REAL64\r\nSampleTime;10;10;10\r\nIndexGroup;61462;61462;16448\r\n\
+            Unit;(None);deg/s;deg\r\n\r\n\
+            132900081483250000;0;0;-0.071\r\n132900081483350000;0;0;-0.072\r\n";
+        let d = sniff(head);
+        assert_eq!((d.separator, d.skip), (b';', 7));
+        let Header::Properties(p) = d.header else {
+            panic!("{d:?}")
+        };
+        assert_eq!(
+            p.names,
+            [
+                "fActPosition (Internal Counter)",
+                "fActVelocity",
+                "fActPosition (Resolver)"
+            ]
+        );
+        assert_eq!(p.units, ["(None)", "deg/s", "deg"]);
+        assert_eq!(p.sample_time_s, Some(0.01));
+        assert!(p.filetime);
+        // Without the time column: as many fields as channels.
+        let head = b"Name;a;b\nSampleTime;2;2\n\n0,5;1\n0,6;1,1\n";
+        let Header::Properties(p) = sniff(head).header else {
+            panic!()
+        };
+        assert!(!p.filetime);
+        assert_eq!(p.sample_time_s, Some(0.002));
     }
 
     #[test]
@@ -240,6 +645,10 @@ mod tests {
             Some((0, TimeUnit::Ns))
         );
         assert_eq!(time_column(&names(&["tilt", "temp"]), None, None), None);
+        assert_eq!(
+            time_column(&names(&["__time", "/a"]), None, None),
+            Some((0, TimeUnit::S))
+        );
         assert_eq!(time_column(&names(&["a"]), Some("t"), None), None);
     }
 }

@@ -46,23 +46,36 @@ pub(crate) fn line_at(path: &Path, pos: &csv::Position) -> u64 {
     physical_line(path, pos.byte()).unwrap_or(pos.line())
 }
 
-/// 1 + the newlines before `byte` and in the run of line ends that follows it.
+/// 1 + the line ends before `byte` and in the run of line ends that follows it. A line ends at
+/// `\n`, `\r\n` or a lone `\r` (old Mac files).
 fn physical_line(path: &Path, byte: u64) -> std::io::Result<u64> {
     let mut file = BufReader::with_capacity(1 << 16, File::open(path)?);
-    let mut newlines = 0u64;
+    let mut ends = 0u64;
+    // The previous byte was a `\r` not yet counted (it may start a `\r\n`).
+    let mut cr = false;
     let mut offset = 0u64;
     loop {
         let buf = file.fill_buf()?;
         if buf.is_empty() {
-            return Ok(newlines + 1);
+            return Ok(ends + u64::from(cr) + 1);
         }
-        let before = byte.saturating_sub(offset).min(buf.len() as u64) as usize;
-        newlines += buf[..before].iter().filter(|&&b| b == b'\n').count() as u64;
-        for &b in &buf[before..] {
+        for (k, &b) in buf.iter().enumerate() {
             match b {
-                b'\n' => newlines += 1,
-                b'\r' => {}
-                _ => return Ok(newlines + 1),
+                b'\n' => {
+                    ends += 1;
+                    cr = false;
+                }
+                b'\r' => {
+                    ends += u64::from(cr);
+                    cr = true;
+                }
+                _ => {
+                    ends += u64::from(cr);
+                    cr = false;
+                    if offset + k as u64 >= byte {
+                        return Ok(ends + 1);
+                    }
+                }
             }
         }
         let len = buf.len();
@@ -78,6 +91,38 @@ fn physical_line(path: &Path, byte: u64) -> std::io::Result<u64> {
 #[inline]
 pub(crate) fn parse_f64(field: &[u8]) -> Option<f64> {
     std::str::from_utf8(field.trim_ascii()).ok()?.parse().ok()
+}
+
+/// A field written with a decimal comma (`-1,25`) parsed as an `f64`; fields without a comma as
+/// [`parse_f64`]. `None` if it is not a number.
+pub(crate) fn parse_f64_comma(field: &[u8]) -> Option<f64> {
+    let field = field.trim_ascii();
+    let Some(comma) = field.iter().position(|&b| b == b',') else {
+        return parse_f64(field);
+    };
+    // One comma, no point: `1.234,5` (a thousands point) is not taken for a number.
+    if field.len() > 64 || field.contains(&b'.') || field[comma + 1..].contains(&b',') {
+        return None;
+    }
+    let mut buf = [0u8; 64];
+    let buf = &mut buf[..field.len()];
+    buf.copy_from_slice(field);
+    buf[comma] = b'.';
+    parse_f64(buf)
+}
+
+/// A field holding a whole number (an optional sign and up to 38 digits), as an `i128`.
+#[inline]
+pub(crate) fn parse_integer(field: &[u8]) -> Option<i128> {
+    let f = field.trim_ascii();
+    let digits = f
+        .strip_prefix(b"-")
+        .or_else(|| f.strip_prefix(b"+"))
+        .unwrap_or(f);
+    if digits.is_empty() || digits.len() > 38 || !digits.iter().all(u8::is_ascii_digit) {
+        return None;
+    }
+    std::str::from_utf8(f).ok()?.parse().ok()
 }
 
 /// A field as quoted in an error message: lossy UTF-8, cut short so one bad cell cannot flood
@@ -106,6 +151,12 @@ impl std::fmt::Display for Shown<'_> {
 pub(crate) fn not_a_number(field: &[u8], what: &str) -> String {
     if field.trim_ascii().is_empty() {
         format!("the field is empty; {what} must be a number here")
+    } else if parse_f64_comma(field).is_some() {
+        format!(
+            "`{}` is written with a decimal comma, but the rows before it were not; {what} must be \
+             written the same way in every row (1.5 or, in a `;` or tab separated file, 1,5)",
+            show(field)
+        )
     } else {
         format!(
             "`{}` is not a number; {what} must be a plain decimal number such as 12.5 or -3e-4",
@@ -188,6 +239,25 @@ pub(crate) fn wrong_width(path: &Path, record: &ByteRecord, names: &[String]) ->
     }
 }
 
+/// An I/O error while reading a CSV file as ours: a line too long is a CSV error at its line.
+pub(crate) fn from_io(path: &Path, source: std::io::Error) -> Error {
+    match line_too_long(&source) {
+        Some(long) => Error::Csv {
+            path: path.to_path_buf(),
+            line: long.line,
+            channel: None,
+            message: format!(
+                "the line is longer than {MAX_CSV_LINE_BYTES} bytes, more than any log row: \
+                 this is not a CSV log (a binary file, or one without line ends)"
+            ),
+        },
+        None => Error::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+    }
+}
+
 /// A `csv` crate error (an I/O failure while reading, in practice) as ours.
 pub(crate) fn from_csv(path: &Path, e: csv::Error) -> Error {
     let line = e.position().map_or(0, |p| p.line());
@@ -227,6 +297,17 @@ mod tests {
         assert_eq!(parse_f64(b"-3e-4"), Some(-3e-4));
         assert_eq!(parse_f64(b""), None);
         assert_eq!(parse_f64(b"1,5"), None);
+        assert_eq!(parse_f64_comma(b" -1,5 "), Some(-1.5));
+        assert_eq!(parse_f64_comma(b"2.5"), Some(2.5));
+        assert_eq!(parse_f64_comma(b"1.234,5"), None);
+        assert_eq!(parse_f64_comma(b"1,2,3"), None);
+        assert_eq!(
+            parse_integer(b"132900081483250000"),
+            Some(132_900_081_483_250_000)
+        );
+        assert_eq!(parse_integer(b"-12"), Some(-12));
+        assert_eq!(parse_integer(b"1.0"), None);
+        assert_eq!(parse_integer(b"1e3"), None);
         assert_eq!(parse_f64(b"\xff"), None);
         assert!(parse_f64(b"NaN").unwrap().is_nan());
     }

@@ -1,12 +1,13 @@
 //! Streaming reader of CSV logs.
 
-use super::dialect;
-use super::fields::{self, line_of, parse_f64};
+use super::dialect::{self, Dialect, Header, TimeUnit, WHITESPACE};
+use super::fields::{self, line_of, parse_f64, parse_f64_comma, parse_integer};
 use crate::limits::LineLimit;
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use csv::ByteRecord;
 use std::fs::File;
+use std::io::{BufRead, BufReader};
 use std::iter::FusedIterator;
 use std::path::{Path, PathBuf};
 
@@ -39,7 +40,7 @@ use std::path::{Path, PathBuf};
 #[derive(Debug)]
 pub struct CsvReader {
     path: PathBuf,
-    reader: csv::Reader<LineLimit<File>>,
+    reader: Records,
     /// Reused for every row: no allocation per row but the sample's own values.
     record: ByteRecord,
     /// `record` holds a row read ahead by `open` (the first data row) that is yet to be yielded.
@@ -48,9 +49,19 @@ pub struct CsvReader {
     done: bool,
     names: Vec<String>,
     channels: Vec<Channel>,
-    t_col: usize,
-    /// Seconds per unit of the time column.
-    t_scale: f64,
+    time: Time,
+    /// Integer time stamps too large for an `f64` to hold exactly: the first row's, from which
+    /// every stamp is counted (in integers).
+    origin: Option<i128>,
+    /// Data rows read so far.
+    rows: u64,
+    /// Numbers are written with a decimal comma.
+    decimal_comma: bool,
+    /// An empty reading is a channel without a sample in this row (NaN in the sample).
+    sparse: bool,
+    /// The file has no time column: a list of stationary points, in row order.
+    point_list: bool,
+    dialect: Dialect,
     session_col: Option<usize>,
     /// The column of each channel, in the order of `channels`.
     value_cols: Vec<usize>,
@@ -60,6 +71,83 @@ pub struct CsvReader {
     /// The previous row's time stamp and position, for the monotonicity check and its message.
     prev: Option<(f64, csv::Position)>,
     diagnostics: ReadDiagnostics,
+}
+
+/// Where a row's time stamp comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Time {
+    /// A column, in units of `scale` seconds.
+    Column { col: usize, scale: f64 },
+    /// The row index times `period` seconds (TwinCAT's `SampleTime`; 1 for a point list).
+    Index { period: f64 },
+}
+
+/// The records of the file, split as its dialect says.
+#[derive(Debug)]
+enum Records {
+    Csv(csv::Reader<LineLimit<File>>),
+    Whitespace(Words),
+}
+
+/// Records of fields separated by runs of spaces and tabs, one per non-blank line.
+#[derive(Debug)]
+struct Words {
+    input: BufReader<LineLimit<File>>,
+    line: Vec<u8>,
+    /// Byte offset of the next line.
+    offset: u64,
+    records: u64,
+}
+
+impl Records {
+    fn open(file: File, dialect: &Dialect) -> Self {
+        if dialect.separator == WHITESPACE {
+            Records::Whitespace(Words {
+                input: BufReader::with_capacity(1 << 16, LineLimit::new(file)),
+                line: Vec::new(),
+                offset: 0,
+                records: 0,
+            })
+        } else {
+            Records::Csv(fields::csv_reader_with(file, dialect.separator))
+        }
+    }
+
+    /// Reads the next record into `record`; `false` at the end of the file.
+    fn read(&mut self, path: &Path, record: &mut ByteRecord) -> Result<bool, Error> {
+        match self {
+            Records::Csv(r) => r
+                .read_byte_record(record)
+                .map_err(|e| fields::from_csv(path, e)),
+            Records::Whitespace(w) => loop {
+                w.line.clear();
+                let start = w.offset;
+                let n = w
+                    .input
+                    .read_until(b'\n', &mut w.line)
+                    .map_err(|e| fields::from_io(path, e))?;
+                if n == 0 {
+                    return Ok(false);
+                }
+                w.offset += n as u64;
+                record.clear();
+                for word in w.line.split(u8::is_ascii_whitespace) {
+                    if !word.is_empty() {
+                        record.push_field(word);
+                    }
+                }
+                if record.is_empty() {
+                    continue;
+                }
+                w.records += 1;
+                // The line's start: where errors count its line from.
+                let mut pos = csv::Position::new();
+                pos.set_byte(start).set_record(w.records);
+                record.set_position(Some(pos));
+                return Ok(true);
+            },
+        }
+    }
 }
 
 impl CsvReader {
@@ -74,11 +162,10 @@ impl CsvReader {
             source,
         };
         let (file, dialect) = dialect::open(path).map_err(io)?;
-        let mut reader = fields::csv_reader_with(file, dialect.separator);
+        let mut reader = Records::open(file, &dialect);
         let mut record = ByteRecord::new();
-        let csv_err = |e| fields::from_csv(path, e);
         for _ in 0..dialect.skip {
-            reader.read_byte_record(&mut record).map_err(csv_err)?;
+            reader.read(path, &mut record)?;
         }
         let err = |line, channel: Option<&str>, message: String| Error::Csv {
             path: path.to_path_buf(),
@@ -86,56 +173,140 @@ impl CsvReader {
             channel: channel.map(str::to_string),
             message,
         };
-        if !reader.read_byte_record(&mut record).map_err(csv_err)? {
-            return Err(err(
+        let check_columns = |columns: usize, line| {
+            if columns > crate::limits::MAX_CSV_COLUMNS {
+                return Err(err(
+                    line,
+                    None,
+                    format!(
+                        "the header has {columns} columns, more than the {} calib reads (a \
+                         column per channel); keep the time and the encoders' columns",
+                        crate::limits::MAX_CSV_COLUMNS
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        let empty = || {
+            err(
                 1,
                 None,
                 "the file is empty; a CSV log needs a header row such as `t,a,b` and one row \
                  per sample"
                     .into(),
-            ));
-        }
-        if record.len() > crate::limits::MAX_CSV_COLUMNS {
-            return Err(err(
-                line_of(path, &record),
-                None,
-                format!(
-                    "the header has {} columns, more than the {} calib reads (a column per \
-                     channel); keep the time and the encoders' columns",
-                    record.len(),
-                    crate::limits::MAX_CSV_COLUMNS
-                ),
-            ));
-        }
-        let names = fields::header_names(path, &record)?;
-        let header_line = line_of(path, &record);
-        let unit = opts.unit.unwrap_or(AngleUnit::Deg);
-        let Some((t_col, t_unit)) =
-            dialect::time_column(&names, opts.time_column.as_deref(), opts.time_unit)
-        else {
-            return Err(err(
-                header_line,
-                None,
-                match &opts.time_column {
-                    Some(wanted) => format!(
-                        "the header has no column `{wanted}` (it has: {}); give --time-column \
-                         one of those names",
-                        names.join(", ")
-                    ),
-                    None => format!(
-                        "the header has no time column (it has: {}); name it `t` (seconds), \
-                         `time` or `timestamp` (with a unit such as ` [ms]`), or name it with \
-                         --time-column",
-                        names.join(", ")
-                    ),
-                },
-            ));
+            )
         };
+        // The column names, the units row's units, and the header's line (0 if it has none).
+        let (names, units, header_line) = match &dialect.header {
+            Header::Row { units } => {
+                if !reader.read(path, &mut record)? {
+                    return Err(empty());
+                }
+                check_columns(record.len(), line_of(path, &record))?;
+                let names = fields::header_names(path, &record)?;
+                let line = line_of(path, &record);
+                if units.is_some() {
+                    reader.read(path, &mut record)?;
+                }
+                (names, units.clone(), line)
+            }
+            Header::None { columns } => ((1..=*columns).map(|i| i.to_string()).collect(), None, 0),
+            Header::Properties(p) => {
+                let mut names = p.names.clone();
+                if p.filetime {
+                    names.insert(0, "FILETIME".to_string());
+                }
+                let mut units = p.units.clone();
+                if p.filetime {
+                    units.insert(0, "100ns".to_string());
+                }
+                (names, Some(units), 0)
+            }
+        };
+        check_columns(names.len(), header_line)?;
+        let unit_of = |i: usize| units.as_ref().and_then(|u| u.get(i));
+        let filetime = matches!(&dialect.header, Header::Properties(p) if p.filetime);
+        let found = if filetime && opts.time_column.is_none() {
+            Some((0, opts.time_unit.unwrap_or(TimeUnit::Ticks)))
+        } else {
+            dialect::time_column(&names, opts.time_column.as_deref(), None).map(|(i, _)| {
+                // --time-unit, else the name's suffix, else the units row's entry, else seconds.
+                let unit = opts
+                    .time_unit
+                    .or_else(|| dialect::time_unit_of(&names[i]))
+                    .or_else(|| {
+                        unit_of(i).and_then(|u| TimeUnit::from_suffix(dialect::unbracket(u)))
+                    })
+                    .unwrap_or(TimeUnit::S);
+                (i, unit)
+            })
+        };
+        let mut point_list = false;
+        let time = match (found, &dialect.header) {
+            (Some((col, unit)), _) => Time::Column {
+                col,
+                scale: unit.seconds(),
+            },
+            (None, Header::Properties(p)) if opts.time_column.is_none() => Time::Index {
+                period: p.sample_time_s.ok_or_else(|| {
+                    err(
+                        1,
+                        None,
+                        "this TwinCAT Scope export has neither a time column nor a SampleTime \
+                         row; export it with its time stamps"
+                            .into(),
+                    )
+                })?,
+            },
+            (None, _) if opts.allow_point_list && opts.time_column.is_none() => {
+                point_list = true;
+                Time::Index { period: 1.0 }
+            }
+            (None, _) => {
+                return Err(err(
+                    header_line.max(1),
+                    None,
+                    match &opts.time_column {
+                        Some(wanted) => format!(
+                            "the header has no column `{wanted}` (it has: {}); give --time-column \
+                             one of those names",
+                            names.join(", ")
+                        ),
+                        None => format!(
+                            "the {} has no time column (it has: {}); name it `t` (seconds), \
+                             `time` or `timestamp` (with a unit such as ` [ms]`), or name it with \
+                             --time-column. A file without time is a list of stationary points, \
+                             which `calib reference` and `calib inspect` read",
+                            if header_line == 0 { "file" } else { "header" },
+                            names.join(", ")
+                        ),
+                    },
+                ));
+            }
+        };
+        let t_col = match time {
+            Time::Column { col, .. } => Some(col),
+            Time::Index { .. } => None,
+        };
+        // The readings' unit: --unit, else the one every channel's unit-row entry names.
+        let row_unit = {
+            let channel_units: Vec<Option<calib_core::AngleUnit>> = (0..names.len())
+                .filter(|&i| Some(i) != t_col && names[i] != "session")
+                .map(|i| unit_of(i).and_then(|u| dialect::angle_unit(u)))
+                .collect();
+            match channel_units.first() {
+                Some(Some(first)) if channel_units.iter().all(|u| u.as_ref() == Some(first)) => {
+                    Some(*first)
+                }
+                _ => None,
+            }
+        };
+        let unit = opts.unit.or(row_unit).unwrap_or(AngleUnit::Deg);
         let mut session_col = None;
         let mut channels = Vec::new();
         let mut value_cols = Vec::new();
         for (i, name) in names.iter().enumerate() {
-            if i == t_col {
+            if Some(i) == t_col {
                 continue;
             }
             if name == "session" {
@@ -150,7 +321,7 @@ impl CsvReader {
         }
         if channels.is_empty() {
             return Err(err(
-                header_line,
+                header_line.max(1),
                 None,
                 format!(
                     "the header has no channel columns (it has: {}); add one column of readings \
@@ -159,12 +330,20 @@ impl CsvReader {
                 ),
             ));
         }
-        if !reader.read_byte_record(&mut record).map_err(csv_err)? {
-            return Err(err(
-                header_line + 1,
-                None,
-                "the log has a header but no data rows; it needs one row per sample".into(),
-            ));
+        let read = reader.read(path, &mut record)?;
+        // TwinCAT Scope ends its exports with a line `EOF`.
+        let end_marker = matches!(dialect.header, Header::Properties(_))
+            && record.len() == 1
+            && record[0].trim_ascii() == b"EOF";
+        if !read || end_marker {
+            return Err(match header_line {
+                0 => empty(),
+                line => err(
+                    line + 1,
+                    None,
+                    "the log has a header but no data rows; it needs one row per sample".into(),
+                ),
+            });
         }
         Ok(CsvReader {
             path: path.to_path_buf(),
@@ -174,8 +353,13 @@ impl CsvReader {
             done: false,
             names,
             channels,
-            t_col,
-            t_scale: t_unit.seconds(),
+            time,
+            origin: None,
+            rows: 0,
+            decimal_comma: dialect.decimal_comma,
+            sparse: dialect.sparse,
+            point_list,
+            dialect,
             session_col,
             value_cols,
             rad_per_unit: unit.radians_per_unit(),
@@ -183,6 +367,24 @@ impl CsvReader {
             prev: None,
             diagnostics: ReadDiagnostics::default(),
         })
+    }
+
+    /// Whether the file has no time column: a list of stationary points in row order (read only
+    /// with [`ReadOptions::allow_point_list`]), whose samples are timed by their row index
+    /// (0, 1, 2, … s).
+    pub fn is_point_list(&self) -> bool {
+        self.point_list
+    }
+
+    /// Whether rows leave a channel's cell empty where it has no sample: its samples then hold
+    /// NaN there, and each channel is a series of its own to be aligned ([`crate::align`]).
+    pub fn is_sparse(&self) -> bool {
+        self.sparse
+    }
+
+    /// How the file is laid out.
+    pub fn dialect(&self) -> &Dialect {
+        &self.dialect
     }
 
     /// Whether the log has a `session` column marking CSRR sessions.
@@ -210,6 +412,23 @@ impl CsvReader {
         }
     }
 
+    /// Whether the record read is TwinCAT Scope's `EOF` line, which ends its exports.
+    fn is_end_marker(&self) -> bool {
+        matches!(self.dialect.header, Header::Properties(_))
+            && self.record.len() == 1
+            && self.record[0].trim_ascii() == b"EOF"
+    }
+
+    /// A field's number, in the file's decimal mark.
+    #[inline]
+    fn number(&self, field: &[u8]) -> Option<f64> {
+        if self.decimal_comma {
+            parse_f64_comma(field)
+        } else {
+            parse_f64(field)
+        }
+    }
+
     /// The sample in `self.record`.
     fn parse_row(&mut self) -> Result<Sample, Error> {
         let record = &self.record;
@@ -218,25 +437,53 @@ impl CsvReader {
         }
         let field = |c: usize| record.get(c).unwrap_or_default();
 
-        let raw_t = field(self.t_col);
-        let t = parse_f64(raw_t).map(|t| t * self.t_scale).ok_or_else(|| {
-            self.error(
-                Some(self.t_col),
-                fields::not_a_number(raw_t, "the time (seconds)"),
-            )
-        })?;
-        if !t.is_finite() {
-            return Err(self.error(
-                Some(self.t_col),
-                format!(
-                    "time `{}` is not a finite number; every row needs a real time stamp in \
-                     seconds",
-                    fields::show(raw_t)
-                ),
-            ));
-        }
+        let t = match self.time {
+            Time::Index { period } => self.rows as f64 * period,
+            Time::Column { col, scale } => {
+                let raw_t = field(col);
+                let number = match self.origin {
+                    Some(origin) => parse_integer(raw_t).map(|v| (v - origin) as f64),
+                    None if self.rows == 0 => match parse_integer(raw_t) {
+                        // Beyond 2^53 an `f64` cannot hold every integer: count from the first.
+                        // (Not seconds: that many seconds are a unit mistake, refused below.)
+                        Some(v) if v.unsigned_abs() > 1 << 53 && scale < 1.0 => {
+                            self.origin = Some(v);
+                            Some(0.0)
+                        }
+                        _ => self.number(raw_t),
+                    },
+                    None => self.number(raw_t),
+                };
+                let t = number.map(|t| t * scale).ok_or_else(|| {
+                    let message = match self.origin {
+                        Some(origin) => format!(
+                            "`{}` is not a whole number, but the first row's time stamp {origin} \
+                             is; such stamps are counted from the first exactly, in integers: \
+                             give every row's stamp as a whole number",
+                            fields::show(raw_t)
+                        ),
+                        None => fields::not_a_number(raw_t, "the time"),
+                    };
+                    self.error(Some(col), message)
+                })?;
+                if !t.is_finite() {
+                    return Err(self.error(
+                        Some(col),
+                        format!(
+                            "time `{}` is not a finite number; every row needs a real time stamp",
+                            fields::show(raw_t)
+                        ),
+                    ));
+                }
+                t
+            }
+        };
+        let t_col = match self.time {
+            Time::Column { col, .. } => col,
+            Time::Index { .. } => 0,
+        };
         if let Some(problem) = crate::limits::time_problem(t) {
-            return Err(self.error(Some(self.t_col), problem));
+            return Err(self.error(Some(t_col), problem));
         }
         if let Some((prev_t, prev_pos)) = &self.prev {
             let prev_t = *prev_t;
@@ -248,7 +495,7 @@ impl CsvReader {
                 };
                 let prev_line = fields::line_at(&self.path, prev_pos);
                 return Err(self.error(
-                    Some(self.t_col),
+                    Some(t_col),
                     format!(
                         "time stamp {t} s {what} the previous row's {prev_t} s (line {prev_line}); \
                          rows must be in strictly increasing time order: sort the log by `t` and \
@@ -261,7 +508,12 @@ impl CsvReader {
         let mut values = Vec::with_capacity(self.value_cols.len());
         for &c in &self.value_cols {
             let raw = field(c);
-            let v = parse_f64(raw)
+            if self.sparse && raw.trim_ascii().is_empty() {
+                values.push(f64::NAN);
+                continue;
+            }
+            let v = self
+                .number(raw)
                 .ok_or_else(|| self.error(Some(c), fields::not_a_number(raw, "a reading")))?;
             let rad = v * self.rad_per_unit;
             if let Some(problem) = crate::limits::reading_problem(fields::Shown(raw), v, rad) {
@@ -303,6 +555,7 @@ impl CsvReader {
                 }
             }
         };
+        self.rows += 1;
         // The header and the rows always have positions; the default only satisfies the type.
         self.prev = Some((
             t,
@@ -325,7 +578,11 @@ impl Iterator for CsvReader {
         if self.pending {
             self.pending = false;
         } else {
-            match self.reader.read_byte_record(&mut self.record) {
+            match self.reader.read(&self.path, &mut self.record) {
+                Ok(true) if self.is_end_marker() => {
+                    self.done = true;
+                    return None;
+                }
                 Ok(true) => {}
                 Ok(false) => {
                     self.done = true;
@@ -333,7 +590,7 @@ impl Iterator for CsvReader {
                 }
                 Err(e) => {
                     self.done = true;
-                    return Some(Err(fields::from_csv(&self.path, e)));
+                    return Some(Err(e));
                 }
             }
         }
