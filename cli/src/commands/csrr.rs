@@ -80,10 +80,12 @@ pub struct Args {
     /// Points of the output tables (default: enough for linear interpolation to 0.01″, ≥ 3600).
     #[arg(long)]
     pub points: Option<usize>,
-    /// Largest drift of the relative angle within one session, degrees; must exceed the
-    /// peak-to-peak of the two sensors' errors.
-    #[arg(long, default_value_t = 1.0)]
-    pub session_tol: f64,
+    /// Largest departure, degrees, of the relative angle `a − b` from its value one revolution
+    /// earlier within a session (it is periodic in the shaft's angle whatever the sensors'
+    /// errors; a relative turn or a slip is a drift that is not). Default: from each session's
+    /// own scatter (10× the RMS departure of its first blocks, at least 0.01°), reported.
+    #[arg(long)]
+    pub session_tol: Option<f64>,
     /// Speed below which a sensor counts as stopped, degrees per second.
     #[arg(long, default_value_t = 1.0)]
     pub min_speed: f64,
@@ -121,7 +123,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    crate::input::check_range("--session-tol", args.session_tol, 0.0, 180.0, "degrees")?;
+    if let Some(tol) = args.session_tol {
+        crate::input::check_range("--session-tol", tol, 0.0, 180.0, "degrees")?;
+    }
     crate::input::check_range(
         "--min-speed",
         args.min_speed,
@@ -164,7 +168,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         max_order: args.max_order,
         segments: SegmentOptions {
             min_speed: args.min_speed.to_radians(),
-            relative_tol: args.session_tol.to_radians(),
+            relative_tol: args.session_tol.map(f64::to_radians),
             use_marks: reader.has_session_marks() && !args.detect_sessions,
             ..SegmentOptions::default()
         },

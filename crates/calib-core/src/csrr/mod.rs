@@ -628,8 +628,12 @@ struct Screen {
 /// [`crate::tdr`] ([`crate::tdr::significance_threshold`], `α` =
 /// [`crate::tdr::FALSE_ORDER_PROBABILITY`]) over the `2M` pairs of the `M` orders tested, with
 /// `v_h = σ²·2W/(W² − |S_h|²)` the variance of each coefficient from the fit's per-order block
-/// ([`observability::coefficient_variance`], `σ` the noise per sample from the bins' residuals).
-/// For noise alone the chance that any order is kept is below `α`.
+/// ([`observability::coefficient_variance`], `σ` the noise per sample from the bins' residuals,
+/// or at an order where the sessions disagree significantly more than that, their scatter:
+/// [`joint::JointSolution::order_noise`]). For noise alone the chance that any order is kept
+/// is below `α`; structure that differs from session to session (the quantization of a slowly
+/// turning sensor) is not taken for a harmonic, and where it is kept it carries its scatter in
+/// `u`.
 ///
 /// What the dropped orders hold together is estimated per sensor from `P = Σ_dropped (|x|² −
 /// 2v_h)`, the unbiased estimate of their power, and `s_P` its standard deviation
@@ -648,7 +652,7 @@ fn screen_orders(fit: &joint::JointSolution, weights: &[f64]) -> Screen {
     let mut kept_variance = Vec::new();
     let mut power = [(0.0, 0.0); 2];
     for &h in &fitted {
-        let v = observability::coefficient_variance(h, &centred, weights, fit.noise_rms);
+        let v = observability::coefficient_variance(h, &centred, weights, fit.order_noise[h - 1]);
         let xa = fit.a.cos[h - 1].powi(2) + fit.a.sin[h - 1].powi(2);
         let xb = fit.b.cos[h - 1].powi(2) + fit.b.sin[h - 1].powi(2);
         // σ = 0 (noise-free data): every order stands above the noise.
