@@ -163,6 +163,8 @@ pub struct Segmenter {
     moved: (u64, u64),
     /// The largest tolerance a rotating segment's periodicity was checked against, rad.
     tol_applied: Option<f64>,
+    /// The accepted sessions' squared departures from one revolution earlier, and their count.
+    repeat: (f64, u64),
 }
 
 #[derive(Debug)]
@@ -185,15 +187,25 @@ struct Open {
     departures: Vec<f64>,
     /// A rotating segment's tolerance once set.
     tol: Option<f64>,
+    /// Sum of the squared per-sample departures from one revolution earlier, and their count.
+    repeat: (f64, u64),
+}
+
+/// The mean departure of a block from one revolution earlier ([`Open::departure`]), with the
+/// sum of the squared per-sample departures and their count.
+struct Departure {
+    mean: f64,
+    sum_sq: f64,
+    count: u64,
 }
 
 impl Open {
     /// The mean over `block` of `d(x) − d(x − 2π·direction)`, the session's own `d` one
     /// revolution earlier interpolated linearly in `x`; `None` when no sample of the block is a
     /// revolution past the segment's start.
-    fn departure(&self, block: &[Buffered]) -> Option<f64> {
+    fn departure(&self, block: &[Buffered]) -> Option<Departure> {
         let dir = self.direction;
-        let (mut sum, mut count) = (0.0, 0usize);
+        let (mut sum, mut sum_sq, mut count) = (0.0, 0.0, 0u64);
         for b in block {
             let target = b.xu - dir * TAU;
             if (target - self.x_start) * dir < 0.0 {
@@ -208,9 +220,14 @@ impl Open {
                 _ => d1,
             };
             sum += b.d - d_then;
+            sum_sq += (b.d - d_then).powi(2);
             count += 1;
         }
-        (count > 0).then(|| sum / count as f64)
+        (count > 0).then(|| Departure {
+            mean: sum / count as f64,
+            sum_sq,
+            count,
+        })
     }
 
     /// Adds `block` to the history, keeping a little over one revolution.
@@ -263,6 +280,7 @@ impl Segmenter {
             moving_blocks: 0,
             moved: (0, 0),
             tol_applied: None,
+            repeat: (0.0, 0),
         }
     }
 
@@ -314,6 +332,8 @@ impl Segmenter {
                 && self.opposite_blocks * 2 > self.moving_blocks,
             moved: (self.moved.0 > 0, self.moved.1 > 0),
             relative_tol: self.tol_applied,
+            repeatability: (self.repeat.1 > 0)
+                .then(|| (self.repeat.0 / (2.0 * self.repeat.1 as f64)).sqrt()),
         }
     }
 
@@ -358,18 +378,28 @@ impl Segmenter {
                 stats.kind = SegmentKind::Turning;
             }
         }
+        let departure = match &self.current {
+            Some(open)
+                if open.kind == SegmentKind::Rotating
+                    && stats.kind == SegmentKind::Rotating
+                    && stats.direction == open.direction =>
+            {
+                open.departure(&block)
+            }
+            _ => None,
+        };
         let continues = match &mut self.current {
             Some(open) if open.kind == stats.kind => match stats.kind {
                 SegmentKind::Rotating if self.opts.use_marks => open.mark == mark,
                 SegmentKind::Rotating if stats.direction != open.direction => false,
-                SegmentKind::Rotating => match open.departure(&block) {
+                SegmentKind::Rotating => match &departure {
                     None => true,
                     Some(departure) => {
                         let tol = open.tolerance(self.opts.relative_tol);
                         self.tol_applied = Some(self.tol_applied.map_or(tol, |t| t.max(tol)));
-                        let periodic = departure.abs() <= tol;
+                        let periodic = departure.mean.abs() <= tol;
                         if periodic {
-                            open.record(departure);
+                            open.record(departure.mean);
                         }
                         periodic
                     }
@@ -378,6 +408,10 @@ impl Segmenter {
             },
             _ => false,
         };
+        if let (true, Some(dep), Some(open)) = (continues, &departure, &mut self.current) {
+            open.repeat.0 += dep.sum_sq;
+            open.repeat.1 += dep.count;
+        }
         if !continues {
             self.close_current(sink);
             let first = &block[0];
@@ -399,10 +433,11 @@ impl Segmenter {
                 history: VecDeque::new(),
                 departures: Vec::new(),
                 tol: None,
+                repeat: (0.0, 0),
             });
         }
         let open = self.current.as_mut().expect("set above");
-        if open.kind == SegmentKind::Rotating && !self.opts.use_marks {
+        if open.kind == SegmentKind::Rotating {
             open.remember(&block);
         }
         let last = &block[block.len() - 1];
@@ -436,7 +471,10 @@ impl Segmenter {
         if let Some(k) = open.session {
             let accepted = revolutions.abs() >= 1.0;
             sink.close(k, accepted);
-            if !accepted {
+            if accepted {
+                self.repeat.0 += open.repeat.0;
+                self.repeat.1 += open.repeat.1;
+            } else {
                 session = None;
             }
         }
@@ -468,6 +506,12 @@ pub struct Segmentation {
     /// The largest tolerance a session's periodicity was checked against, rad (given or from
     /// the data; `None` when no session turned a revolution or the log's marks were used).
     pub relative_tol: Option<f64>,
+    /// The readings' noise as the sessions repeat it, rad per sample of `d = x − y`: the RMS
+    /// departure of `d` from its value one revolution earlier over every accepted session,
+    /// divided by √2 (two samples' noise). It is model-free and independent of the sensors'
+    /// errors (slightly above the noise where `d` is curved between samples); `None` when no
+    /// session turned more than one revolution.
+    pub repeatability: Option<f64>,
 }
 
 impl Segmentation {
