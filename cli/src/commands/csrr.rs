@@ -33,8 +33,10 @@ pub enum MethodArg {
 /// Record the two sensors turning together for whole revolutions (a session), stop, turn one
 /// rotor against the other, and repeat: 5 sessions of 3 revolutions at well-spread relative
 /// rotations (e.g. 0°, 76°, 87°, 141°, 179°) are plenty for the default joint method. Sessions
-/// are found in the log (rotating segments at a constant relative angle, of at least one
-/// revolution), or taken from a CSV `session` column.
+/// are found in the log from the motion — both sensors turning the same way while their
+/// difference `a − b` repeats from one revolution to the next, whatever the size of their errors,
+/// forwards or backwards, at any speed, of at least one revolution — or taken from a CSV
+/// `session` column.
 ///
 /// Writes DIR/<a>.csv and DIR/<b>.csv (correction tables: angle_deg, error_arcsec,
 /// correction_arcsec; error = reading − true angle, correction = −error, as a function of the
@@ -366,6 +368,22 @@ fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -
             }
         ),
     )];
+    if let Some(tol) = cal.segmentation.relative_tol {
+        facts.push((
+            "found",
+            format!(
+                "from the motion: `{} − {}` periodic in the shaft angle within {:.4}° per revolution ({})",
+                args.a,
+                args.b,
+                tol.to_degrees(),
+                if args.session_tol.is_some() {
+                    "--session-tol"
+                } else {
+                    "from the sessions' own scatter"
+                }
+            ),
+        ));
+    }
     match cal.residual_rms {
         Some(r) => {
             facts.push(("orders", orders_text(cal)));
@@ -444,7 +462,11 @@ fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -
             format!("{:.3}″", ch.peak_to_peak_arcsec),
             after,
             format!("{:.3}″", ch.rms_arcsec),
-            top.join(", "),
+            if top.is_empty() {
+                "none above the noise".to_string()
+            } else {
+                top.join(", ")
+            },
         ]);
     }
     let _ = writeln!(o, "\n{}", t.render().trim_end());

@@ -161,8 +161,11 @@ pub struct Segmenter {
     moving_blocks: u64,
     /// Blocks in which the first / second sensor moved.
     moved: (u64, u64),
-    /// The largest tolerance a rotating segment's periodicity was checked against, rad.
+    /// The largest set tolerance (given, or from a session's own scatter) a rotating segment's
+    /// periodicity was checked against, rad.
     tol_applied: Option<f64>,
+    /// Whether a periodicity check used [`PROVISIONAL_TOL`].
+    provisional_only: bool,
     /// The accepted sessions' squared departures from one revolution earlier, and their count.
     repeat: (f64, u64),
 }
@@ -280,6 +283,7 @@ impl Segmenter {
             moving_blocks: 0,
             moved: (0, 0),
             tol_applied: None,
+            provisional_only: false,
             repeat: (0.0, 0),
         }
     }
@@ -331,7 +335,9 @@ impl Segmenter {
             opposite_direction: self.moving_blocks > 0
                 && self.opposite_blocks * 2 > self.moving_blocks,
             moved: (self.moved.0 > 0, self.moved.1 > 0),
-            relative_tol: self.tol_applied,
+            relative_tol: self
+                .tol_applied
+                .or(self.provisional_only.then_some(PROVISIONAL_TOL)),
             repeatability: (self.repeat.1 > 0)
                 .then(|| (self.repeat.0 / (2.0 * self.repeat.1 as f64)).sqrt()),
         }
@@ -396,7 +402,11 @@ impl Segmenter {
                     None => true,
                     Some(departure) => {
                         let tol = open.tolerance(self.opts.relative_tol);
-                        self.tol_applied = Some(self.tol_applied.map_or(tol, |t| t.max(tol)));
+                        if self.opts.relative_tol.is_some() || open.tol.is_some() {
+                            self.tol_applied = Some(self.tol_applied.map_or(tol, |t| t.max(tol)));
+                        } else {
+                            self.provisional_only = true;
+                        }
                         let periodic = departure.mean.abs() <= tol;
                         if periodic {
                             open.record(departure.mean);
@@ -503,8 +513,9 @@ pub struct Segmentation {
     pub opposite_direction: bool,
     /// Whether the first and the second sensor ever moved faster than the speed threshold.
     pub moved: (bool, bool),
-    /// The largest tolerance a session's periodicity was checked against, rad (given or from
-    /// the data; `None` when no session turned a revolution or the log's marks were used).
+    /// The largest tolerance a session's periodicity was checked against, rad: given, or set
+    /// from a session's own scatter ([`PROVISIONAL_TOL`] where no session turned long enough to
+    /// set one); `None` when no session turned a revolution or the log's marks were used.
     pub relative_tol: Option<f64>,
     /// The readings' noise as the sessions repeat it, rad per sample of `d = x − y`: the RMS
     /// departure of `d` from its value one revolution earlier over every accepted session,
