@@ -214,7 +214,9 @@ impl Open {
             if (target - self.x_start) * dir < 0.0 {
                 continue;
             }
-            let j = self.history.partition_point(|&(x, _)| (x - target) * dir < 0.0);
+            let j = self
+                .history
+                .partition_point(|&(x, _)| (x - target) * dir < 0.0);
             let Some(&(x1, d1)) = self.history.get(j) else {
                 continue;
             };

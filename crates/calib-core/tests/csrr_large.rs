@@ -37,7 +37,12 @@ fn run(sc: &Scenario, marks: bool) -> Calibration {
         ..CsrrOptions::default()
     });
     for s in sc.samples().expect("valid scenario") {
-        csrr.push(s.t, s.values[ia], s.values[ib], if marks { s.session } else { None });
+        csrr.push(
+            s.t,
+            s.values[ia],
+            s.values[ib],
+            if marks { s.session } else { None },
+        );
     }
     csrr.finish().expect("calibration succeeds")
 }
@@ -60,10 +65,7 @@ fn figures(map: &ErrorMap, u: &MapUncertainty, truth: &ErrorMap) -> (f64, f64) {
         .zip(&u.u)
         .filter(|(d, u)| d.abs() <= 2.0 * **u)
         .count();
-    (
-        diff.max_abs_arcsec(),
-        inside as f64 / map.len() as f64,
-    )
+    (diff.max_abs_arcsec(), inside as f64 / map.len() as f64)
 }
 
 /// Max errors and 2u coverage of both maps: `[(max A, cov A), (max B, cov B)]`.
@@ -128,7 +130,47 @@ fn sessions_found_from_the_motion_reach_the_marked_accuracy() {
         // out): the same accuracy within the noise (measured 1.40″/2.82″ found, 2.28″/4.42″
         // marked, whose fit kept one order, 1190, that the quantization's residual put at the
         // detection limit), 3″ at most — a few times the 0.25″ per coefficient over ~10 orders.
-        assert!(*ef <= 3.0 && *ef <= 1.3 * em + 0.2, "found {ef:.3}″, marked {em:.3}″");
+        assert!(
+            *ef <= 3.0 && *ef <= 1.3 * em + 0.2,
+            "found {ef:.3}″, marked {em:.3}″"
+        );
         assert!(*cf >= 0.9, "2u coverage {cf:.3}");
     }
+}
+
+/// Item 2's Monte Carlo: over 10 seeds of the large-error run (new noise, the same sensors and
+/// sessions, found from the motion), the fraction of table points with |map − truth| ≤ 2u,
+/// pooled per sensor, and the largest error. Near 95 % is the target for a standard `u`; the bar
+/// is the coverage tests' 90–99.9 % for A. B's `u` carries what the dropped orders hold together
+/// beyond the white-noise estimate (the quantization's uneven spectrum), which on this run makes
+/// it cover more: its bar is at least 90 %. Run with `-- --ignored --nocapture`.
+#[test]
+#[ignore = "Monte Carlo over 10 seeds, about a minute"]
+fn u_covers_the_large_error_maps_over_seeds() {
+    let mut inside = [0.0; 2];
+    let mut worst = [0.0f64; 2];
+    let seeds = 1..=10u64;
+    for seed in seeds.clone() {
+        let mut sc = load();
+        sc.seed = seed;
+        let cal = run(&sc, false);
+        assert_eq!(cal.sessions.len(), 6, "seed {seed}");
+        let acc = accuracy(&sc, &cal);
+        describe(&format!("seed {seed}"), &cal, acc);
+        for i in 0..2 {
+            inside[i] += acc[i].1;
+            worst[i] = worst[i].max(acc[i].0);
+        }
+    }
+    let n = seeds.count() as f64;
+    let (ca, cb) = (inside[0] / n, inside[1] / n);
+    println!(
+        "over {n} seeds: within 2u A {:.1} % B {:.1} %; largest |map − truth| A {:.3}″ B {:.3}″",
+        100.0 * ca,
+        100.0 * cb,
+        worst[0],
+        worst[1]
+    );
+    assert!((0.90..=0.999).contains(&ca), "A: {ca}");
+    assert!(cb >= 0.90, "B: {cb}");
 }

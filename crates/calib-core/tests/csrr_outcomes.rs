@@ -98,6 +98,9 @@ fn a_clean_run_raises_no_residual_warning() {
     let cal = run(&sc).expect("calibrates");
     assert!(cal.orders.contains(&90));
     for w in &cal.warnings {
-        assert!(!w.contains("RMS per sample where the sessions repeat"), "{w}");
+        assert!(
+            !w.contains("RMS per sample where the sessions repeat"),
+            "{w}"
+        );
     }
 }
