@@ -530,7 +530,7 @@ fn finish_joint(
         ));
     }
     if let Some(repeat) = segmentation.repeatability {
-        match residual_verdict(sol.residual_rms, repeat) {
+        match residual_verdict(sol.residual_rms, repeat, !screen.kept.is_empty()) {
             Verdict::Explained => {}
             Verdict::Above(ratio) => warnings.push(format!(
                 "the fit leaves {:.4}″ RMS per sample where the sessions repeat to {:.4}″ from one revolution to the next \
@@ -577,7 +577,8 @@ enum Verdict {
     Explained,
     /// Above it by this ratio: a warning.
     Above(f64),
-    /// Above [`RESIDUAL_FAIL_RATIO`] times the noise: the maps cannot explain the data.
+    /// Above [`RESIDUAL_FAIL_RATIO`] times the noise with no order kept: the maps cannot
+    /// explain the data.
     Unexplained(f64),
 }
 
@@ -588,21 +589,23 @@ enum Verdict {
 /// is larger than the noise itself.
 pub const RESIDUAL_WARN_RATIO: f64 = 3.0;
 
-/// A fit residual above this many times the sessions' repeatability is an error (exit 1): the
-/// maps explain less than a tenth of what the data hold beyond the noise — e.g. every session
-/// at a multiple of the same angle with the error in the orders that this makes blind.
+/// A fit residual above this many times the sessions' repeatability, with no order kept, is an
+/// error (exit 1): the maps (zero) explain none of what the data hold beyond the noise — e.g.
+/// every session at a multiple of the same angle with the error all in the orders that this
+/// makes blind. Where some orders are kept the maps hold those and the excess is a warning
+/// (with the blind orders named and the advice that reveals them).
 pub const RESIDUAL_FAIL_RATIO: f64 = 10.0;
 
 /// A residual below this, arcsec per sample, explains the data whatever the ratio (noise-free
 /// simulations, where the repeatability is only rounding).
 pub const RESIDUAL_FLOOR_ARCSEC: f64 = 0.01;
 
-fn residual_verdict(residual: f64, repeatability: f64) -> Verdict {
+fn residual_verdict(residual: f64, repeatability: f64, kept: bool) -> Verdict {
     if residual * ARCSEC_PER_RAD < RESIDUAL_FLOOR_ARCSEC {
         return Verdict::Explained;
     }
     let ratio = residual / repeatability.max(f64::MIN_POSITIVE);
-    if ratio > RESIDUAL_FAIL_RATIO {
+    if ratio > RESIDUAL_FAIL_RATIO && !kept {
         Verdict::Unexplained(ratio)
     } else if ratio > RESIDUAL_WARN_RATIO {
         Verdict::Above(ratio)
