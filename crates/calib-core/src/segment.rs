@@ -228,7 +228,10 @@ impl Open {
             sum_sq += (b.d - d_then).powi(2);
             count += 1;
         }
-        (count > 0).then(|| Departure {
+        if count == 0 {
+            return None;
+        }
+        Some(Departure {
             mean: sum / count as f64,
             sum_sq,
             count,
