@@ -34,8 +34,10 @@ pub enum MethodArg {
 /// Record the two sensors turning together for whole revolutions (a session), stop, turn one
 /// rotor against the other, and repeat: 5 sessions of 3 revolutions at well-spread relative
 /// rotations (e.g. 0°, 76°, 87°, 141°, 179°) are plenty for the default joint method. Sessions
-/// are found in the log (rotating segments at a constant relative angle, of at least one
-/// revolution), or taken from a CSV `session` column.
+/// are found in the log from the motion — both sensors turning the same way while their
+/// difference `a − b` repeats from one revolution to the next, whatever the size of their errors,
+/// forwards or backwards, at any speed, of at least one revolution — or taken from a CSV
+/// `session` column.
 ///
 /// Writes DIR/<a>.csv and DIR/<b>.csv (correction tables: angle_deg, error_arcsec,
 /// correction_arcsec; error = reading − true angle, correction = −error, as a function of the
@@ -88,10 +90,12 @@ pub struct Args {
     /// Points of the output tables (default: enough for linear interpolation to 0.01″, ≥ 3600).
     #[arg(long)]
     pub points: Option<usize>,
-    /// Largest drift of the relative angle within one session, degrees; must exceed the
-    /// peak-to-peak of the two sensors' errors.
-    #[arg(long, default_value_t = 1.0)]
-    pub session_tol: f64,
+    /// Largest departure, degrees, of the relative angle `a − b` from its value one revolution
+    /// earlier within a session (it is periodic in the shaft's angle whatever the sensors'
+    /// errors; a relative turn or a slip is a drift that is not). Default: from each session's
+    /// own scatter (10× the RMS departure of its first blocks, at least 0.01°), reported.
+    #[arg(long)]
+    pub session_tol: Option<f64>,
     /// Speed below which a sensor counts as stopped, degrees per second.
     #[arg(long, default_value_t = 1.0)]
     pub min_speed: f64,
@@ -129,7 +133,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    crate::input::check_range("--session-tol", args.session_tol, 0.0, 180.0, "degrees")?;
+    if let Some(tol) = args.session_tol {
+        crate::input::check_range("--session-tol", tol, 0.0, 180.0, "degrees")?;
+    }
     crate::input::check_range(
         "--min-speed",
         args.min_speed,
@@ -172,7 +178,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         max_order: args.max_order,
         segments: SegmentOptions {
             min_speed: args.min_speed.to_radians(),
-            relative_tol: args.session_tol.to_radians(),
+            relative_tol: args.session_tol.map(f64::to_radians),
             use_marks: reader.has_session_marks() && !args.detect_sessions,
             ..SegmentOptions::default()
         },
@@ -384,6 +390,22 @@ fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -
             }
         ),
     )];
+    if let Some(tol) = cal.segmentation.relative_tol {
+        facts.push((
+            "found",
+            format!(
+                "from the motion: `{} − {}` periodic in the shaft angle within {:.4}° per revolution ({})",
+                args.a,
+                args.b,
+                tol.to_degrees(),
+                if args.session_tol.is_some() {
+                    "--session-tol"
+                } else {
+                    "from the sessions' own scatter"
+                }
+            ),
+        ));
+    }
     match cal.residual_rms {
         Some(r) => {
             facts.push(("orders", orders_text(cal)));
@@ -468,7 +490,11 @@ fn render_summary(args: &Args, out: &Path, cal: &Calibration, report: &Report) -
             format!("{:.3}″", ch.peak_to_peak_arcsec),
             after,
             format!("{:.3}″", ch.rms_arcsec),
-            top.join(", "),
+            if top.is_empty() {
+                "none above the noise".to_string()
+            } else {
+                top.join(", ")
+            },
         ]);
     }
     let _ = writeln!(o, "\n{}", t.render().trim_end());

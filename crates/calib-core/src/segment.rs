@@ -6,27 +6,56 @@
 //! samples (≈ [`SegmentOptions::block_s`]) and joins them:
 //!
 //! - **stationary**: neither sensor moves faster than [`SegmentOptions::min_speed`];
-//! - **rotating**: both move, in the same direction, and the relative angle `x − y` stays within
-//!   [`SegmentOptions::relative_tol`] of the segment's first block — a CSRR session;
+//! - **rotating**: both move, in the same direction, and the relative angle `d = x − y` is
+//!   periodic in the shaft's angle — a CSRR session;
 //! - **turning**: anything else (one sensor moves alone, or the relative angle drifts).
 //!
-//! The tolerance on the relative angle must exceed the peak-to-peak of `e_a − e_b` (the sensors'
-//! own errors move the relative angle within a session); the default 1° covers sensors of up to
-//! ±0.25° each. The block at each end of a rotating segment is not handed to the session sink,
-//! so that the edges of a relative turn made while rotating never leak into a session.
+//! # Sessions found from the motion
+//! Within a session `d = Δ_k + e_a(θ) − e_b(θ − Δ_k)` (the CSRR paper's eq. 1 written for the
+//! readings, see [`crate::csrr::joint`]): however large the sensors' errors, `d` returns to the
+//! same value after one revolution of the shaft. A relative turn, or a slip, is a drift that does
+//! not. So a rotating block continues the open session, in the same direction, while the mean of
+//! `d(x) − d(x ∓ 2π)` over its samples — each sample against the session's own sample one
+//! revolution earlier, linearly interpolated — stays within the session's tolerance. Until the
+//! session has turned one revolution there is nothing to compare with, and the block continues
+//! it. The tolerance is [`SegmentOptions::relative_tol`] when given; by default it is taken from
+//! the session itself: [`AUTO_TOL_FACTOR`] times the RMS of the first [`AUTO_TOL_BLOCKS`] blocks'
+//! departures (quantization and noise of the block means), at least [`MIN_AUTO_TOL`]; before
+//! those blocks are in, [`PROVISIONAL_TOL`]. The largest tolerance applied is reported
+//! ([`Segmentation::relative_tol`]). Sessions turning backwards, at any speed and of any length
+//! are found alike; only those of at least one revolution are used.
+//!
+//! The block at each end of a rotating segment is not handed to the session sink, so that the
+//! edges of a relative turn made while rotating never leak into a session.
 //!
 //! The segmenter is streaming: it holds one block of samples and the list of segments.
 
 use crate::angle::{Unwrapper, wrap_2pi};
+use std::collections::VecDeque;
 use std::f64::consts::TAU;
+
+/// The default tolerance on a session's periodicity is this many times the RMS departure of its
+/// first blocks from one revolution earlier: 10 standard deviations of their scatter.
+pub const AUTO_TOL_FACTOR: f64 = 10.0;
+
+/// Blocks whose departures set a session's default tolerance.
+pub const AUTO_TOL_BLOCKS: usize = 8;
+
+/// The default tolerance is never below this, rad (0.01° = 36″): a drift smaller than it within
+/// one revolution is no relative turn anyone makes on purpose.
+pub const MIN_AUTO_TOL: f64 = 0.01 * std::f64::consts::PI / 180.0;
+
+/// The tolerance while a session's first [`AUTO_TOL_BLOCKS`] departures are gathered, rad (1°).
+pub const PROVISIONAL_TOL: f64 = std::f64::consts::PI / 180.0;
 
 /// Tuning of the [`Segmenter`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SegmentOptions {
     /// Speed below which a sensor counts as still, rad/s (default 1°/s).
     pub min_speed: f64,
-    /// Largest departure of the relative angle within one session, rad (default 1°).
-    pub relative_tol: f64,
+    /// Largest departure of the relative angle from its value one revolution earlier within
+    /// one session, rad (default `None`: from the session's own scatter, see the module docs).
+    pub relative_tol: Option<f64>,
     /// Duration of one classification block, s (default 0.05 s; at least 3 samples).
     pub block_s: f64,
     /// Use the log's session marks instead of detecting sessions.
@@ -37,7 +66,7 @@ impl Default for SegmentOptions {
     fn default() -> Self {
         SegmentOptions {
             min_speed: 1f64.to_radians(),
-            relative_tol: 1f64.to_radians(),
+            relative_tol: None,
             block_s: 0.05,
             use_marks: false,
         }
@@ -113,7 +142,6 @@ struct Buffered {
 #[derive(Debug, Clone, Copy)]
 struct BlockStats {
     kind: SegmentKind,
-    d_mean: f64,
     direction: f64,
 }
 
@@ -133,6 +161,13 @@ pub struct Segmenter {
     moving_blocks: u64,
     /// Blocks in which the first / second sensor moved.
     moved: (u64, u64),
+    /// The largest set tolerance (given, or from a session's own scatter) a rotating segment's
+    /// periodicity was checked against, rad.
+    tol_applied: Option<f64>,
+    /// Whether a periodicity check used [`PROVISIONAL_TOL`].
+    provisional_only: bool,
+    /// The accepted sessions' squared departures from one revolution earlier, and their count.
+    repeat: (f64, u64),
 }
 
 #[derive(Debug)]
@@ -143,12 +178,98 @@ struct Open {
     samples: u64,
     x_start: f64,
     x_end: f64,
-    d_ref: f64,
     d_sum: f64,
     direction: f64,
     mark: Option<u32>,
     /// The session id handed to the sink, for rotating segments.
     session: Option<usize>,
+    /// A rotating segment's samples `(x unwrapped, d)` of (a little over) its last revolution.
+    history: VecDeque<(f64, f64)>,
+    /// A rotating segment's departures from one revolution earlier, per block, while its
+    /// tolerance is being set.
+    departures: Vec<f64>,
+    /// A rotating segment's tolerance once set.
+    tol: Option<f64>,
+    /// Sum of the squared per-sample departures from one revolution earlier, and their count.
+    repeat: (f64, u64),
+}
+
+/// The mean departure of a block from one revolution earlier ([`Open::departure`]), with the
+/// sum of the squared per-sample departures and their count.
+struct Departure {
+    mean: f64,
+    sum_sq: f64,
+    count: u64,
+}
+
+impl Open {
+    /// The mean over `block` of `d(x) − d(x − 2π·direction)`, the session's own `d` one
+    /// revolution earlier interpolated linearly in `x`; `None` when no sample of the block is a
+    /// revolution past the segment's start.
+    fn departure(&self, block: &[Buffered]) -> Option<Departure> {
+        let dir = self.direction;
+        let (mut sum, mut sum_sq, mut count) = (0.0, 0.0, 0u64);
+        for b in block {
+            let target = b.xu - dir * TAU;
+            if (target - self.x_start) * dir < 0.0 {
+                continue;
+            }
+            let j = self
+                .history
+                .partition_point(|&(x, _)| (x - target) * dir < 0.0);
+            let Some(&(x1, d1)) = self.history.get(j) else {
+                continue;
+            };
+            let d_then = match j.checked_sub(1).and_then(|i| self.history.get(i)) {
+                Some(&(x0, d0)) if x1 != x0 => d0 + (d1 - d0) * (target - x0) / (x1 - x0),
+                _ => d1,
+            };
+            sum += b.d - d_then;
+            sum_sq += (b.d - d_then).powi(2);
+            count += 1;
+        }
+        if count == 0 {
+            return None;
+        }
+        Some(Departure {
+            mean: sum / count as f64,
+            sum_sq,
+            count,
+        })
+    }
+
+    /// Adds `block` to the history, keeping a little over one revolution.
+    fn remember(&mut self, block: &[Buffered]) {
+        self.history.extend(block.iter().map(|b| (b.xu, b.d)));
+        let newest = block.last().map_or(self.x_end, |b| b.xu);
+        while self
+            .history
+            .front()
+            .is_some_and(|&(x, _)| (newest - x) * self.direction > 1.1 * TAU)
+        {
+            self.history.pop_front();
+        }
+    }
+
+    /// The tolerance on the next block's departure: the option's, else the session's own (see
+    /// the module docs).
+    fn tolerance(&self, option: Option<f64>) -> f64 {
+        option.or(self.tol).unwrap_or(PROVISIONAL_TOL)
+    }
+
+    /// Records a block's departure; the session's tolerance is set once enough are in.
+    fn record(&mut self, departure: f64) {
+        if self.tol.is_some() {
+            return;
+        }
+        self.departures.push(departure);
+        if self.departures.len() >= AUTO_TOL_BLOCKS {
+            let rms = (self.departures.iter().map(|d| d * d).sum::<f64>()
+                / self.departures.len() as f64)
+                .sqrt();
+            self.tol = Some((AUTO_TOL_FACTOR * rms).max(MIN_AUTO_TOL));
+        }
+    }
 }
 
 impl Segmenter {
@@ -166,6 +287,9 @@ impl Segmenter {
             opposite_blocks: 0,
             moving_blocks: 0,
             moved: (0, 0),
+            tol_applied: None,
+            provisional_only: false,
+            repeat: (0.0, 0),
         }
     }
 
@@ -216,6 +340,11 @@ impl Segmenter {
             opposite_direction: self.moving_blocks > 0
                 && self.opposite_blocks * 2 > self.moving_blocks,
             moved: (self.moved.0 > 0, self.moved.1 > 0),
+            relative_tol: self
+                .tol_applied
+                .or(self.provisional_only.then_some(PROVISIONAL_TOL)),
+            repeatability: (self.repeat.1 > 0)
+                .then(|| (self.repeat.0 / (2.0 * self.repeat.1 as f64)).sqrt()),
         }
     }
 
@@ -224,7 +353,6 @@ impl Segmenter {
         let dt = (last.t - first.t).max(f64::MIN_POSITIVE);
         let vx = (last.xu - first.xu) / dt;
         let vy = (last.yu - first.yu) / dt;
-        let d_mean = block.iter().map(|b| b.d).sum::<f64>() / block.len() as f64;
         let min = self.opts.min_speed;
         let (mx, my) = (vx.abs() >= min, vy.abs() >= min);
         self.moved.0 += u64::from(mx);
@@ -244,7 +372,6 @@ impl Segmenter {
         };
         BlockStats {
             kind,
-            d_mean,
             direction: vx.signum(),
         }
     }
@@ -262,17 +389,44 @@ impl Segmenter {
                 stats.kind = SegmentKind::Turning;
             }
         }
-        let continues = match &self.current {
+        let departure = match &self.current {
+            Some(open)
+                if open.kind == SegmentKind::Rotating
+                    && stats.kind == SegmentKind::Rotating
+                    && stats.direction == open.direction =>
+            {
+                open.departure(&block)
+            }
+            _ => None,
+        };
+        let continues = match &mut self.current {
             Some(open) if open.kind == stats.kind => match stats.kind {
                 SegmentKind::Rotating if self.opts.use_marks => open.mark == mark,
-                SegmentKind::Rotating => {
-                    (stats.d_mean - open.d_ref).abs() <= self.opts.relative_tol
-                        && stats.direction == open.direction
-                }
+                SegmentKind::Rotating if stats.direction != open.direction => false,
+                SegmentKind::Rotating => match &departure {
+                    None => true,
+                    Some(departure) => {
+                        let tol = open.tolerance(self.opts.relative_tol);
+                        if self.opts.relative_tol.is_some() || open.tol.is_some() {
+                            self.tol_applied = Some(self.tol_applied.map_or(tol, |t| t.max(tol)));
+                        } else {
+                            self.provisional_only = true;
+                        }
+                        let periodic = departure.mean.abs() <= tol;
+                        if periodic {
+                            open.record(departure.mean);
+                        }
+                        periodic
+                    }
+                },
                 _ => true,
             },
             _ => false,
         };
+        if let (true, Some(dep), Some(open)) = (continues, &departure, &mut self.current) {
+            open.repeat.0 += dep.sum_sq;
+            open.repeat.1 += dep.count;
+        }
         if !continues {
             self.close_current(sink);
             let first = &block[0];
@@ -287,14 +441,20 @@ impl Segmenter {
                 samples: 0,
                 x_start: first.xu,
                 x_end: first.xu,
-                d_ref: stats.d_mean,
                 d_sum: 0.0,
                 direction: stats.direction,
                 mark,
                 session,
+                history: VecDeque::new(),
+                departures: Vec::new(),
+                tol: None,
+                repeat: (0.0, 0),
             });
         }
         let open = self.current.as_mut().expect("set above");
+        if open.kind == SegmentKind::Rotating {
+            open.remember(&block);
+        }
         let last = &block[block.len() - 1];
         open.end_s = last.t;
         open.x_end = last.xu;
@@ -326,7 +486,10 @@ impl Segmenter {
         if let Some(k) = open.session {
             let accepted = revolutions.abs() >= 1.0;
             sink.close(k, accepted);
-            if !accepted {
+            if accepted {
+                self.repeat.0 += open.repeat.0;
+                self.repeat.1 += open.repeat.1;
+            } else {
                 session = None;
             }
         }
@@ -355,6 +518,16 @@ pub struct Segmentation {
     pub opposite_direction: bool,
     /// Whether the first and the second sensor ever moved faster than the speed threshold.
     pub moved: (bool, bool),
+    /// The largest tolerance a session's periodicity was checked against, rad: given, or set
+    /// from a session's own scatter ([`PROVISIONAL_TOL`] where no session turned long enough to
+    /// set one); `None` when no session turned a revolution or the log's marks were used.
+    pub relative_tol: Option<f64>,
+    /// The readings' noise as the sessions repeat it, rad per sample of `d = x − y`: the RMS
+    /// departure of `d` from its value one revolution earlier over every accepted session,
+    /// divided by √2 (two samples' noise). It is model-free and independent of the sensors'
+    /// errors (slightly above the noise where `d` is curved between samples); `None` when no
+    /// session turned more than one revolution.
+    pub repeatability: Option<f64>,
 }
 
 impl Segmentation {

@@ -72,7 +72,8 @@ pub(crate) struct JointOptions {
     pub tolerance: f64,
     /// Give up a step's conjugate gradient after this many iterations (default 2000).
     pub max_iterations: usize,
-    /// Gauss–Newton steps at most (default 8).
+    /// Gauss–Newton steps at most (default 12; degree-size errors with a coarse quantum take
+    /// 7–9, see [`settled_below`]).
     pub max_steps: usize,
     /// After the fit, the residual is searched for periodic structure at the orders above
     /// `max_order` up to this one ([`JointSolution::unresolved`]; default 0: not searched).
@@ -87,7 +88,7 @@ impl JointOptions {
             min_observability: 0.01,
             tolerance: 1e-10,
             max_iterations: 2000,
-            max_steps: 8,
+            max_steps: 12,
             check_up_to: 0,
         }
     }
@@ -133,6 +134,10 @@ pub(crate) struct JointSolution {
     /// leaves out the spread inside the bins, which for steep errors is mostly the errors'
     /// own change across a bin, not noise.
     pub noise_rms: f64,
+    /// The noise per sample each order is judged by, rad, indexed by order − 1: `noise_rms`, or
+    /// where the sessions disagree at that order significantly more, their scatter
+    /// ([`order_noise`]).
+    pub order_noise: Vec<f64>,
     /// Orders above `max_order` (up to [`JointOptions::check_up_to`]) where the residual holds
     /// periodic structure that passes the significance rule (see [`solve`]), ascending.
     pub unresolved: Vec<UnresolvedOrder>,
@@ -400,6 +405,28 @@ fn conjugate_gradient(
     (opts.max_iterations, false)
 }
 
+/// Gauss–Newton has converged when its last step moved no coefficient by more than this, rad:
+/// [`SETTLED_FRACTION`] of the smallest standard deviation a coefficient can have,
+/// `σ·√(2/W)` (`σ` the RMS residual per sample at the step, `W` the samples; an order seen
+/// ideally, [`super::observability::coefficient_variance`]), and at least 10⁻⁶″ (noise-free
+/// data). The steps contract by about `σ·h` (the residual times the curvature of the model in
+/// the coefficients of order `h`), so with degree-size errors and a coarse quantum (σ ≈ 30″,
+/// `σ·h ≈ 0.2` at order 1200) an absolute bound of 10⁻⁶″ takes more steps than any
+/// statistically meaningful change; a step below 1 % of the coefficients' noise changes no
+/// figure the calibration reports.
+fn settled_below(sigma: f64, weights: &[f64]) -> f64 {
+    let w: f64 = weights.iter().sum();
+    let floor = 1e-6 / crate::angle::ARCSEC_PER_RAD;
+    if w > 0.0 && sigma.is_finite() {
+        (SETTLED_FRACTION * sigma * (2.0 / w).sqrt()).max(floor)
+    } else {
+        floor
+    }
+}
+
+/// See [`settled_below`].
+const SETTLED_FRACTION: f64 = 1e-2;
+
 /// Points of the uniform grid for series up to `max_order`: at least 16 per period of the highest
 /// order (the `nufft` module's accuracy), a power of two for the FFT.
 pub(crate) fn grid_points(max_order: usize) -> usize {
@@ -420,6 +447,12 @@ pub(crate) fn grid_points(max_order: usize) -> usize {
 /// ([`super::observability::coefficient_variance`]). An order whose `α` or `β` passes the
 /// significance rule ([`crate::tdr::significance_threshold`] over the `2M` amplitudes of the `M`
 /// orders searched) is reported.
+///
+/// A harmonic of either sensor's error leaves the same `α` and `β` in every session; structure
+/// that differs from session to session is not one. So each order is judged by the noise
+/// [`order_noise`] gives it: `σ`, or the sessions' own scatter about `α − β·e^{−ihΔ_k}` where that
+/// is significantly larger. The same per-order noise is given for the fitted orders
+/// ([`JointSolution::order_noise`]), for their significance and uncertainty.
 pub(crate) fn solve(
     sessions: &[SessionData],
     opts: &JointOptions,
@@ -522,6 +555,9 @@ pub(crate) fn solve(
             eb: vec![0.0; m],
         };
         let (its, ok) = conjugate_gradient(&mut step, &precond, &residual, &mut du, opts);
+        let step_noise = (n.iter().zip(&residual).map(|(n, r)| n * r * r).sum::<f64>()
+            / n.iter().sum::<f64>())
+        .sqrt();
         iterations += its;
         steps += 1;
         let mut largest = 0.0f64;
@@ -540,8 +576,7 @@ pub(crate) fn solve(
         if !largest.is_finite() {
             return Err(CsrrError::NotFinite);
         }
-        // Stop when the last step moved no coefficient by more than 1e-6″.
-        if largest < 1e-6 / crate::angle::ARCSEC_PER_RAD {
+        if largest < settled_below(step_noise, &weights) {
             converged = ok;
             break;
         }
@@ -572,6 +607,17 @@ pub(crate) fn solve(
     let unresolved = residual_structure(
         opts, &ranges, &theta_a, &n, &residual, &deltas, &weights, noise_rms,
     );
+    let order_noise = fitted_order_noise(
+        opts.max_order,
+        &orders,
+        &ranges,
+        &theta_a,
+        &n,
+        &residual,
+        &deltas,
+        &weights,
+        noise_rms,
+    );
 
     let mut a = FourierSeries::zeros(opts.max_order);
     let mut b = FourierSeries::zeros(opts.max_order);
@@ -588,11 +634,184 @@ pub(crate) fn solve(
         excluded,
         residual_rms,
         noise_rms,
+        order_noise,
         unresolved,
         iterations,
         steps,
         converged,
     })
+}
+
+/// Each session's projection of the weighted residual on `orders`:
+/// `z_k(h) = (2/W_k)·Σ_{j∈k} n_j r_j e^{−ihθ_j}` as `(re, im)`, `z[k][i]` for `orders[i]` (by
+/// scatter onto a grid and FFT, as in the solve).
+fn session_projections(
+    ranges: &[std::ops::Range<usize>],
+    theta: &[f64],
+    n: &[f64],
+    residual: &[f64],
+    weights: &[f64],
+    orders: &[usize],
+) -> Vec<Vec<(f64, f64)>> {
+    let grid = grid_points(orders.iter().copied().max().unwrap_or(1));
+    let mut fft = GridTransform::new(grid);
+    let mut q = vec![0.0; grid];
+    ranges
+        .iter()
+        .zip(weights)
+        .map(|(range, &w)| {
+            let st = Stencils::new(theta[range.clone()].iter().copied(), grid);
+            let values: Vec<f64> = n[range.clone()]
+                .iter()
+                .zip(&residual[range.clone()])
+                .map(|(n, r)| n * r)
+                .collect();
+            q.fill(0.0);
+            st.scatter(&values, &mut q);
+            let (mut c, mut s) = (vec![0.0; orders.len()], vec![0.0; orders.len()]);
+            fft.analyze_transpose(&mut q, orders, &mut c, &mut s);
+            c.iter()
+                .zip(&s)
+                .map(|(c, s)| (2.0 * c / w, -2.0 * s / w))
+                .collect()
+        })
+        .collect()
+}
+
+/// Order `h`'s weighted least squares of the sessions' projections `z_k = α − β·u_k`,
+/// `u_k = e^{−ihΔ_k}` (`z` one projection per session, `centred` the rotations against the
+/// first): the complex amplitudes `α, β` A's and B's errors would have there, and the misfit
+/// `Σ_k W_k·|z_k − α + β·u_k|²` — what the sessions disagree on beyond any pair of harmonics.
+fn fit_order(
+    h: usize,
+    z: impl Fn(usize) -> (f64, f64),
+    centred: &[f64],
+    weights: &[f64],
+) -> ((f64, f64), (f64, f64), f64) {
+    let w: f64 = weights.iter().sum();
+    // [[W, −S], [−S̄, W]]·[α; β] = [Σ W_k z_k; −Σ W_k ū_k z_k], S = Σ W_k u_k.
+    let (mut s, mut p, mut r) = ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0));
+    for (k, &wk) in weights.iter().enumerate() {
+        let (sn, cs) = (h as f64 * centred[k]).sin_cos();
+        let u = (cs, -sn);
+        let zk = z(k);
+        s = (s.0 + wk * u.0, s.1 + wk * u.1);
+        p = (p.0 + wk * zk.0, p.1 + wk * zk.1);
+        // −ū·z = −(u.0 − i u.1)(z.0 + i z.1)
+        r = (
+            r.0 - wk * (u.0 * zk.0 + u.1 * zk.1),
+            r.1 - wk * (u.0 * zk.1 - u.1 * zk.0),
+        );
+    }
+    let det = w * w - s.0 * s.0 - s.1 * s.1;
+    // α = (W·P + S·R)/det, β = (S̄·P + W·R)/det
+    let alpha = (
+        (w * p.0 + s.0 * r.0 - s.1 * r.1) / det,
+        (w * p.1 + s.0 * r.1 + s.1 * r.0) / det,
+    );
+    let beta = (
+        (s.0 * p.0 + s.1 * p.1 + w * r.0) / det,
+        (s.0 * p.1 - s.1 * p.0 + w * r.1) / det,
+    );
+    let mut misfit = 0.0;
+    for (k, &wk) in weights.iter().enumerate() {
+        let (sn, cs) = (h as f64 * centred[k]).sin_cos();
+        let zk = z(k);
+        // α − β·u with u = (cs, −sn)
+        let fit = (
+            alpha.0 - (beta.0 * cs + beta.1 * sn),
+            alpha.1 - (beta.1 * cs - beta.0 * sn),
+        );
+        misfit += wk * ((zk.0 - fit.0).powi(2) + (zk.1 - fit.1).powi(2));
+    }
+    (alpha, beta, misfit)
+}
+
+/// The noise per sample to judge order `h` by: `σ`, or the sessions' own scatter at that order
+/// where it is significantly larger. Under noise alone `misfit` ([`fit_order`]) is
+/// `2σ²·χ²(ν)`, `ν = 2K − 4` for `K` sessions (each `z_k` has the variance `2σ²/W_k` per
+/// component; four real unknowns fitted), so `σ_h² = misfit/(2ν)` estimates `σ²`. Structure that
+/// differs from session to session — not a harmonic of either sensor, e.g. the quantization of a
+/// slowly turning sensor, whose residual depends on where each session's relative rotation puts
+/// B's quantum against A's — makes it larger. `σ_h` replaces `σ` when `σ_h²/σ²` exceeds the 99th
+/// percentile of `χ²(ν)/ν` (Wilson–Hilferty); with fewer than three sessions (`ν = 0`) `σ` is
+/// kept.
+///
+/// The noise need not be white: a coarse quantum makes the residual's spectrum uneven. So `σ`
+/// is first raised to `local`, the sessions' scatter averaged over the neighbouring orders
+/// ([`local_scatter`]) where that is larger: an order must stand out of the noise around it.
+fn order_noise(sigma: f64, misfit: f64, local: f64, sessions: usize) -> f64 {
+    let nu = (2 * sessions).saturating_sub(4);
+    if nu == 0 {
+        return sigma;
+    }
+    let sigma = sigma.max(local);
+    let nu = nu as f64;
+    let scatter = misfit / (2.0 * nu);
+    // 99th percentile of χ²(ν)/ν: (1 − 2/(9ν) + z·√(2/(9ν)))³, z = 2.326.
+    let c = 2.0 / (9.0 * nu);
+    let quantile = (1.0 - c + 2.326 * c.sqrt()).powi(3);
+    if scatter > quantile * sigma * sigma {
+        scatter.sqrt()
+    } else {
+        sigma
+    }
+}
+
+/// Half-width, in orders, of the window [`local_scatter`] averages over: 65 orders of `2K − 4`
+/// degrees of freedom each (≥ 130), so that under white noise the local figure is within about
+/// ±12 % of `σ` (two standard deviations) and raises it little.
+const LOCAL_ORDERS: usize = 32;
+
+/// For each of `misfits` (one per order of an ascending list), the scatter `misfit/(2ν)`
+/// averaged over the [`LOCAL_ORDERS`] entries on either side, as an RMS per sample (0 with
+/// fewer than three sessions).
+fn local_scatter(misfits: &[f64], sessions: usize) -> Vec<f64> {
+    let nu = (2 * sessions).saturating_sub(4);
+    if nu == 0 {
+        return vec![0.0; misfits.len()];
+    }
+    let mut prefix = vec![0.0; misfits.len() + 1];
+    for (i, m) in misfits.iter().enumerate() {
+        prefix[i + 1] = prefix[i] + m;
+    }
+    (0..misfits.len())
+        .map(|i| {
+            let lo = i.saturating_sub(LOCAL_ORDERS);
+            let hi = (i + LOCAL_ORDERS + 1).min(misfits.len());
+            ((prefix[hi] - prefix[lo]) / ((hi - lo) as f64 * 2.0 * nu as f64)).sqrt()
+        })
+        .collect()
+}
+
+/// The noise per sample to judge each fitted order by ([`order_noise`]), indexed by order − 1
+/// up to `max_order` (`σ` at orders not fitted).
+#[allow(clippy::too_many_arguments)]
+fn fitted_order_noise(
+    max_order: usize,
+    orders: &[usize],
+    ranges: &[std::ops::Range<usize>],
+    theta: &[f64],
+    n: &[f64],
+    residual: &[f64],
+    deltas: &[f64],
+    weights: &[f64],
+    sigma: f64,
+) -> Vec<f64> {
+    let mut noise = vec![sigma; max_order];
+    if sigma <= 0.0 || orders.is_empty() {
+        return noise;
+    }
+    let z = session_projections(ranges, theta, n, residual, weights, orders);
+    let centred: Vec<f64> = deltas.iter().map(|d| d - deltas[0]).collect();
+    let misfits: Vec<f64> = (0..orders.len())
+        .map(|i| fit_order(orders[i], |k| z[k][i], &centred, weights).2)
+        .collect();
+    let local = local_scatter(&misfits, weights.len());
+    for (i, &h) in orders.iter().enumerate() {
+        noise[h - 1] = order_noise(sigma, misfits[i], local[i], weights.len());
+    }
+    noise
 }
 
 /// The orders above the fitted ones that the residual holds (see [`solve`]).
@@ -611,65 +830,23 @@ fn residual_structure(
     if hi < lo || sigma <= 0.0 {
         return Vec::new();
     }
-    let grid = grid_points(hi);
-    let mut fft = GridTransform::new(grid);
-    let mut q = vec![0.0; grid];
     let tested: Vec<usize> = (lo..=hi).collect();
-    // z[k][i]: session k's projection on order tested[i], as (re, im).
-    let z: Vec<Vec<(f64, f64)>> = ranges
-        .iter()
-        .zip(weights)
-        .map(|(range, &w)| {
-            let st = Stencils::new(theta[range.clone()].iter().copied(), grid);
-            let values: Vec<f64> = n[range.clone()]
-                .iter()
-                .zip(&residual[range.clone()])
-                .map(|(n, r)| n * r)
-                .collect();
-            q.fill(0.0);
-            st.scatter(&values, &mut q);
-            let (mut c, mut s) = (vec![0.0; tested.len()], vec![0.0; tested.len()]);
-            fft.analyze_transpose(&mut q, &tested, &mut c, &mut s);
-            c.iter()
-                .zip(&s)
-                .map(|(c, s)| (2.0 * c / w, -2.0 * s / w))
-                .collect()
-        })
-        .collect();
+    let z = session_projections(ranges, theta, n, residual, weights, &tested);
     let centred: Vec<f64> = deltas.iter().map(|d| d - deltas[0]).collect();
     let threshold = crate::tdr::significance_threshold(2 * tested.len());
-    let w: f64 = weights.iter().sum();
+    let fits: Vec<_> = (0..tested.len())
+        .map(|i| fit_order(tested[i], |k| z[k][i], &centred, weights))
+        .collect();
+    let misfits: Vec<f64> = fits.iter().map(|f| f.2).collect();
+    let local = local_scatter(&misfits, weights.len());
     let mut found = Vec::new();
     for (i, &h) in tested.iter().enumerate() {
         if observability(h, &centred, weights) < opts.min_observability {
             continue;
         }
-        // Weighted least squares of z_k = α − β·u_k, u_k = e^{−ihΔ_k}:
-        // [[W, −S], [−S̄, W]]·[α; β] = [Σ W_k z_k; −Σ W_k ū_k z_k], S = Σ W_k u_k.
-        let (mut s, mut p, mut r) = ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0));
-        for (k, &wk) in weights.iter().enumerate() {
-            let (sn, cs) = (h as f64 * centred[k]).sin_cos();
-            let u = (cs, -sn);
-            let zk = z[k][i];
-            s = (s.0 + wk * u.0, s.1 + wk * u.1);
-            p = (p.0 + wk * zk.0, p.1 + wk * zk.1);
-            // −ū·z = −(u.0 − i u.1)(z.0 + i z.1)
-            r = (
-                r.0 - wk * (u.0 * zk.0 + u.1 * zk.1),
-                r.1 - wk * (u.0 * zk.1 - u.1 * zk.0),
-            );
-        }
-        let det = w * w - s.0 * s.0 - s.1 * s.1;
-        // α = (W·P + S·R)/det, β = (S̄·P + W·R)/det
-        let alpha = (
-            (w * p.0 + s.0 * r.0 - s.1 * r.1) / det,
-            (w * p.1 + s.0 * r.1 + s.1 * r.0) / det,
-        );
-        let beta = (
-            (s.0 * p.0 + s.1 * p.1 + w * r.0) / det,
-            (s.0 * p.1 - s.1 * p.0 + w * r.1) / det,
-        );
-        let var = coefficient_variance(h, &centred, weights, sigma);
+        let (alpha, beta, misfit) = fits[i];
+        let sigma_h = order_noise(sigma, misfit, local[i], weights.len());
+        let var = coefficient_variance(h, &centred, weights, sigma_h);
         let (a, b) = (alpha.0.hypot(alpha.1), beta.0.hypot(beta.1));
         if a * a / var > threshold || b * b / var > threshold {
             found.push(UnresolvedOrder { order: h, a, b });

@@ -117,6 +117,19 @@ pub enum CsrrError {
         /// Usable sessions.
         found: usize,
     },
+    /// The fit's residual is far above the readings' noise: the maps cannot explain the data.
+    #[error(
+        "the fit leaves {residual_arcsec:.4}″ RMS per sample where the sessions repeat to {noise_arcsec:.4}″ from one revolution \
+         to the next (more than 10× the noise): the maps cannot explain the data. Most likely the error lies in orders these \
+         sessions cannot see (every relative rotation a multiple of the same angle) or the relative angle drifts within \
+         sessions; record sessions at relative rotations that are not all multiples of one angle"
+    )]
+    Unexplained {
+        /// RMS of the fit's residual per sample, arcsec.
+        residual_arcsec: f64,
+        /// The sessions' repeatability from one revolution to the next, arcsec per sample.
+        noise_arcsec: f64,
+    },
     /// The solve produced non-finite numbers (degenerate data).
     #[error(
         "the solve produced non-finite values: the data are degenerate (check that both channels carry real readings)"
@@ -507,6 +520,33 @@ fn finish_joint(
         warnings.push(w);
     }
     let maps = joint_maps(&sol, &screen, opts.points);
+    if screen.kept.is_empty() {
+        let u = maps.uncertainty.0.max().max(maps.uncertainty.1.max());
+        warnings.push(format!(
+            "no order above the noise: the map is zero within u = {:.4}″ (orders 1–{max_order} tested, none kept; \
+             the detection limit is {:.4}″ of amplitude)",
+            u * ARCSEC_PER_RAD,
+            screen.detection_limit * ARCSEC_PER_RAD
+        ));
+    }
+    if let Some(repeat) = segmentation.repeatability {
+        match residual_verdict(sol.residual_rms, repeat, !screen.kept.is_empty()) {
+            Verdict::Explained => {}
+            Verdict::Above(ratio) => warnings.push(format!(
+                "the fit leaves {:.4}″ RMS per sample where the sessions repeat to {:.4}″ from one revolution to the next \
+                 ({ratio:.1}× the noise): the maps do not explain all of the data (errors in orders the sessions cannot see, \
+                 a drift within sessions, or a lag between the channels)",
+                sol.residual_rms * ARCSEC_PER_RAD,
+                repeat * ARCSEC_PER_RAD
+            )),
+            Verdict::Unexplained(_) => {
+                return Err(CsrrError::Unexplained {
+                    residual_arcsec: sol.residual_rms * ARCSEC_PER_RAD,
+                    noise_arcsec: repeat * ARCSEC_PER_RAD,
+                });
+            }
+        }
+    }
     Ok(Calibration {
         method: Method::Joint,
         a_series: maps.a_series,
@@ -528,6 +568,50 @@ fn finish_joint(
         uncertainty: Some(maps.uncertainty),
         warnings,
     })
+}
+
+/// How far the fit's residual is from the readings' noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Verdict {
+    /// Within [`RESIDUAL_WARN_RATIO`] of the noise, or below [`RESIDUAL_FLOOR_ARCSEC`].
+    Explained,
+    /// Above it by this ratio: a warning.
+    Above(f64),
+    /// Above [`RESIDUAL_FAIL_RATIO`] times the noise with no order kept: the maps cannot
+    /// explain the data.
+    Unexplained(f64),
+}
+
+/// A fit residual above this many times the sessions' repeatability is warned about. The
+/// repeatability (`Segmentation::repeatability`) measures the readings' noise without any model
+/// and a little above it (it includes the curvature of `d` between samples), and the residual of
+/// a fit that explains the data is that noise: ≈ 1×. Three times is structure the maps lack that
+/// is larger than the noise itself.
+pub const RESIDUAL_WARN_RATIO: f64 = 3.0;
+
+/// A fit residual above this many times the sessions' repeatability, with no order kept, is an
+/// error (exit 1): the maps (zero) explain none of what the data hold beyond the noise — e.g.
+/// every session at a multiple of the same angle with the error all in the orders that this
+/// makes blind. Where some orders are kept the maps hold those and the excess is a warning
+/// (with the blind orders named and the advice that reveals them).
+pub const RESIDUAL_FAIL_RATIO: f64 = 10.0;
+
+/// A residual below this, arcsec per sample, explains the data whatever the ratio (noise-free
+/// simulations, where the repeatability is only rounding).
+pub const RESIDUAL_FLOOR_ARCSEC: f64 = 0.01;
+
+fn residual_verdict(residual: f64, repeatability: f64, kept: bool) -> Verdict {
+    if residual * ARCSEC_PER_RAD < RESIDUAL_FLOOR_ARCSEC {
+        return Verdict::Explained;
+    }
+    let ratio = residual / repeatability.max(f64::MIN_POSITIVE);
+    if ratio > RESIDUAL_FAIL_RATIO && !kept {
+        Verdict::Unexplained(ratio)
+    } else if ratio > RESIDUAL_WARN_RATIO {
+        Verdict::Above(ratio)
+    } else {
+        Verdict::Explained
+    }
 }
 
 /// The joint fit of the orders that stand above the noise: every observable order up to the
@@ -620,6 +704,9 @@ struct Screen {
     kept_variance: Vec<f64>,
     /// RMS over the circle of what the dropped orders hold in A's and B's errors, rad.
     dropped: (f64, f64),
+    /// The detection limit of the orders tested, rad: the smallest amplitude an order must have
+    /// to be kept, `sqrt(threshold·v_h)` at the best-determined order.
+    detection_limit: f64,
 }
 
 /// The significance rule for CSRR (`docs/uncertainty.md`): order `h`, fitted with all the
@@ -628,8 +715,12 @@ struct Screen {
 /// [`crate::tdr`] ([`crate::tdr::significance_threshold`], `α` =
 /// [`crate::tdr::FALSE_ORDER_PROBABILITY`]) over the `2M` pairs of the `M` orders tested, with
 /// `v_h = σ²·2W/(W² − |S_h|²)` the variance of each coefficient from the fit's per-order block
-/// ([`observability::coefficient_variance`], `σ` the noise per sample from the bins' residuals).
-/// For noise alone the chance that any order is kept is below `α`.
+/// ([`observability::coefficient_variance`], `σ` the noise per sample from the bins' residuals,
+/// or at an order where the sessions disagree significantly more than that, their scatter:
+/// [`joint::JointSolution::order_noise`]). For noise alone the chance that any order is kept
+/// is below `α`; structure that differs from session to session (the quantization of a slowly
+/// turning sensor) is not taken for a harmonic, and where it is kept it carries its scatter in
+/// `u`.
 ///
 /// What the dropped orders hold together is estimated per sensor from `P = Σ_dropped (|x|² −
 /// 2v_h)`, the unbiased estimate of their power, and `s_P` its standard deviation
@@ -647,8 +738,12 @@ fn screen_orders(fit: &joint::JointSolution, weights: &[f64]) -> Screen {
     let mut kept = Vec::new();
     let mut kept_variance = Vec::new();
     let mut power = [(0.0, 0.0); 2];
+    let mut v_min = f64::INFINITY;
     for &h in &fitted {
-        let v = observability::coefficient_variance(h, &centred, weights, fit.noise_rms);
+        let v = observability::coefficient_variance(h, &centred, weights, fit.order_noise[h - 1]);
+        if v.is_finite() && v >= 0.0 {
+            v_min = v_min.min(v);
+        }
         let xa = fit.a.cos[h - 1].powi(2) + fit.a.sin[h - 1].powi(2);
         let xb = fit.b.cos[h - 1].powi(2) + fit.b.sin[h - 1].powi(2);
         // σ = 0 (noise-free data): every order stands above the noise.
@@ -677,6 +772,11 @@ fn screen_orders(fit: &joint::JointSolution, weights: &[f64]) -> Screen {
         kept,
         kept_variance,
         dropped: (rms(power[0]), rms(power[1])),
+        detection_limit: if v_min.is_finite() {
+            (threshold * v_min).sqrt()
+        } else {
+            0.0
+        },
     }
 }
 
@@ -712,11 +812,13 @@ fn joint_maps(sol: &joint::JointSolution, screen: &Screen, points: Option<usize>
     let uncertainty = (
         map_uncertainty(
             [u_fit, screen.dropped.0, missing(|u| u.a)],
+            detection_floor(screen.detection_limit),
             &a_series,
             points,
         ),
         map_uncertainty(
             [u_fit, screen.dropped.1, missing(|u| u.b)],
+            detection_floor(screen.detection_limit),
             &b_series,
             points,
         ),
@@ -745,8 +847,17 @@ fn joint_maps(sol: &joint::JointSolution, screen: &Screen, points: Option<usize>
 /// - the linear interpolation of the table between its points ([`interpolation_uncertainty`],
 ///   Type B).
 ///
+/// `u` is never below `floor`, what the test could have missed ([`detection_floor`]): it is
+/// listed in the budget by name and applied as a lower bound, not added in quadrature (where
+/// the kept orders' noise already exceeds it, it is inside `u`).
+///
 /// See `docs/uncertainty.md`.
-pub fn map_uncertainty(u: [f64; 3], series: &FourierSeries, points: usize) -> MapUncertainty {
+pub fn map_uncertainty(
+    u: [f64; 3],
+    floor: f64,
+    series: &FourierSeries,
+    points: usize,
+) -> MapUncertainty {
     let names = [
         "noise of the readings propagated through the joint fit",
         "orders below the significance threshold, left out of the map",
@@ -768,7 +879,29 @@ pub fn map_uncertainty(u: [f64; 3], series: &FourierSeries, points: usize) -> Ma
         evaluation: Evaluation::TypeB,
         u: vec![interpolation_uncertainty(&series.harmonics(), points)],
     });
-    MapUncertainty::combine(points, components)
+    let mut combined = MapUncertainty::combine(points, components);
+    if floor > 0.0 {
+        combined.u.iter_mut().for_each(|u| *u = u.max(floor));
+        combined.components.push(MapComponent {
+            name: DETECTION_FLOOR.into(),
+            evaluation: Evaluation::TypeB,
+            u: vec![floor],
+        });
+    }
+    combined
+}
+
+/// The name of the floor of a self-calibration's `u` in its budget ([`detection_floor`]).
+pub const DETECTION_FLOOR: &str =
+    "floor: detection limit of the orders tested (u is never below it)";
+
+/// The floor of a CSRR map's `u` for what the significance rule tested and did not find: one
+/// harmonic below the detection limit `A_det` of the best-determined order
+/// ([`screen_orders`]: `A_det = sqrt(2·ln(2M/α)·v_h)`), its amplitude anywhere in `[0, A_det]`
+/// (rectangular) and its phase unknown, has the standard uncertainty `A_det/√6` over the circle
+/// (`E[a²]/2 = A_det²/6`). Issue 30: a map with no kept order is not "zero with u = 0".
+pub fn detection_floor(detection_limit: f64) -> f64 {
+    detection_limit / 6f64.sqrt()
 }
 
 fn finish_paper(

@@ -185,6 +185,8 @@ impl Calibration {
         let mut channels = BTreeMap::new();
         for (name, map, is_a) in [(a, &self.a, true), (b, &self.b, false)] {
             let mut ch = ChannelReport::of_map(&crate::report::table_name(name), map, 10);
+            // A map with no kept order lists no harmonics of zero amplitude.
+            ch.harmonics.retain(|h| h.amplitude_arcsec > 0.0);
             ch.after_correction = self.after_correction(truth, is_a);
             channels.insert(name.to_string(), ch);
         }

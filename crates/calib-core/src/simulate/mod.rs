@@ -111,7 +111,8 @@
 //! ramp_s = 1.0              # raised-cosine speed ramp at each start and stop
 //! pause_s = 1.0             # at rest before/after each session and after each turn
 //! turn_s = 2.0              # relative turn of rotor A, shaft at rest
-//! ## or per session: [[procedure.sessions]] with relative_deg and optional revolutions
+//! ## or per session: [[procedure.sessions]] with relative_deg and optional revolutions,
+//! ## speed_rpm and backward = true (the shaft turns the other way)
 //! "#)?;
 //! scenario.validate()?;
 //! assert_eq!(scenario.channels().len(), 3);
@@ -272,13 +273,16 @@ impl Scenario {
 
     /// The CSRR procedure's timeline.
     fn timeline(&self) -> Timeline {
+        let speeds = self.procedure.session_speeds_rpm(self.speed_rpm);
         let sessions: Vec<SessionPlan> = self
             .procedure
             .resolved_sessions()
             .into_iter()
-            .map(|(deg, revolutions)| SessionPlan {
+            .zip(speeds)
+            .map(|((deg, revolutions), rpm)| SessionPlan {
                 delta: deg / DEG_PER_RAD,
                 revolutions,
+                omega: Some(rpm * TAU / 60.0),
             })
             .collect();
         let modulation = self.modulation();

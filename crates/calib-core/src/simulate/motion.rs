@@ -37,6 +37,8 @@ struct Segment {
     delta1: f64,
     /// The session whose constant-speed revolutions this segment holds.
     session: Option<u32>,
+    /// The session's cruise speed, rad/s, signed: negative when the shaft turns backwards.
+    omega: f64,
 }
 
 impl Segment {
@@ -45,11 +47,13 @@ impl Segment {
     }
 }
 
-/// One session as the timeline needs it: relative rotation (rad) and revolutions.
+/// One session as the timeline needs it: relative rotation (rad), revolutions, and its cruise
+/// speed (rad/s, signed: negative turns the shaft backwards; `None`: the timing's).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SessionPlan {
     pub(crate) delta: f64,
     pub(crate) revolutions: f64,
+    pub(crate) omega: Option<f64>,
 }
 
 /// The procedure's timing, all in seconds; `omega` in rad/s.
@@ -77,7 +81,6 @@ pub(crate) struct State {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Timeline {
     segments: Vec<Segment>,
-    omega: f64,
     modulation: FastSeries,
     powers: Powers,
     /// Index of the segment of the last lookup: time mostly moves forward by one sample.
@@ -92,7 +95,7 @@ impl Timeline {
         let mut segments = Vec::new();
         let (mut t, mut phi) = (0.0, 0.0);
         let mut delta = sessions.first().map_or(0.0, |s| s.delta);
-        let mut push = |kind, duration: f64, delta1: f64, session| {
+        let mut push = |kind, duration: f64, delta1: f64, session, omega: f64| {
             if duration > 0.0 {
                 segments.push(Segment {
                     kind,
@@ -102,34 +105,35 @@ impl Timeline {
                     delta0: delta,
                     delta1,
                     session,
+                    omega,
                 });
             }
             t += duration;
             // A ramp covers half the distance constant speed would (mean of the raised cosine).
             phi += match kind {
-                Kind::RampUp | Kind::RampDown => 0.5 * timing.omega * duration,
-                Kind::Cruise => timing.omega * duration,
+                Kind::RampUp | Kind::RampDown => 0.5 * omega * duration,
+                Kind::Cruise => omega * duration,
                 Kind::Still | Kind::Turn => 0.0,
             };
             delta = delta1;
         };
         let first = sessions.first().map_or(0.0, |s| s.delta);
-        push(Kind::Still, timing.pause_s, first, None);
+        push(Kind::Still, timing.pause_s, first, None, 0.0);
         for (k, s) in sessions.iter().enumerate() {
             if k > 0 {
-                push(Kind::Turn, timing.turn_s, s.delta, None);
-                push(Kind::Still, timing.pause_s, s.delta, None);
+                push(Kind::Turn, timing.turn_s, s.delta, None, 0.0);
+                push(Kind::Still, timing.pause_s, s.delta, None, 0.0);
             }
-            let cruise = s.revolutions * std::f64::consts::TAU / timing.omega;
+            let omega = s.omega.unwrap_or(timing.omega);
+            let cruise = s.revolutions * std::f64::consts::TAU / omega.abs();
             let session = u32::try_from(k).ok();
-            push(Kind::RampUp, timing.ramp_s, s.delta, None);
-            push(Kind::Cruise, cruise, s.delta, session);
-            push(Kind::RampDown, timing.ramp_s, s.delta, None);
-            push(Kind::Still, timing.pause_s, s.delta, None);
+            push(Kind::RampUp, timing.ramp_s, s.delta, None, omega);
+            push(Kind::Cruise, cruise, s.delta, session, omega);
+            push(Kind::RampDown, timing.ramp_s, s.delta, None, omega);
+            push(Kind::Still, timing.pause_s, s.delta, None, 0.0);
         }
         Timeline {
             segments,
-            omega: timing.omega,
             modulation: FastSeries::new(&modulation),
             powers: Powers::default(),
             cursor: 0,
@@ -170,7 +174,7 @@ impl Timeline {
         }
         let seg = self.segments[self.cursor];
         let u = ((t - seg.t0) / seg.duration).clamp(0.0, 1.0);
-        let run = self.omega * seg.duration;
+        let run = seg.omega * seg.duration;
         let (phi, delta) = match seg.kind {
             Kind::Still => (seg.phi0, seg.delta0),
             Kind::RampUp => (
@@ -207,10 +211,12 @@ mod tests {
                 SessionPlan {
                     delta: 0.0,
                     revolutions: 2.0,
+                    omega: None,
                 },
                 SessionPlan {
                     delta: 1.0,
                     revolutions: 1.0,
+                    omega: None,
                 },
             ],
             Timing {
@@ -241,6 +247,29 @@ mod tests {
         // Clamped outside the run, and the cursor also walks backwards.
         assert_eq!(tl.state(100.0).theta_b, tl.state(7.0).theta_b);
         assert_eq!(tl.state(-1.0).theta_b, 0.0);
+    }
+
+    #[test]
+    fn a_backward_session_at_its_own_speed() {
+        let mut tl = Timeline::new(
+            &[SessionPlan {
+                delta: 0.0,
+                revolutions: 1.0,
+                omega: Some(-0.5 * TAU),
+            }],
+            Timing {
+                omega: TAU,
+                ramp_s: 0.5,
+                pause_s: 0.25,
+                turn_s: 1.0,
+            },
+            Vec::new(),
+        );
+        // pause .25, ramp .5 (−⅛ turn), cruise 2 s (−1 turn), ramp .5, pause .25.
+        assert_eq!(tl.session_windows(), [(0.75, 2.75)]);
+        assert!((tl.state(0.75).theta_b + 0.125 * TAU).abs() < 1e-12);
+        assert!((tl.state(2.75).theta_b + 1.125 * TAU).abs() < 1e-12);
+        assert!((tl.state(10.0).theta_b + 1.25 * TAU).abs() < 1e-12);
     }
 
     #[test]

@@ -327,9 +327,31 @@ pub struct SessionSpec {
     /// Constant-speed revolutions (default: the procedure's `revolutions`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub revolutions: Option<f64>,
+    /// This session's cruise speed, revolutions per minute (> 0; default: the scenario's
+    /// `speed_rpm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_rpm: Option<f64>,
+    /// The shaft turns backwards (its readings decrease) in this session (default `false`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub backward: bool,
 }
 
 impl Procedure {
+    /// Each session's signed cruise speed, revolutions per minute (negative: backwards), from
+    /// its `speed_rpm` and `backward`, `default_rpm` where it gives none.
+    pub fn session_speeds_rpm(&self, default_rpm: f64) -> Vec<f64> {
+        if self.sessions.is_empty() {
+            return vec![default_rpm; self.relative_deg.len()];
+        }
+        self.sessions
+            .iter()
+            .map(|s| {
+                let rpm = s.speed_rpm.unwrap_or(default_rpm);
+                if s.backward { -rpm } else { rpm }
+            })
+            .collect()
+    }
+
     /// The sessions as `(relative_deg, revolutions)`, from whichever form the file used.
     pub fn resolved_sessions(&self) -> Vec<(f64, f64)> {
         if self.sessions.is_empty() {
@@ -673,6 +695,16 @@ impl Scenario {
                 *revs > 0.0,
                 "> 0",
             )?;
+        }
+        for (k, rpm) in p.sessions.iter().enumerate() {
+            if let Some(rpm) = rpm.speed_rpm {
+                check(
+                    || format!("procedure session {} speed_rpm", k + 1),
+                    rpm,
+                    rpm > 0.0,
+                    "> 0 (turn a session backwards with `backward = true`)",
+                )?;
+            }
         }
         Ok(())
     }
