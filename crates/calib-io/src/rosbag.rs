@@ -500,8 +500,8 @@ fn merge_mcap(
         let mut stream =
             records::Stream::new(std::io::BufReader::new(input), options, skip_damaged);
         let last = k + 1 == files.len();
-        let mut index = 0u64;
-        for message in stream.by_ref() {
+        for (index, message) in stream.by_ref().enumerate() {
+            let index = index as u64;
             let message = match message {
                 Ok(message) => message,
                 Err(records::StreamError::Mcap(mcap::McapError::UnexpectedEof)) if last => {
@@ -529,7 +529,6 @@ fn merge_mcap(
                     });
                 }
             };
-            index += 1;
             let c = &message.channel;
             let schema = c.schema.as_ref();
             let key = (

@@ -23,7 +23,7 @@ const JOINT_STATE: &str = "sensor_msgs/msg/JointState";
 fn joint_state(stamp_ns: u64, names: &[&str], positions: &[f64]) -> Vec<u8> {
     let mut out = vec![0, 1, 0, 0];
     let align = |out: &mut Vec<u8>, n: usize| {
-        while !(out.len() - 4).is_multiple_of(n) {
+        while (out.len() - 4) % n != 0 {
             out.push(0);
         }
     };
