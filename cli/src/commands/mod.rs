@@ -7,6 +7,7 @@ pub mod csrr;
 pub mod export;
 pub mod inspect;
 pub mod multihead;
+pub mod plan;
 pub mod reference;
 pub mod shift_angle;
 pub mod simulate;
@@ -31,5 +32,6 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Tdr(args) => tdr::run(&args),
         Command::Apply(args) => apply::run(&args),
         Command::Compose(args) => compose::run(&args),
+        Command::Plan(args) => plan::run(&args),
     }
 }

@@ -6,5 +6,7 @@
 //! observability and its `u`, evaluated on the planned set-up instead of a recorded one:
 //!
 //! - [`csrr`]: the relative rotations `Δ_k` (CSRR paper, eqs. 5–7).
+//! - [`multihead`]: the head positions (shift-angle paper, eqs. 8–9; SelfA's head sets).
 pub mod csrr;
+pub mod multihead;
 pub(crate) mod search;
