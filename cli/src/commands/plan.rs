@@ -5,6 +5,7 @@ use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::plan::csrr::{CsrrPlan, CsrrPlanOptions, CsrrRig};
+use calib_core::plan::multihead::MultiheadPlan;
 use serde_json::json;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -39,6 +40,49 @@ pub enum Method {
     /// names their blind orders. Prints the rotations, the worst orders, and per order the noise
     /// gain and the u it adds to either map for the given noise and samples per session.
     Csrr(CsrrArgs),
+    /// Multi-head: where to place K heads on one scale so that every order up to N is seen.
+    ///
+    /// Proposes head angles (the first at 0°; multiples of --step if given) that maximize, over
+    /// orders 1..N, the worst observability of the joint multi-head method,
+    /// o_h = Σ_j |e^{ihψ_j} − 1|²/(2K). With --positions it evaluates the given placement
+    /// instead and names its blind orders (SelfA's 3/4/7-head sets: the multiples of 84). Prints
+    /// the placement, the worst orders, and the map's u for the given noise and revolutions.
+    Multihead(MultiheadArgs),
+}
+
+/// `calib plan multihead`.
+#[derive(Debug, clap::Args, PartialEq)]
+pub struct MultiheadArgs {
+    /// Heads in all (the first at 0°).
+    #[arg(long, value_name = "K", required_unless_present = "positions")]
+    pub heads: Option<usize>,
+    /// The highest order the map must hold.
+    #[arg(long, value_name = "N")]
+    pub max_order: usize,
+    /// The step of the mounting holes, degrees: every proposed angle is a multiple of it.
+    #[arg(long, value_name = "DEG", conflicts_with = "positions")]
+    pub step: Option<f64>,
+    /// Evaluate these head angles (degrees, the first the reference) instead of proposing some.
+    #[arg(long, value_delimiter = ',', value_name = "DEG,...")]
+    pub positions: Vec<f64>,
+    /// Sample rate of the recording, Hz.
+    #[arg(long, default_value_t = 400.0, value_name = "HZ")]
+    pub rate: f64,
+    /// Speed of the scale, r/min.
+    #[arg(long, default_value_t = 10.0, value_name = "RPM")]
+    pub rpm: f64,
+    /// Constant-speed revolutions recorded.
+    #[arg(long, default_value_t = 3.0, value_name = "REVS")]
+    pub revolutions: f64,
+    /// Each head's reading noise, arcsec.
+    #[arg(long, default_value_t = 0.01, value_name = "ARCSEC")]
+    pub noise: f64,
+    /// Each head's resolution, arcsec.
+    #[arg(long, default_value_t = 0.01, value_name = "ARCSEC")]
+    pub resolution: f64,
+    /// Print the plan as JSON (positions_deg, blind_orders, every order's observability and u).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `calib plan csrr`.
@@ -97,6 +141,7 @@ const TURN_S: f64 = 2.0;
 pub fn run(args: &Args) -> anyhow::Result<String> {
     match &args.method {
         Method::Csrr(a) => csrr(a),
+        Method::Multihead(a) => multihead(a),
     }
 }
 
@@ -205,6 +250,119 @@ fn csrr(args: &CsrrArgs) -> anyhow::Result<String> {
     for path in written {
         let _ = writeln!(out, "wrote {}", path.display());
     }
+    Ok(out)
+}
+
+fn multihead(args: &MultiheadArgs) -> anyhow::Result<String> {
+    let usage = |m: String| anyhow::Error::new(Usage(m));
+    for (name, v) in [
+        ("--rate", args.rate),
+        ("--rpm", args.rpm),
+        ("--revolutions", args.revolutions),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(usage(format!("{name} must be a positive number, not {v}")));
+        }
+    }
+    for (name, v) in [("--noise", args.noise), ("--resolution", args.resolution)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(usage(format!("{name} must be ≥ 0 arcsec, not {v}")));
+        }
+    }
+    let samples = args.revolutions * args.rate * 60.0 / args.rpm;
+    let sigma = (args.noise.powi(2) + args.resolution.powi(2) / 12.0).sqrt() / ARCSEC_PER_RAD;
+    let proposed = args.positions.is_empty();
+    let plan = if proposed {
+        let heads = args.heads.unwrap_or(0);
+        calib_core::plan::multihead::plan(
+            heads,
+            args.max_order,
+            args.step.map(f64::to_radians),
+            samples,
+            sigma,
+        )
+        .map_err(|e| usage(e.to_string()))?
+    } else {
+        if args.positions.len() < 2 || args.positions.iter().any(|p| !p.is_finite()) {
+            return Err(usage(
+                "--positions needs at least two head angles in degrees".into(),
+            ));
+        }
+        if args.heads.is_some_and(|k| k != args.positions.len()) {
+            return Err(usage(format!(
+                "--heads {} but --positions gives {} angles",
+                args.heads.unwrap_or(0),
+                args.positions.len()
+            )));
+        }
+        if args.max_order == 0 || args.max_order > calib_core::plan::csrr::MAX_PLANNED_ORDER {
+            return Err(usage(format!(
+                "--max-order must be in 1..={}, not {}",
+                calib_core::plan::csrr::MAX_PLANNED_ORDER,
+                args.max_order
+            )));
+        }
+        let positions: Vec<f64> = args.positions.iter().map(|d| d.to_radians()).collect();
+        MultiheadPlan::of(&positions, args.max_order, samples, sigma)
+    };
+    let worst = plan.worst();
+    if args.json {
+        let value = json!({
+            "method": "multihead",
+            "proposed": proposed,
+            "positions_deg": plan.positions.iter().map(|d| d.to_degrees()).collect::<Vec<_>>(),
+            "max_order": plan.orders.len(),
+            "blind_orders": plan.blind_orders,
+            "worst_observability": worst.map(|o| o.observability),
+            "worst_order": worst.map(|o| o.order),
+            "samples": plan.samples,
+            "noise_per_sample_arcsec": plan.sigma * ARCSEC_PER_RAD,
+            "u_fit_arcsec": plan.u_fit() * ARCSEC_PER_RAD,
+            "orders": plan.orders.iter().map(|o| json!({
+                "order": o.order,
+                "observability": o.observability,
+                "u_arcsec": finite(o.u * ARCSEC_PER_RAD),
+            })).collect::<Vec<_>>(),
+        });
+        return Ok(serde_json::to_string_pretty(&value)? + "\n");
+    }
+    let mut out = String::new();
+    let n = plan.orders.len();
+    let _ = writeln!(
+        out,
+        "multi-head plan: {} heads, orders 1–{n}",
+        plan.positions.len()
+    );
+    let _ = writeln!(
+        out,
+        "  head angles ({}): {} °",
+        if proposed { "proposed" } else { "given" },
+        degrees(&plan.positions)
+    );
+    if let Some(w) = worst {
+        let _ = writeln!(
+            out,
+            "  worst observability {:.4} (order {})",
+            w.observability, w.order
+        );
+    }
+    if plan.blind_orders.is_empty() {
+        let _ = writeln!(out, "  blind orders: none up to {n}");
+    } else {
+        let _ = writeln!(
+            out,
+            "  blind orders (the method leaves them out of the map): {}",
+            list(&plan.blind_orders)
+        );
+    }
+    let _ = writeln!(
+        out,
+        "  u of the map from the noise: {:.5}″ ({:.4}″ per head and sample, {:.0} samples, \
+         every order up to {n} not left out)",
+        plan.u_fit() * ARCSEC_PER_RAD,
+        plan.sigma * ARCSEC_PER_RAD,
+        plan.samples
+    );
     Ok(out)
 }
 
@@ -413,6 +571,7 @@ mod tests {
         use clap::Parser;
         match P::try_parse_from(std::iter::once("plan").chain(v)).unwrap().m {
             Method::Csrr(a) => a,
+            Method::Multihead(_) => unreachable!("parsed csrr"),
         }
     }
 
@@ -428,6 +587,28 @@ mod tests {
         assert!(v["orders"][89]["u_arcsec"].is_null());
         let text = csrr(&CsrrArgs { json: false, ..a }).unwrap();
         assert!(text.contains("blind orders (the method leaves them out of the maps): 90"), "{text}");
+    }
+
+    #[test]
+    fn selfa_placement_is_blind_at_84() {
+        let a = MultiheadArgs {
+            heads: None,
+            max_order: 100,
+            step: None,
+            positions: vec![
+                0.0, 120.0, 240.0, 90.0, 180.0, 270.0, 51.428571428571, 102.857142857143,
+                154.285714285714, 205.714285714286, 257.142857142857, 308.571428571429,
+            ],
+            rate: 400.0,
+            rpm: 10.0,
+            revolutions: 3.0,
+            noise: 0.01,
+            resolution: 0.01,
+            json: true,
+        };
+        let v: serde_json::Value = serde_json::from_str(&multihead(&a).unwrap()).unwrap();
+        assert_eq!(v["blind_orders"], json!([84]));
+        assert_eq!(v["positions_deg"].as_array().unwrap().len(), 12);
     }
 
     #[test]
