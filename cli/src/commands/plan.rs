@@ -95,7 +95,12 @@ pub struct CsrrArgs {
     #[arg(long, default_value_t = 5, value_name = "K")]
     pub sessions: usize,
     /// Relative rotations to keep, degrees (default 0): the others are planned around them.
-    #[arg(long, value_delimiter = ',', value_name = "DEG,...", conflicts_with = "deltas")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "DEG,...",
+        conflicts_with = "deltas"
+    )]
     pub fixed: Vec<f64>,
     /// The step of the mechanism that sets the relative rotation, degrees: every proposed
     /// rotation is a multiple of it.
@@ -174,7 +179,9 @@ fn csrr(args: &CsrrArgs) -> anyhow::Result<String> {
         ));
     }
     if args.deltas.iter().any(|d| !d.is_finite()) {
-        return Err(usage("--deltas: every rotation must be a number of degrees".into()));
+        return Err(usage(
+            "--deltas: every rotation must be a number of degrees".into(),
+        ));
     }
     let rig = CsrrRig {
         rate_hz: args.rate,
@@ -463,7 +470,9 @@ fn render_csrr(
         "  u of each map from the noise: {:.4}″ {}",
         u_map * ARCSEC_PER_RAD,
         if all_orders {
-            format!("if every order up to {n} stands above the noise (an upper bound; --orders for yours)")
+            format!(
+                "if every order up to {n} stands above the noise (an upper bound; --orders for yours)"
+            )
         } else {
             format!("for orders {}", list(orders))
         }
@@ -520,7 +529,10 @@ fn render_csrr_procedure(plan: &CsrrPlan, rig: &CsrrRig, max_order: usize) -> St
          (about {TURN_S} s) and pause {PAUSE_S} s. Sessions are found from the motion.\n",
         rig.rate_hz, rig.revolutions, rig.speed_rpm, session_s
     );
-    let _ = writeln!(out, "| session | relative rotation Δ | turn rotor A by | revolutions | speed |");
+    let _ = writeln!(
+        out,
+        "| session | relative rotation Δ | turn rotor A by | revolutions | speed |"
+    );
     let _ = writeln!(out, "|---|---|---|---|---|");
     let mut previous = plan.deltas[0];
     for (k, &d) in plan.deltas.iter().enumerate() {
@@ -569,7 +581,10 @@ mod tests {
             m: Method,
         }
         use clap::Parser;
-        match P::try_parse_from(std::iter::once("plan").chain(v)).unwrap().m {
+        match P::try_parse_from(std::iter::once("plan").chain(v))
+            .unwrap()
+            .m
+        {
             Method::Csrr(a) => a,
             Method::Multihead(_) => unreachable!("parsed csrr"),
         }
@@ -583,10 +598,16 @@ mod tests {
         assert_eq!(v["blind_orders"], json!([90]));
         assert_eq!(v["deltas_deg"].as_array().unwrap().len(), 5);
         assert_eq!(v["orders"].as_array().unwrap().len(), 90);
-        assert_eq!(v["orders"][89]["observability"].as_f64().unwrap() < 1e-9, true);
+        assert_eq!(
+            v["orders"][89]["observability"].as_f64().unwrap() < 1e-9,
+            true
+        );
         assert!(v["orders"][89]["u_arcsec"].is_null());
         let text = csrr(&CsrrArgs { json: false, ..a }).unwrap();
-        assert!(text.contains("blind orders (the method leaves them out of the maps): 90"), "{text}");
+        assert!(
+            text.contains("blind orders (the method leaves them out of the maps): 90"),
+            "{text}"
+        );
     }
 
     #[test]
@@ -596,8 +617,18 @@ mod tests {
             max_order: 100,
             step: None,
             positions: vec![
-                0.0, 120.0, 240.0, 90.0, 180.0, 270.0, 51.428571428571, 102.857142857143,
-                154.285714285714, 205.714285714286, 257.142857142857, 308.571428571429,
+                0.0,
+                120.0,
+                240.0,
+                90.0,
+                180.0,
+                270.0,
+                51.428571428571,
+                102.857142857143,
+                154.285714285714,
+                205.714285714286,
+                257.142857142857,
+                308.571428571429,
             ],
             rate: 400.0,
             rpm: 10.0,

@@ -97,7 +97,7 @@ impl Example {
                      # autocollimator's readings, one row per shift, start face and step\n\
                      # (eq. 3 of Hsieh, Watanabe, Hsu 2022), read by `calib shift-angle FILE`.\n\
                      # These are the first rows of testdata/shift-angle/readings.csv (24 faces);\n\
-                     # `calib plan shift-angle` writes a blank table for the planned shifts.\n",
+                     # Columns: shift angle (degrees), start face, step i = 1..n, reading (arcsec).\n",
                 );
                 for line in readings.lines().take(30) {
                     out.push_str(line);

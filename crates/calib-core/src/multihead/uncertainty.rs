@@ -46,7 +46,10 @@ pub(super) fn fit_noise(
                 .collect()
         })
         .collect();
-    let var: f64 = orders.iter().map(|&h| order_variance(&g, &weights(h))).sum();
+    let var: f64 = orders
+        .iter()
+        .map(|&h| order_variance(&g, &weights(h)))
+        .sum();
     var.max(0.0).sqrt()
 }
 

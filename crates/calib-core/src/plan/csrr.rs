@@ -26,9 +26,9 @@
 //! The variance `v_h` assumes readings spread uniformly over the circle and equal noise in every
 //! session, as the method's own `u` does; orders above `N` are not planned for.
 
-use crate::csrr::{CsrrOptions, coefficient_variance, observability};
 use super::search::Search;
 use crate::angle::ARCSEC_PER_RAD;
+use crate::csrr::{CsrrOptions, coefficient_variance, observability};
 use crate::simulate::{Mount, Procedure, Scenario, Sensor};
 use std::f64::consts::TAU;
 
@@ -159,7 +159,9 @@ pub enum PlanError {
         expected: &'static str,
     },
     /// More fixed rotations than sessions.
-    #[error("{fixed} fixed rotations but only {sessions} sessions: ask for at least {fixed} sessions")]
+    #[error(
+        "{fixed} fixed rotations but only {sessions} sessions: ask for at least {fixed} sessions"
+    )]
     TooManyFixed {
         /// Fixed rotations.
         fixed: usize,
@@ -291,11 +293,13 @@ pub fn plan(opts: &CsrrPlanOptions, run: CsrrRun) -> Result<CsrrPlan, PlanError>
 }
 
 fn check(opts: &CsrrPlanOptions, run: CsrrRun) -> Result<(), PlanError> {
-    let invalid = |what, value: f64, expected| Err(PlanError::Invalid {
-        what,
-        value,
-        expected,
-    });
+    let invalid = |what, value: f64, expected| {
+        Err(PlanError::Invalid {
+            what,
+            value,
+            expected,
+        })
+    };
     if opts.max_order == 0 || opts.max_order > MAX_PLANNED_ORDER {
         return invalid("the highest order", opts.max_order as f64, "in 1..=20000");
     }
@@ -311,7 +315,11 @@ fn check(opts: &CsrrPlanOptions, run: CsrrRun) -> Result<(), PlanError> {
         return invalid("a fixed rotation", f64::NAN, "finite");
     }
     if !(run.samples_per_session.is_finite() && run.samples_per_session >= 1.0) {
-        return invalid("the samples per session", run.samples_per_session, "at least 1");
+        return invalid(
+            "the samples per session",
+            run.samples_per_session,
+            "at least 1",
+        );
     }
     if !(run.sigma.is_finite() && run.sigma >= 0.0) {
         return invalid("the noise", run.sigma, "finite and ≥ 0");
@@ -380,7 +388,11 @@ mod tests {
         ];
         for (n, set) in sets {
             let paper = CsrrPlan::of(&rad(&set), n, RUN);
-            assert!(paper.blind_orders.is_empty(), "{n}: {:?}", paper.blind_orders);
+            assert!(
+                paper.blind_orders.is_empty(),
+                "{n}: {:?}",
+                paper.blind_orders
+            );
             let opts = CsrrPlanOptions {
                 max_order: n,
                 sessions: 5,
@@ -442,7 +454,10 @@ mod tests {
             step: None,
         };
         let planned = plan(&opts, rig.run()).unwrap();
-        for deltas in [rad(&[0.0, 40.0, 96.0, 172.0, 288.0]), planned.deltas.clone()] {
+        for deltas in [
+            rad(&[0.0, 40.0, 96.0, 172.0, 288.0]),
+            planned.deltas.clone(),
+        ] {
             let plan = CsrrPlan::of(&deltas, max_order, rig.run());
             let mut scenario = rig.scenario(&deltas, 0.3, 0.3, 0.5);
             let h = |order, amplitude_arcsec, phase_deg| HarmonicSpec {
@@ -450,7 +465,8 @@ mod tests {
                 amplitude_arcsec,
                 phase_deg,
             };
-            scenario.sensors[0].harmonics = vec![h(3, 20.0, 10.0), h(17, 5.0, -40.0), h(88, 2.0, 70.0)];
+            scenario.sensors[0].harmonics =
+                vec![h(3, 20.0, 10.0), h(17, 5.0, -40.0), h(88, 2.0, 70.0)];
             scenario.sensors[1].harmonics = vec![h(2, 15.0, 100.0), h(45, 3.0, 0.0)];
             let channels = scenario.channels();
             let (ia, ib) = (
@@ -501,7 +517,11 @@ mod tests {
         let q = planned.worst().unwrap().observability;
         eprintln!(
             "planned {:?}: p {p:.4} q {q:.4}; papers p {:.4} {:.4}, q {:.4} {:.4}",
-            planned.deltas.iter().map(|d| d.to_degrees()).collect::<Vec<_>>(),
+            planned
+                .deltas
+                .iter()
+                .map(|d| d.to_degrees())
+                .collect::<Vec<_>>(),
             first.worst_phase_spread(),
             second.worst_phase_spread(),
             first.worst().unwrap().observability,

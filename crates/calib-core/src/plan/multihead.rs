@@ -138,7 +138,11 @@ pub fn plan(
         return Err(invalid("the number of heads", heads as f64, "at least 2"));
     }
     if max_order == 0 || max_order > super::csrr::MAX_PLANNED_ORDER {
-        return Err(invalid("the highest order", max_order as f64, "in 1..=20000"));
+        return Err(invalid(
+            "the highest order",
+            max_order as f64,
+            "in 1..=20000",
+        ));
     }
     if let Some(s) = step
         && !(s.is_finite() && s > 0.0 && s <= std::f64::consts::PI)
@@ -159,7 +163,11 @@ pub fn plan(
         step,
         measure: |p: &[(f64, f64)]| p.iter().map(|p| 1.0 - p.0).sum::<f64>() / j,
     };
-    let positions: Vec<f64> = fixed.iter().copied().chain(search.best(heads - 1)).collect();
+    let positions: Vec<f64> = fixed
+        .iter()
+        .copied()
+        .chain(search.best(heads - 1))
+        .collect();
     Ok(MultiheadPlan::of(&positions, max_order, samples, sigma))
 }
 
@@ -207,7 +215,11 @@ mod tests {
             assert!((o.observability - 1.0).abs() < 1e-12);
         }
         let planned = plan(4, 90, Some(1f64.to_radians()), 1e4, 1e-7).unwrap();
-        assert!(planned.blind_orders.is_empty(), "{:?}", planned.blind_orders);
+        assert!(
+            planned.blind_orders.is_empty(),
+            "{:?}",
+            planned.blind_orders
+        );
         for d in &planned.positions {
             let deg = d.to_degrees();
             assert!((deg - deg.round()).abs() < 1e-9, "{deg}");
