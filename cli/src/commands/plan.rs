@@ -598,10 +598,7 @@ mod tests {
         assert_eq!(v["blind_orders"], json!([90]));
         assert_eq!(v["deltas_deg"].as_array().unwrap().len(), 5);
         assert_eq!(v["orders"].as_array().unwrap().len(), 90);
-        assert_eq!(
-            v["orders"][89]["observability"].as_f64().unwrap() < 1e-9,
-            true
-        );
+        assert!(v["orders"][89]["observability"].as_f64().unwrap() < 1e-9);
         assert!(v["orders"][89]["u_arcsec"].is_null());
         let text = csrr(&CsrrArgs { json: false, ..a }).unwrap();
         assert!(

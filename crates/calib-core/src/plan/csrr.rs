@@ -328,6 +328,8 @@ fn check(opts: &CsrrPlanOptions, run: CsrrRun) -> Result<(), PlanError> {
 }
 
 #[cfg(test)]
+// The tests print the figures docs/plan.md quotes (run with --nocapture).
+#[allow(clippy::print_stderr)]
 mod tests {
     use super::*;
 

@@ -172,6 +172,8 @@ pub fn plan(
 }
 
 #[cfg(test)]
+// The tests print the figures docs/plan.md quotes (run with --nocapture).
+#[allow(clippy::print_stderr)]
 mod tests {
     use super::*;
     use crate::angle::ARCSEC_PER_RAD;
