@@ -29,9 +29,8 @@ pub struct Cli {
 pub enum Command {
     /// Show what a log holds: channels, rates, gaps, segments and CSRR sessions.
     Inspect(commands::inspect::Args),
-    /// Write a simulated run with a known truth, from a scenario file.
-    Simulate(commands::simulate::Args),
     // The rest take their help from their `Args` docs (a doc comment here would replace it).
+    Simulate(commands::simulate::Args),
     Csrr(commands::csrr::Args),
     Multihead(commands::multihead::Args),
     Tdr(commands::tdr::Args),
@@ -44,4 +43,5 @@ pub enum Command {
     Compose(commands::compose::Args),
     Export(commands::export::Args),
     Import(commands::import::Args),
+    Plan(commands::plan::Args),
 }

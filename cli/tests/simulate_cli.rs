@@ -290,3 +290,66 @@ fn mcap_log_has_the_same_permissions_as_a_csv_log() {
         "run.mcap vs run.csv"
     );
 }
+
+/// `--example` prints each method's scenario (shift-angle: its readings table), and every
+/// scenario it prints is one `calib simulate` reads.
+#[test]
+fn examples_print_and_simulate() {
+    let dir = tempfile::tempdir().unwrap();
+    for method in ["csrr", "multihead", "tdr", "reference"] {
+        let o = calib(&["simulate", "--example", method]);
+        assert!(o.status.success(), "{method}");
+        let path = dir.path().join(format!("{method}.toml"));
+        std::fs::write(&path, &o.stdout).unwrap();
+        let log = dir.path().join(format!("{method}.csv"));
+        let o = calib(&["simulate", s(&path), "-o", s(&log), "--points", "360"]);
+        assert!(
+            o.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let o = calib(&["simulate", "--example", "shift-angle"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("shift_deg,start_face,step,reading_arcsec"),
+        "{text}"
+    );
+    expect_exit(&calib(&["simulate", "--example", "nonsense"]), 2);
+}
+
+/// `calib plan csrr --procedure` writes the procedure and a scenario that simulates the planned
+/// rotations, and the simulated run has the planned sessions.
+#[test]
+fn plan_writes_a_procedure_and_a_scenario_that_simulates() {
+    let dir = tempfile::tempdir().unwrap();
+    let procedure = dir.path().join("run.md");
+    let o = calib(&[
+        "plan",
+        "csrr",
+        "--max-order",
+        "30",
+        "--sessions",
+        "4",
+        "--revolutions",
+        "1",
+        "--rpm",
+        "60",
+        "--rate",
+        "100",
+        "--procedure",
+        s(&procedure),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(&procedure).unwrap();
+    assert_eq!(md.matches("r/min |").count(), 4, "{md}");
+    let scenario = dir.path().join("run.toml");
+    let log = dir.path().join("sim.csv");
+    let o = calib(&["simulate", s(&scenario), "-o", s(&log), "--points", "360"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // `--procedure` given a .toml name would put the scenario over it: refused.
+    let clash = dir.path().join("run2.toml");
+    let o = calib(&["plan", "csrr", "--max-order", "8", "--procedure", s(&clash)]);
+    expect_exit(&o, 2);
+    assert!(!clash.exists());
+}

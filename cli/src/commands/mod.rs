@@ -9,6 +9,7 @@ pub mod import;
 pub mod inspect;
 pub mod moteus_dump;
 pub mod multihead;
+pub mod plan;
 pub mod reference;
 pub mod shift_angle;
 pub mod simulate;
@@ -38,6 +39,7 @@ pub fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Tdr(args) => tdr::run(&args),
         Command::Apply(args) => apply::run(&args),
         Command::Compose(args) => compose::run(&args),
+        Command::Plan(args) => plan::run(&args),
     }
 }
 
@@ -49,7 +51,11 @@ fn inputs(command: &Command) -> Inputs {
     }
     let paths: Vec<(&Path, &'static str)> = match command {
         Command::Inspect(a) => vec![(&a.log, "log")],
-        Command::Simulate(a) => vec![(&a.scenario, "scenario")],
+        Command::Simulate(a) => a
+            .scenario
+            .iter()
+            .map(|s| (s.as_path(), "scenario"))
+            .collect(),
         Command::Csrr(a) => {
             let mut p = logs(&a.common.logs);
             p.extend(a.truth.as_deref().map(|t| (t, "truth")));
@@ -80,6 +86,8 @@ fn inputs(command: &Command) -> Inputs {
         Command::Export(a) => vec![(&a.table, "table")],
         Command::Import(a) => vec![(&a.file, "table")],
         Command::MoteusDump(a) => vec![(&a.dump, "dump")],
+        // A plan reads no file: it is computed from its options.
+        Command::Plan(_) => Vec::new(),
     };
     Inputs::new(paths)
 }

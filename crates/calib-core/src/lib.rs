@@ -21,7 +21,8 @@
 //!   paper's method); [`segment`] finds its sessions; [`inspect`] summarizes a log.
 //! - [`multihead`]: self-calibration of one scale read by several heads (joint least squares,
 //!   or the equal-division average of the SelfA paper), head angle errors included.
-//! - [`simulate`]: realistic runs with a known truth.
+//! - [`simulate`]: realistic runs with a known truth; [`plan`]: the set-up that lets a method see
+//!   the orders asked for, and the `u` it will give, before recording.
 //! - [`tdr`]: self-calibration of one encoder from a free spin-down (Lu & Trumper's TDR).
 //! - [`nufft2d`]: sums `Σ w_n e^{i(j·a_n + m·b_n)}` over millions of samples by a type-1
 //!   non-uniform FFT (the spin-down fit's normal equations come from two of them).
@@ -81,6 +82,7 @@ pub mod harmonics;
 pub mod inspect;
 pub mod multihead;
 pub mod nufft2d;
+pub mod plan;
 pub mod range_map;
 pub mod reference_cal;
 pub mod reference_points;

@@ -114,7 +114,7 @@ impl CsrrArgs {
         method: &str,
         max_order: Option<usize>,
         points: Option<usize>,
-        session_tol: f64,
+        session_tol: Option<f64>,
         min_speed: f64,
         min_observability: f64,
         benchmarks: (f64, f64),
@@ -131,7 +131,9 @@ impl CsrrArgs {
                 )));
             }
         };
-        check_range("session_tol", session_tol, 0.0, 180.0, "degrees")?;
+        if let Some(tol) = session_tol {
+            check_range("session_tol", tol, 0.0, 180.0, "degrees")?;
+        }
         check_range("min_speed", min_speed, 0.0, 360_000.0, "degrees per second")?;
         if !(0.0..1.0).contains(&min_observability) {
             return Err(usage(format!(
@@ -149,7 +151,7 @@ impl CsrrArgs {
                 max_order,
                 segments: SegmentOptions {
                     min_speed: min_speed.to_radians(),
-                    relative_tol: session_tol.to_radians(),
+                    relative_tol: session_tol.map(f64::to_radians),
                     use_marks,
                     ..SegmentOptions::default()
                 },
@@ -202,7 +204,7 @@ fn csrr_result<'py>(
 
 /// CSRR self-calibration of two coaxial sensors from arrays (see `calib.csrr`).
 #[pyfunction]
-#[pyo3(signature = (a, b, t=None, sessions=None, r#ref=None, *, names=("a".to_string(), "b".to_string()), rate_hz=1000.0, method="joint", max_order=None, points=None, session_tol=1.0, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0)))]
+#[pyo3(signature = (a, b, t=None, sessions=None, r#ref=None, *, names=("a".to_string(), "b".to_string()), rate_hz=1000.0, method="joint", max_order=None, points=None, session_tol=None, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0)))]
 #[allow(clippy::too_many_arguments)]
 pub fn csrr<'py>(
     py: Python<'py>,
@@ -216,7 +218,7 @@ pub fn csrr<'py>(
     method: &str,
     max_order: Option<usize>,
     points: Option<usize>,
-    session_tol: f64,
+    session_tol: Option<f64>,
     min_speed: f64,
     detect_sessions: bool,
     min_observability: f64,
@@ -276,7 +278,7 @@ pub fn csrr<'py>(
 
 /// CSRR self-calibration of two channels of a log (see `calib.csrr_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, a="a".to_string(), b="b".to_string(), r#ref=None, method="joint", max_order=None, points=None, session_tol=1.0, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0), unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, a="a".to_string(), b="b".to_string(), r#ref=None, method="joint", max_order=None, points=None, session_tol=None, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0), unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn csrr_log<'py>(
     py: Python<'py>,
@@ -287,7 +289,7 @@ pub fn csrr_log<'py>(
     method: &str,
     max_order: Option<usize>,
     points: Option<usize>,
-    session_tol: f64,
+    session_tol: Option<f64>,
     min_speed: f64,
     detect_sessions: bool,
     min_observability: f64,

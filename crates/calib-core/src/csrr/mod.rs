@@ -29,7 +29,7 @@ mod reference;
 #[doc(hidden)]
 pub mod stages;
 
-pub use observability::observability;
+pub use observability::{coefficient_variance, observability};
 pub use reference::{EffectiveRange, EpsHarmonic, ReferenceCheck};
 
 use crate::angle::ARCSEC_PER_RAD;

@@ -31,12 +31,7 @@ pub fn observability(order: usize, deltas: &[f64], weights: &[f64]) -> f64 {
 /// the inverse of the 2×2 (complex) block `½[[W, −S̄], [−S, W]]` above, scaled by `σ²`. Within
 /// a sensor the cosine and the sine are uncorrelated. It is the variance for readings spread
 /// uniformly over the circle, which the joint solver's preconditioner also assumes.
-pub(crate) fn coefficient_variance(
-    order: usize,
-    deltas: &[f64],
-    weights: &[f64],
-    sigma: f64,
-) -> f64 {
+pub fn coefficient_variance(order: usize, deltas: &[f64], weights: &[f64], sigma: f64) -> f64 {
     let w: f64 = weights.iter().sum();
     let (mut c, mut s) = (0.0, 0.0);
     for (&d, &wk) in deltas.iter().zip(weights) {

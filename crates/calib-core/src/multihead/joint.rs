@@ -252,7 +252,7 @@ pub(super) fn joint(
 
 /// The weights `w_j` of the joint solution's order `h` on the other heads' coefficients,
 /// `s_h = Σ_j w_j D_j(h)`: eq. 3's `w_j = c̄_jh / Σ_k |c_kh|²`, `c_jh = e^{ihψ_j} − 1`.
-pub(super) fn joint_weights(h: usize, psi: &[f64]) -> Vec<Complex<f64>> {
+pub fn joint_weights(h: usize, psi: &[f64]) -> Vec<Complex<f64>> {
     let c: Vec<Complex<f64>> = psi.iter().map(|&p| unit(h, p) - 1.0).collect();
     let q: f64 = c.iter().map(|c| c.norm_sqr()).sum();
     c.iter().map(|c| c.conj() / q).collect()

@@ -125,6 +125,8 @@ mod tests;
 mod uncertainty;
 
 pub use error::MultiheadError;
+pub use joint::joint_weights;
+pub use uncertainty::order_variance;
 
 use crate::angle::{wrap_2pi, wrap_pi};
 use crate::error_map::ErrorMap;
@@ -133,7 +135,7 @@ use crate::uncertainty::MapUncertainty;
 use bins::Binned;
 use bins::largest_gap;
 use eda::{check_set, eda, eda_weights, infer_sets};
-use joint::{JointFit, Residual, joint, joint_weights, series_of};
+use joint::{JointFit, Residual, joint, series_of};
 use std::f64::consts::{PI, TAU};
 use uncertainty::{fit_noise, map_uncertainty};
 

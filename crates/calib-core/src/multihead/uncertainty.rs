@@ -48,18 +48,22 @@ pub(super) fn fit_noise(
         .collect();
     let var: f64 = orders
         .iter()
-        .map(|&h| {
-            let w = weights(h);
-            let mut v = 0.0;
-            for j in 0..others {
-                for k in 0..others {
-                    v += (w[j] * w[k].conj()).re * g[j][k];
-                }
-            }
-            2.0 * v
-        })
+        .map(|&h| order_variance(&g, &weights(h)))
         .sum();
     var.max(0.0).sqrt()
+}
+
+/// The variance one order adds to the map at every angle, `2 Σ_jk Re(w_j w̄_k) G_jk`, from the
+/// order's weights `w` on the other heads' coefficients and their noise covariance `G` (see
+/// [`fit_noise`]; [`crate::plan::multihead`] calls it with a planned `G`).
+pub fn order_variance(g: &[Vec<f64>], w: &[Complex<f64>]) -> f64 {
+    let mut v = 0.0;
+    for (j, gj) in g.iter().enumerate() {
+        for (k, gjk) in gj.iter().enumerate() {
+            v += (w[j] * w[k].conj()).re * gjk;
+        }
+    }
+    2.0 * v
 }
 
 /// The budget of the map of `points` points: the fit's noise `u_fit` ([`fit_noise`], Type A)

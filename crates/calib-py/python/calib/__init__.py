@@ -378,7 +378,7 @@ def csrr(
     method: str = "joint",
     max_order: Optional[int] = None,
     points: Optional[int] = None,
-    session_tol: float = 1.0,
+    session_tol: Optional[float] = None,
     min_speed: float = 1.0,
     detect_sessions: bool = False,
     min_observability: float = 0.01,
@@ -404,7 +404,8 @@ def csrr(
         max_order: highest harmonic order tested (default: 40 % of the samples per revolution
             of the densest session, at most 2000); only orders above the noise are kept.
         points: points of the tables (default: enough for linear interpolation to 0.01″).
-        session_tol: largest drift of the relative angle within one session, degrees.
+        session_tol: largest change of `a − b` from one revolution to the next within a session,
+            degrees; None (the default): from the sessions' own scatter, as the CLI does.
         min_speed: speed below which a sensor counts as stopped, degrees per second.
         detect_sessions: find sessions from the motion even where ``sessions`` is given.
         min_observability: orders less observable than this are left out of the maps.
@@ -447,7 +448,7 @@ def csrr_log(
     method: str = "joint",
     max_order: Optional[int] = None,
     points: Optional[int] = None,
-    session_tol: float = 1.0,
+    session_tol: Optional[float] = None,
     min_speed: float = 1.0,
     detect_sessions: bool = False,
     min_observability: float = 0.01,

@@ -1,0 +1,12 @@
+//! Planning a run before it is recorded: which set-up lets a method see the orders asked for,
+//! and the uncertainty it will give.
+//!
+//! Every method calib implements has a design question that decides its result before a single
+//! sample is recorded. Each planner answers it with the same formulas the method uses for its
+//! observability and its `u`, evaluated on the planned set-up instead of a recorded one:
+//!
+//! - [`csrr`]: the relative rotations `Δ_k` (CSRR paper, eqs. 5–7).
+//! - [`multihead`]: the head positions (shift-angle paper, eqs. 8–9; SelfA's head sets).
+pub mod csrr;
+pub mod multihead;
+pub(crate) mod search;
