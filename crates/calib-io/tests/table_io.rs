@@ -327,12 +327,12 @@ fn absurd_values_are_refused_in_both_directions() {
 fn range_tables_round_trip_and_are_checked() {
     use calib_io::table::{AnyTable, read_any_table, render_range_table};
     let dir = tempfile::tempdir().unwrap();
-    // 330°…390° (across 0), 61 points 1° apart.
+    // 330°…390° (across 0), 61 points 1° apart: written signed, −30° to 30°, never above 360°.
     let values: Vec<f64> = (0..61).map(|i| f64::from(i) / ARCSEC_PER_RAD).collect();
     let map = calib_core::RangeMap::new((-30f64).to_radians(), 1f64.to_radians(), values).unwrap();
     let text = render_range_table(&map, None).unwrap();
     assert!(
-        text.starts_with("# range_deg: 330.000000 to 390.000000 "),
+        text.starts_with("# range_deg: -30.000000 to 30.000000 "),
         "{text}"
     );
     let path = write_tmp(&dir, &text);
