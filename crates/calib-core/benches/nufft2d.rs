@@ -4,7 +4,7 @@
 //! decelerating phase over 400 turns). Also the 1-D path (`j_max = 0`) at the same `m_max`.
 //!
 //! The samples (10⁶, 32 MB) are generated once, outside the timed loop. The full-size case
-//! (10⁷ samples) runs by hand: `cargo test --release -p calib-core --test nufft2d -- --ignored`.
+//! (10⁷ samples) runs by hand: `cargo test --release -p calib-core --test it nufft2d:: -- --ignored`.
 //!
 //! ```text
 //! cargo bench -p calib-core --bench nufft2d
@@ -16,7 +16,7 @@ use std::time::Duration;
 use calib_core::nufft2d::type1;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
-#[path = "../tests/support/spin_down.rs"]
+#[path = "../tests/it/support/spin_down.rs"]
 mod support;
 use support::spin_down;
 

@@ -16,7 +16,7 @@
 //! per period — linear 0.11″, as much as the whole calibration's residual, cubic 0.0007″ — but
 //! also order 216 at 14″ sampled 11 times and order 432 at 1″ sampled 5.6 times per period:
 //! cubic 0.034″ and 0.038″ there, quintic 0.002″ and 0.010″. Measured on that run with B on a
-//! clock 3/8 of a period off (`cli/tests/recordings_cli.rs`): cubic 0.130″, quintic 0.074″
+//! clock 3/8 of a period off (`cli/tests/it/recordings_cli.rs`): cubic 0.130″, quintic 0.074″
 //! against 0.076″ synchronized. Near a gap or the ends of a channel fewer nodes are used.
 //! The motion itself (constant speed, ramps) is a low-order polynomial over six samples.
 //! Noise is not amplified: the mid-way weights `(3, −25, 150, 150, −25, 3)/256` have a sum of

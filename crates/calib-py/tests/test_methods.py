@@ -19,7 +19,7 @@ def max_abs_diff(estimate: calib.Table, truth: calib.Table) -> float:
 
 
 def test_csrr_on_arrays_finds_the_72_pole_pair_maps_within_0_2_arcsec():
-    # The bar of calib-core's tests/csrr_accuracy.rs (table_ii_72_pole_pairs_within_0_2_arcsec):
+    # The bar of calib-core's tests/it/csrr_accuracy.rs (table_ii_72_pole_pairs_within_0_2_arcsec):
     # the joint fit is exact for these orders, and what is left is the noise (0.05″ per sample)
     # averaged over ~36 000 samples and the interpolation of the table.
     sim = calib.simulate(TESTDATA / "scenarios" / "csrr72.toml")
@@ -142,7 +142,7 @@ def test_threads_run_in_parallel_and_give_the_same_result():
 
 
 def test_tdr_recovers_the_encoder_map_from_a_free_coast():
-    # calib-core's tests/tdr.rs (air_bearing_coast_recovers_the_encoder_map), same scenario and
+    # calib-core's tests/it/tdr.rs (air_bearing_coast_recovers_the_encoder_map), same scenario and
     # bar: σ ≈ 0.057″ per sample over 60 000 samples and 64 unknowns give a map rms ≈ 0.002″;
     # 0.02″ bounds its maximum over 3600 points (measured there: 0.0044″).
     sim = calib.simulate(TESTDATA / "scenarios" / "spindown.toml", points=3600)
@@ -158,7 +158,7 @@ def test_tdr_recovers_the_encoder_map_from_a_free_coast():
 
 
 def test_multihead_twelve_heads_meet_the_bar():
-    # calib-core's tests/multihead.rs (selfa_twelve_heads_joint_meets_the_bar): 0.05″ (measured
+    # calib-core's tests/it/multihead.rs (selfa_twelve_heads_joint_meets_the_bar): 0.05″ (measured
     # there: 0.0075″).
     text = (TESTDATA / "scenarios" / "multihead.toml").read_text()
     sim = calib.simulate(text)
@@ -179,7 +179,7 @@ def test_multihead_twelve_heads_meet_the_bar():
 
 
 def test_shift_angle_recovers_the_visible_truth_of_the_fixture():
-    # calib-core's tests/shift_angle.rs: the committed fixture is the paper's design with
+    # calib-core's tests/it/shift_angle.rs: the committed fixture is the paper's design with
     # σ = 0.03″; the largest of 360 errors of ≤ 1.1σ each stays below 5σ = 0.15″.
     folder = TESTDATA / "shift-angle"
     res = calib.shift_angle(folder / "readings.csv")

@@ -25,7 +25,7 @@
 //!   an angle of `½·Ω·m·A·cos φ`, with `Ω` the order per radian (the Bessel argument of eq. 11
 //!   is `h·m`). Table V's `|Y|` takes `Ω = 2π·h` and compares the transform-domain `F_JΩ`
 //!   with an angle (eq. 20), which together make `|Y|·A` 2π² times the first-order shift. The
-//!   simulator reproduces the first-order figure (`tests/csrr_accuracy.rs`); both are reported,
+//!   simulator reproduces the first-order figure (`tests/it/csrr_accuracy.rs`); both are reported,
 //!   `|Y|` as published.
 
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper, wrap_2pi, wrap_pi};

@@ -1,0 +1,28 @@
+//! The end-to-end tests of `calib`: one test binary (one link) whose modules each test a
+//! command or a concern, sharing the helpers in `common`. Run one module with
+//! `cargo test -p calib-cli --test it csrr_cli::`.
+
+mod common;
+mod adversarial;
+mod apply_cli;
+mod batch_cli;
+mod compose_cli;
+mod csrr_cli;
+mod export_cli;
+mod import_cli;
+mod inspect_cli;
+mod labfiles_cli;
+mod multihead_cli;
+mod outputs_cli;
+mod range_cli;
+mod recordings_cli;
+mod reference_cli;
+mod reference_setups_cli;
+mod reliability;
+mod report_cli;
+mod rosbag_cli;
+mod schema_cli;
+mod shift_angle_cli;
+mod simulate_cli;
+mod snapshots;
+mod tdr_cli;

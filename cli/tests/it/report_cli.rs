@@ -1,0 +1,311 @@
+//! `report.html` and `--plots`: what a person opens after a run. These tests read the HTML and
+//! SVG as text (no browser needed); `renders_in_chromium` (ignored by default) also renders the
+//! page with headless Chromium where it is installed.
+
+use crate::common::{self, reference};
+
+use common::*;
+use reference::reference;
+use std::collections::HashSet;
+use std::path::Path;
+
+/// The inline SVG documents of a page, in order.
+fn svgs(html: &str) -> Vec<&str> {
+    html.split("<svg ")
+        .skip(1)
+        .map(|s| &s[..s.find("</svg>").expect("unclosed <svg>")])
+        .collect()
+}
+
+/// The figure of a page with this id, from `<figure` to `</figure>`.
+fn figure<'a>(html: &'a str, id: &str) -> &'a str {
+    let start = html
+        .find(&format!("<figure id=\"fig-{id}\""))
+        .unwrap_or_else(|| panic!("no figure {id}"));
+    let end = start + html[start..].find("</figure>").unwrap();
+    &html[start..end]
+}
+
+/// Every `id="…"` of a page.
+fn ids(html: &str) -> Vec<&str> {
+    html.split(" id=\"")
+        .skip(1)
+        .map(|s| &s[..s.find('"').unwrap()])
+        .collect()
+}
+
+/// Checks what every report must be: one self-contained page, ids unique, no NaN or infinity
+/// anywhere in a plot, every plot with axis labels.
+#[track_caller]
+fn check_page(html: &str, figures: &[&str]) {
+    assert!(html.starts_with("<!DOCTYPE html>") && html.trim_end().ends_with("</html>"));
+    for forbidden in ["<script", "<link", "src=\"", "url("] {
+        assert!(
+            !html.contains(forbidden),
+            "the page loads something: {forbidden}"
+        );
+    }
+    let all = ids(html);
+    let unique: HashSet<&&str> = all.iter().collect();
+    assert_eq!(unique.len(), all.len(), "repeated ids: {all:?}");
+    let found: Vec<&str> = all.iter().filter_map(|i| i.strip_prefix("fig-")).collect();
+    assert_eq!(found, figures, "figures");
+    let plots = svgs(html);
+    assert_eq!(plots.len(), figures.len());
+    for (svg, id) in plots.iter().zip(figures) {
+        for bad in ["NaN", "inf", "Infinity"] {
+            assert!(!svg.contains(bad), "{id}: {bad} in the SVG");
+        }
+        assert!(svg.matches("<text").count() >= 8, "{id}: too few labels");
+        assert!(
+            ["(°)", "(s)", "(cycles", ">\nface\n<"]
+                .iter()
+                .any(|x| svg.contains(x)),
+            "{id}: no x axis label with a unit"
+        );
+    }
+}
+
+#[test]
+fn csrr_report_shows_maps_against_the_truth_spectrum_and_timeline() {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, plots) = (dir.path().join("out"), dir.path().join("plots"));
+    let o = calib(&[
+        "csrr",
+        s(&testdata("examples/quick.mcap")),
+        "-o",
+        s(&out),
+        "--truth",
+        s(&testdata("examples/quick.truth")),
+        "--plots",
+        s(&plots),
+        "--quiet",
+    ]);
+    let err = expect_exit(&o, 0);
+    assert_eq!(err, "", "--quiet leaves standard error empty");
+    let summary = stdout(&o);
+    assert_mentions(
+        &summary,
+        &[
+            "p-p before",
+            "→ after",
+            "kept above the noise",
+            "report.html",
+            "next: open",
+        ],
+    );
+
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let figures = ["timeline", "map-a", "zoom-a", "map-b", "zoom-b", "spectrum"];
+    check_page(&html, &figures);
+    assert_mentions(
+        &html,
+        &[
+            "command line",
+            "--truth",
+            "calib version",
+            "Sessions",
+            "151.1000",
+        ],
+    );
+
+    let timeline = figure(&html, "timeline");
+    assert_mentions(
+        timeline,
+        &[
+            "time from log start (s)",
+            "rotation (rev)",
+            "a − b (°)",
+            "#4",
+        ],
+    );
+    let map = figure(&html, "map-a");
+    assert_mentions(
+        map,
+        &[
+            "reading of a (°)",
+            "error (″)",
+            "residual (″)",
+            "truth − calibrated map",
+        ],
+    );
+    // The map, the dashed truth and the residual.
+    assert!(map.matches("<polyline").count() >= 3);
+    let zoom = figure(&html, "zoom-a");
+    assert_mentions(zoom, &["one period of order 8", "(0–45°)"]);
+    let spectrum = figure(&html, "spectrum");
+    assert_mentions(
+        spectrum,
+        &["amplitude (″)", "harmonic order (cycles per revolution)"],
+    );
+    // Two channels, one bar per order kept by the significance rule (the truth's 1, 2, 6, 8, 12
+    // and 16, and the few others that stand above the noise in either sensor; measured 13 in
+    // each), minus the orders below the floor. Before issue 16 every fitted order (84) showed.
+    let bars = spectrum.matches("<rect").count();
+    assert!((12..=40).contains(&bars), "{bars} bars");
+
+    // The hidden manifest lists the set (see docs/integrity.md).
+    let mut files: Vec<String> = std::fs::read_dir(&plots)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n != ".calib-manifest")
+        .collect();
+    files.sort();
+    let mut want: Vec<String> = figures
+        .iter()
+        .flat_map(|f| [format!("{f}.png"), format!("{f}.svg")])
+        .collect();
+    want.sort();
+    assert_eq!(files, want);
+    let png = std::fs::read(plots.join("map-a.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 10_000);
+    let svg = std::fs::read_to_string(plots.join("map-a.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("error (″)"));
+}
+
+#[test]
+fn shift_angle_report_shows_polygon_encoder_band_and_residuals() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = calib(&[
+        "shift-angle",
+        s(&testdata("shift-angle/readings.csv")),
+        "-o",
+        s(&out),
+        "--budget",
+        s(&testdata("shift-angle/table3.toml")),
+    ]);
+    expect_exit(&o, 0);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    check_page(
+        &html,
+        &[
+            "map-encoder",
+            "zoom-encoder",
+            "spectrum",
+            "polygon",
+            "residuals",
+        ],
+    );
+    assert_mentions(
+        figure(&html, "map-encoder"),
+        &["expanded uncertainty U (k = 2.160, budget)", "<polygon"],
+    );
+    let polygon = figure(&html, "polygon");
+    assert_mentions(polygon, &["pitch deviation β (″)", "face"]);
+    assert_eq!(polygon.matches("<rect").count() - 1, 24, "one bar per face");
+    let residuals = figure(&html, "residuals");
+    assert_eq!(
+        residuals.matches("<circle").count() - 1,
+        912,
+        "one dot per reading"
+    );
+    // Blind orders 24, 48, 72, 96 are marked on the spectrum.
+    assert_mentions(figure(&html, "spectrum"), &["blind order (left out)"]);
+    assert_mentions(&html, &["ν_eff", "expanded uncertainty U (95 %)"]);
+}
+
+/// The seed paper's rig with its reference encoder: `csrr --ref` draws the maps against the
+/// reference and the |Y_Ω| chart with the paper's 1 % and 100 % lines; `reference` draws the
+/// DUT's map with its uncertainty band and lists the ISO 230-2 figures.
+#[test]
+fn reports_with_a_reference_encoder() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate(&testdata("scenarios/csrr72.toml"), dir.path(), "c72.mcap");
+    let out = dir.path().join("csrr");
+    expect_exit(&calib(&["csrr", s(&log), "--ref", "ref", "-o", s(&out)]), 0);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    check_page(
+        &html,
+        &[
+            "timeline",
+            "map-a",
+            "zoom-a",
+            "map-b",
+            "zoom-b",
+            "spectrum",
+            "effective-range",
+        ],
+    );
+    assert_mentions(
+        figure(&html, "map-b"),
+        &["reference measurement − calibrated map", "residual (″)"],
+    );
+    let y = figure(&html, "effective-range");
+    assert_mentions(
+        y,
+        &[
+            "|Y_Ω| (1)",
+            "order Ω (cycles per revolution)",
+            "1 %",
+            "100 %",
+        ],
+    );
+    // One dot per order of ε_θ in the report (10), plus the legend's.
+    assert_eq!(y.matches("<circle").count(), 11);
+
+    let out = dir.path().join("reference");
+    let o = reference(&log, "b", "ref", &out, &[]);
+    expect_exit(&o, 0);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    check_page(&html, &["map-b", "zoom-b", "spectrum"]);
+    assert_mentions(
+        &html,
+        &[
+            "E bidirectional systematic positioning deviation",
+            "R↑ unidirectional repeatability",
+            "expanded uncertainty (k = 2)",
+        ],
+    );
+}
+
+/// A failed run writes no report.html either.
+#[test]
+fn a_failed_run_leaves_no_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = calib(&[
+        "csrr",
+        s(&testdata("examples/quick.mcap")),
+        "-o",
+        s(&out),
+        "--truth",
+        s(&dir.path().join("missing")),
+    ]);
+    expect_exit(&o, 1);
+    assert!(!out.join("report.html").exists() && !out.join("report.json").exists());
+}
+
+/// Renders a report in headless Chromium (`cargo test -p calib-cli --test it report_cli:: -- --ignored`
+/// on a machine with the `chromium` package) and checks that a screenshot came out.
+#[test]
+#[ignore = "needs chromium"]
+fn renders_in_chromium() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = calib(&["csrr", s(&testdata("examples/quick.mcap")), "-o", s(&out)]);
+    expect_exit(&o, 0);
+    let shot = dir.path().join("shot.png");
+    let profile = dir.path().join("profile");
+    let status = std::process::Command::new("chromium")
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--disable-background-networking",
+            &format!("--user-data-dir={}", profile.display()),
+            &format!("--screenshot={}", shot.display()),
+            "--window-size=1300,4000",
+        ])
+        .arg(format!("file://{}", out.join("report.html").display()))
+        .status()
+        .expect("chromium is not installed");
+    assert!(status.success());
+    let png = std::fs::read(Path::new(&shot)).unwrap();
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 50_000,
+        "{} bytes",
+        png.len()
+    );
+}
