@@ -2,10 +2,10 @@
 //! command or a concern, sharing the helpers in `common`. Run one module with
 //! `cargo test -p calib-cli --test it csrr_cli::`.
 
-mod common;
 mod adversarial;
 mod apply_cli;
 mod batch_cli;
+mod common;
 mod compose_cli;
 mod csrr_cli;
 mod export_cli;

@@ -6,7 +6,7 @@
 //! of an MCAP log with three topics and of a CSV log. Every report is also read back into
 //! `calib_core::Report` (unknown keys refused) and must serialize to the same bytes.
 
-use crate::common::{coast, self, multihead, reference};
+use crate::common::{self, coast, multihead, reference};
 
 use coast::{coast_log, tdr_with_reference};
 use common::*;

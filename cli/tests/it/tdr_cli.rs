@@ -1,7 +1,7 @@
 //! End-to-end tests of `calib tdr`: the simulated air-bearing and rolling-bearing coasts against
 //! their truth, and logs with no spin-down (exit code, message, nothing written).
 
-use crate::common::{coast, self, json};
+use crate::common::{self, coast, json};
 
 use coast::{coast_log, tdr_with_reference};
 use common::*;

@@ -1,8 +1,6 @@
 //! calib-core's tests against known truths: one test binary (one link) whose modules each test
 //! a method or a concern. Run one module with `cargo test -p calib-core --test it csrr_accuracy::`.
 
-#[path = "support/spin_down.rs"]
-mod support;
 mod coverage;
 mod csrr_accuracy;
 mod csrr_large;
@@ -15,4 +13,6 @@ mod reference_cal;
 mod reference_setups;
 mod shift_angle;
 mod simulate;
+#[path = "support/spin_down.rs"]
+mod support;
 mod tdr;

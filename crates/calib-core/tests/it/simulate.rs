@@ -7,35 +7,35 @@ use std::f64::consts::TAU;
 const SCENARIOS: [(&str, &str); 8] = [
     (
         "csrr72",
-        include_str!("../../../testdata/scenarios/csrr72.toml"),
+        include_str!("../../../../testdata/scenarios/csrr72.toml"),
     ),
     (
         "csrr84",
-        include_str!("../../../testdata/scenarios/csrr84.toml"),
+        include_str!("../../../../testdata/scenarios/csrr84.toml"),
     ),
     (
         "csrr90",
-        include_str!("../../../testdata/scenarios/csrr90.toml"),
+        include_str!("../../../../testdata/scenarios/csrr90.toml"),
     ),
     (
         "quick",
-        include_str!("../../../testdata/scenarios/quick.toml"),
+        include_str!("../../../../testdata/scenarios/quick.toml"),
     ),
     (
         "multihead",
-        include_str!("../../../testdata/scenarios/multihead.toml"),
+        include_str!("../../../../testdata/scenarios/multihead.toml"),
     ),
     (
         "spindown",
-        include_str!("../../../testdata/scenarios/spindown.toml"),
+        include_str!("../../../../testdata/scenarios/spindown.toml"),
     ),
     (
         "spindown-bearing",
-        include_str!("../../../testdata/scenarios/spindown-bearing.toml"),
+        include_str!("../../../../testdata/scenarios/spindown-bearing.toml"),
     ),
     (
         "joint",
-        include_str!("../../../testdata/scenarios/joint.toml"),
+        include_str!("../../../../testdata/scenarios/joint.toml"),
     ),
 ];
 

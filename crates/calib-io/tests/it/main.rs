@@ -1,8 +1,8 @@
 //! calib-io's tests: one test binary (one link) whose modules each test a reader, a writer or
 //! a format. Run one module with `cargo test -p calib-io --test it table_io::`.
 
-mod common;
 mod apply;
+mod common;
 mod controller_firmware;
 mod csv_reader;
 mod csv_writer;
