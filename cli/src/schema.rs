@@ -4,7 +4,7 @@
 //! ([`crate::commands::inspect::InspectJson`]).
 //!
 //! The published files are checked here against the types: a change of an output's shape fails
-//! the test until the files are regenerated (and the change recorded in the README's changelog,
+//! the test until the files are regenerated (and the change recorded in CHANGELOG.md,
 //! with `SCHEMA_VERSION` raised where a key was removed, renamed or changed its meaning).
 
 use schemars::{Schema, schema_for};
@@ -50,7 +50,7 @@ fn published_schemas_match_the_types() {
     assert!(
         stale.is_empty(),
         "docs/{} differ from the types they describe: regenerate them with `{REGENERATE}`, \
-         review the diff and record the change in the README's changelog",
+         review the diff and record the change in CHANGELOG.md",
         stale.join(", docs/")
     );
 }

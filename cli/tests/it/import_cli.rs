@@ -109,7 +109,18 @@ fn print_lut_output_feeds_compose_and_compare() {
     expect_exit(&calib(&["compose", s(&in_use), s(&t), "-o", s(&next)]), 0);
     // The imported table is within one code (19.8″, the driver's truncation) of the table: as
     // an expanded uncertainty of 20″ against the table's 6 decimals, every point agrees.
-    let o = calib(&["compare", s(&in_use), s(&t), "--U1", "20", "--U2", "0.001"]);
+    let cmp = dir.path().join("compare");
+    let o = calib(&[
+        "compare",
+        s(&in_use),
+        s(&t),
+        "--U1",
+        "20",
+        "--U2",
+        "0.001",
+        "-o",
+        s(&cmp),
+    ]);
     expect_exit(&o, 0);
 }
 

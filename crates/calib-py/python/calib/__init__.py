@@ -824,8 +824,8 @@ def export(
     Args:
         table: a :class:`Table` (or a result's :class:`Channel`).
         format: ``lut-f32-rad``, ``lut-i16``, ``lut-u16``, ``lut-i8``, ``c-array``, ``csv``,
-            ``harmonic``, ``moteus`` (``conf set`` lines), ``moteus-config``, ``simplefoc``,
-            ``simplefoc-u16``.
+            ``harmonic``, ``moteus`` (``conf set`` lines), ``moteus-config``, ``simplefoc`` (its
+            ``uint16_t`` table), ``simplefoc-float`` (releases before SimpleFOC's PR #75).
         points: entries of the exported table (default: the format's, else the table's).
         scale: arcseconds per LSB of the integer formats (default: the largest that fits).
         orders: keep only these harmonic orders; ``largest``: keep the largest this many.
