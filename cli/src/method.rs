@@ -1,15 +1,21 @@
-//! What every method command (csrr, multihead, tdr, reference) shares: the arguments that name
-//! its logs, output, unit and output form ([`MethodArgs`], flattened into each command's
-//! `Args`), and the loop that reads a log's channels ([`for_each_sample`]). A new method needs
-//! its core module, an `Args` struct flattening [`MethodArgs`], and a render function.
+//! What every method command (csrr, multihead, tdr, reference, shift-angle) shares: the
+//! arguments that name its logs, output, unit and output form ([`MethodArgs`], flattened into
+//! each command's `Args`), the loop that reads a log's channels ([`for_each_sample`]), the context
+//! a failed run's error gets from its log ([`in_log`]), and the tail of every run ([`finish_log`],
+//! [`finish`]): its report, report.json, the tables, report.html and the summary, written and
+//! rendered the same way for every method. `CONTRIBUTING.md` lists the files a new method touches.
 
-use crate::batch::{self, BatchArgs, Outcome};
-use crate::input::{LogArgs, open_selected, parse_unit};
+use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::input::{
+    LogArgs, alignment_detail, alignment_text, command_line, open_selected, parse_unit,
+};
 use crate::units::UnitCheck;
 use anyhow::Context;
-use calib_core::{AngleUnit, Sample};
+use calib_core::report::ReportSection;
+use calib_core::{AngleUnit, Report, Sample};
 use calib_io::LogReader;
 use calib_io::prefetch::Prefetch;
+use calib_report::Document;
 use std::path::{Path, PathBuf};
 
 /// The arguments of every method command.
@@ -90,4 +96,91 @@ pub fn for_each_sample(
     bar.finish_and_clear();
     units.finish(log)?;
     Ok(samples.finish())
+}
+
+/// The context a failed run's error gets from its log: a log cut short says so, whatever the
+/// method then lacks (a missing session, a short coast) — the cut is the likelier cause.
+pub fn in_log(err: anyhow::Error, reader: &LogReader, log: &Path) -> anyhow::Error {
+    match &reader.diagnostics().truncated {
+        Some(t) => err.context(format!(
+            "{} is cut short at byte {} (only the {} messages before it were read)",
+            crate::ui::shown(log),
+            t.byte_offset,
+            t.messages_read
+        )),
+        None => err,
+    }
+}
+
+/// What a method's run gives the shared tail ([`finish_log`], [`finish`]).
+pub struct Results<'r> {
+    /// The method's report section.
+    pub section: ReportSection,
+    /// The files written beside report.json, `(name, contents)`: the tables.
+    pub tables: Vec<(String, Vec<u8>)>,
+    /// The channels the gates judge, in the summary's order.
+    pub channels: Vec<String>,
+    /// RMS of the fit's residuals, arcsec, for methods that fit.
+    pub residual_rms_arcsec: Option<f64>,
+    /// The method's report.html, from the finished report.
+    pub document: Box<dyn FnOnce(&Report) -> Document + 'r>,
+    /// The method's summary, from the finished report.
+    pub summary: Box<dyn FnOnce(&Report) -> String + 'r>,
+}
+
+/// The tail of a run over `log` read by `reader`: [`finish`] with the log as the input, the
+/// reader's warnings first, and how its channels were aligned in the report and before the
+/// summary.
+pub fn finish_log(
+    reader: &LogReader,
+    log: &Path,
+    out: &Path,
+    json: bool,
+    mut results: Results,
+) -> anyhow::Result<Outcome> {
+    results.section = results.section.with_alignment(alignment_detail(reader));
+    finish(
+        out,
+        json,
+        vec![log.display().to_string()],
+        reader.warnings(log),
+        &alignment_text(reader.alignment().as_ref()),
+        results,
+    )
+}
+
+/// The tail of every run: the report of `results` (calibrated from `inputs`, `warnings` before
+/// the method's own), report.json, the tables and report.html written together into `out`
+/// ([`crate::output::write_outputs`]), and what the command prints — the summary after `before`,
+/// or report.json with `--json`.
+pub fn finish(
+    out: &Path,
+    json: bool,
+    inputs: Vec<String>,
+    warnings: Vec<String>,
+    before: &str,
+    results: Results,
+) -> anyhow::Result<Outcome> {
+    let report = Report::new(results.section, inputs, Some(command_line()), warnings);
+    let report_json = calib_io::report::render_json(&report)?;
+    let document = (results.document)(&report);
+    let mut files = results.tables;
+    files.push(("report.json".to_string(), report_json.as_bytes().to_vec()));
+    let files = crate::output::write_outputs(out, &files, &document)?;
+    let text = if json {
+        report_json
+    } else {
+        before.to_string() + &(results.summary)(&report)
+    };
+    Ok(Outcome {
+        text,
+        channels: results
+            .channels
+            .iter()
+            .map(|name| ChannelFigures::of(name, &report.channels[name]))
+            .collect(),
+        residual_rms_arcsec: results.residual_rms_arcsec,
+        warnings: report.warnings,
+        files,
+    })
 }

@@ -203,24 +203,16 @@ fn same_path(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Writes one table per `(channel, map, standard uncertainty)`, `report.json` and the document
-/// as `report.html` into `dir`; returns the names of the files written. See [`write_outputs`].
-pub fn write_tables_and_report(
-    dir: &Path,
-    tables: &[(&str, &ErrorMap, Option<&[f64]>)],
-    report_json: &str,
-    document: &Document,
-) -> anyhow::Result<Vec<String>> {
-    let mut files = tables
-        .iter()
-        .map(|(name, map, u)| {
-            let text = calib_io::table::render_table(map, *u)
-                .with_context(|| format!("the table of channel `{name}`"))?;
-            Ok((table_name(name), text.into_bytes()))
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    files.push(("report.json".to_string(), report_json.as_bytes().to_vec()));
-    write_outputs(dir, &files, document)
+/// A whole-turn table of channel `name` (its map and standard uncertainty) as the file it is
+/// written to: `(<name>.csv, contents)`.
+pub fn turn_table(
+    name: &str,
+    map: &ErrorMap,
+    u: Option<&[f64]>,
+) -> anyhow::Result<(String, Vec<u8>)> {
+    let text = calib_io::table::render_table(map, u)
+        .with_context(|| format!("the table of channel `{name}`"))?;
+    Ok((table_name(name), text.into_bytes()))
 }
 
 /// Writes `files` (name, contents) and the document as `report.html` into `dir`, and with

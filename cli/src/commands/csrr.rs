@@ -1,11 +1,10 @@
 //! `calib csrr`: self-calibration of two coaxial sensors.
 
-use crate::batch::{ChannelFigures, Outcome};
+use crate::batch::Outcome;
 use crate::document::csrr as document;
 use crate::exit::Usage;
-use crate::input::{alignment_detail, alignment_text};
-use crate::method::{MethodArgs, for_each_sample};
-use crate::output::{table_name, write_tables_and_report};
+use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
+use crate::output::{table_name, turn_table};
 use crate::reference_table::ReferenceTable;
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
@@ -237,22 +236,10 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             }
             _ => pair,
         };
-        let err = anyhow::Error::new(e).context(context);
-        match &reader.diagnostics().truncated {
-            // A cut file says so, whatever the method then lacks.
-            Some(t) => err.context(format!(
-                "{} is cut short at byte {} (only the {} messages before it were read)",
-                crate::ui::shown(log),
-                t.byte_offset,
-                t.messages_read
-            )),
-            None => err,
-        }
+        in_log(anyhow::Error::new(e).context(context), &reader, log)
     })?;
     let truth = truth.as_ref().map(|(a, b)| (a, b));
-    let mut section = cal
-        .report_section((&args.a, &args.b), args.reference.as_deref(), truth)
-        .with_alignment(alignment_detail(&reader));
+    let mut section = cal.report_section((&args.a, &args.b), args.reference.as_deref(), truth);
     if let Some(table) = &reference_table
         && let Some(after) = section
             .channels
@@ -262,47 +249,29 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     {
         after.reference_split = cal.reference_split(&table.map);
     }
-    let report = Report::new(
+    let tables = vec![
+        turn_table(
+            &args.a,
+            &cal.a,
+            cal.uncertainty.as_ref().map(|(u, _)| u.u.as_slice()),
+        )?,
+        turn_table(
+            &args.b,
+            &cal.b,
+            cal.uncertainty.as_ref().map(|(_, u)| u.u.as_slice()),
+        )?,
+    ];
+    let results = Results {
         section,
-        vec![log.display().to_string()],
-        Some(crate::input::command_line()),
-        reader.warnings(log),
-    );
-    let json = calib_io::report::render_json(&report)?;
-    let doc = document::document((&args.a, &args.b), &cal, &report, &trace.trace, truth);
-    let files = write_tables_and_report(
-        out,
-        &[
-            (
-                &args.a,
-                &cal.a,
-                cal.uncertainty.as_ref().map(|(u, _)| u.u.as_slice()),
-            ),
-            (
-                &args.b,
-                &cal.b,
-                cal.uncertainty.as_ref().map(|(_, u)| u.u.as_slice()),
-            ),
-        ],
-        &json,
-        &doc,
-    )?;
-    let text = if args.common.json {
-        json
-    } else {
-        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
-    };
-    let channels = [&args.a, &args.b]
-        .into_iter()
-        .map(|name| ChannelFigures::of(name, &report.channels[name]))
-        .collect();
-    Ok(Outcome {
-        text,
-        channels,
+        tables,
+        channels: vec![args.a.clone(), args.b.clone()],
         residual_rms_arcsec: cal.residual_rms.map(|r| r * ARCSEC_PER_RAD),
-        warnings: report.warnings,
-        files,
-    })
+        document: Box::new(|report| {
+            document::document((&args.a, &args.b), &cal, report, &trace.trace, truth)
+        }),
+        summary: Box::new(|report| render_summary(args, out, &cal, report)),
+    };
+    finish_log(&reader, log, out, args.common.json, results)
 }
 
 /// The true maps of A and B from `--truth DIR`.

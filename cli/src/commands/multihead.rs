@@ -1,10 +1,9 @@
 //! `calib multihead`: self-calibration of one scale read by several heads.
 
-use crate::batch::{ChannelFigures, Outcome};
+use crate::batch::Outcome;
 use crate::exit::Usage;
-use crate::input::{alignment_detail, alignment_text};
-use crate::method::{MethodArgs, for_each_sample};
-use crate::output::write_tables_and_report;
+use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
+use crate::output::turn_table;
 use crate::summary::TextTable;
 use anyhow::Context;
 use calib_core::Report;
@@ -230,45 +229,33 @@ fn calibrate(
             None => anyhow::Error::new(e),
         }
     });
-    let cal = cal.with_context(|| {
-        format!(
-            "{}: heads {}",
-            log.display(),
-            heads
-                .iter()
-                .map(|h| h.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-    })?;
+    let cal = cal
+        .with_context(|| {
+            format!(
+                "{}: heads {}",
+                log.display(),
+                heads
+                    .iter()
+                    .map(|h| h.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })
+        .map_err(|e| in_log(e, &reader, log))?;
     let first = &heads[0].name;
-    let report = Report::new(
-        cal.report_section(heads)
-            .with_alignment(alignment_detail(&reader)),
-        vec![log.display().to_string()],
-        Some(crate::input::command_line()),
-        reader.warnings(log),
-    );
-    let json = calib_io::report::render_json(&report)?;
-    let files = write_tables_and_report(
-        out,
-        &[(first, &cal.map, Some(cal.uncertainty.u.as_slice()))],
-        &json,
-        &crate::document::multihead::document(first, &cal, &report),
-    )?;
-    let text = if args.common.json {
-        json
-    } else {
-        alignment_text(reader.alignment().as_ref())
-            + &render_summary(args, out, heads, &cal, &report)
-    };
-    Ok(Outcome {
-        text,
-        channels: vec![ChannelFigures::of(first, &report.channels[first])],
+    let results = Results {
+        section: cal.report_section(heads),
+        tables: vec![turn_table(
+            first,
+            &cal.map,
+            Some(cal.uncertainty.u.as_slice()),
+        )?],
+        channels: vec![first.clone()],
         residual_rms_arcsec: cal.residual_rms.map(|r| r * ARCSEC_PER_RAD),
-        warnings: report.warnings,
-        files,
-    })
+        document: Box::new(|report| crate::document::multihead::document(first, &cal, report)),
+        summary: Box::new(|report| render_summary(args, out, heads, &cal, report)),
+    };
+    finish_log(&reader, log, out, args.common.json, results)
 }
 
 fn readings_name(r: Option<Readings>) -> &'static str {

@@ -1,10 +1,10 @@
 //! `calib reference`: cross-calibration of an encoder against a better reference encoder.
 
-use crate::batch::{ChannelFigures, Outcome};
+use crate::batch::Outcome;
 use crate::exit::Usage;
-use crate::input::{alignment_detail, alignment_text, channel, open_log_with};
-use crate::method::{MethodArgs, for_each_sample};
-use crate::output::{table_name, write_outputs};
+use crate::input::{channel, open_log_with};
+use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
+use crate::output::table_name;
 use crate::reference_table::ReferenceTable;
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
@@ -355,7 +355,9 @@ fn calibrate(
             max_gap: args.bridge_gap.to_radians(),
             target_tol: args.target_tol.map(f64::to_radians),
         };
-        let cal = calibrate_points(&points, &opts).with_context(context)?;
+        let cal = calibrate_points(&points, &opts)
+            .with_context(context)
+            .map_err(|e| in_log(e, &reader, log))?;
         (cal, reader, Some(points.len()))
     } else {
         if let Some(file) = &args.ref_file {
@@ -382,47 +384,32 @@ fn calibrate(
         let reader = for_each_sample(log, reader, |s| {
             cal.push(s.t, s.values[id], sign * corrected(s.values[ir]))
         })?;
-        (cal.finish().with_context(context)?, reader, None)
+        let cal = cal
+            .finish()
+            .with_context(context)
+            .map_err(|e| in_log(e, &reader, log))?;
+        (cal, reader, None)
     };
-    let report = Report::new(
-        cal.report_section(
-            &args.dut,
-            &args.reference,
-            reference_u.map(|u| u * ARCSEC_PER_RAD),
-        )
-        .with_alignment(alignment_detail(&reader)),
-        vec![log.display().to_string()],
-        Some(crate::input::command_line()),
-        reader.warnings(log),
-    );
-    let json = calib_io::report::render_json(&report)?;
-    let doc = crate::document::reference::document(&args.dut, &args.reference, &cal, &report);
     let table = match &cal.map {
         TableMap::Turn(m) => calib_io::table::render_table(m, Some(&cal.u)),
         TableMap::Range(m) => calib_io::table::render_range_table(m, Some(&cal.u)),
     }
     .with_context(|| format!("the table of channel `{}`", args.dut))?;
-    let files = write_outputs(
-        out,
-        &[
-            (table_name(&args.dut), table.into_bytes()),
-            ("report.json".to_string(), json.as_bytes().to_vec()),
-        ],
-        &doc,
-    )?;
-    let text = if args.common.json {
-        json
-    } else {
-        alignment_text(reader.alignment().as_ref())
-            + &render_summary(args, out, &cal, &report, points)
-    };
-    Ok(Outcome {
-        text,
-        channels: vec![ChannelFigures::of(&args.dut, &report.channels[&args.dut])],
+    let results = Results {
+        section: cal.report_section(
+            &args.dut,
+            &args.reference,
+            reference_u.map(|u| u * ARCSEC_PER_RAD),
+        ),
+        tables: vec![(table_name(&args.dut), table.into_bytes())],
+        channels: vec![args.dut.clone()],
         residual_rms_arcsec: None,
-        warnings: report.warnings,
-        files,
-    })
+        document: Box::new(|report| {
+            crate::document::reference::document(&args.dut, &args.reference, &cal, report)
+        }),
+        summary: Box::new(|report| render_summary(args, out, &cal, report, points)),
+    };
+    finish_log(&reader, log, out, args.common.json, results)
 }
 
 /// Whether the report's u leaves the reference out (its uncertainty not given).

@@ -1,6 +1,7 @@
 //! `calib shift-angle`: load readings (and a budget) → calibrate → render tables, report, summary.
 
-use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
+use crate::batch::{self, BatchArgs, Outcome};
+use crate::method::{Results, finish};
 use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context as _;
 use calib_core::Report;
@@ -127,45 +128,30 @@ fn calibrate(
     };
     let result =
         shift_angle::calibrate(&readings, method).with_context(|| format!("{}", path.display()))?;
+    calib_io::shift_angle::check_values(&result).with_context(|| format!("{}", path.display()))?;
     let mut inputs = vec![path.display().to_string()];
     inputs.extend(args.budget.iter().map(|b| b.display().to_string()));
-    let report = Report::new(
-        result.report_section(&readings, budget),
-        inputs,
-        Some(crate::input::command_line()),
-        Vec::new(),
-    );
-    let report_json = calib_io::report::render_json(&report)?;
-
-    calib_io::shift_angle::check_values(&result).with_context(|| format!("{}", path.display()))?;
-    let encoder_csv = calib_io::shift_angle::render_encoder(&result, budget);
-    let polygon_csv = calib_io::shift_angle::render_polygon(&result);
-    let doc = crate::document::shift_angle::document(&readings, &result, budget, &report);
-    let files = crate::output::write_outputs(
-        out,
-        &[
-            ("encoder.csv".into(), encoder_csv.into_bytes()),
-            ("polygon.csv".into(), polygon_csv.into_bytes()),
-            ("report.json".into(), report_json.clone().into_bytes()),
+    let section = result.report_section(&readings, budget);
+    let results = Results {
+        channels: section.channels.keys().cloned().collect(),
+        section,
+        tables: vec![
+            (
+                "encoder.csv".into(),
+                calib_io::shift_angle::render_encoder(&result, budget).into_bytes(),
+            ),
+            (
+                "polygon.csv".into(),
+                calib_io::shift_angle::render_polygon(&result).into_bytes(),
+            ),
         ],
-        &doc,
-    )?;
-    let text = if args.json {
-        report_json
-    } else {
-        render_summary(out, &readings, &result, budget, &report)
-    };
-    Ok(Outcome {
-        text,
-        channels: report
-            .channels
-            .iter()
-            .map(|(name, c)| ChannelFigures::of(name, c))
-            .collect(),
         residual_rms_arcsec: Some(result.residuals.rms_arcsec),
-        warnings: report.warnings,
-        files,
-    })
+        document: Box::new(|report| {
+            crate::document::shift_angle::document(&readings, &result, budget, report)
+        }),
+        summary: Box::new(|report| render_summary(out, &readings, &result, budget, report)),
+    };
+    finish(out, args.json, inputs, Vec::new(), "", results)
 }
 
 /// The summary: what was measured and fitted, then the encoder's map and the polygon.

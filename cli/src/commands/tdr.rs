@@ -1,10 +1,9 @@
 //! `calib tdr`: self-calibration of one encoder from a free spin-down (coast-down) log.
 
-use crate::batch::{ChannelFigures, Outcome};
+use crate::batch::Outcome;
 use crate::exit::Usage;
-use crate::input::{alignment_detail, alignment_text, command_line};
-use crate::method::{MethodArgs, for_each_sample};
-use crate::output::write_tables_and_report;
+use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
+use crate::output::turn_table;
 use anyhow::Context;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -160,40 +159,28 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             None => anyhow::Error::new(e),
         }
     });
-    let cal = cal.with_context(|| format!("{}: channel `{}`", log.display(), args.channel))?;
-    let report = Report::new(
-        cal.report_section(
+    let cal = cal
+        .with_context(|| format!("{}: channel `{}`", log.display(), args.channel))
+        .map_err(|e| in_log(e, &reader, log))?;
+    let results = Results {
+        section: cal.report_section(
             &args.channel,
             args.reference.as_deref(),
             args.max_drag_order,
-        )
-        .with_alignment(alignment_detail(&reader)),
-        vec![log.display().to_string()],
-        Some(command_line()),
-        reader.warnings(log),
-    );
-    let json = calib_io::report::render_json(&report)?;
-    let files = write_tables_and_report(
-        out,
-        &[(&args.channel, &cal.map, Some(&cal.uncertainty.u))],
-        &json,
-        &crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, &report),
-    )?;
-    let text = if args.common.json {
-        json
-    } else {
-        alignment_text(reader.alignment().as_ref()) + &render_summary(args, out, &cal, &report)
-    };
-    Ok(Outcome {
-        text,
-        channels: vec![ChannelFigures::of(
+        ),
+        tables: vec![turn_table(
             &args.channel,
-            &report.channels[&args.channel],
-        )],
+            &cal.map,
+            Some(&cal.uncertainty.u),
+        )?],
+        channels: vec![args.channel.clone()],
         residual_rms_arcsec: Some(cal.residual_rms * ARCSEC_PER_RAD),
-        warnings: report.warnings,
-        files,
-    })
+        document: Box::new(|report| {
+            crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, report)
+        }),
+        summary: Box::new(|report| render_summary(args, out, &cal, report)),
+    };
+    finish_log(&reader, log, out, args.common.json, results)
 }
 
 fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report) -> String {
