@@ -131,11 +131,13 @@ pub fn parse_unit(s: &str) -> Result<AngleUnit, String> {
 /// Checks a `--points` value against [`MAX_TABLE_POINTS`], before any work.
 pub fn check_points(points: Option<usize>) -> Result<(), Usage> {
     match points {
-        Some(p) if !(2..=MAX_TABLE_POINTS).contains(&p) => Err(Usage(format!(
-            "--points {p} is outside its range, 2 to {MAX_TABLE_POINTS} (0.36″ steps, finer than \
-             any map calib estimates; see Limits in `calib --help`)"
-        ))),
-        _ => Ok(()),
+        Some(p) => check_count("--points", p, 2, Some(MAX_TABLE_POINTS)).map_err(|Usage(m)| {
+            Usage(format!(
+                "{m} (0.36″ steps, finer than any map calib estimates; see Limits in `calib \
+                 --help`)"
+            ))
+        }),
+        None => Ok(()),
     }
 }
 
@@ -150,6 +152,34 @@ pub fn check_range(option: &str, value: f64, low: f64, high: f64, unit: &str) ->
         r(value),
         r(low),
         r(high)
+    )))
+}
+
+/// Checks that the count or order `value` of `option` is at least `low` and, where it has a bound,
+/// at most `high`, naming the option (the ranges' one phrasing, as [`check_range`]'s).
+pub fn check_count(
+    option: &str,
+    value: usize,
+    low: usize,
+    high: Option<usize>,
+) -> Result<(), Usage> {
+    if value >= low && high.is_none_or(|h| value <= h) {
+        return Ok(());
+    }
+    Err(Usage(format!(
+        "{option} {value} is outside its range: at least {low}{}",
+        high.map_or(String::new(), |h| format!(" and at most {h}"))
+    )))
+}
+
+/// Checks that `value` of `option` is a fraction: at least 0 and below 1, naming the option.
+pub fn check_fraction(option: &str, value: f64) -> Result<(), Usage> {
+    if (0.0..1.0).contains(&value) {
+        return Ok(());
+    }
+    Err(Usage(format!(
+        "{option} {} is outside its range: at least 0 and below 1",
+        calib_io::limits::readable(value)
     )))
 }
 

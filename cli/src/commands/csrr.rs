@@ -142,16 +142,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         360_000.0,
         "degrees per second",
     )?;
-    if !(0.0..1.0).contains(&args.min_observability) {
-        return Err(Usage(format!(
-            "--min-observability {} is outside its range, 0 to 1 (excluded)",
-            calib_io::limits::readable(args.min_observability)
-        ))
-        .into());
-    }
+    crate::input::check_fraction("--min-observability", args.min_observability)?;
     crate::input::check_points(args.points)?;
-    if args.max_order == Some(0) {
-        return Err(Usage("--max-order must be at least 1".into()).into());
+    if let Some(h) = args.max_order {
+        crate::input::check_count("--max-order", h, 1, None)?;
     }
     if args.truth.is_some() && args.common.logs.len() > 1 {
         return Err(

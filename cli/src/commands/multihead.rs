@@ -168,17 +168,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     let sets = parse_sets(&args.sets, &heads)?;
-    if args.max_order == Some(0) {
-        return Err(Usage("--max-order 0 is outside its range, 1 or more".into()).into());
+    if let Some(h) = args.max_order {
+        crate::input::check_count("--max-order", h, 1, None)?;
     }
     crate::input::check_points(args.points)?;
-    if !(0.0..1.0).contains(&args.min_observability) {
-        return Err(Usage(format!(
-            "--min-observability {} is outside its range, 0 to 1 (excluded)",
-            calib_io::limits::readable(args.min_observability)
-        ))
-        .into());
-    }
+    crate::input::check_fraction("--min-observability", args.min_observability)?;
     let opts = MultiheadOptions {
         method: match args.method {
             MethodArg::Joint => Method::Joint,

@@ -95,28 +95,21 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     crate::input::check_points(Some(args.points))?;
-    if let Some(h) = args.max_order.filter(|h| !(1..=MAX_ORDER).contains(h)) {
-        return Err(Usage(format!(
-            "--max-order {h} is outside its range, 1 to {MAX_ORDER}"
-        ))
-        .into());
+    if let Some(h) = args.max_order {
+        crate::input::check_count("--max-order", h, 1, Some(MAX_ORDER))?;
     }
-    if args.max_drag_order > MAX_DRAG_ORDER {
-        return Err(Usage(format!(
-            "--max-drag-order {} is outside its range, 0 to {MAX_DRAG_ORDER}",
-            args.max_drag_order
-        ))
-        .into());
-    }
-    if let Some(p) = args.motion_degree.filter(|p| !(1..=MAX_DEGREE).contains(p)) {
-        return Err(Usage(format!(
-            "--motion-degree {p} is outside its range, 1 to {MAX_DEGREE}"
-        ))
-        .into());
+    crate::input::check_count(
+        "--max-drag-order",
+        args.max_drag_order,
+        0,
+        Some(MAX_DRAG_ORDER),
+    )?;
+    if let Some(p) = args.motion_degree {
+        crate::input::check_count("--motion-degree", p, 1, Some(MAX_DEGREE))?;
     }
     if !(args.min_revolutions.is_finite() && args.min_revolutions >= 1.0) {
         return Err(Usage(format!(
-            "--min-revolutions {} is outside its range, 1 or more",
+            "--min-revolutions {} is outside its range: a finite number of at least 1",
             calib_io::limits::readable(args.min_revolutions)
         ))
         .into());

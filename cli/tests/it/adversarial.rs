@@ -548,11 +548,11 @@ fn bad_option_values_are_named_with_their_range() {
     for (args, says) in [
         (
             vec!["tdr", &log, "--channel", "a", "--motion-degree", "99"],
-            "--motion-degree 99 is outside its range, 1 to",
+            "--motion-degree 99 is outside its range: at least 1 and at most",
         ),
         (
             vec!["tdr", &log, "--channel", "a", "--min-revolutions", "0.5"],
-            "--min-revolutions 0.5 is outside its range, 1 or more",
+            "--min-revolutions 0.5 is outside its range: a finite number of at least 1",
         ),
         (
             vec![
@@ -563,7 +563,24 @@ fn bad_option_values_are_named_with_their_range() {
                 "--min-observability",
                 "1.5",
             ],
-            "--min-observability 1.5 is outside its range, 0 to 1 (excluded)",
+            "--min-observability 1.5 is outside its range: at least 0 and below 1",
+        ),
+        // One phrasing for `--max-order 0` whichever method refuses it.
+        (
+            vec!["csrr", &log, "--max-order", "0"],
+            "--max-order 0 is outside its range: at least 1",
+        ),
+        (
+            vec!["multihead", &log, "--heads", "a@0,b@90", "--max-order", "0"],
+            "--max-order 0 is outside its range: at least 1",
+        ),
+        (
+            vec!["tdr", &log, "--channel", "a", "--max-order", "0"],
+            "--max-order 0 is outside its range: at least 1 and at most",
+        ),
+        (
+            vec!["csrr", &log, "--points", "1"],
+            "--points 1 is outside its range: at least 2 and at most",
         ),
     ] {
         let o = calib(&[args.as_slice(), &["-o", "/nonexistent/never"]].concat());
