@@ -1,7 +1,9 @@
 //! Command-line arguments (clap derive). Doc comments here are the `--help` text.
 
-use crate::commands;
+use crate::overwrite::Inputs;
+use crate::{commands, method};
 use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
 
 /// Calibrate angular encoders and angle sensors from recorded runs.
 ///
@@ -31,11 +33,11 @@ pub enum Command {
     Inspect(commands::inspect::Args),
     // The rest take their help from their `Args` docs (a doc comment here would replace it).
     Simulate(commands::simulate::Args),
-    Csrr(commands::csrr::Args),
-    Multihead(commands::multihead::Args),
-    Tdr(commands::tdr::Args),
-    ShiftAngle(commands::shift_angle::Args),
-    Reference(commands::reference::Args),
+    Csrr(method::csrr::Args),
+    Multihead(method::multihead::Args),
+    Tdr(method::tdr::Args),
+    ShiftAngle(method::shift_angle::Args),
+    Reference(method::reference::Args),
     MoteusDump(commands::moteus_dump::Args),
     Uncertainty(commands::uncertainty::Args),
     Compare(commands::compare::Args),
@@ -44,4 +46,55 @@ pub enum Command {
     Export(commands::export::Args),
     Import(commands::import::Args),
     Plan(commands::plan::Args),
+}
+
+impl Command {
+    /// Every path the command reads, with what it is: none of them may be written
+    /// ([`crate::overwrite`]). A new command or input option is listed here.
+    pub fn inputs(&self) -> Inputs {
+        fn logs(logs: &[PathBuf]) -> Vec<(&Path, &'static str)> {
+            logs.iter().map(|l| (l.as_path(), "log")).collect()
+        }
+        let paths: Vec<(&Path, &'static str)> = match self {
+            Command::Inspect(a) => vec![(&a.log, "log")],
+            Command::Simulate(a) => a
+                .scenario
+                .iter()
+                .map(|s| (s.as_path(), "scenario"))
+                .collect(),
+            Command::Csrr(a) => {
+                let mut p = logs(&a.common.logs);
+                p.extend(a.truth.as_deref().map(|t| (t, "truth")));
+                p.extend(a.ref_table.as_deref().map(|t| (t, "table")));
+                p
+            }
+            Command::Multihead(a) => logs(&a.common.logs),
+            Command::Tdr(a) => logs(&a.common.logs),
+            Command::Reference(a) => {
+                let mut p = logs(&a.common.logs);
+                p.extend(a.ref_table.as_deref().map(|t| (t, "table")));
+                p.extend(a.ref_file.as_deref().map(|f| (f, "reference file")));
+                p
+            }
+            Command::ShiftAngle(a) => {
+                let mut p: Vec<_> = a
+                    .readings
+                    .iter()
+                    .map(|r| (r.as_path(), "readings"))
+                    .collect();
+                p.extend(a.budget.as_deref().map(|b| (b, "budget")));
+                p
+            }
+            Command::Uncertainty(a) => vec![(&a.budget, "budget")],
+            Command::Compare(a) => vec![(&a.map1, "table"), (&a.map2, "table")],
+            Command::Apply(a) => vec![(&a.table, "table"), (&a.log, "log")],
+            Command::Compose(a) => vec![(&a.first, "table"), (&a.residual, "table")],
+            Command::Export(a) => vec![(&a.table, "table")],
+            Command::Import(a) => vec![(&a.file, "table")],
+            Command::MoteusDump(a) => vec![(&a.dump, "dump")],
+            // A plan reads no file: it is computed from its options.
+            Command::Plan(_) => Vec::new(),
+        };
+        Inputs::new(paths)
+    }
 }

@@ -27,7 +27,7 @@ use std::process::ExitCode;
 fn main() -> ExitCode {
     clean_up_on_signals();
     let cli = cli::Cli::parse();
-    let (output, code) = match commands::run(cli) {
+    let (output, code) = match run(cli) {
         Ok(output) => (output, 0),
         // Outputs written and a summary to print, but a non-zero status (a gate, failed logs).
         Err(err) if err.is::<exit::Failed>() => {
@@ -52,6 +52,30 @@ fn main() -> ExitCode {
             eprintln!("calib: cannot write to standard output: {e}");
             ExitCode::from(exit::DATA)
         }
+    }
+}
+
+/// Runs a command; returns what to print on standard output.
+fn run(cli: cli::Cli) -> anyhow::Result<String> {
+    use cli::Command;
+    ui::set(cli.global);
+    overwrite::protect(cli.command.inputs());
+    match cli.command {
+        Command::Inspect(args) => commands::inspect::run(&args),
+        Command::Simulate(args) => commands::simulate::run(&args),
+        Command::Csrr(args) => method::run(&args),
+        Command::Multihead(args) => method::run(&args),
+        Command::Tdr(args) => method::run(&args),
+        Command::Reference(args) => method::run(&args),
+        Command::ShiftAngle(args) => method::run(&args),
+        Command::Uncertainty(args) => commands::uncertainty::run(&args),
+        Command::Compare(args) => commands::compare::run(&args),
+        Command::MoteusDump(args) => commands::moteus_dump::run(&args),
+        Command::Export(args) => commands::export::run(&args),
+        Command::Import(args) => commands::import::run(&args),
+        Command::Apply(args) => commands::apply::run(&args),
+        Command::Compose(args) => commands::compose::run(&args),
+        Command::Plan(args) => commands::plan::run(&args),
     }
 }
 

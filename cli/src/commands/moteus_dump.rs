@@ -110,7 +110,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         warnings,
     );
     let json = calib_io::report::render_json(&report)?;
-    let doc = crate::document::reference::document(dut, reference, &cal, &report);
+    let doc = crate::method::reference::document::document(dut, reference, &cal, &report);
     let table =
         calib_io::table::render_table(map, Some(&cal.u)).context("the table of the encoder")?;
     let mut opts = ExportOptions::new(

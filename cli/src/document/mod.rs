@@ -1,11 +1,5 @@
-//! The `report.html` documents of the method commands, built from their results with
-//! `calib-report`'s plot builders: one module per method.
-
-pub mod csrr;
-pub mod multihead;
-pub mod reference;
-pub mod shift_angle;
-pub mod tdr;
+//! What the `report.html` documents of the methods share (each method's own document is in its
+//! folder, `crate::method::<m>::document`), built with `calib-report`'s plot builders.
 
 use calib_core::{ChannelReport, Report};
 use calib_report::{Provenance, Table};

@@ -1,6 +1,6 @@
 //! The report of `calib reference`.
 
-use super::{harmonics_table, num, provenance};
+use crate::document::{harmonics_table, num, provenance};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{ReferenceCalibration, TableMap};
@@ -43,7 +43,7 @@ pub fn document(
     doc.warnings = report.warnings.clone();
     let u_max = cal.u.iter().fold(0.0f64, |m, u| m.max(*u)) * ARCSEC_PER_RAD;
     // Next to every u: whether it leaves the reference out.
-    let excludes = if crate::commands::reference::excludes_reference(report) {
+    let excludes = if super::summary::excludes_reference(report) {
         ", u excludes the reference"
     } else {
         ""

@@ -1,16 +1,17 @@
 //! `calib tdr`: self-calibration of one encoder from a free spin-down (coast-down) log.
 
+mod document;
+mod summary;
+
 use crate::batch::Outcome;
 use crate::exit::Usage;
 use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
 use crate::output::turn_table;
 use anyhow::Context;
-use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::report::tdr::rpm;
-use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
-use std::fmt::Write;
+use calib_core::tdr::{Tdr, TdrOptions};
 use std::path::Path;
+use summary::render_summary;
 
 /// Largest `--max-order` accepted: the fit is dense in the orders (cost ∝ samples·orders²).
 const MAX_ORDER: usize = 1000;
@@ -86,7 +87,25 @@ pub struct Args {
 }
 
 /// Runs `calib tdr`.
-pub fn run(args: &Args) -> anyhow::Result<String> {
+impl super::Method for Args {
+    const NAME: &'static str = "tdr";
+    type Prepared = ();
+
+    fn runs(&self) -> super::Runs<'_> {
+        self.common.runs()
+    }
+
+    fn prepare(&self) -> anyhow::Result<()> {
+        prepare(self)
+    }
+
+    fn calibrate(&self, (): &(), log: &Path, out: &Path) -> anyhow::Result<Outcome> {
+        calibrate(self, log, out)
+    }
+}
+
+/// Checks the arguments before any log is read.
+fn prepare(args: &Args) -> anyhow::Result<()> {
     if args.reference.as_ref() == Some(&args.channel) {
         return Err(Usage(format!(
             "--channel and --ref both name `{}`: name the encoder to calibrate and a different reference",
@@ -114,7 +133,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    args.common.run("tdr", |log, out| calibrate(args, log, out))
+    Ok(())
 }
 
 /// Calibrates one log into the folder `out`.
@@ -169,118 +188,9 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         channels: vec![args.channel.clone()],
         residual_rms_arcsec: Some(cal.residual_rms * ARCSEC_PER_RAD),
         document: Box::new(|report| {
-            crate::document::tdr::document(&args.channel, args.reference.as_deref(), &cal, report)
+            document::document(&args.channel, args.reference.as_deref(), &cal, report)
         }),
         summary: Box::new(|report| render_summary(args, out, &cal, report)),
     };
     finish_log(&reader, log, out, args.common.json, results)
-}
-
-fn render_summary(args: &Args, out: &Path, cal: &TdrCalibration, report: &Report) -> String {
-    let mut o = String::new();
-    let m = &cal.motion;
-    let _ = writeln!(
-        o,
-        "Spin-down (TDR) self-calibration of `{}` — coast {:.3}–{:.3} s, {:.1} revolutions, {:.1} → {:.1} r/min",
-        args.channel,
-        m.t_start,
-        m.t_end,
-        cal.revolutions,
-        rpm(cal.speed_start),
-        rpm(cal.speed_end)
-    );
-    let _ = writeln!(
-        o,
-        "motion: Chebyshev series of degree {} in time; residual rms {:.4}″ over {} samples",
-        m.degree,
-        cal.residual_rms * ARCSEC_PER_RAD,
-        cal.samples_used
-    );
-    let ch = &report.channels[&args.channel];
-    let top: Vec<String> = ch
-        .harmonics
-        .iter()
-        .take(4)
-        .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
-        .collect();
-    let _ = writeln!(
-        o,
-        "\nmap (error = reading − true angle, zero mean): p-p {:.3}″  rms {:.3}″  largest orders {}  → {}",
-        cal.map.peak_to_peak() * ARCSEC_PER_RAD,
-        ch.rms_arcsec,
-        top.join(", "),
-        out.join(&ch.table).display()
-    );
-    let _ = writeln!(
-        o,
-        "standard uncertainty u of the table: max {:.4}″, rms {:.4}″ (budget in report.json)",
-        cal.uncertainty.max() * ARCSEC_PER_RAD,
-        cal.uncertainty.rms() * ARCSEC_PER_RAD
-    );
-    if let (Some(name), Some(r)) = (&args.reference, &cal.reference) {
-        let _ = writeln!(
-            o,
-            "check against `{name}`: max |map − reference map| {:.3}″, rms {:.3}″",
-            r.max_abs_diff_arcsec, r.rms_diff_arcsec
-        );
-    }
-    let _ = writeln!(
-        o,
-        "orders: {} kept of 1–{} tested (those above the noise){}",
-        cal.orders.len(),
-        cal.max_order,
-        if cal.unresolved.is_empty() {
-            String::new()
-        } else {
-            format!(
-                "; residual structure above them at {} orders",
-                cal.unresolved.len()
-            )
-        }
-    );
-    let sep = &cal.drag_separation;
-    if sep.separated && !cal.drag.is_empty() {
-        let list: Vec<String> = cal
-            .drag
-            .iter()
-            .map(|d| {
-                format!(
-                    "order {}: {:.4} rad/s² ({:.3}″ ± {:.3}″ at the mean 1/ω²)",
-                    d.deceleration.order,
-                    d.deceleration.amplitude,
-                    d.imprint * ARCSEC_PER_RAD,
-                    d.u_imprint * ARCSEC_PER_RAD
-                )
-            })
-            .collect();
-        let _ = writeln!(
-            o,
-            "\ndrag separated from the map (1/ω² varies by {:.0} % over the coast): {}",
-            100.0 * sep.variation,
-            list.join(", ")
-        );
-    } else if sep.separated {
-        let _ = writeln!(
-            o,
-            "\ndrag: none found above the noise (1/ω² varies by {:.0} % over the coast, enough to separate it)",
-            100.0 * sep.variation
-        );
-    } else {
-        let _ = writeln!(
-            o,
-            "\ndrag: not separable on this coast; a deceleration of 1 rad/s² at order h would add {:.3}″/h² to the map's order h (⟨ω⁻²⟩ = {:.3e} s²)",
-            cal.drag_gain * ARCSEC_PER_RAD,
-            cal.drag_gain
-        );
-    }
-    o += &crate::summary::ending(
-        &report.warnings,
-        out,
-        &[
-            report.channels[&args.channel].table.clone(),
-            "report.json".to_string(),
-        ],
-        "the map, its spectrum with the drag orders marked, the drag, the coast",
-    );
-    o
 }

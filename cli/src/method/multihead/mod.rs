@@ -1,18 +1,17 @@
 //! `calib multihead`: self-calibration of one scale read by several heads.
 
+mod document;
+mod summary;
+
 use crate::batch::Outcome;
 use crate::exit::Usage;
 use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
 use crate::output::turn_table;
-use crate::summary::TextTable;
 use anyhow::Context;
-use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::multihead::{
-    Head, Method, Multihead, MultiheadCalibration, MultiheadOptions, Readings,
-};
-use std::fmt::Write;
+use calib_core::multihead::{Head, Method, Multihead, MultiheadOptions};
 use std::path::Path;
+use summary::render_summary;
 
 /// The method, as chosen on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -159,7 +158,31 @@ fn parse_sets(specs: &[String], heads: &[Head]) -> Result<Vec<Vec<usize>>, Usage
 }
 
 /// Runs `calib multihead`.
-pub fn run(args: &Args) -> anyhow::Result<String> {
+impl super::Method for Args {
+    const NAME: &'static str = "multihead";
+    type Prepared = (Vec<Head>, MultiheadOptions);
+
+    fn runs(&self) -> super::Runs<'_> {
+        self.common.runs()
+    }
+
+    fn prepare(&self) -> anyhow::Result<Self::Prepared> {
+        prepare(self)
+    }
+
+    fn calibrate(
+        &self,
+        (heads, opts): &Self::Prepared,
+        log: &Path,
+        out: &Path,
+    ) -> anyhow::Result<Outcome> {
+        calibrate(self, heads, opts, log, out)
+    }
+}
+
+/// Checks the arguments before any log is read; the heads and the options every log's run
+/// shares.
+fn prepare(args: &Args) -> anyhow::Result<(Vec<Head>, MultiheadOptions)> {
     let heads = parse_heads(&args.heads)?;
     if !args.sets.is_empty() && args.method != MethodArg::Eda {
         return Err(Usage(
@@ -186,9 +209,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     };
     // Head and set problems concern the command line, whatever the log holds.
     Multihead::new(heads.clone(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
-    args.common.run("multihead", |log, out| {
-        calibrate(args, &heads, &opts, log, out)
-    })
+    Ok((heads, opts))
 }
 
 /// Calibrates one log into the folder `out`.
@@ -246,162 +267,10 @@ fn calibrate(
         )?],
         channels: vec![first.clone()],
         residual_rms_arcsec: cal.residual_rms.map(|r| r * ARCSEC_PER_RAD),
-        document: Box::new(|report| crate::document::multihead::document(first, &cal, report)),
+        document: Box::new(|report| document::document(first, &cal, report)),
         summary: Box::new(|report| render_summary(args, out, heads, &cal, report)),
     };
     finish_log(&reader, log, out, args.common.json, results)
-}
-
-fn readings_name(r: Option<Readings>) -> &'static str {
-    match r {
-        None => "reference",
-        Some(Readings::RelativeToNominal) => "relative to nominal",
-        Some(Readings::Raw) => "raw scale angle",
-    }
-}
-
-/// A set's heads by name.
-fn set_names(set: &[usize], heads: &[Head]) -> Vec<String> {
-    set.iter().map(|&j| heads[j].name.clone()).collect()
-}
-
-/// Orders as `84, 168, …` (the first 12, then how many more), or `none`.
-fn list_orders(orders: impl ExactSizeIterator<Item = usize>) -> String {
-    let total = orders.len();
-    if total == 0 {
-        return "none".into();
-    }
-    let shown: Vec<String> = orders.take(12).map(|h| h.to_string()).collect();
-    match total - shown.len() {
-        0 => shown.join(", "),
-        more => format!("{} and {more} more", shown.join(", ")),
-    }
-}
-
-fn render_summary(
-    args: &Args,
-    out: &Path,
-    heads: &[Head],
-    cal: &MultiheadCalibration,
-    report: &Report,
-) -> String {
-    let mut o = String::new();
-    let first = &heads[0].name;
-    let method = match cal.method {
-        Method::Joint => "joint least squares",
-        Method::Eda => "equal-division average (eq. 9)",
-    };
-    let _ = writeln!(
-        o,
-        "Multi-head self-calibration of one scale read by {} heads — {method}",
-        heads.len()
-    );
-    let _ = writeln!(
-        o,
-        "  {} samples, {:.2} revolutions of `{first}`, {} bins per revolution",
-        cal.samples, cal.revolutions, cal.bins
-    );
-    let _ = writeln!(
-        o,
-        "\nheads (angles from `{first}`; angle error = actual − nominal, estimated)"
-    );
-    // The widths keep the layout of earlier versions while names fit; longer names widen the
-    // column instead of pushing the rest of their row out of line.
-    let mut table = TextTable::new(&[
-        "head",
-        "nominal °",
-        "angle error ″",
-        "residual ″",
-        "readings",
-    ])
-    .min_widths(&[12, 11, 15, 12, 0]);
-    for h in &cal.heads {
-        let (error, residual) = match h.residual_rms {
-            Some(r) => (
-                format!("{:.4}", h.angle_error * ARCSEC_PER_RAD),
-                format!("{:.4}", r * ARCSEC_PER_RAD),
-            ),
-            None => ("0 (origin)".to_string(), "—".to_string()),
-        };
-        table.row(vec![
-            h.name.clone(),
-            format!("{:.6}", h.nominal.to_degrees()),
-            error,
-            residual,
-            readings_name(h.readings).to_string(),
-        ]);
-    }
-    o += &table.render();
-    if !cal.sets.is_empty() {
-        let _ = writeln!(o, "\nEDA sets (each blind to multiples of its head count)");
-        for (i, s) in cal.sets.iter().enumerate() {
-            let n = s.heads.len();
-            let _ = writeln!(
-                o,
-                "  {}: {:<40} N = {n} ({:.4}° apart)",
-                i + 1,
-                set_names(&s.heads, heads).join(", "),
-                360.0 / n as f64
-            );
-        }
-    }
-    let ch = &report.channels[first];
-    let top: Vec<String> = ch
-        .harmonics
-        .iter()
-        .take(4)
-        .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
-        .collect();
-    let _ = writeln!(
-        o,
-        "\nmap of the scale as `{first}` reads it (error = reading − true angle, zero mean)"
-    );
-    let _ = writeln!(
-        o,
-        "  p-p {:.4}″  rms {:.4}″  largest orders {}  → {}",
-        cal.map.peak_to_peak() * ARCSEC_PER_RAD,
-        ch.rms_arcsec,
-        top.join(", "),
-        out.join(&ch.table).display()
-    );
-    let _ = writeln!(
-        o,
-        "  standard uncertainty u of the table: max {:.4}″, rms {:.4}″ (budget in report.json)",
-        cal.uncertainty.max() * ARCSEC_PER_RAD,
-        cal.uncertainty.rms() * ARCSEC_PER_RAD
-    );
-    let residual = cal.residual_rms.map_or(String::new(), |r| {
-        format!(", residual RMS {:.4}″ per sample", r * ARCSEC_PER_RAD)
-    });
-    let _ = writeln!(
-        o,
-        "\nfit: orders 1–{}{residual}, {} iterations",
-        cal.max_order, cal.iterations
-    );
-    let who = match cal.method {
-        Method::Joint => "no head pair sees them",
-        Method::Eda => "no set sees them",
-    };
-    let _ = writeln!(
-        o,
-        "blind orders ({who}; the map lacks them): {}",
-        list_orders(cal.blind.iter().map(|e| e.order))
-    );
-    if cal.method == Method::Joint {
-        let _ = writeln!(
-            o,
-            "ill-conditioned orders left out (observability < {}): {}",
-            args.min_observability,
-            list_orders(cal.ill_conditioned.iter().map(|e| e.order))
-        );
-    }
-    o += &crate::summary::ending(
-        &report.warnings,
-        out,
-        &[ch.table.clone(), "report.json".to_string()],
-        "the scale's map, its spectrum with the blind orders, every head's angle error",
-    );
-    o
 }
 
 #[cfg(test)]
@@ -466,12 +335,5 @@ mod tests {
         assert_eq!(args.sets, ["a,c", "a,b,c"]);
         assert_eq!(args.method, MethodArg::Eda);
         assert!(crate::cli::Cli::try_parse_from(["calib", "multihead", "run.mcap"]).is_err());
-    }
-
-    #[test]
-    fn orders_are_listed_briefly() {
-        assert_eq!(list_orders([84usize, 168].into_iter()), "84, 168");
-        assert_eq!(list_orders(std::iter::empty()), "none");
-        assert!(list_orders(1..21).ends_with("and 8 more"));
     }
 }

@@ -1,6 +1,6 @@
 //! The report of `calib shift-angle`.
 
-use super::{harmonics_table, num, provenance};
+use crate::document::{harmonics_table, num, provenance};
 use calib_core::Report;
 use calib_core::shift_angle::{Method, Readings, ShiftAngleResult};
 use calib_core::uncertainty::BudgetResult;

@@ -1,6 +1,6 @@
 //! The report of `calib tdr`.
 
-use super::{harmonics_table, num, provenance};
+use crate::document::{harmonics_table, num, provenance};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::tdr::TdrCalibration;
@@ -34,7 +34,7 @@ pub fn document(
         ]);
     doc.push(Section::new("Summary").table(facts));
 
-    let (band_name, band) = super::uncertainty_band(&cal.map, &cal.uncertainty);
+    let (band_name, band) = crate::document::uncertainty_band(&cal.map, &cal.uncertainty);
     let mut layers = MapLayers::of(&cal.map).with_band(&band_name, band);
     if let (Some(r), Some(name)) = (&cal.reference, reference) {
         layers = layers.compared_with(
@@ -62,7 +62,10 @@ pub fn document(
     if let Some(ch) = report.channels.get(channel) {
         s = s.table(harmonics_table(channel, ch));
     }
-    s = s.table(super::uncertainty_table(channel, &cal.uncertainty));
+    s = s.table(crate::document::uncertainty_table(
+        channel,
+        &cal.uncertainty,
+    ));
     doc.push(s);
     let marks = if cal.drag_separation.separated {
         OrderMarks {

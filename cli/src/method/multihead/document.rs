@@ -1,6 +1,6 @@
 //! The report of `calib multihead`.
 
-use super::{harmonics_table, num, provenance};
+use crate::document::{harmonics_table, num, provenance};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::multihead::{Method, MultiheadCalibration};
@@ -67,7 +67,7 @@ pub fn document(first: &str, cal: &MultiheadCalibration, report: &Report) -> Doc
     );
     doc.push(Section::new("Summary").table(facts).table(heads));
 
-    let (band_name, band) = super::uncertainty_band(&cal.map, &cal.uncertainty);
+    let (band_name, band) = crate::document::uncertainty_band(&cal.map, &cal.uncertainty);
     let layers = MapLayers::of(&cal.map).with_band(&band_name, band);
     let mut s = Section::new(&format!("Error map of the scale as `{first}` reads it"))
         .text(&format!(
@@ -83,7 +83,7 @@ pub fn document(first: &str, cal: &MultiheadCalibration, report: &Report) -> Doc
     if let Some(ch) = report.channels.get(first) {
         s = s.table(harmonics_table(first, ch));
     }
-    s = s.table(super::uncertainty_table(first, &cal.uncertainty));
+    s = s.table(crate::document::uncertainty_table(first, &cal.uncertainty));
     doc.push(s);
     let marks = OrderMarks {
         blind: cal.blind.iter().map(|e| e.order).collect(),

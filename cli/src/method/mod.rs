@@ -5,6 +5,12 @@
 //! [`finish`]): its report, report.json, the tables, report.html and the summary, written and
 //! rendered the same way for every method. `CONTRIBUTING.md` lists the files a new method touches.
 
+pub mod csrr;
+pub mod multihead;
+pub mod reference;
+pub mod shift_angle;
+pub mod tdr;
+
 use crate::batch::{self, BatchArgs, ChannelFigures, Outcome};
 use crate::input::{
     LogArgs, alignment_detail, alignment_text, command_line, open_selected, parse_unit,
@@ -47,21 +53,15 @@ pub struct MethodArgs {
 }
 
 impl MethodArgs {
-    /// Calibrates every log with `calibrate(log, folder)` as the method `method`
-    /// ([`batch::run`]): the folders, gates, summary.json and exit status of every method.
-    pub fn run<F>(&self, method: &str, calibrate: F) -> anyhow::Result<String>
-    where
-        F: Fn(&Path, &Path) -> anyhow::Result<Outcome> + Sync,
-    {
-        crate::units::declare(self.unit);
-        batch::run(
-            method,
-            &self.logs,
-            &self.output,
-            &self.batch,
-            self.json,
-            calibrate,
-        )
+    /// Where the runs of a method over these logs go.
+    pub fn runs(&self) -> Runs<'_> {
+        Runs {
+            inputs: &self.logs,
+            output: &self.output,
+            batch: &self.batch,
+            json: self.json,
+            unit: self.unit,
+        }
     }
 
     /// Opens `log` reading the channels `names` only, in this order, the first setting the
@@ -69,6 +69,60 @@ impl MethodArgs {
     pub fn open(&self, log: &Path, names: &[&str]) -> anyhow::Result<LogReader> {
         open_selected(log, self.unit, &self.input, names)
     }
+}
+
+/// A calibration method: its arguments check themselves and prepare what every input's run
+/// shares before any input is read, then calibrate one input into one folder (load with
+/// calib-io, compute with calib-core, and [`finish_log`] or [`finish`]); [`run`] does the rest.
+/// A new method is a folder here (`mod.rs`: its `Args` and this trait; `summary.rs`;
+/// `document.rs`), a variant of [`crate::cli::Command`] and a line of `main.rs`'s dispatch.
+pub trait Method: Sync {
+    /// The method's name in report.json and summary.json.
+    const NAME: &'static str;
+    /// What every input's run shares: parsed options, a reference's table.
+    type Prepared: Sync;
+    /// The inputs, the output folder and how the runs are gated.
+    fn runs(&self) -> Runs<'_>;
+    /// Checks the arguments (a usage error, exit 2, before any input is read) and prepares what
+    /// every run shares.
+    fn prepare(&self) -> anyhow::Result<Self::Prepared>;
+    /// Calibrates `input` into the folder `out`.
+    fn calibrate(
+        &self,
+        prepared: &Self::Prepared,
+        input: &Path,
+        out: &Path,
+    ) -> anyhow::Result<Outcome>;
+}
+
+/// Where a method's runs go.
+pub struct Runs<'a> {
+    /// The inputs, each calibrated independently (in parallel with several).
+    pub inputs: &'a [PathBuf],
+    /// The output folder (one subfolder per input with several).
+    pub output: &'a Path,
+    /// Pipelines and gates.
+    pub batch: &'a BatchArgs,
+    /// report.json (summary.json) on standard output instead of the summary.
+    pub json: bool,
+    /// The unit readings are declared in, for the unit check.
+    pub unit: Option<AngleUnit>,
+}
+
+/// Runs the method `m` over its inputs ([`batch::run`]): the folders, gates, summary.json and
+/// exit status of every method.
+pub fn run<M: Method>(m: &M) -> anyhow::Result<String> {
+    let prepared = m.prepare()?;
+    let runs = m.runs();
+    crate::units::declare(runs.unit);
+    batch::run(
+        M::NAME,
+        runs.inputs,
+        runs.output,
+        runs.batch,
+        runs.json,
+        |input, out| m.calibrate(&prepared, input, out),
+    )
 }
 
 /// Reads every sample of `reader` (opened on `log` by [`MethodArgs::open`]) and calls `push`

@@ -1,23 +1,23 @@
 //! `calib reference`: cross-calibration of an encoder against a better reference encoder.
 
+pub(crate) mod document;
+mod summary;
+
 use crate::batch::Outcome;
 use crate::exit::Usage;
 use crate::input::{channel, open_log_with};
 use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
 use crate::output::table_name;
 use crate::reference_table::ReferenceTable;
-use crate::summary::{TextTable, ending, key_values};
 use anyhow::Context;
-use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
-    Latency, LatencySource, ReferenceCal, ReferenceCalibration, ReferenceKind, ReferenceOptions,
-    TableMap, Targets,
+    Latency, ReferenceCal, ReferenceKind, ReferenceOptions, TableMap, Targets,
 };
 use calib_core::reference_points::{PointOptions, calibrate_points};
 use calib_io::{LogReader, ReadOptions};
-use std::fmt::Write;
 use std::path::{Path, PathBuf};
+use summary::render_summary;
 
 /// Calibrate an encoder (the DUT) against a better reference encoder on the same shaft.
 ///
@@ -207,7 +207,30 @@ fn parse_targets(text: &str) -> Result<Targets, String> {
 }
 
 /// Runs `calib reference`.
-pub fn run(args: &Args) -> anyhow::Result<String> {
+impl super::Method for Args {
+    const NAME: &'static str = "reference";
+    type Prepared = Option<ReferenceTable>;
+
+    fn runs(&self) -> super::Runs<'_> {
+        self.common.runs()
+    }
+
+    fn prepare(&self) -> anyhow::Result<Self::Prepared> {
+        prepare(self)
+    }
+
+    fn calibrate(
+        &self,
+        reference: &Self::Prepared,
+        log: &Path,
+        out: &Path,
+    ) -> anyhow::Result<Outcome> {
+        calibrate(self, reference.as_ref(), log, out)
+    }
+}
+
+/// Checks the arguments before any log is read; the reference's table, read once.
+fn prepare(args: &Args) -> anyhow::Result<Option<ReferenceTable>> {
     // With --ref-file the two name columns of different files.
     if args.dut == args.reference && args.ref_file.is_none() {
         return Err(Usage(format!(
@@ -254,9 +277,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     reference_kind(args)?;
-    args.common.run("reference", |log, out| {
-        calibrate(args, reference.as_ref(), log, out)
-    })
+    Ok(reference)
 }
 
 /// Opens `log` (a timed log or a point list) reading the channels `names`, in this order.
@@ -404,211 +425,8 @@ fn calibrate(
         tables: vec![(table_name(&args.dut), table.into_bytes())],
         channels: vec![args.dut.clone()],
         residual_rms_arcsec: None,
-        document: Box::new(|report| {
-            crate::document::reference::document(&args.dut, &args.reference, &cal, report)
-        }),
+        document: Box::new(|report| document::document(&args.dut, &args.reference, &cal, report)),
         summary: Box::new(|report| render_summary(args, out, &cal, report, points)),
     };
     finish_log(&reader, log, out, args.common.json, results)
-}
-
-/// Whether the report's u leaves the reference out (its uncertainty not given).
-pub fn excludes_reference(report: &Report) -> bool {
-    matches!(&report.details, calib_core::report::Details::Reference(d) if d.u_excludes_reference)
-}
-
-/// The summary; `points`: the number of points of a point list.
-fn render_summary(
-    args: &Args,
-    out: &Path,
-    cal: &ReferenceCalibration,
-    report: &Report,
-    points: Option<usize>,
-) -> String {
-    let mut o = String::new();
-    let _ = writeln!(
-        o,
-        "Reference calibration of `{}` against `{}`\n",
-        args.dut, args.reference
-    );
-    let iso: std::collections::BTreeMap<_, _> = cal.iso.arcsec().into_iter().collect();
-    let fmt = |k: &str| {
-        iso.get(k)
-            .copied()
-            .flatten()
-            .map_or("—".to_string(), |v| format!("{v:.3}″"))
-    };
-    let u_max = cal.u.iter().fold(0.0f64, |m, u| m.max(*u)) * ARCSEC_PER_RAD;
-    let coverage = match (cal.map.range(), cal.gap) {
-        (Some((lo, hi)), _) => range_text(lo, hi),
-        (None, Some(g)) => format!(
-            "whole turn, {:.3}° never reached between {:.3}° and {:.3}° (bridged)",
-            g.size.to_degrees(),
-            g.from.to_degrees(),
-            calib_core::angle::wrap_2pi(g.to).to_degrees()
-        ),
-        (None, None) => "whole turn".to_string(),
-    };
-    o += &key_values(&[
-        match points {
-            Some(n) => (
-                "points",
-                format!(
-                    "{n} stationary points at {} targets, at least {} measurement(s) increasing, \
-                     {} decreasing",
-                    cal.targets.len(),
-                    cal.min_passes.0,
-                    cal.min_passes.1
-                ),
-            ),
-            None => (
-                "run",
-                format!(
-                    "{:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
-                    cal.revolutions, cal.min_passes.0, cal.min_passes.1
-                ),
-            ),
-        },
-        ("map", coverage),
-        ("latency", latency_text(cal)),
-        (
-            "ISO 230-2",
-            format!(
-                "{} targets: systematic E {}, reversal B {}, repeatability R {}, accuracy A {}",
-                cal.targets.len(),
-                fmt("systematic"),
-                fmt("reversal"),
-                fmt("repeatability"),
-                fmt("accuracy")
-            ),
-        ),
-    ]);
-    if let Some(e) = cal.ends {
-        o += &key_values(&[(
-            "one direction",
-            format!(
-                "{} point(s) at the ends measured one way only: corrected by half the reversal next to them \
-                 (at most {:.3}″, its u at most {:.3}″, in u_arcsec)",
-                e.points,
-                e.max_correction * ARCSEC_PER_RAD,
-                e.max_u * ARCSEC_PER_RAD
-            ),
-        )]);
-    }
-    if let Some(r) = &cal.ripple {
-        let mut terms: Vec<_> = r.terms.iter().collect();
-        terms.sort_by(|a, b| b.amplitude.total_cmp(&a.amplitude));
-        let top: Vec<String> = terms
-            .iter()
-            .take(3)
-            .map(|t| {
-                format!(
-                    "order {} ({}/electrical turn) {:.3}″ ± {:.3}″",
-                    t.order,
-                    t.harmonic,
-                    t.amplitude * ARCSEC_PER_RAD,
-                    t.u_amplitude * ARCSEC_PER_RAD
-                )
-            })
-            .collect();
-        o += &key_values(&[(
-            "motor ripple",
-            format!(
-                "{} pole pairs, {:.3}″ peak-to-peak taken out of the map: {}",
-                r.pole_pairs,
-                r.peak_to_peak * ARCSEC_PER_RAD,
-                top.join(", ")
-            ),
-        )]);
-    }
-    let ch = &report.channels[&args.dut];
-    let top: Vec<String> = ch
-        .harmonics
-        .iter()
-        .take(3)
-        .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
-        .collect();
-    let excludes = excludes_reference(report);
-    let u_label = if excludes {
-        "max u (excludes the reference)"
-    } else {
-        "max u"
-    };
-    let mut t = TextTable::new(&["channel", "p-p before", "rms", u_label, "largest orders"]);
-    t.row(vec![
-        args.dut.clone(),
-        format!("{:.3}″", ch.peak_to_peak_arcsec),
-        format!("{:.3}″", ch.rms_arcsec),
-        format!("{u_max:.3}″"),
-        if top.is_empty() {
-            "— (a range has no harmonics)".to_string()
-        } else {
-            top.join(", ")
-        },
-    ]);
-    let _ = writeln!(o, "\n{}", t.render().trim_end());
-    let _ = writeln!(
-        o,
-        "  (error = {} − {}, zero mean; every ISO 230-2 figure is in report.json and report.html)",
-        args.dut, args.reference
-    );
-    o += &ending(
-        &report.warnings,
-        out,
-        &[ch.table.clone(), "report.json".to_string()],
-        if cal.map.range().is_some() {
-            "error map over the range with its uncertainty band, each direction"
-        } else {
-            "error map with its uncertainty band, each direction, spectrum"
-        },
-    );
-    o
-}
-
-/// The summary's line on a range: in the signed convention when it crosses the reading 0
-/// (−40° to 95°, never above 360°), with the readings of a sensor that reads 0…360°.
-fn range_text(lo: f64, hi: f64) -> String {
-    let span = (hi - lo).to_degrees();
-    let (lo, hi) = (lo.to_degrees(), hi.to_degrees());
-    if hi > 360.0 {
-        format!(
-            "range table from {:.3}° to {:.3}° ({span:.3}° of the DUT's reading across 0°, i.e. {lo:.3}°…360° and \
-             0°…{:.3}° read in [0, 360); no whole turn)",
-            lo - 360.0,
-            hi - 360.0,
-            hi - 360.0
-        )
-    } else {
-        format!(
-            "range table from {lo:.3}° to {hi:.3}° ({span:.3}° of the DUT's reading; no whole turn)"
-        )
-    }
-}
-
-/// The summary's line on the lag between the channels.
-fn latency_text(cal: &ReferenceCalibration) -> String {
-    let Some(l) = cal.latency else {
-        return "assumed 0 (--latency 0)".to_string();
-    };
-    let ms = |s: f64| s * 1e3;
-    match (l.source, l.fit) {
-        (LatencySource::Given, _) => format!("{:.3} ms given (--latency), removed", ms(l.applied)),
-        (LatencySource::Estimated, Some(f)) => format!(
-            "the DUT lags the reference by {:.3} ± {:.3} ms (estimated, removed)",
-            ms(f.tau),
-            ms(f.u_tau)
-        ),
-        (LatencySource::Insignificant, Some(f)) => format!(
-            "{:.3} ± {:.3} ms estimated: not different from 0, not removed",
-            ms(f.tau),
-            ms(f.u_tau)
-        ),
-        (LatencySource::Ambiguous, Some(f)) => format!(
-            "not separable from backlash at one speed per direction: {:.1} ms, or a backlash of {:.1}″ (not removed)",
-            ms(f.tau_if_no_backlash),
-            f.reversal_if_no_latency * ARCSEC_PER_RAD
-        ),
-        _ => "the run cannot estimate it (too few points crossed twice, or time stamps out of order); not removed"
-            .to_string(),
-    }
 }

@@ -1,6 +1,6 @@
 //! The report of `calib csrr`.
 
-use super::{harmonics_table, num, provenance};
+use crate::document::{harmonics_table, num, provenance};
 use calib_core::ErrorMap;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -57,7 +57,7 @@ pub fn document(
             .as_ref()
             .map(|(ua, ub)| if a { ua } else { ub });
         if let Some(u) = u {
-            let (band_name, band) = super::uncertainty_band(map, u);
+            let (band_name, band) = crate::document::uncertainty_band(map, u);
             layers = layers.with_band(&band_name, band);
         }
         if let Some((label, pts)) = comparison(cal, truth, a) {
@@ -77,7 +77,7 @@ pub fn document(
             s = s.table(harmonics_table(name, ch));
         }
         if let Some(u) = u {
-            s = s.table(super::uncertainty_table(name, u));
+            s = s.table(crate::document::uncertainty_table(name, u));
         }
         doc.push(s);
     }
@@ -128,10 +128,7 @@ fn summary(names: (&str, &str), cal: &Calibration, report: &Report) -> Section {
     let mut t = Table::new("Result", &["quantity", "value"])
         .row(["solver".to_string(), solver.to_string()])
         .row(["sessions used".to_string(), cal.sessions.len().to_string()])
-        .row([
-            "orders".to_string(),
-            crate::commands::csrr::orders_text(cal),
-        ]);
+        .row(["orders".to_string(), super::summary::orders_text(cal)]);
     if let Some(r) = cal.residual_rms {
         t = t
             .row([
