@@ -98,3 +98,27 @@ impl Command {
         Inputs::new(paths)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+
+    /// The channel-naming paragraph is written once and shown by every command that reads a log.
+    #[test]
+    fn every_log_command_explains_channel_names_once() {
+        let mut cli = Cli::command();
+        for name in ["inspect", "csrr", "multihead", "tdr", "reference"] {
+            let help = cli
+                .find_subcommand_mut(name)
+                .unwrap()
+                .render_long_help()
+                .to_string();
+            assert_eq!(
+                help.matches(crate::input::CHANNEL_NAMES).count(),
+                1,
+                "{name}: {help}"
+            );
+        }
+    }
+}

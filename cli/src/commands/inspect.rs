@@ -21,13 +21,10 @@ use std::path::PathBuf;
 /// MCAP log it lists every topic first: message type, encoding, message count, rate, and its
 /// channels by the names the other commands accept.
 ///
-/// Channels are named by their CSV column; in MCAP and rosbag2 bags by the joint name
-/// (JointState, DynamicJointState) or field (JSON) where no other topic carries that name, by the
-/// topic for std_msgs scalars, as TOPIC.field.path for a numeric field of another message whose
-/// MCAP file carries its definition (/motor/state.position), and always accepted as TOPIC/NAME
-/// (/sensor_a/joint_states/encoder). Channels on separate topics are aligned on the stamps of the
-/// pair's first channel (or the log's first channel), as the methods do.
+/// Channels on separate topics are aligned on the stamps of the pair's first channel (or the log's
+/// first channel), as the methods do.
 #[derive(Debug, clap::Args, PartialEq)]
+#[command(after_long_help = crate::input::CHANNEL_NAMES)]
 pub struct Args {
     /// The log (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file).
     pub log: PathBuf,

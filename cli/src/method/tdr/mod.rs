@@ -46,17 +46,12 @@ const MAX_DEGREE: usize = 60;
 /// DIR/report.json and DIR/report.html, and prints a summary. With several logs, each log's files
 /// go to DIR/<log stem>/ and DIR/summary.json holds every log's verdict.
 ///
-/// Channels are named by their CSV column; in MCAP and rosbag2 bags by the joint name
-/// (JointState, DynamicJointState) or field (JSON) where no other topic carries that name, by the
-/// topic for std_msgs scalars, as TOPIC.field.path for a numeric field of another message whose
-/// MCAP file carries its definition (/motor/state.position), and always accepted as TOPIC/NAME
-/// (/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table is
-/// named without the leading `/` and with `/` as `_`. Channels on separate topics are aligned on
-/// the stamps of --channel (see --time, --max-gap).
+/// Channels on separate topics are aligned on the stamps of --channel (see --time, --max-gap).
 ///
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
+#[command(after_long_help = crate::input::CHANNEL_NAMES)]
 pub struct Args {
     /// Channel of the encoder to calibrate.
     #[arg(long)]
