@@ -256,7 +256,5 @@ fn render_summary(
 
 /// `x` with at most 6 decimals, trailing zeros dropped (`360`, `6.283185`, `-0.5`).
 fn short(x: f64) -> String {
-    let s = format!("{x:.6}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.into() }
+    calib_core::report::trimmed(x, 6)
 }

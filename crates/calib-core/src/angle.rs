@@ -3,8 +3,7 @@
 //! # Units
 //! Inside calib every angle is an `f64` in **radians**. Users see degrees (angles) and
 //! arcseconds (errors); [`AngleUnit`] converts readings at the edges, where logs are read and
-//! tables written. [`Angle`] is a thin newtype for API boundaries where a bare `f64` would be
-//! ambiguous.
+//! tables written.
 
 use std::f64::consts::{PI, TAU};
 use std::fmt;
@@ -14,71 +13,6 @@ use std::str::FromStr;
 pub const ARCSEC_PER_RAD: f64 = 648_000.0 / PI;
 /// Degrees in one radian.
 pub const DEG_PER_RAD: f64 = 180.0 / PI;
-
-/// An angle, stored in radians.
-#[derive(
-    Debug, Clone, Copy, PartialEq, PartialOrd, Default, serde::Serialize, serde::Deserialize,
-)]
-pub struct Angle(f64);
-
-impl Angle {
-    /// Zero.
-    pub const ZERO: Angle = Angle(0.0);
-
-    /// From radians.
-    pub const fn from_rad(rad: f64) -> Self {
-        Angle(rad)
-    }
-    /// From degrees.
-    pub fn from_deg(deg: f64) -> Self {
-        Angle(deg / DEG_PER_RAD)
-    }
-    /// From arcseconds.
-    pub fn from_arcsec(arcsec: f64) -> Self {
-        Angle(arcsec / ARCSEC_PER_RAD)
-    }
-    /// In radians.
-    pub const fn rad(self) -> f64 {
-        self.0
-    }
-    /// In degrees.
-    pub fn deg(self) -> f64 {
-        self.0 * DEG_PER_RAD
-    }
-    /// In arcseconds.
-    pub fn arcsec(self) -> f64 {
-        self.0 * ARCSEC_PER_RAD
-    }
-    /// Wrapped to one revolution, `[0, 2π)`.
-    pub fn wrap_positive(self) -> Self {
-        Angle(wrap_2pi(self.0))
-    }
-    /// Wrapped to `[−π, π)`.
-    pub fn wrap_signed(self) -> Self {
-        Angle(wrap_pi(self.0))
-    }
-}
-
-impl std::ops::Add for Angle {
-    type Output = Angle;
-    fn add(self, rhs: Angle) -> Angle {
-        Angle(self.0 + rhs.0)
-    }
-}
-
-impl std::ops::Sub for Angle {
-    type Output = Angle;
-    fn sub(self, rhs: Angle) -> Angle {
-        Angle(self.0 - rhs.0)
-    }
-}
-
-impl std::ops::Neg for Angle {
-    type Output = Angle;
-    fn neg(self) -> Angle {
-        Angle(-self.0)
-    }
-}
 
 /// `x` wrapped to `[0, 2π)`.
 pub fn wrap_2pi(x: f64) -> f64 {
@@ -211,9 +145,7 @@ mod tests {
 
     #[test]
     fn conversions_round_trip() {
-        let a = Angle::from_deg(1.0);
-        assert!((a.arcsec() - 3600.0).abs() < 1e-9);
-        assert!((Angle::from_arcsec(3600.0).deg() - 1.0).abs() < 1e-12);
+        assert!((1.0 / DEG_PER_RAD * ARCSEC_PER_RAD - 3600.0).abs() < 1e-9);
         for unit in [
             AngleUnit::Deg,
             AngleUnit::Rad,

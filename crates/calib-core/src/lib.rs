@@ -94,7 +94,7 @@ pub mod simulate;
 pub mod tdr;
 pub mod uncertainty;
 
-pub use angle::{Angle, AngleUnit, Unwrapper};
+pub use angle::{AngleUnit, Unwrapper};
 pub use error_map::ErrorMap;
 pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
 pub use range_map::RangeMap;

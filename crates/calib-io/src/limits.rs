@@ -237,12 +237,7 @@ pub fn readable(x: f64) -> String {
     }
     // At most 10 significant digits, trailing zeros dropped.
     let decimals = (9 - a.log10().floor() as i32).clamp(0, 13) as usize;
-    let s = format!("{x:.decimals$}");
-    if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        s
-    }
+    calib_core::report::trimmed(x, decimals)
 }
 
 /// [`readable`] as a [`std::fmt::Display`], formatted only when shown: readings are checked on the

@@ -126,9 +126,7 @@ fn opt(v: Option<f64>) -> String {
 
 /// Degrees as `encoder.csv` writes them: at most 9 decimals, trailing zeros trimmed.
 pub fn deg(v: f64) -> String {
-    let s = format!("{v:.9}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.into() }
+    calib_core::report::trimmed(v, 9)
 }
 
 #[cfg(test)]

@@ -238,10 +238,6 @@ impl Chart {
         self.series.push(series);
         self
     }
-    /// Whether any series has a point to draw.
-    pub fn has_data(&self) -> bool {
-        self.series.iter().any(|s| !s.points.is_empty())
-    }
     fn x_range(&self) -> Range<f64> {
         if let Some((lo, hi)) = self.x.range {
             return lo..hi;
@@ -424,9 +420,7 @@ fn tick(v: f64) -> String {
     } else if !(1e-3..1e5).contains(&a) {
         format!("{v:.0e}")
     } else {
-        let s = format!("{v:.4}");
-        let s = s.trim_end_matches('0').trim_end_matches('.');
-        if s == "-0" { "0".into() } else { s.into() }
+        calib_core::report::trimmed(v, 4)
     }
 }
 

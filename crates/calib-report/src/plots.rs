@@ -208,9 +208,7 @@ pub fn zoom(id: &str, channel: &str, layers: &MapLayers, order: usize) -> Option
         id,
         &format!(
             "{channel}: one period of order {order} (0–{}°)",
-            format!("{period:.4}")
-                .trim_end_matches('0')
-                .trim_end_matches('.')
+            calib_core::report::trimmed(period, 4)
         ),
         &format!(
             "The error map of {channel} over one period of its dominant harmonic, order {order}, \

@@ -174,8 +174,6 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut names = vec![args.a.as_str(), args.b.as_str()];
     names.extend(args.reference.as_deref());
     let reader = args.common.open(log, &names)?;
-    let (ia, ib) = (0, 1);
-    let ir = args.reference.as_ref().map(|_| 2);
     let opts = CsrrOptions {
         method: match args.method {
             MethodArg::Joint => Method::Joint,
@@ -193,7 +191,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             args.benchmarks[0].to_radians(),
             args.benchmarks[1].to_radians(),
         ),
-        reference: ir.is_some(),
+        reference: args.reference.is_some(),
         min_observability: args.min_observability,
         ..CsrrOptions::default()
     };
@@ -213,15 +211,15 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         crate::input::Travel::default(),
         crate::input::Travel::default(),
     );
+    // The sample's values are the channels in the order opened: A, B, then the reference.
     let reader = for_each_sample(log, reader, |s| {
-        trace.push(s.t, s.values[ia], s.values[ib]);
-        travel_a.push(s.values[ia]);
-        travel_b.push(s.values[ib]);
-        match ir {
-            Some(ir) => {
-                csrr.push_with_reference(s.t, s.values[ia], s.values[ib], s.values[ir], s.session)
-            }
-            None => csrr.push(s.t, s.values[ia], s.values[ib], s.session),
+        let (a, b) = (s.values[0], s.values[1]);
+        trace.push(s.t, a, b);
+        travel_a.push(a);
+        travel_b.push(b);
+        match s.values.get(2) {
+            Some(&r) => csrr.push_with_reference(s.t, a, b, r, s.session),
+            None => csrr.push(s.t, a, b, s.session),
         }
     })?;
     let solving = crate::ui::working("solving");

@@ -218,15 +218,11 @@ fn calibrate(
     let mut mh = Multihead::new(heads.to_vec(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
     let names: Vec<&str> = heads.iter().map(|h| h.name.as_str()).collect();
     let reader = args.common.open(log, &names)?;
-    let columns: Vec<usize> = (0..names.len()).collect();
-    let mut readings = vec![0.0; columns.len()];
     let mut travel = crate::input::Travel::default();
+    // The sample's values are the heads' readings, in the heads' order.
     let reader = for_each_sample(log, reader, |s| {
-        for (r, &c) in readings.iter_mut().zip(&columns) {
-            *r = s.values[c];
-        }
-        travel.push(readings[0]);
-        mh.push(&readings);
+        travel.push(s.values[0]);
+        mh.push(&s.values);
     })?;
     let cal = mh.finish().map_err(|e| {
         let hint = travel.no_whole_turn(

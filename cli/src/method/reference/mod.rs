@@ -385,7 +385,6 @@ fn calibrate(
             ))
             .into());
         }
-        let (id, ir) = (0, 1);
         let mut cal = ReferenceCal::new(ReferenceOptions {
             points: args.points,
             min_speed: args.min_speed.to_radians(),
@@ -397,8 +396,9 @@ fn calibrate(
             latency: args.latency,
             reference_kind: reference_kind(args)?,
         });
+        // The sample's values are the DUT's reading, then the reference's.
         let reader = for_each_sample(log, reader, |s| {
-            cal.push(s.t, s.values[id], sign * corrected(s.values[ir]))
+            cal.push(s.t, s.values[0], sign * corrected(s.values[1]))
         })?;
         let cal = cal
             .finish()

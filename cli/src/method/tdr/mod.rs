@@ -136,8 +136,6 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let mut names = vec![args.channel.as_str()];
     names.extend(args.reference.as_deref());
     let reader = args.common.open(log, &names)?;
-    let ic = 0;
-    let ir = args.reference.as_ref().map(|_| 1);
     let mut tdr = Tdr::new(TdrOptions {
         max_order: args.max_order,
         max_drag_order: args.max_drag_order,
@@ -147,11 +145,12 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         ..TdrOptions::default()
     });
     let mut travel = crate::input::Travel::default();
+    // The sample's values are the channels in the order opened: the encoder, then the reference.
     let reader = for_each_sample(log, reader, |s| {
-        travel.push(s.values[ic]);
-        match ir {
-            Some(ir) => tdr.push_with_reference(s.t, s.values[ic], s.values[ir]),
-            None => tdr.push(s.t, s.values[ic]),
+        travel.push(s.values[0]);
+        match s.values.get(1) {
+            Some(&r) => tdr.push_with_reference(s.t, s.values[0], r),
+            None => tdr.push(s.t, s.values[0]),
         }
     })?;
     let cal = tdr.finish().map_err(|e| {

@@ -452,6 +452,20 @@ fn arcsec(x: f64) -> f64 {
     x * ARCSEC_PER_RAD
 }
 
+/// `x` with at most `decimals` decimals, trailing zeros dropped (`117.3`, `360`, `-0.5`), and a
+/// negative zero written `0`: how tables, headers and summaries write a plain number. The one
+/// copy for every crate: the standard library formats either all decimals or the shortest
+/// round-trip form, neither of which a table header wants.
+pub fn trimmed(x: f64, decimals: usize) -> String {
+    let s = format!("{x:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        &s
+    };
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -502,5 +516,15 @@ mod tests {
             String::from_utf8(out).unwrap(),
             r#"{"first":3,"second":{"alpha":2,"zeta":1}}"#
         );
+    }
+
+    #[test]
+    fn numbers_are_trimmed_to_their_decimals() {
+        assert_eq!(trimmed(117.300_000_000_1, 9), "117.3");
+        assert_eq!(trimmed(360.0, 6), "360");
+        assert_eq!(trimmed(100.0, 0), "100");
+        assert_eq!(trimmed(-0.5, 6), "-0.5");
+        assert_eq!(trimmed(-1e-12, 6), "0");
+        assert_eq!(trimmed(0.123_456_789, 4), "0.1235");
     }
 }

@@ -48,13 +48,6 @@ pub struct ShiftAngleDetails {
     pub budget: Option<BudgetResult>,
 }
 
-/// Degrees with at most 9 decimals, trailing zeros trimmed (shifts are usually whole or tenths).
-pub fn degrees_text(v: f64) -> String {
-    let s = format!("{v:.9}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.into() }
-}
-
 impl ShiftAngleResult {
     /// The encoder's map as a uniform whole-turn grid, where the points lie on `i·360°/N` (then
     /// it has harmonics); `None` when the shifts are not evenly spaced over one pitch.
@@ -101,7 +94,7 @@ impl ShiftAngleResult {
         {
             warnings.push(format!(
                 "the reading at shift {}°, start face {}, step {} deviates from the fit by {:.4}″ ({:.1} σ̂): check it",
-                degrees_text(res.max_at_shift_deg),
+                super::trimmed(res.max_at_shift_deg, 9),
                 res.max_at_start_face,
                 res.max_at_step,
                 res.max_abs_arcsec,

@@ -684,8 +684,7 @@ fn resample_range(map: &ErrorMap, points: usize) -> ErrorMap {
 
 /// `x` with at most 9 decimals, trailing zeros dropped (`117.3`, `0.1`).
 fn trimmed(x: f64) -> String {
-    let s = format!("{x:.9}");
-    s.trim_end_matches('0').trim_end_matches('.').to_string()
+    calib_core::report::trimmed(x, 9)
 }
 
 /// The file: the header as comments (where the format has them), then the body.
@@ -761,12 +760,7 @@ fn plain_decimal(x: f32) -> String {
     }
     let magnitude = f64::from(x.abs()).log10().floor() as i32;
     let decimals = (8 - magnitude).max(0) as usize;
-    let s = format!("{x:.decimals$}");
-    if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        s
-    }
+    calib_core::report::trimmed(f64::from(x), decimals)
 }
 
 #[cfg(test)]
