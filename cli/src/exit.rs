@@ -56,7 +56,7 @@ pub fn render(err: &anyhow::Error) -> String {
         }
         message.push_str(&text);
     }
-    let mut message = strip_os_error(&message);
+    let mut message = crate::flags::in_cli_words(&strip_os_error(&message));
     if let Some(hint) = hint {
         message.push_str("; ");
         message.push_str(hint);

@@ -9,6 +9,7 @@ mod cli;
 mod commands;
 mod document;
 mod exit;
+mod flags;
 mod input;
 mod method;
 mod output;

@@ -213,8 +213,11 @@ pub fn finish(
     inputs: Vec<String>,
     warnings: Vec<String>,
     before: &str,
-    results: Results,
+    mut results: Results,
 ) -> anyhow::Result<Outcome> {
+    for w in &mut results.section.warnings {
+        *w = crate::flags::in_cli_words(w);
+    }
     let report = Report::new(results.section, inputs, Some(command_line()), warnings);
     let report_json = calib_io::report::render_json(&report)?;
     let document = (results.document)(&report);

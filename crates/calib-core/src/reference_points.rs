@@ -79,7 +79,7 @@ pub enum PointError {
         "the reference does not follow the DUT: between consecutive points the difference of their \
          readings changes by {ratio:.2} times the DUT's step (the median of {steps} steps; an \
          encoder's error changes much less than its reading, at most {MAX_SLOPE} times it is \
-         allowed). The reference counts the other way round (give --ref-reversed), is in another \
+         allowed). The reference counts the other way round (give the `ref_reversed` option), is in another \
          unit, or its rows are not paired with the DUT's"
     )]
     NotFollowing {
@@ -410,14 +410,14 @@ pub fn calibrate_points(
                 "every target was reached in one direction only, some increasing, some \
                  decreasing: the map joins deviations of both directions, so a reversal error \
                  shows as a zigzag between neighbouring targets; measure each target from both \
-                 sides (or set --target-tol if points meant as one target were kept apart)"
+                 sides (or set the `target_tol` option if points meant as one target were kept apart)"
                     .to_string(),
             );
         } else if one_way > 0 {
             warnings.push(format!(
                 "{one_way} of {m} targets were reached in one direction only, the others in both: \
                  the map mixes unidirectional and bidirectional means; measure every target in \
-                 each direction (or set --target-tol if points meant as one target were kept \
+                 each direction (or set the `target_tol` option if points meant as one target were kept \
                  apart)"
             ));
         }

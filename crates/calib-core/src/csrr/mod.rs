@@ -98,7 +98,7 @@ pub enum CsrrError {
     /// The requested order needs denser sampling.
     #[error(
         "order {requested} needs at least {needed} samples per revolution, but the densest session has {available:.0}; \
-         lower --max-order or record more slowly / at a higher sample rate"
+         lower the `max_order` option or record more slowly / at a higher sample rate"
     )]
     TooFewSamplesPerRevolution {
         /// The order asked for.
@@ -486,7 +486,7 @@ fn finish_joint(
     if !sol.converged {
         warnings.push(format!(
             "the solver stopped after {} steps and {} iterations before reaching its tolerance; the maps may be inaccurate \
-             (try a lower --max-order)",
+             (try a lower `max_order` option)",
             sol.steps, sol.iterations
         ));
     }
@@ -683,7 +683,7 @@ fn unresolved_warning(unresolved: &[UnresolvedOrder], max_order: usize) -> Optio
     let more = large.len().saturating_sub(8);
     Some(format!(
         "the fit's residual holds periodic structure above the noise at {} order(s) above the highest fitted ({max_order}), \
-         missing from the maps: {}{}; fit them with --max-order {highest} or more",
+         missing from the maps: {}{}; fit them with the `max_order` option at {highest} or more",
         large.len(),
         listed.join(", "),
         if more > 0 {

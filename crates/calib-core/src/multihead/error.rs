@@ -59,7 +59,7 @@ pub enum MultiheadError {
     /// EDA without a set: no heads equally spaced with the first head.
     #[error(
         "no heads are equally spaced with the first head `{first}` (EDA needs e.g. one at 180°, or two at 120° and 240°); \
-         check the angles in --heads, or use the joint method, which takes any spacing"
+         check the angles in the `heads` option, or use the joint method, which takes any spacing"
     )]
     NoEquallySpacedSet {
         /// The first head.
@@ -87,7 +87,7 @@ pub enum MultiheadError {
     /// The requested order needs denser sampling.
     #[error(
         "order {requested} needs the first head's readings to fill {needed} equal bins per revolution, but they fill only \
-         {available}; lower --max-order or record more samples per revolution"
+         {available}; lower the `max_order` option or record more samples per revolution"
     )]
     TooFewSamplesPerRevolution {
         /// The order asked for.
@@ -100,7 +100,7 @@ pub enum MultiheadError {
     /// A head's difference to the first head is far from its nominal angle.
     #[error(
         "head `{head}` reads {measured_deg:.4}° from the first head on average, neither 0 (readings relative to its nominal \
-         angle) nor its nominal {nominal_deg:.4}° (raw scale readings), to within {tol_deg}°; check its angle in --heads"
+         angle) nor its nominal {nominal_deg:.4}° (raw scale readings), to within {tol_deg}°; check its angle in the `heads` option"
     )]
     HeadAngleMismatch {
         /// The head.

@@ -600,7 +600,7 @@ impl Multihead {
         if !fit.converged {
             warnings.push(format!(
                 "the solve stopped after {} iterations before reaching its tolerance; the map may be inaccurate \
-                 (try a lower --max-order)",
+                 (try a lower `max_order` option)",
                 fit.iterations
             ));
         }
@@ -733,7 +733,7 @@ fn misfits(heads: &[HeadEstimate], residuals: &[Residual], bins: usize) -> Vec<S
             (misfit > 3.0 * noise && misfit > floor).then(|| {
                 format!(
                     "head `{}` disagrees with the others: its differences depart from the fit by {:.4}″ RMS where its noise is \
-                     {:.4}″; check its angle in --heads (and --max-order, if the scale has higher orders)",
+                     {:.4}″; check its angle in the `heads` option (and the `max_order` option, if the scale has higher orders)",
                     h.name,
                     misfit * crate::angle::ARCSEC_PER_RAD,
                     noise * crate::angle::ARCSEC_PER_RAD

@@ -269,7 +269,7 @@ pub enum ReferenceError {
     /// A commanded reference's range is too short to separate the motor's ripple.
     #[error(
         "the range holds {periods:.2} electrical period(s) of the motor ({pole_pairs} pole pairs); the ripple of a commanded \
-         reference is separated over at least 2: sweep a wider range, or check --pole-pairs"
+         reference is separated over at least 2: sweep a wider range, or check the `pole_pairs` option"
     )]
     CommandedTooShort {
         /// Electrical periods in the map's range.
@@ -1129,7 +1129,7 @@ impl ReferenceCal {
             warnings.push(format!(
                 "the DUT never reached the readings between {:.3}° and {:.3}° (a gap of {:.3}° in the turn, {} grid point(s)): \
                  the map bridges it by linear interpolation, not by measurement; record the whole turn to measure it \
-                 (a gap wider than --bridge-gap {}° gives a range table instead)",
+                 (a gap wider than the `bridge_gap` option, {}°, gives a range table instead)",
                 g.from.to_degrees(),
                 wrap_2pi(g.to).to_degrees(),
                 g.size.to_degrees(),
@@ -1174,8 +1174,8 @@ fn latency_warning(l: &LatencyResult) -> Option<String> {
          either a latency of {:.1} ms between the channels (the DUT's samples older if positive) or a backlash or \
          hysteresis of {:.1}″; at one speed the two read the same, so neither was removed (the map, the mean of both \
          directions, holds neither where both went at the same speed). To separate them record passes at two speeds \
-         in each direction (e.g. {fast:.a$}°/s and {slow:.b$}°/s), or give --latency SECONDS if the interfaces' delay is \
-         known",
+         in each direction (e.g. {fast:.a$}°/s and {slow:.b$}°/s), or give the `latency` option (seconds) if the \
+         interfaces' delay is known",
         f.reversal_if_no_latency * ARCSEC_PER_RAD,
         f.tau_if_no_backlash * 1e3,
         f.reversal_if_no_latency * ARCSEC_PER_RAD,

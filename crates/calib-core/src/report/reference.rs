@@ -12,8 +12,8 @@ use std::collections::BTreeMap;
 /// u states only how repeatably the DUT was measured against it.
 pub const U_EXCLUDES_REFERENCE: &str = "u excludes the reference: its uncertainty is not known, \
      so every u here is the DUT's repeatability against it alone and the map may be off by the \
-     reference's own error; give the reference's stated standard uncertainty (--ref-u ARCSEC) or \
-     its calibrated table (--ref-table FILE)";
+     reference's own error; give the reference's stated standard uncertainty in arcseconds (the \
+     `ref_u` option) or its calibrated table (the `ref_table` option)";
 
 /// `details` of `calib reference`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

@@ -108,7 +108,7 @@ impl ShiftAngleResult {
         }
         match (budget, self.max_u_fit()) {
             (None, None) => warnings.push(
-                "encoder.csv has no uncertainties: the paper's method gives none per point; pass --budget FILE or use the joint method".into(),
+                "encoder.csv has no uncertainties: the paper's method gives none per point; give an uncertainty budget (the `budget` option) or use the joint method".into(),
             ),
             (Some(b), Some(u)) if u > b.combined_standard_uncertainty => warnings.push(format!(
                 "the fit's standard uncertainty reaches {u:.4}″, more than the budget's u_c = {:.4}″: the budget may underestimate the measurement's noise",

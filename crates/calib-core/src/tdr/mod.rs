@@ -118,7 +118,7 @@ mod moments;
 mod residual;
 
 /// The statement of what a spin-down calibration cannot separate, for reports.
-pub const DRAG_AMBIGUITY: &str = "An angle-dependent drag torque (rolling-element bearings, motor cogging, unbalance) decelerating the shaft by a_h·cos(hθ+φ) shakes it by a_h/(h·ω)² at order h, periodic in angle like the encoder's error. TDR separates the two by their speed dependence (the drag's imprint grows as 1/ω², the encoder's error does not) when the coast sweeps the speed widely enough (1/ω² varying by ≥ 10 % RMS); otherwise the map's order h absorbs a_h/h²·⟨ω⁻²⟩. Drag not periodic in shaft angle (ball and cage orders) is not separated: check the map against a reference (--ref) on rolling bearings.";
+pub const DRAG_AMBIGUITY: &str = "An angle-dependent drag torque (rolling-element bearings, motor cogging, unbalance) decelerating the shaft by a_h·cos(hθ+φ) shakes it by a_h/(h·ω)² at order h, periodic in angle like the encoder's error. TDR separates the two by their speed dependence (the drag's imprint grows as 1/ω², the encoder's error does not) when the coast sweeps the speed widely enough (1/ω² varying by ≥ 10 % RMS); otherwise the map's order h absorbs a_h/h²·⟨ω⁻²⟩. Drag not periodic in shaft angle (ball and cage orders) is not separated: check the map against a reference (the `ref` option) on rolling bearings.";
 
 /// Settings of a spin-down calibration.
 #[derive(Debug, Clone, PartialEq)]
@@ -227,7 +227,7 @@ pub enum TdrError {
     },
     /// The least-squares problem is singular.
     #[error(
-        "the fit is underdetermined ({unknowns} unknowns from {samples} samples of the coast): lower --max-order or the motion degree"
+        "the fit is underdetermined ({unknowns} unknowns from {samples} samples of the coast): lower the `max_order` option or the `motion_degree` option"
     )]
     Underdetermined {
         /// Unknowns of the fit.
@@ -649,7 +649,7 @@ impl Tdr {
             Some(h) => {
                 if (h as f64) > 0.5 * densest {
                     warnings.push(format!(
-                        "--max-order {h} is above half the {densest:.0} samples per revolution where the coast is slowest: the highest orders are poorly determined; sample faster or lower --max-order"
+                        "the `max_order` option {h} is above half the {densest:.0} samples per revolution where the coast is slowest: the highest orders are poorly determined; sample faster or lower the `max_order` option"
                     ));
                 }
                 h
@@ -891,7 +891,7 @@ fn unresolved_warning(unresolved: &[Harmonic], h: usize) -> Option<String> {
         .map(|u| format!("order {} {:.3}″", u.order, u.amplitude * ARCSEC_PER_RAD))
         .collect();
     Some(format!(
-        "the fit's residual still holds periodic structure above the highest order fitted ({h}): {}{} — the map leaves these out; raise --max-order to at least {}",
+        "the fit's residual still holds periodic structure above the highest order fitted ({h}): {}{} — the map leaves these out; raise the `max_order` option to at least {}",
         list.join(", "),
         if material.len() > 6 { ", …" } else { "" },
         material.iter().map(|u| u.order).max().unwrap_or(h)

@@ -209,7 +209,7 @@ fn a_low_max_order_leaves_order_128_in_the_residual_and_says_so() {
         .find(|w| w.contains("periodic structure"))
         .expect("warned");
     assert!(
-        w.contains("order 128 0.2") && w.contains("--max-order to at least 1"),
+        w.contains("order 128 0.2") && w.contains("the `max_order` option to at least 1"),
         "{w}"
     );
 }

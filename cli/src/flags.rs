@@ -1,0 +1,52 @@
+//! The library names an option by its name in the library (`the `max_order` option`), as a Rust
+//! or Python caller passes it; the command line says its flag (`--max-order`). Every error and
+//! report warning the CLI prints or writes goes through [`in_cli_words`].
+
+/// The library's option names and the flags that set them.
+const FLAGS: &[(&str, &str)] = &[
+    ("max_order", "--max-order"),
+    ("motion_degree", "--motion-degree"),
+    ("heads", "--heads"),
+    ("pole_pairs", "--pole-pairs"),
+    ("bridge_gap", "--bridge-gap"),
+    ("latency", "--latency"),
+    ("ref_reversed", "--ref-reversed"),
+    ("target_tol", "--target-tol"),
+    ("ref_u", "--ref-u"),
+    ("ref_table", "--ref-table"),
+    ("budget", "--budget"),
+    ("ref", "--ref"),
+];
+
+/// `text` with each option the library names (`the `max_order` option`, `a lower `max_order`
+/// option`) said as its flag (`--max-order`, `a lower --max-order`).
+pub fn in_cli_words(text: &str) -> String {
+    if !text.contains("` option") {
+        return text.to_string();
+    }
+    FLAGS.iter().fold(text.to_string(), |t, (name, flag)| {
+        t.replace(&format!("the `{name}` option"), flag).replace(
+            &format!("a lower `{name}` option"),
+            &format!("a lower {flag}"),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::in_cli_words;
+
+    #[test]
+    fn library_options_become_flags() {
+        assert_eq!(
+            in_cli_words("lower the `max_order` option or the `motion_degree` option"),
+            "lower --max-order or --motion-degree"
+        );
+        assert_eq!(
+            in_cli_words("(try a lower `max_order` option)"),
+            "(try a lower --max-order)"
+        );
+        // A channel that happens to share an option's name is left alone.
+        assert_eq!(in_cli_words("channel `latency`"), "channel `latency`");
+    }
+}
