@@ -23,9 +23,13 @@ use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Options every method command shares: pipelines over many logs, and gates.
+/// Options every method command shares: plots, pipelines over many logs, and gates.
 #[derive(Debug, Clone, clap::Args, PartialEq)]
+#[command(next_help_heading = "Plots, several logs and gates")]
 pub struct BatchArgs {
+    /// Also write every plot of report.html as a standalone SVG and PNG into DIR (one log).
+    #[arg(long, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
     /// Logs calibrated at the same time (default: the number of cores).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub jobs: Option<u16>,
@@ -215,7 +219,7 @@ where
     if !opts.force {
         crate::output::check_replacing(output, method, logs)?;
     }
-    if let Some(plots) = crate::ui::plots_dir() {
+    if let Some(plots) = &opts.plots {
         crate::output::prepare_folder(plots)?;
     }
     if let Some(path) = &opts.junit {
@@ -239,7 +243,7 @@ where
         return Ok(outcome.text);
     }
 
-    if crate::ui::plots_dir().is_some() {
+    if opts.plots.is_some() {
         return Err(exit::Usage(
             "--plots takes one log: with several, each log's report.html holds its plots".into(),
         )

@@ -32,6 +32,7 @@ pub enum TimeArg {
 /// clocks are aligned (the command's first channel sets the clock, every other channel is
 /// interpolated, quintic, at its stamps from its own samples).
 #[derive(Debug, Clone, PartialEq, clap::Args)]
+#[command(next_help_heading = "Reading the log")]
 pub struct LogArgs {
     /// Time of an MCAP message: its `header.stamp` or its log time.
     #[arg(long, value_enum, default_value_t = TimeArg::Header)]
@@ -49,6 +50,10 @@ pub struct LogArgs {
     /// name's suffix, else the units row's entry, else s).
     #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
     pub time_unit: Option<TimeUnit>,
+    /// Leave out MCAP chunks whose checksum (CRC) does not match, warning and listing each in
+    /// the report. Without it a damaged chunk is an error (exit 1): its readings may be wrong.
+    #[arg(long)]
+    pub skip_damaged: bool,
 }
 
 /// clap value parser for `--time-unit`.
@@ -71,6 +76,7 @@ impl LogArgs {
             time,
             time_column: self.time_column.clone(),
             time_unit: self.time_unit,
+            skip_damaged: self.skip_damaged,
             ..ReadOptions::default()
         };
         Ok((
@@ -238,20 +244,24 @@ fn is_ros1_bag(path: &Path) -> bool {
         .is_ok_and(|()| &head == b"#ROSBAG")
 }
 
-/// Opens a log for reading.
-pub fn open_log(path: &Path, unit: Option<AngleUnit>) -> anyhow::Result<LogReader> {
+/// Opens a log for reading, a damaged MCAP chunk an error unless `skip_damaged`.
+pub fn open_log(
+    path: &Path,
+    unit: Option<AngleUnit>,
+    skip_damaged: bool,
+) -> anyhow::Result<LogReader> {
     open_log_with(
         path,
         ReadOptions {
             unit,
+            skip_damaged,
             ..ReadOptions::default()
         },
     )
 }
 
 /// Opens a log for reading with these options.
-pub fn open_log_with(path: &Path, mut opts: ReadOptions) -> anyhow::Result<LogReader> {
-    opts.skip_damaged |= crate::ui::skip_damaged();
+pub fn open_log_with(path: &Path, opts: ReadOptions) -> anyhow::Result<LogReader> {
     check_log_path(path)?;
     LogReader::open(path, &opts).with_context(|| format!("cannot read {}", crate::ui::shown(path)))
 }

@@ -225,9 +225,10 @@ pub fn write_outputs(
     dir: &Path,
     files: &[(String, Vec<u8>)],
     document: &Document,
+    plots: Option<&Path>,
 ) -> anyhow::Result<Vec<String>> {
     let html = document.to_html()?;
-    let plots = match crate::ui::plots_dir() {
+    let plots = match plots {
         Some(p) => Some((p, document.plot_files()?)),
         None => None,
     };

@@ -1,12 +1,11 @@
-//! What every command shares about presentation: the global options (`--quiet`, `--plots`) and
-//! progress bars on standard error.
+//! What every command shares about presentation: the global option `--quiet` and progress bars
+//! on standard error.
 //!
-//! The options are set once, from `main`, before the command runs; the bars read them, and so
-//! does the output writer (for `--plots`), so a method command gets both without passing them
-//! around.
+//! The option is set once, from `main`, before the command runs; the bars read it, so no
+//! command passes it around.
 
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::OnceLock;
 use std::time::Duration;
 
@@ -14,16 +13,8 @@ use std::time::Duration;
 #[derive(Debug, Clone, Default, PartialEq, clap::Args)]
 pub struct Global {
     /// No progress bars on standard error (they are hidden anyway when it is not a terminal).
-    #[arg(long, short = 'q', global = true)]
+    #[arg(long, short = 'q', global = true, help_heading = "Every command")]
     pub quiet: bool,
-    /// Also write every plot of report.html as a standalone SVG and PNG into DIR (method
-    /// commands).
-    #[arg(long, global = true, value_name = "DIR")]
-    pub plots: Option<PathBuf>,
-    /// Leave out MCAP chunks whose checksum (CRC) does not match, warning and listing each in
-    /// the report. Without it a damaged chunk is an error (exit 1): its readings may be wrong.
-    #[arg(long, global = true)]
-    pub skip_damaged: bool,
 }
 
 static GLOBAL: OnceLock<Global> = OnceLock::new();
@@ -35,11 +26,6 @@ pub fn set(global: Global) {
 
 fn global() -> &'static Global {
     GLOBAL.get_or_init(Global::default)
-}
-
-/// The `--plots` folder, if given.
-pub fn plots_dir() -> Option<&'static Path> {
-    global().plots.as_deref()
 }
 
 /// A path as a message shows it: control characters (a NUL, an escape sequence, a line end in a
@@ -68,11 +54,6 @@ pub fn escape_controls(text: &str) -> String {
             }
         })
         .collect()
-}
-
-/// Whether `--skip-damaged` was given.
-pub fn skip_damaged() -> bool {
-    global().skip_damaged
 }
 
 /// Where every bar draws: one stack on standard error, so the bars of logs read in parallel

@@ -52,7 +52,7 @@ pub struct Args {
     /// The log to correct (.csv or .mcap).
     pub log: PathBuf,
     /// The corrected log to write, in the same format as LOG (and not LOG itself).
-    #[arg(short, long = "output")]
+    #[arg(short, long = "output", value_name = "FILE")]
     pub output: PathBuf,
     /// The channel to correct (default: the table's file name without extension, so
     /// `calib-out/a.csv` corrects channel `a`): a CSV column, a joint or JSON field by its name,
@@ -66,6 +66,11 @@ pub struct Args {
     /// How the channel's readings are wrapped (revolutions of their unit).
     #[arg(long, value_enum, default_value_t = Wrap::Auto)]
     pub wrap: Wrap,
+    /// Leave out MCAP chunks whose checksum (CRC) does not match (their messages are not in the
+    /// output), warning about each. Without it a damaged chunk is an error (exit 1) and nothing
+    /// is written.
+    #[arg(long)]
+    pub skip_damaged: bool,
 }
 
 /// Runs `calib apply`: checks the arguments, corrects the log, says what was done.
@@ -73,7 +78,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let (name, format) = validate(args)?;
     let table = calib_io::table::read_any_table(&args.table)
         .with_context(|| format!("cannot read the table {}", args.table.display()))?;
-    let reader = open_log(&args.log, args.unit)?;
+    let reader = open_log(&args.log, args.unit, args.skip_damaged)?;
     channel(&reader, &args.log, &name).with_context(|| {
         if args.channel.is_none() {
             format!(
@@ -96,7 +101,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             Wrap::Signed => Some(Wrapping::Signed),
             Wrap::None => Some(Wrapping::Unwrapped),
         },
-        skip_damaged: crate::ui::skip_damaged(),
+        skip_damaged: args.skip_damaged,
     };
     let map = match &table {
         AnyTable::Turn(t) => MapRef::Turn(&t.map),

@@ -48,7 +48,7 @@ pub struct Args {
     /// Subtract the mean difference first (maps are defined up to a constant offset).
     #[arg(long)]
     pub remove_mean: bool,
-    /// Output directory.
+    /// Output folder (created if missing).
     #[arg(
         short = 'o',
         long = "output",

@@ -38,7 +38,7 @@ pub struct Args {
     /// loaded, or `calib apply T1` of one).
     pub residual: PathBuf,
     /// The composed table to write.
-    #[arg(short, long = "output")]
+    #[arg(short, long = "output", value_name = "FILE")]
     pub output: PathBuf,
     /// The part of the residual to take: 1 for all of it, less for a partial update.
     #[arg(long, default_value_t = 1.0)]

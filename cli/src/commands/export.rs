@@ -130,7 +130,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..3))]
     pub source: u8,
     /// Output file (default: standard output).
-    #[arg(short, long = "output")]
+    #[arg(short, long = "output", value_name = "FILE")]
     pub output: Option<PathBuf>,
 }
 

@@ -81,7 +81,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub format: Format,
     /// The calib correction table to write.
-    #[arg(short, long = "output")]
+    #[arg(short, long = "output", value_name = "FILE")]
     pub output: PathBuf,
     /// moteus: the motor_position source to read (0, 1 or 2; default: the only one the file
     /// has a table for).

@@ -39,8 +39,13 @@ pub struct Args {
     /// The dump (`moteus_tool --calibrate --cal-write-raw FILE`).
     #[arg(value_name = "DUMP")]
     pub dump: PathBuf,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
+    /// Output folder (created if missing): encoder.csv, moteus.txt, report.json and report.html.
+    #[arg(
+        short,
+        long = "output",
+        value_name = "DIR",
+        default_value = "calib-out"
+    )]
     pub output: PathBuf,
     /// Pole pairs of the motor (default: from the dump).
     #[arg(long)]
@@ -135,6 +140,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             ("report.json".to_string(), json.as_bytes().to_vec()),
         ],
         &doc,
+        None,
     )?;
     if args.json {
         return Ok(json);

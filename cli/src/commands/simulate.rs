@@ -53,7 +53,7 @@ pub struct Args {
     #[arg(required_unless_present = "example")]
     pub scenario: Option<PathBuf>,
     /// The log to write: `run.mcap` or `run.csv`.
-    #[arg(short, long, required_unless_present = "example")]
+    #[arg(short, long, value_name = "FILE", required_unless_present = "example")]
     pub output: Option<PathBuf>,
     /// Print a complete, commented example scenario for a method and exit.
     #[arg(long, value_enum, value_name = "METHOD", conflicts_with_all = ["scenario", "output"])]

@@ -26,13 +26,19 @@ use std::path::{Path, PathBuf};
 
 /// The arguments of every method command.
 #[derive(Debug, clap::Args, PartialEq)]
+#[command(next_help_heading = "Logs and outputs")]
 pub struct MethodArgs {
     /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
     /// independently and in parallel.
     #[arg(required = true, value_name = "LOG")]
     pub logs: Vec<PathBuf>,
-    /// Output folder.
-    #[arg(short, long = "output", default_value = "calib-out")]
+    /// Output folder (created if missing): the tables, report.json and report.html.
+    #[arg(
+        short,
+        long = "output",
+        value_name = "DIR",
+        default_value = "calib-out"
+    )]
     pub output: PathBuf,
     /// Unit of CSV, JSON and std_msgs readings: deg (the default), rad, arcsec, rev, counts:N.
     /// JointState positions are radians. Without it, readings that fit radians or counts and
@@ -53,6 +59,14 @@ pub struct MethodArgs {
 }
 
 impl MethodArgs {
+    /// How each run's outputs are presented.
+    pub fn presentation(&self) -> Presentation<'_> {
+        Presentation {
+            json: self.json,
+            plots: self.batch.plots.as_deref(),
+        }
+    }
+
     /// Where the runs of a method over these logs go.
     pub fn runs(&self) -> Runs<'_> {
         Runs {
@@ -166,6 +180,15 @@ pub fn in_log(err: anyhow::Error, reader: &LogReader, log: &Path) -> anyhow::Err
     }
 }
 
+/// How a run's outputs are presented: what the command prints, and the plots beside.
+#[derive(Debug, Clone, Copy)]
+pub struct Presentation<'a> {
+    /// report.json on standard output instead of the summary (`--json`).
+    pub json: bool,
+    /// Every plot of report.html also written as SVG and PNG into this folder (`--plots`).
+    pub plots: Option<&'a Path>,
+}
+
 /// What a method's run gives the shared tail ([`finish_log`], [`finish`]).
 pub struct Results<'r> {
     /// The method's report section.
@@ -189,13 +212,13 @@ pub fn finish_log(
     reader: &LogReader,
     log: &Path,
     out: &Path,
-    json: bool,
+    shown: Presentation,
     mut results: Results,
 ) -> anyhow::Result<Outcome> {
     results.section = results.section.with_alignment(alignment_detail(reader));
     finish(
         out,
-        json,
+        shown,
         vec![log.display().to_string()],
         reader.warnings(log),
         &alignment_text(reader.alignment().as_ref()),
@@ -205,11 +228,11 @@ pub fn finish_log(
 
 /// The tail of every run: the report of `results` (calibrated from `inputs`, `warnings` before
 /// the method's own), report.json, the tables and report.html written together into `out`
-/// ([`crate::output::write_outputs`]), and what the command prints — the summary after `before`,
-/// or report.json with `--json`.
+/// ([`crate::output::write_outputs`], the plots too with `--plots`), and what the command prints
+/// — the summary after `before`, or report.json with `--json`.
 pub fn finish(
     out: &Path,
-    json: bool,
+    shown: Presentation,
     inputs: Vec<String>,
     warnings: Vec<String>,
     before: &str,
@@ -223,8 +246,8 @@ pub fn finish(
     let document = (results.document)(&report);
     let mut files = results.tables;
     files.push(("report.json".to_string(), report_json.as_bytes().to_vec()));
-    let files = crate::output::write_outputs(out, &files, &document)?;
-    let text = if json {
+    let files = crate::output::write_outputs(out, &files, &document, shown.plots)?;
+    let text = if shown.json {
         report_json
     } else {
         before.to_string() + &(results.summary)(&report)

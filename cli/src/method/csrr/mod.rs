@@ -276,7 +276,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         }),
         summary: Box::new(|report| render_summary(args, out, &cal, report)),
     };
-    finish_log(&reader, log, out, args.common.json, results)
+    finish_log(&reader, log, out, args.common.presentation(), results)
 }
 
 /// The true maps of A and B from `--truth DIR`.

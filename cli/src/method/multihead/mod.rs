@@ -261,7 +261,7 @@ fn calibrate(
         document: Box::new(|report| document::document(first, &cal, report)),
         summary: Box::new(|report| render_summary(args, out, heads, &cal, report)),
     };
-    finish_log(&reader, log, out, args.common.json, results)
+    finish_log(&reader, log, out, args.common.presentation(), results)
 }
 
 #[cfg(test)]

@@ -423,5 +423,5 @@ fn calibrate(
         document: Box::new(|report| document::document(&args.dut, &args.reference, &cal, report)),
         summary: Box::new(|report| render_summary(args, out, &cal, report, points)),
     };
-    finish_log(&reader, log, out, args.common.json, results)
+    finish_log(&reader, log, out, args.common.presentation(), results)
 }

@@ -56,7 +56,7 @@ pub struct Args {
     /// and in parallel.
     #[arg(required = true, value_name = "READINGS")]
     pub readings: Vec<PathBuf>,
-    /// Output directory.
+    /// Output folder (created if missing).
     #[arg(
         short = 'o',
         long = "output",
@@ -165,5 +165,9 @@ fn calibrate(
         document: Box::new(|report| document::document(&readings, &result, budget, report)),
         summary: Box::new(|report| render_summary(out, &readings, &result, budget, report)),
     };
-    finish(out, args.json, inputs, Vec::new(), "", results)
+    let shown = super::Presentation {
+        json: args.json,
+        plots: args.batch.plots.as_deref(),
+    };
+    finish(out, shown, inputs, Vec::new(), "", results)
 }
