@@ -192,6 +192,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     }
     if let Some(path) = &args.output {
         crate::overwrite::check(path, &format!("-o {}", crate::ui::shown(path)))?;
+        crate::output::prepare_file(path, "-o")?;
     }
     if !args.table.exists() {
         return Err(Usage(format!(

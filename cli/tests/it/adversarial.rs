@@ -648,3 +648,69 @@ fn a_files_real_type_is_told_from_its_bytes() {
     assert!(stderr(&o).contains("gzip-compressed"), "{}", stderr(&o));
     assert!(!stderr(&o).contains("UTF-8"), "{}", stderr(&o));
 }
+
+/// A file output into a folder that does not exist is a usage error naming the folder, before
+/// any work (it was an I/O error naming a temporary file, after simulating the whole run).
+#[test]
+fn file_outputs_into_a_missing_folder_are_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing");
+    let table = dir.path().join("a.csv");
+    let map: String = (0..360)
+        .map(|i| {
+            format!(
+                "{i},{:.6},{:.6}\n",
+                f64::from(i).to_radians().sin(),
+                -f64::from(i).to_radians().sin()
+            )
+        })
+        .collect();
+    std::fs::write(
+        &table,
+        format!("angle_deg,error_arcsec,correction_arcsec\n{map}"),
+    )
+    .unwrap();
+    let quick = testdata("scenarios/quick.toml");
+    let out = |name: &str| missing.join(name).to_str().unwrap().to_string();
+    for args in [
+        vec![
+            "simulate".to_string(),
+            s(&quick).into(),
+            "-o".into(),
+            out("run.mcap"),
+        ],
+        vec![
+            "compose".into(),
+            s(&table).into(),
+            s(&table).into(),
+            "-o".into(),
+            out("c.csv"),
+        ],
+        vec![
+            "export".into(),
+            s(&table).into(),
+            "--format".into(),
+            "csv".into(),
+            "-o".into(),
+            out("e.csv"),
+        ],
+        vec![
+            "import".into(),
+            s(&table).into(),
+            "--format".into(),
+            "csv".into(),
+            "-o".into(),
+            out("i.csv"),
+        ],
+    ] {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = calib(&args);
+        assert_eq!(code(&o), 2, "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("does not exist") && stderr(&o).contains(s(&missing)),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+        assert!(!missing.exists(), "{args:?} created the folder");
+    }
+}
