@@ -11,6 +11,7 @@ mod document;
 mod exit;
 mod flags;
 mod input;
+mod json;
 mod method;
 mod output;
 mod overwrite;

@@ -2,6 +2,7 @@
 
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
+use crate::json::ApplyJson;
 use anyhow::Context;
 use calib_core::AngleUnit;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -71,6 +72,9 @@ pub struct Args {
     /// is written.
     #[arg(long)]
     pub skip_damaged: bool,
+    /// Print what was done as JSON (docs/apply.schema.json) instead of the summary.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Runs `calib apply`: checks the arguments, corrects the log, says what was done.
@@ -109,6 +113,9 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     };
     let done = apply_map(&args.log, &args.output, map, &opts)
         .with_context(|| format!("cannot correct {}", args.log.display()))?;
+    if args.json {
+        return render_json(args, &name, &table, &done, &notes);
+    }
     Ok(render_summary(args, &name, format, &table, &done, &notes))
 }
 
@@ -221,42 +228,84 @@ fn render_summary(
         );
     }
     let _ = writeln!(o, "wrote {}", args.output.display());
-    if let Some(t) = &done.truncated {
-        let _ = writeln!(
-            o,
-            "\nwarning: {}: the log ends early at byte {} (a crashed recording?): the output \
-             holds the {} messages before the break",
-            args.log.display(),
-            t.byte_offset,
-            t.messages_read
-        );
-    }
-    if !done.damaged_chunks.is_empty() {
-        let list: Vec<String> = done.damaged_chunks.iter().map(|c| c.to_string()).collect();
-        let _ = writeln!(
-            o,
-            "\nwarning: {}: skipped {} damaged chunk(s) and their messages (--skip-damaged); the \
-             output leaves them out: {}",
-            args.log.display(),
-            done.damaged_chunks.len(),
-            list.join("; ")
-        );
+    for w in warnings(args, name, done, span) {
+        let _ = writeln!(o, "\nwarning: {w}");
     }
     for w in notes {
         let _ = writeln!(o, "note: {w}; copied unchanged");
     }
+    o
+}
+
+/// What the user should know about a correction: a log that ended early, damaged chunks left
+/// out, readings outside a range table's range.
+fn warnings(args: &Args, name: &str, done: &Applied, span: Option<(f64, f64)>) -> Vec<String> {
+    let mut w = Vec::new();
+    if let Some(t) = &done.truncated {
+        w.push(format!(
+            "{}: the log ends early at byte {} (a crashed recording?): the output holds the {} \
+             messages before the break",
+            args.log.display(),
+            t.byte_offset,
+            t.messages_read
+        ));
+    }
+    if !done.damaged_chunks.is_empty() {
+        let list: Vec<String> = done.damaged_chunks.iter().map(|c| c.to_string()).collect();
+        w.push(format!(
+            "{}: skipped {} damaged chunk(s) and their messages (--skip-damaged); the output \
+             leaves them out: {}",
+            args.log.display(),
+            done.damaged_chunks.len(),
+            list.join("; ")
+        ));
+    }
     if let Some((lo, hi)) = span.filter(|_| done.outside > 0) {
-        let _ = writeln!(
-            o,
-            "\nwarning: {} of {} readings of `{name}` lie outside the table's range {}° to {}° and were copied \
-             unchanged (a range table says nothing there); calibrate over the whole travel to correct them",
+        w.push(format!(
+            "{} of {} readings of `{name}` lie outside the table's range {}° to {}° and were \
+             copied unchanged (a range table says nothing there); calibrate over the whole \
+             travel to correct them",
             done.outside,
             done.readings,
             short(lo),
             short(hi)
-        );
+        ));
     }
-    o
+    w
+}
+
+/// `calib apply --json`.
+fn render_json(
+    args: &Args,
+    name: &str,
+    table: &AnyTable,
+    done: &Applied,
+    notes: &[String],
+) -> anyhow::Result<String> {
+    let span = match table {
+        AnyTable::Turn(_) => None,
+        AnyTable::Range(t) => Some((t.map.start().to_degrees(), t.map.end().to_degrees())),
+    };
+    crate::json::render(&ApplyJson {
+        schema_version: calib_core::report::SCHEMA_VERSION,
+        log: args.log.display().to_string(),
+        table: args.table.display().to_string(),
+        output: args.output.display().to_string(),
+        channel: name.to_string(),
+        unit: done.unit.to_string(),
+        corrected: done.readings - done.outside,
+        outside: done.outside,
+        range: [done.range.0, done.range.1],
+        wrapping: match done.wrapping {
+            Wrapping::Positive => "positive",
+            Wrapping::Signed => "signed",
+            Wrapping::Unwrapped => "unwrapped",
+        }
+        .to_string(),
+        copied: (done.format == LogFormat::Mcap).then_some(done.copied),
+        warnings: warnings(args, name, done, span),
+        notes: notes.to_vec(),
+    })
 }
 
 /// `x` with at most 6 decimals, trailing zeros dropped (`360`, `6.283185`, `-0.5`).

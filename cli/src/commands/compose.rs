@@ -1,6 +1,7 @@
 //! `calib compose`: one table for a table in use followed by the residual calibrated through it.
 
 use crate::exit::Usage;
+use crate::json::ComposeJson;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::compose::{CHECK_POINTS_PER_STEP, compose, compose_uncertainty};
@@ -40,6 +41,9 @@ pub struct Args {
     /// The composed table to write.
     #[arg(short, long = "output", value_name = "FILE")]
     pub output: PathBuf,
+    /// Print what was composed as JSON (docs/compose.schema.json) instead of the summary.
+    #[arg(long)]
+    pub json: bool,
     /// The part of the residual to take: 1 for all of it, less for a partial update.
     #[arg(long, default_value_t = 1.0)]
     pub factor: f64,
@@ -101,6 +105,23 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             })
             .collect(),
     );
+    let adding_off = added.minus(&done.map).max_abs_arcsec();
+    if args.json {
+        return crate::json::render(&ComposeJson {
+            schema_version: calib_core::report::SCHEMA_VERSION,
+            first: args.first.display().to_string(),
+            residual: args.residual.display().to_string(),
+            factor: args.factor,
+            output: args.output.display().to_string(),
+            points,
+            peak_to_peak_arcsec: arcsec(done.map.peak_to_peak()),
+            rms_arcsec: arcsec(done.map.rms()),
+            sequential_offset_arcsec: arcsec(done.offset),
+            sequential_deviation_arcsec: arcsec(done.deviation),
+            adding_off_arcsec: adding_off,
+            uncertainty: u.is_some(),
+        });
+    }
     let mut o = String::new();
     let _ = writeln!(
         o,
@@ -125,8 +146,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     );
     let _ = writeln!(
         o,
-        "  adding the tables instead would be off by up to {:.4}″",
-        added.minus(&done.map).max_abs_arcsec()
+        "  adding the tables instead would be off by up to {adding_off:.4}″"
     );
     if !u_note.is_empty() {
         let _ = writeln!(o, "  {u_note}");

@@ -2,6 +2,7 @@
 //! `calib_io::export`; this command parses, reads the table, and writes.
 
 use crate::exit::Usage;
+use crate::json::{ExportJson, FitJson};
 use anyhow::Context;
 use calib_core::ErrorMap;
 use calib_io::export::{self, ExportError, ExportOptions, Keep, Span};
@@ -132,6 +133,9 @@ pub struct Args {
     /// Output file (default: standard output).
     #[arg(short, long = "output", value_name = "FILE")]
     pub output: Option<PathBuf>,
+    /// Print what was written as JSON (docs/export.schema.json) instead of the header; needs -o.
+    #[arg(long, requires = "output")]
+    pub json: bool,
 }
 
 /// A list of harmonic orders (`--orders`).
@@ -240,7 +244,19 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     match &args.output {
         Some(path) => {
             calib_io::atomic::write_atomic(path, out.text.as_bytes())?;
-            let mut o = format!("wrote {}\n", path.display());
+            if args.json {
+                return crate::json::render(&ExportJson {
+                    schema_version: calib_core::report::SCHEMA_VERSION,
+                    table: args.table.display().to_string(),
+                    format: opts.format.name().to_string(),
+                    output: path.display().to_string(),
+                    header: out.header.clone(),
+                    fit: out.fit.as_ref().map(FitJson::from),
+                    warnings: out.warnings.clone(),
+                });
+            }
+            // What the table is, then where it went.
+            let mut o = String::new();
             let shown =
                 out.header.iter().skip(1).filter(|l| {
                     uncommented || l.starts_with("fit: ") || l.starts_with("warning: ")
@@ -248,6 +264,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             for line in shown {
                 o.push_str(&format!("  {line}\n"));
             }
+            o.push_str(&format!("wrote {}\n", path.display()));
             Ok(o)
         }
         None => {

@@ -1,6 +1,7 @@
 //! `calib simulate`: a recorded run with a known truth.
 
 use crate::exit::Usage;
+use crate::json::{SimulateJson, TruthJson};
 use crate::output::table_name;
 use anyhow::Context;
 use calib_io::LogWriter;
@@ -65,6 +66,9 @@ pub struct Args {
     /// Write the run even when it has more samples than the limit (see Limits in `calib --help`).
     #[arg(long)]
     pub force: bool,
+    /// Print what was written as JSON (docs/simulate.schema.json) instead of the summary.
+    #[arg(long, conflicts_with = "example")]
+    pub json: bool,
 }
 
 /// The methods `--example` has a scenario for.
@@ -192,6 +196,26 @@ fn run_scenario(args: &Args, scenario_path: &Path, output: &Path) -> anyhow::Res
     }
     writer.finish()?;
 
+    if args.json {
+        return crate::json::render(&SimulateJson {
+            schema_version: calib_core::report::SCHEMA_VERSION,
+            scenario: scenario_path.display().to_string(),
+            output: output.display().to_string(),
+            samples: count as u64,
+            channels: channels.iter().map(|c| c.name.clone()).collect(),
+            truth: truths
+                .iter()
+                .zip(&written)
+                .zip(&peaks)
+                .map(|(((name, _), path), (pp, kind))| TruthJson {
+                    channel: name.clone(),
+                    table: path.display().to_string(),
+                    range: !kind.is_empty(),
+                    peak_to_peak_arcsec: pp * calib_core::angle::ARCSEC_PER_RAD,
+                })
+                .collect(),
+        });
+    }
     let mut out = String::new();
     let _ = writeln!(
         out,

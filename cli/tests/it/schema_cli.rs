@@ -189,3 +189,72 @@ fn inspect_json_matches_the_schema() {
         assert_eq!(v["schema_version"], 1);
     }
 }
+
+/// `--json` of simulate, export, apply and compose, on a simulated run: each valid against its
+/// schema and saying what the command did (the files it names exist, the counts are the run's).
+#[test]
+fn tool_json_outputs_match_their_schemas() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("run.mcap");
+    let o = calib(&[
+        "simulate",
+        s(&testdata("scenarios/quick.toml")),
+        "-o",
+        s(&log),
+        "--json",
+    ]);
+    expect_exit(&o, 0);
+    let sim = assert_valid("simulate.schema.json", &stdout(&o), "simulate --json");
+    assert_eq!(sim["channels"], serde_json::json!(["a", "b"]));
+    assert!(sim["samples"].as_u64().unwrap() > 1000);
+    let truth_a = sim["truth"][0]["table"].as_str().unwrap().to_string();
+    assert!(Path::new(&truth_a).exists(), "{truth_a}");
+    assert!(sim["truth"][0]["peak_to_peak_arcsec"].as_f64().unwrap() > 1.0);
+
+    let lut = dir.path().join("a.lut");
+    let o = calib(&[
+        "export",
+        &truth_a,
+        "--format",
+        "lut-i16",
+        "-o",
+        s(&lut),
+        "--json",
+    ]);
+    expect_exit(&o, 0);
+    let exp = assert_valid("export.schema.json", &stdout(&o), "export --json");
+    assert_eq!(exp["format"], "lut-i16");
+    assert!(lut.exists());
+
+    let fixed = dir.path().join("fixed.mcap");
+    let o = calib(&[
+        "apply",
+        &truth_a,
+        s(&log),
+        "--channel",
+        "a",
+        "-o",
+        s(&fixed),
+        "--json",
+    ]);
+    expect_exit(&o, 0);
+    let app = assert_valid("apply.schema.json", &stdout(&o), "apply --json");
+    assert_eq!(app["corrected"].as_u64(), sim["samples"].as_u64());
+    assert_eq!(app["outside"], 0);
+    assert!(fixed.exists());
+
+    let composed = dir.path().join("c.csv");
+    let o = calib(&["compose", &truth_a, &truth_a, "-o", s(&composed), "--json"]);
+    expect_exit(&o, 0);
+    let com = assert_valid("compose.schema.json", &stdout(&o), "compose --json");
+    // As many points as the tables composed.
+    let rows = std::fs::read_to_string(&truth_a)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .count()
+        - 1;
+    assert_eq!(com["points"].as_u64(), Some(rows as u64));
+    assert!(com["peak_to_peak_arcsec"].as_f64().unwrap() > 1.0);
+    assert!(composed.exists());
+}

@@ -250,8 +250,9 @@ fn too_few_points_and_a_missing_output_folder_fail_cleanly() {
     );
     assert_mentions(&err, &["--points"]);
     let out = dir.path().join("nodir/run.csv");
-    let err = expect_exit(&calib(&["simulate", s(&quick), "-o", s(&out)]), 1);
-    assert_mentions(&err, &["nodir/run.csv"]);
+    // Checked before any work, as a usage error (as apply, compose, export and import do).
+    let err = expect_exit(&calib(&["simulate", s(&quick), "-o", s(&out)]), 2);
+    assert_mentions(&err, &["nodir/run.csv", "does not exist"]);
     assert_nothing_written(dir.path(), &[]);
 }
 
