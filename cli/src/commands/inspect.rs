@@ -107,6 +107,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if result.samples == 0 {
         anyhow::bail!("{}: the log holds no samples", args.log.display());
     }
+    let suggestions = calib_core::purpose::suggestions(&result);
     let mut warnings = reader.warnings(&args.log);
     warnings.extend(reader.notes());
     let topics = reader.topics();
@@ -118,6 +119,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             topics,
             alignment,
             inspection: result,
+            suggestions,
             warnings,
         };
         // Through a `Value`: its keys are written in alphabetical order at every depth.
@@ -139,7 +141,44 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         let at = text.find('\n').map_or(text.len(), |i| i + 1);
         text.insert_str(at, &format!("  read as: {layout}\n"));
     }
-    Ok(text + &alignment_text(alignment.as_ref()))
+    Ok(text + &alignment_text(alignment.as_ref()) + &render_next(&args.log, &suggestions))
+}
+
+/// Which command to run next: one line per method the log suits, with its channels.
+fn render_next(log: &std::path::Path, suggestions: &[calib_core::purpose::Suggestion]) -> String {
+    let mut o = String::new();
+    if suggestions.is_empty() {
+        return o;
+    }
+    let _ = writeln!(o, "\nnext:");
+    for s in suggestions {
+        let c = &s.channels;
+        let options = match (s.method.as_str(), c.as_slice()) {
+            ("csrr", [a, b]) => format!("--a {a} --b {b}"),
+            ("reference", [dut, reference]) => format!("--dut {dut} --ref {reference}"),
+            ("tdr", [channel]) => format!("--channel {channel}"),
+            ("tdr", [channel, reference]) => format!("--channel {channel} --ref {reference}"),
+            // Each head's nominal angle is the user's to give.
+            ("multihead", heads) => format!(
+                "--heads {}@0,{}",
+                heads[0],
+                heads[1..]
+                    .iter()
+                    .map(|h| format!("{h}@DEG"))
+                    .collect::<Vec<_>>()
+                    .join(",")
+            ),
+            _ => c.join(" "),
+        };
+        let _ = writeln!(
+            o,
+            "  calib {} {} {options}\n    ({})",
+            s.method,
+            log.display(),
+            s.why
+        );
+    }
+    o
 }
 
 /// `calib inspect --json`.
@@ -155,6 +194,8 @@ pub struct InspectJson {
     pub alignment: Option<calib_core::report::Alignment>,
     /// What the log holds: timing, channels, segments.
     pub inspection: Inspection,
+    /// The methods the log's motion suits, the likeliest first, with the channels to give them.
+    pub suggestions: Vec<calib_core::purpose::Suggestion>,
     /// What the user should know about the log.
     pub warnings: Vec<String>,
 }

@@ -235,3 +235,44 @@ fn inspect_reports_time_going_backwards_in_a_csv() {
     let v = inspect_json(&log, &[]);
     assert_eq!(v["inspection"]["non_monotonic"], 1);
 }
+
+/// `calib inspect` says which method a log's motion suits and with which channels (issue 31):
+/// each bundled kind of run, simulated, gets its own method first.
+#[test]
+fn inspect_names_the_method_a_log_suits() {
+    let dir = tempfile::tempdir().unwrap();
+    for (scenario, method, channels) in [
+        ("quick.toml", "csrr", vec!["a", "b"]),
+        ("joint.toml", "reference", vec!["b", "ref"]),
+        ("multihead.toml", "multihead", vec!["h1", "h2", "h3"]),
+        ("spindown.toml", "reference", vec!["enc", "ref"]),
+    ] {
+        let log = simulate(
+            &testdata(&format!("scenarios/{scenario}")),
+            dir.path(),
+            &format!("{scenario}.mcap"),
+        );
+        let o = calib(&["inspect", s(&log), "--json"]);
+        expect_exit(&o, 0);
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        let first = &v["suggestions"][0];
+        assert_eq!(first["method"], method, "{scenario}: {}", v["suggestions"]);
+        let got: Vec<&str> = first["channels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_str().unwrap())
+            .collect();
+        assert_eq!(&got[..channels.len()], channels.as_slice(), "{scenario}");
+        // The summary prints the command to run.
+        let text = stdout(&calib(&["inspect", s(&log)]));
+        assert!(
+            text.contains(&format!("calib {method} {}", s(&log))),
+            "{scenario}: {text}"
+        );
+        if scenario == "spindown.toml" {
+            // A shaft of many revolutions may also be a coast.
+            assert_eq!(v["suggestions"][1]["method"], "tdr", "{}", v["suggestions"]);
+        }
+    }
+}

@@ -83,6 +83,7 @@ pub mod inspect;
 pub mod multihead;
 pub mod nufft2d;
 pub mod plan;
+pub mod purpose;
 pub mod range_map;
 pub mod reference_cal;
 pub mod reference_points;

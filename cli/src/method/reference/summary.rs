@@ -58,12 +58,21 @@ pub(super) fn render_summary(
                     cal.min_passes.1
                 ),
             ),
+            // A joint's run is its travel over the range, not revolutions it never made.
             None => (
                 "run",
-                format!(
-                    "{:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
-                    cal.revolutions, cal.min_passes.0, cal.min_passes.1
-                ),
+                match cal.map.range() {
+                    Some(_) => format!(
+                        "{:.1}° of travel, at least {} pass(es) increasing, {} decreasing",
+                        cal.revolutions * 360.0,
+                        cal.min_passes.0,
+                        cal.min_passes.1
+                    ),
+                    None => format!(
+                        "{:.2} revolutions, at least {} pass(es) increasing, {} decreasing",
+                        cal.revolutions, cal.min_passes.0, cal.min_passes.1
+                    ),
+                },
             ),
         },
         ("map", coverage),

@@ -1,0 +1,167 @@
+//! What a log is for: which calibration method its motion suits, told from what
+//! [`crate::inspect::Inspector`] found, so that `calib inspect` can say which command to run next
+//! and with which channels.
+//!
+//! The rules read the motion, not the channel names (a name only picks which of two channels is
+//! the reference): sessions of two sensors turning together at different relative angles are a
+//! CSRR run; a channel that never turns a whole revolution beside another is a joint measured
+//! against a reference; three or more channels turning together are heads on one scale; one
+//! shaft turning many revolutions may be a spin-down (whether it coasted freely, only the fit
+//! can tell).
+
+use crate::angle::{AngleUnit, wrap_pi};
+use crate::inspect::{ChannelStats, Inspection};
+use crate::segment::SegmentKind;
+use std::f64::consts::TAU;
+
+/// Revolutions of travel a spin-down needs before calib's TDR fit is worth trying.
+const COAST_REVOLUTIONS: f64 = 10.0;
+/// Relative angles of sessions closer than this are one (CSRR's sessions differ by degrees).
+const DISTINCT_ANGLE: f64 = 1.0 * std::f64::consts::PI / 180.0;
+
+/// A method the log suits, with the channels to give it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, schemars::JsonSchema)]
+pub struct Suggestion {
+    /// The method (`csrr`, `reference`, `multihead` or `tdr`).
+    pub method: String,
+    /// The channels, in the method's order: `[a, b]` (csrr), `[dut, ref]` (reference), the heads
+    /// (multihead), `[channel]` or `[channel, ref]` (tdr).
+    pub channels: Vec<String>,
+    /// What in the log suits it.
+    pub why: String,
+}
+
+/// The methods `inspection`'s log suits, the likeliest first; none when it suits none.
+pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
+    let ch = &inspection.channels;
+    let mut out = Vec::new();
+    let angles = relative_angles(inspection);
+    if let (Some((a, b)), true) = (&inspection.pair, angles >= 2) {
+        out.push(Suggestion {
+            method: "csrr".into(),
+            channels: vec![a.clone(), b.clone()],
+            why: format!(
+                "`{a}` and `{b}` turn together in sessions at {angles} different relative angles"
+            ),
+        });
+    }
+    let turning: Vec<&ChannelStats> = ch.iter().filter(|c| c.travel_revolutions >= 1.0).collect();
+    // Three or more channels turning together are heads, unless one is named a reference.
+    let heads =
+        turning.len() >= 3 && together(&turning) && !ch.iter().any(|c| is_reference(&c.name));
+    if heads {
+        out.push(Suggestion {
+            method: "multihead".into(),
+            channels: turning.iter().map(|c| c.name.clone()).collect(),
+            why: format!(
+                "{} channels turn together ({:.1} revolutions): heads reading one scale",
+                turning.len(),
+                turning[0].travel_revolutions
+            ),
+        });
+    }
+    if ch.len() >= 2
+        && let Some(joint) = ch.iter().find(|c| span_revolutions(c) < 0.999)
+    {
+        let other = other_than(ch, &joint.name);
+        // A joint channel named like a reference is the reference.
+        let (dut, reference) = if is_reference(&joint.name) {
+            (other, joint)
+        } else {
+            (joint, other)
+        };
+        out.push(Suggestion {
+            method: "reference".into(),
+            channels: vec![dut.name.clone(), reference.name.clone()],
+            why: format!(
+                "`{}` sweeps {:.1}° and never turns a whole revolution: a joint, calibrated \
+                 against a reference",
+                joint.name,
+                span_revolutions(joint) * 360.0
+            ),
+        });
+    } else if let (Some((a, b)), 1, false) = (&inspection.pair, angles, heads) {
+        let (dut, reference) = if is_reference(a) { (b, a) } else { (a, b) };
+        out.push(Suggestion {
+            method: "reference".into(),
+            channels: vec![dut.clone(), reference.clone()],
+            why: format!(
+                "`{a}` and `{b}` turn together at one relative angle: an encoder and a reference \
+                 on one shaft"
+            ),
+        });
+    }
+    if angles < 2
+        && let Some(shaft) = ch
+            .iter()
+            .find(|c| c.travel_revolutions >= COAST_REVOLUTIONS)
+    {
+        let mut channels = vec![shaft.name.clone()];
+        channels.extend(
+            ch.iter()
+                .filter(|c| c.name != shaft.name)
+                .find(|c| c.travel_revolutions >= COAST_REVOLUTIONS)
+                .map(|c| c.name.clone()),
+        );
+        out.push(Suggestion {
+            method: "tdr".into(),
+            channels,
+            why: format!(
+                "`{}` turns {:.1} revolutions: if the shaft coasted freely (a spin-down), TDR \
+                 calibrates it alone",
+                shaft.name, shaft.travel_revolutions
+            ),
+        });
+    }
+    out
+}
+
+/// Relative angles, 1° apart or more, of the sessions of at least one revolution the pair's
+/// segmentation found: CSRR needs two or more.
+fn relative_angles(inspection: &Inspection) -> usize {
+    let mut angles: Vec<f64> = Vec::new();
+    let sessions = inspection
+        .segments
+        .iter()
+        .filter(|s| s.kind == SegmentKind::Rotating && s.session.is_some());
+    for s in sessions {
+        if angles
+            .iter()
+            .all(|&a| wrap_pi(s.relative_angle - a).abs() > DISTINCT_ANGLE)
+        {
+            angles.push(s.relative_angle);
+        }
+    }
+    angles.len()
+}
+
+/// Whether a channel's name says it is a reference.
+fn is_reference(name: &str) -> bool {
+    name.to_lowercase().contains("ref")
+}
+
+/// A channel other than `name`, one named like a reference first.
+fn other_than<'a>(channels: &'a [ChannelStats], name: &str) -> &'a ChannelStats {
+    let others = || channels.iter().filter(move |c| c.name != name);
+    others()
+        .find(|c| is_reference(&c.name))
+        .or_else(|| others().next())
+        .expect("two channels")
+}
+
+/// The part of a revolution a channel's readings span (1 for a channel that wraps or whose
+/// unit is not known).
+fn span_revolutions(c: &ChannelStats) -> f64 {
+    match c.unit.parse::<AngleUnit>() {
+        Ok(unit) if !c.wrapped => (unit.to_rad(c.max) - unit.to_rad(c.min)) / TAU,
+        _ => 1.0,
+    }
+}
+
+/// Whether channels travel the same revolutions, within 1 %.
+fn together(channels: &[&ChannelStats]) -> bool {
+    let first = channels[0].travel_revolutions;
+    channels
+        .iter()
+        .all(|c| (c.travel_revolutions - first).abs() <= 0.01 * first)
+}
