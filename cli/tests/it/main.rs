@@ -15,6 +15,7 @@ mod labfiles_cli;
 mod multihead_cli;
 mod outputs_cli;
 mod range_cli;
+mod readme;
 mod recordings_cli;
 mod reference_cli;
 mod reference_setups_cli;

@@ -248,12 +248,14 @@ pub fn inspect(
     }
     let mut warnings = reader.warnings(&path);
     warnings.extend(reader.notes());
+    let suggestions = calib_core::purpose::suggestions(&result);
     let json = serde_json::json!({
         "schema_version": calib_core::report::SCHEMA_VERSION,
         "log": path.display().to_string(),
         "topics": reader.topics(),
         "alignment": reader.alignment(),
         "inspection": result,
+        "suggestions": suggestions,
         "warnings": warnings,
     });
     calib_io::report::render_json(&json).map_err(|e| data(e.to_string()))

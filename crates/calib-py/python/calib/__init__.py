@@ -794,7 +794,7 @@ def inspect(
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
 ) -> dict:
-    """What a log holds — timing, channels, topics, segments — as the dict ``calib inspect
+    """What a log holds — timing, channels, topics, segments, the methods it suits — as the dict ``calib inspect
     --json`` prints (same schema, ``docs/inspect.schema.json``). ``a`` and ``b`` name the pair
     whose sessions are looked for (default ``a`` and ``b`` where the log has them, else its
     first two channels)."""
