@@ -208,9 +208,16 @@ fn a_csv_log_is_corrected_in_its_unit_and_named_by_the_table() {
         let deg = (x / 4096.0 * 360.0).rem_euclid(360.0);
         36.0 * (1.0 - 2.0 * (deg.min(360.0 - deg) / 180.0))
     };
+    // Written with the input's decimals, at least enough for 0.001″ (6 in counts of 4096): within
+    // half of that.
     for (row, x) in rows[1..].iter().zip([-1.0, 2048.0, 5000.0]) {
         let v: f64 = row[1].parse().unwrap();
-        assert!((v - (x - e(x) * count)).abs() < 1e-9, "{row:?}");
+        assert!((v - (x - e(x) * count)).abs() <= 0.5e-6, "{row:?}");
+        assert_eq!(
+            row[1].split_once('.').map(|(_, d)| d.len()),
+            Some(6),
+            "{row:?}"
+        );
     }
     assert_eq!((rows[1][0], rows[1][2], rows[1][3]), ("0.0", "7", "0"));
     assert_eq!((rows[3][0], rows[3][2], rows[3][3]), ("1.0", "7.5", "-1"));

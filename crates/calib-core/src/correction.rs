@@ -118,6 +118,11 @@ enum Lookup {
 }
 
 impl Correction {
+    /// The unit of the readings corrected.
+    pub fn unit(&self) -> AngleUnit {
+        self.unit
+    }
+
     /// Corrects readings in `unit`, wrapped as `wrapping` says, with `map`.
     pub fn new(map: ErrorMap, unit: AngleUnit, wrapping: Wrapping) -> Self {
         Correction {

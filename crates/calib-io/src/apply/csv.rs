@@ -271,6 +271,35 @@ pub(super) fn scan(path: &Path, channel: &str, unit: AngleUnit) -> Result<Range,
     Ok(range)
 }
 
+/// Decimals enough to hold 0.001″ in `unit`: a corrected reading never loses its correction to
+/// rounding.
+fn resolving_decimals(unit: AngleUnit) -> usize {
+    let step = unit
+        .from_rad(0.001 / calib_core::angle::ARCSEC_PER_RAD)
+        .abs();
+    (-step.log10()).ceil().clamp(0.0, 17.0) as usize
+}
+
+/// `value` written as the file writes the reading it replaces (`field`'s raw bytes): as many
+/// decimals (at least [`resolving_decimals`]) and the same decimal mark, so the corrected column
+/// reads like the others. `None` for a field in another notation (an exponent, quotes), which
+/// gets the shortest form that reads back exactly.
+fn as_written(value: f64, field: &[u8], unit: AngleUnit) -> Option<String> {
+    let field = std::str::from_utf8(field).ok()?.trim();
+    if !field
+        .bytes()
+        .all(|b| b.is_ascii_digit() || matches!(b, b'-' | b'+' | b'.' | b','))
+    {
+        return None;
+    }
+    let mark = if field.contains(',') { ',' } else { '.' };
+    let decimals = field
+        .rsplit_once(mark)
+        .map_or(0, |(_, d)| d.len())
+        .max(resolving_decimals(unit));
+    Some(format!("{value:.decimals$}").replace('.', &mark.to_string()))
+}
+
 /// Writes `output` with the channel's readings corrected; returns how many.
 pub(super) fn rewrite(
     input: &Path,
@@ -291,12 +320,44 @@ pub(super) fn rewrite(
         };
         let span = records.fields[column].clone();
         out.write_all(&records.record[..span.start]).map_err(io)?;
-        out.write_all(number.format_finite(fix.apply(x)).as_bytes())
-            .map_err(io)?;
+        let corrected = fix.apply(x);
+        let field = &records.record[span.clone()];
+        match as_written(corrected, field, fix.unit()) {
+            Some(text) => out.write_all(text.as_bytes()),
+            None => out.write_all(number.format_finite(corrected).as_bytes()),
+        }
+        .map_err(io)?;
         out.write_all(&records.record[span.end..]).map_err(io)?;
         count += 1;
         Ok(())
     })?;
     out.commit()?;
     Ok(count)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn corrected_readings_are_written_as_the_file_writes_them() {
+        // As many decimals as the reading replaced…
+        assert_eq!(
+            as_written(1.234_567_890_123, b"1.230000000", AngleUnit::Rad).as_deref(),
+            Some("1.234567890")
+        );
+        // …but never so few that the correction rounds away (0.001″ in degrees: 7 decimals).
+        assert_eq!(
+            as_written(12.500_277_8, b"12.5", AngleUnit::Deg).as_deref(),
+            Some("12.5002778")
+        );
+        // A decimal comma stays a comma.
+        assert_eq!(
+            as_written(-0.25, b" -0,2500000 ", AngleUnit::Deg).as_deref(),
+            Some("-0,2500000")
+        );
+        // Other notations get the shortest exact form.
+        assert_eq!(as_written(1.0, b"1e-3", AngleUnit::Rad), None);
+        assert_eq!(as_written(1.0, b"\"1.0\"", AngleUnit::Rad), None);
+    }
 }

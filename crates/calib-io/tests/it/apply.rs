@@ -326,17 +326,20 @@ fn csv_rewrites_the_channel_field_only() {
         (1, "0.000,", ",359.99,0", 0.0),
         (3, "0.0010,", ",1.5e2,0", 90.0),
     ];
+    // A corrected reading is written with its field's decimals, at least enough for 0.001″
+    // (7 in degrees): within half of the last.
+    const HALF_DECIMAL: f64 = 0.5e-7;
     for (k, head, tail, deg) in expect {
         let line = lines[k];
         assert!(line.starts_with(head) && line.ends_with(tail), "{line}");
         let v: f64 = line[head.len()..line.len() - tail.len()].parse().unwrap();
-        assert!((v - want_deg(deg)).abs() < 1e-12, "{line}");
+        assert!((v - want_deg(deg)).abs() <= HALF_DECIMAL, "{line}");
     }
     // 0° reads 30″ high: corrected into [0, 360) from below.
     let v: f64 = lines[1][6..lines[1].len() - 9].parse().unwrap();
-    assert!((v - (360.0 - 30.0 / 3600.0)).abs() < 1e-9, "{v}");
+    assert!((v - (360.0 - 30.0 / 3600.0)).abs() <= HALF_DECIMAL, "{v}");
     let v: f64 = lines[4][6..lines[4].len() - 5].parse().unwrap();
-    assert!((v - want_deg(359.9999)).abs() < 1e-12, "{v}");
+    assert!((v - want_deg(359.9999)).abs() <= HALF_DECIMAL, "{v}");
     // No line end added where the input had none.
     assert!(lines[5].starts_with("0.003,") && lines[5].ends_with(",\"x\"\"y\",-1"));
     assert_eq!(lines.len(), 6);
@@ -360,7 +363,8 @@ fn csv_units_are_kept_and_accumulated_readings_stay_unwrapped() {
     for (line, x) in got.lines().skip(1).zip([-3.0, 0.0, 4095.0, 4097.0, 9000.0]) {
         let v: f64 = line.split(',').nth(1).unwrap().parse().unwrap();
         let want = x - error_at(x / per_rad) * per_rad;
-        assert!((v - want).abs() < 1e-9, "{line}: want {want}");
+        // Integer counts are written with 6 decimals, enough for 0.001″ at 4096 a turn.
+        assert!((v - want).abs() <= 0.5e-6, "{line}: want {want}");
     }
     // An explicit wrapping wins over the detected one.
     let o = ApplyOptions {
