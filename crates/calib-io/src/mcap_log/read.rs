@@ -19,9 +19,9 @@
 //! the file, else `TOPIC/JOINT`.
 //!
 //! # Several topics, several clocks
-//! Every message goes to an [`Aligner`]: the first selected channel sets the clock, every other
-//! channel is interpolated at its stamps ([`crate::align`]); a channel at exactly the clock's
-//! stamp is taken as it is. A log of one topic whose messages all carry every joint needs none
+//! Every message goes to an [`Aligner`](crate::align::Aligner): the first selected channel sets
+//! the clock, every other channel is interpolated at its stamps ([`crate::align`]); a channel at
+//! exactly the clock's stamp is taken as it is. A log of one topic whose messages all carry every joint needs none
 //! of this and is read straight through, message by message, as fast as before.
 //!
 //! # Streaming

@@ -16,7 +16,8 @@ use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource};
 
 /// The channels of a log's topics, the selection among them, and the samples in progress.
 pub(crate) struct Samples {
-    pub(crate) registry: Registry,
+    /// The topics read and skipped.
+    registry: Registry,
     /// Every channel of the log, in raw order (topics, then joints).
     all_channels: Vec<Channel>,
     names: Vec<ChannelName>,
