@@ -60,6 +60,7 @@ pub mod points;
 pub mod prefetch;
 pub mod readings;
 pub mod report;
+mod ros2;
 pub mod rosbag;
 pub mod scenario;
 pub mod shift_angle;

@@ -4,6 +4,7 @@ use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
+use crate::ros2::samples::Ros2Reader;
 use crate::rosbag::{self, BagReader, PreparedStorage, SQLITE_MAGIC};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
@@ -186,7 +187,7 @@ pub struct LogReader {
     /// A sparse CSV's selected channels aligned on the first one's stamps, as MCAP topics are;
     /// `true` once the file is read to its end.
     csv_aligner: Option<(Aligner, bool)>,
-    /// A bag directory of MCAP storage without `metadata.yaml`: the warning to give.
+    /// A bag's warnings about how it was found (a missing `metadata.yaml`).
     bag_warnings: Vec<String>,
     /// A bag's temporary files and the splits (or bag) errors name instead.
     renames: Vec<(std::path::PathBuf, std::path::PathBuf)>,
@@ -195,10 +196,11 @@ pub struct LogReader {
     _temp: Option<crate::atomic::TempFolder>,
 }
 
+/// Both boxed: the readers are large, and of different sizes.
 enum Inner {
-    Csv(CsvReader),
-    Mcap(McapReader),
-    Bag(BagReader),
+    Csv(Box<CsvReader>),
+    /// An MCAP file or a bag: either reader, through the ROS 2 layer they share.
+    Ros2(Box<dyn Ros2Reader>),
 }
 
 impl LogReader {
@@ -208,24 +210,29 @@ impl LogReader {
         let mut temp = None;
         let mut renames = Vec::new();
         let inner = match LogFormat::detect(path)? {
-            LogFormat::Csv => Inner::Csv(CsvReader::open(path, opts)?),
-            LogFormat::Mcap => Inner::Mcap(McapReader::open(path, opts)?),
+            LogFormat::Csv => Inner::Csv(Box::new(CsvReader::open(path, opts)?)),
+            LogFormat::Mcap => Inner::Ros2(Box::new(McapReader::open(path, opts)?)),
             LogFormat::Rosbag => {
                 let bag = rosbag::prepare_with(path, opts.skip_damaged)?;
                 temp = bag.temp;
                 renames = bag.renames;
+                bag_warnings = bag.warnings;
                 let rename = |e: Error| e.renamed(&renames);
-                match bag.storage {
-                    PreparedStorage::Sqlite3(files) => Inner::Bag(
-                        BagReader::open(path, files, bag.compressed_messages, bag.warnings, opts)
-                            .map_err(rename)?,
+                Inner::Ros2(match bag.storage {
+                    PreparedStorage::Sqlite3(files) => Box::new(
+                        BagReader::open(
+                            path,
+                            files,
+                            bag.compressed_messages,
+                            bag_warnings.clone(),
+                            opts,
+                        )
+                        .map_err(rename)?,
                     ),
                     PreparedStorage::Mcap(file) => {
-                        let reader = McapReader::open(&file, opts).map_err(rename)?;
-                        bag_warnings = bag.warnings;
-                        Inner::Mcap(reader)
+                        Box::new(McapReader::open(&file, opts).map_err(rename)?)
                     }
-                }
+                })
             }
         };
         let names = match &inner {
@@ -234,8 +241,7 @@ impl LogReader {
                 .iter()
                 .map(|c| ChannelName::plain(&c.name))
                 .collect(),
-            Inner::Mcap(r) => r.names().to_vec(),
-            Inner::Bag(r) => r.names().to_vec(),
+            Inner::Ros2(r) => r.samples().names().to_vec(),
         };
         Ok(LogReader {
             inner,
@@ -272,8 +278,7 @@ impl LogReader {
                 }
                 self.selection = Some((channels.to_vec(), chosen));
             }
-            Inner::Mcap(r) => r.select(channels, opts),
-            Inner::Bag(r) => r.select(channels, opts),
+            Inner::Ros2(r) => r.samples_mut().select(channels, opts),
         }
     }
 
@@ -282,8 +287,7 @@ impl LogReader {
         match (&self.inner, &self.selection) {
             (_, Some((_, chosen))) => chosen,
             (Inner::Csv(r), None) => r.channels(),
-            (Inner::Mcap(r), None) => r.channels(),
-            (Inner::Bag(r), None) => r.channels(),
+            (Inner::Ros2(r), None) => r.samples().channels(),
         }
     }
 
@@ -298,24 +302,20 @@ impl LogReader {
     pub fn csv_dialect(&self) -> Option<&crate::csv_log::dialect::Dialect> {
         match &self.inner {
             Inner::Csv(r) => Some(r.dialect()),
-            _ => None,
+            Inner::Ros2(_) => None,
         }
     }
 
     /// Whether the log marks CSRR sessions (a CSV `session` column).
     pub fn has_session_marks(&self) -> bool {
-        match &self.inner {
-            Inner::Csv(r) => r.has_session_column(),
-            Inner::Mcap(_) | Inner::Bag(_) => false,
-        }
+        matches!(&self.inner, Inner::Csv(r) if r.has_session_column())
     }
 
     /// What the reader noticed so far (complete once the iterator is exhausted).
     pub fn diagnostics(&self) -> &ReadDiagnostics {
         match &self.inner {
             Inner::Csv(r) => r.diagnostics(),
-            Inner::Mcap(r) => r.diagnostics(),
-            Inner::Bag(r) => r.diagnostics(),
+            Inner::Ros2(r) => &r.samples().diagnostics,
         }
     }
 
@@ -327,8 +327,7 @@ impl LogReader {
                 let names: Vec<String> = r.channels().iter().map(|c| c.name.clone()).collect();
                 a.report(&names)
             }),
-            Inner::Mcap(r) => Some(r.alignment()),
-            Inner::Bag(r) => Some(r.alignment()),
+            Inner::Ros2(r) => Some(r.samples().alignment()),
         }
     }
 
@@ -337,19 +336,17 @@ impl LogReader {
     pub fn topics(&self) -> Vec<TopicInfo> {
         match &self.inner {
             Inner::Csv(_) => Vec::new(),
-            Inner::Mcap(r) => r.topics(),
-            Inner::Bag(r) => r.topics(),
+            Inner::Ros2(r) => r.samples().topics(),
         }
     }
 
     /// Notes for the user about parts of the log that were not read (topics of other schemas).
     pub fn notes(&self) -> Vec<String> {
-        let ignored = match &self.inner {
-            Inner::Csv(_) => return Vec::new(),
-            Inner::Mcap(r) => r.ignored_topics(),
-            Inner::Bag(r) => r.ignored_topics(),
+        let Inner::Ros2(r) = &self.inner else {
+            return Vec::new();
         };
-        ignored
+        r.samples()
+            .ignored_topics()
             .iter()
             .map(|t| {
                 format!(
@@ -365,10 +362,7 @@ impl LogReader {
     /// and samples dropped because a channel could not be aligned on the clock.
     pub fn warnings(&self, path: &Path) -> Vec<String> {
         let d = self.diagnostics();
-        let mut w = match &self.inner {
-            Inner::Bag(r) => r.warnings().to_vec(),
-            _ => self.bag_warnings.clone(),
-        };
+        let mut w = self.bag_warnings.clone();
         if let Some(t) = &d.truncated {
             w.push(format!(
                 "{}: the log ends early at byte {} (a crashed recording?): the {} messages before the break were used",
@@ -451,8 +445,7 @@ impl Iterator for LogReader {
                     (other, _) => other,
                 })
             }
-            Inner::Mcap(r) => r.next().map(|s| s.map_err(|e| e.renamed(&self.renames))),
-            Inner::Bag(r) => r.next().map(|s| s.map_err(|e| e.renamed(&self.renames))),
+            Inner::Ros2(r) => r.next().map(|s| s.map_err(|e| e.renamed(&self.renames))),
         }
     }
 }

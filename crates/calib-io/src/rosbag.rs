@@ -11,10 +11,12 @@
 //! payload with its 4-byte encapsulation header, `timestamp` the receive time in nanoseconds.
 //! Humble stores no message definitions, so a topic is recognised by its type name:
 //! `sensor_msgs/msg/JointState`, `control_msgs/msg/DynamicJointState` and the `std_msgs` scalars (`Float64`, `Float32`, `Int64`,
-//! `Int32`, `UInt32`, `UInt16`) are decoded as the MCAP reader decodes them (see
-//! [`crate::mcap_log`]), and the same rules name and align its channels (the joint name where
-//! unique, else `TOPIC/JOINT`; channels on several topics aligned on the first selected one's
-//! stamps). Topics of other types are listed by [`BagReader::topics`] and skipped.
+//! `Int32`, `UInt32`, `UInt16`) are read as in an MCAP file (see [`crate::mcap_log`]): each row
+//! becomes the MCAP message it stands for and goes to the ROS 2 layer the MCAP reader hands its
+//! messages to (`calib_io::ros2`, private), which decodes it and names and aligns the channels
+//! (the joint name where unique, else `TOPIC/JOINT`; channels on several topics aligned on the
+//! first selected one's stamps). Topics of other types are listed by [`BagReader::topics`] and
+//! skipped.
 //!
 //! Messages are read in `timestamp` order within a file, file after file in the metadata's order
 //! (rosbag2 splits a recording in time, so this is the recording's order). A background thread
@@ -40,14 +42,15 @@ use std::sync::mpsc::{Receiver, sync_channel};
 use calib_core::{AngleUnit, Channel, Sample};
 use rusqlite::{Connection, OpenFlags};
 
-use crate::align::{AlignOptions, Aligner, Alignment};
-use crate::mcap_log::read::{
-    Encoding, Registry, Resolved, TopicStats, decode, first_message, lay_out_channels, seconds,
-};
-use crate::mcap_log::{IgnoredTopic, JOINT_STATE_SCHEMA, PEEK_WINDOW, TopicInfo};
+use crate::align::{AlignOptions, Alignment};
+use crate::mcap_log::JOINT_STATE_SCHEMA;
 use crate::naming::ChannelName;
-use crate::stamps::StampOrder;
-use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource};
+use crate::ros2::PEEK_WINDOW;
+use crate::ros2::encoding::Encoding;
+use crate::ros2::registry::{IgnoredTopic, Registry, Resolved, TopicInfo, too_many_topics};
+use crate::ros2::samples::{Failure, Ros2Reader, Samples};
+use crate::ros2::topic::TopicStats;
+use crate::{Error, ReadDiagnostics, ReadOptions};
 
 /// The first 16 bytes of every SQLite 3 database file.
 pub const SQLITE_MAGIC: &[u8; 16] = b"SQLite format 3\0";
@@ -873,32 +876,12 @@ pub struct BagReader {
     /// One MCAP channel per topic of the bag (by name), so that messages are decoded and
     /// registered exactly as the MCAP reader does.
     topic_channels: Vec<Arc<mcap::Channel<'static>>>,
-    registry: Registry,
-    all_channels: Vec<Channel>,
-    names: Vec<ChannelName>,
-    channels: Vec<Channel>,
-    time: TimeSource,
-    aligner: Aligner,
-    raw: Vec<f64>,
+    /// The channels, the selection and the samples in progress, shared with the MCAP reader.
+    samples: Samples,
     rows: Option<Receiver<Result<Row, Error>>>,
-    diagnostics: ReadDiagnostics,
     warnings: Vec<String>,
     done: bool,
     failed: bool,
-    /// The raw index of the clock channel (the first selected).
-    clock: usize,
-    /// The clock's stamps so far (see [`crate::stamps`]).
-    order: StampOrder,
-    /// Pass on clock stamps that do not increase (`calib inspect` counts them).
-    allow_unordered_time: bool,
-    /// The selected channels (raw indices), in the order of each sample's values.
-    selected: Vec<usize>,
-    /// One topic whose messages carry every joint, each channel selected at most once: every
-    /// message is a sample, exact on its stamp, without the aligner (as the MCAP reader's fast
-    /// path), so that stamps out of order reach `calib inspect` to be counted.
-    fast: bool,
-    /// Samples emitted by the fast path.
-    fast_samples: u64,
 }
 
 /// The MCAP message a bag row stands for: log and publish time the row's `timestamp`.
@@ -1032,27 +1015,9 @@ impl BagReader {
                     m,
                 )
             };
-            match registry.resolve(&msg.channel) {
-                Ok(Resolved::NewTopic(encoding)) => match first_message(&msg, encoding, scale) {
-                    Ok(topic) => {
-                        registry.add_topic(topic);
-                        // Resolve again to record the channel's slot.
-                        let _ = registry.resolve(&msg.channel);
-                    }
-                    Err(m) => {
-                        failure = Some(fail(m));
-                        return false;
-                    }
-                },
-                // A bad message is reported by the iteration, at the same message.
-                Ok(Resolved::Topic(k)) => {
-                    let _ = registry.topics[k].learn(&msg);
-                }
-                Ok(Resolved::Ignored(_)) => {}
-                Err(m) => {
-                    failure = Some(fail(m));
-                    return false;
-                }
+            if let Err(m) = registry.learn(&msg, scale) {
+                failure = Some(fail(m));
+                return false;
             }
             if let Some(n) = &mut after_all {
                 *n += 1;
@@ -1089,81 +1054,45 @@ impl BagReader {
                 ),
             ));
         }
-        let (names, all_channels) = lay_out_channels(&mut registry, opts);
-        let width = all_channels.len();
-        let mut reader = BagReader {
+        Ok(BagReader {
             files,
             wanted,
             compressed,
             topic_channels,
-            registry,
-            all_channels,
-            names,
-            channels: Vec::new(),
-            time: opts.time,
-            aligner: Aligner::new(vec![0], AlignOptions::default()),
-            raw: vec![f64::NAN; width],
+            samples: Samples::new(registry, opts, "message id"),
             rows: None,
-            diagnostics: ReadDiagnostics::default(),
             warnings,
             done: false,
             failed: false,
-            clock: 0,
-            order: StampOrder::default(),
-            allow_unordered_time: opts.allow_unordered_time,
-            selected: Vec::new(),
-            fast: false,
-            fast_samples: 0,
-        };
-        let all: Vec<usize> = (0..width).collect();
-        reader.select(&all, AlignOptions::default());
-        Ok(reader)
+        })
     }
 
     /// The selected channels, in the order of each sample's values.
     pub fn channels(&self) -> &[Channel] {
-        &self.channels
+        self.samples.channels()
     }
 
     /// The names of every channel of the bag, in raw order: the indices
     /// [`select`](Self::select) takes.
     pub fn names(&self) -> &[ChannelName] {
-        &self.names
+        self.samples.names()
     }
 
     /// Reads only `channels` (indices into [`names`](Self::names)), in this order, aligned on
     /// the first one's stamps ([`crate::align`]). Call it before reading any sample.
     pub fn select(&mut self, channels: &[usize], opts: AlignOptions) {
-        self.aligner = Aligner::new(channels.to_vec(), opts);
-        self.clock = channels.first().copied().unwrap_or(0);
-        let distinct = channels
-            .iter()
-            .enumerate()
-            .all(|(k, c)| *c < self.raw.len() && !channels[..k].contains(c));
-        self.fast = self.registry.topics.len() == 1 && !self.registry.topics[0].subset && distinct;
-        self.selected = channels.to_vec();
-        self.channels = channels
-            .iter()
-            .map(|&i| self.all_channels[i].clone())
-            .collect();
+        self.samples.select(channels, opts);
     }
 
     /// How the selected channels were aligned on the first one's clock (complete once
     /// iteration has ended).
     pub fn alignment(&self) -> Alignment {
-        let names: Vec<String> = self.names.iter().map(|n| n.display.clone()).collect();
-        let mut alignment = self.aligner.report(&names);
-        alignment.clock_samples += self.fast_samples;
-        alignment.samples += self.fast_samples;
-        for c in &mut alignment.channels {
-            c.exact += self.fast_samples;
-        }
-        alignment
+        self.samples.alignment()
     }
 
     /// What the reader noticed so far.
     pub fn diagnostics(&self) -> &ReadDiagnostics {
-        &self.diagnostics
+        &self.samples.diagnostics
     }
 
     /// Warnings about how the bag was found (a missing `metadata.yaml`).
@@ -1173,13 +1102,13 @@ impl BagReader {
 
     /// Topics skipped because calib does not read their type.
     pub fn ignored_topics(&self) -> &[IgnoredTopic] {
-        &self.registry.ignored
+        self.samples.ignored_topics()
     }
 
     /// Every topic of the bag: those read with their channels, then those skipped. Counts and
     /// rates of the topics read are of the messages read so far; of those skipped, of the bag.
     pub fn topics(&self) -> Vec<TopicInfo> {
-        self.registry.topic_infos(&self.names)
+        self.samples.topics()
     }
 
     /// Starts the thread that streams the rows of the topics read.
@@ -1216,45 +1145,33 @@ impl BagReader {
                 row.timestamp
             )));
         }
-        let msg = message(channel, row);
-        let k = match self.registry.resolve(&msg.channel).map_err(fail)? {
-            Resolved::Topic(k) => k,
-            Resolved::Ignored(_) => return Ok(None),
-            Resolved::NewTopic(_) => {
-                return Err(fail(
-                    "this topic's first message was not met when the bag was opened; the \
-                     bag changed while it was read"
+        self.samples
+            .step(&message(channel, row), row.id)
+            .map_err(|failure| {
+                fail(match failure {
+                    Failure::NewTopic => "this topic's first message was not met when the bag \
+                                          was opened; the bag changed while it was read"
                         .into(),
-                ));
-            }
-        };
-        let topic = &mut self.registry.topics[k];
-        topic.stats.note(msg.log_time);
-        let range = topic.offset..topic.offset + topic.names.len();
-        self.raw.fill(f64::NAN);
-        let (stamp, full) =
-            decode(topic, &msg, self.time, &mut self.raw[range]).map_err(|(c, m)| match c {
-                Some(joint) => fail(format!("joint `{joint}`: {m}")),
-                None => fail(m),
-            })?;
-        if !self.allow_unordered_time && !self.raw[self.clock].is_nan() {
-            self.order.check(stamp, row.id).map_err(|b| {
-                fail(b.describe(&self.names[self.clock].display, "message id", self.time))
-            })?;
-        }
-        if self.fast && full {
-            self.fast_samples += 1;
-            return Ok(Some(Sample {
-                t: seconds(stamp),
-                values: self.selected.iter().map(|&i| self.raw[i]).collect(),
-                session: None,
-            }));
-        }
-        // A message with a subset of the joints: from here on, through the aligner (empty so
-        // far, so the order of samples is kept).
-        self.fast = false;
-        self.aligner.push(stamp, seconds(stamp), &self.raw, None);
-        Ok(self.aligner.pop())
+                    Failure::Message {
+                        joint: Some(joint),
+                        message,
+                    } => format!("joint `{joint}`: {message}"),
+                    Failure::Message {
+                        joint: None,
+                        message,
+                    } => message,
+                })
+            })
+    }
+}
+
+impl Ros2Reader for BagReader {
+    fn samples(&self) -> &Samples {
+        &self.samples
+    }
+
+    fn samples_mut(&mut self) -> &mut Samples {
+        &mut self.samples
     }
 }
 
@@ -1266,7 +1183,7 @@ impl Iterator for BagReader {
             return None;
         }
         loop {
-            if let Some(sample) = self.aligner.pop() {
+            if let Some(sample) = self.samples.pop() {
                 return Some(Ok(sample));
             }
             if self.done {
@@ -1292,7 +1209,7 @@ impl Iterator for BagReader {
                 // The thread has read every row.
                 Some(Err(_)) | None => {
                     self.done = true;
-                    self.aligner.finish();
+                    self.samples.finish();
                 }
             }
         }
@@ -1358,7 +1275,7 @@ fn read_topics(db: &Connection, file: &Path) -> Result<Vec<(i64, String, String,
             Some("topics"),
             None,
             None,
-            crate::mcap_log::read::too_many_topics(),
+            too_many_topics(),
         ));
     }
     rows.map_err(|e| {

@@ -16,7 +16,7 @@
 //! them, so that what it reports is what the methods refuse.
 
 use crate::TimeSource;
-use crate::mcap_log::read::seconds;
+use crate::ros2::decode::seconds;
 
 /// The last stamp of the clock channel and the message that carried it.
 #[derive(Debug, Clone, Copy, Default)]

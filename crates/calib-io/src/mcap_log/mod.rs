@@ -53,7 +53,9 @@ pub(crate) mod read;
 pub(crate) mod records;
 mod write;
 
-pub use read::{IgnoredTopic, McapReader, PEEK_WINDOW, TopicInfo};
+pub use crate::ros2::PEEK_WINDOW;
+pub use crate::ros2::registry::{IgnoredTopic, TopicInfo};
+pub use read::McapReader;
 pub use write::{DEFAULT_TOPIC, McapWriter};
 
 /// The ROS 2 type name of joint states.

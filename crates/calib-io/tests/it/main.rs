@@ -10,4 +10,5 @@ mod fuzz_regressions;
 mod mcap_read;
 mod mcap_write;
 mod reader_findings;
+mod rosbag_read;
 mod table_io;

@@ -1,0 +1,279 @@
+//! [`Samples`]: a log's messages turned into samples — where each topic's channels sit in a
+//! sample, which of them are selected, the clock's stamp order, and the aligner or the fast
+//! path that bypasses it. The MCAP and the bag reader each hold one and hand it their messages;
+//! only how messages come out of their files differs between them.
+
+use calib_core::{AngleUnit, Channel, Sample};
+
+use super::decode::{decode, seconds};
+use super::encoding::Encoding;
+use super::registry::{IgnoredTopic, Registry, Resolved, TopicInfo};
+use super::topic::Topic;
+use crate::align::{AlignOptions, Aligner, Alignment};
+use crate::naming::{ChannelName, names_of};
+use crate::stamps::StampOrder;
+use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource};
+
+/// The channels of a log's topics, the selection among them, and the samples in progress.
+pub(crate) struct Samples {
+    /// The topics read and skipped.
+    registry: Registry,
+    /// Every channel of the log, in raw order (topics, then joints).
+    all_channels: Vec<Channel>,
+    names: Vec<ChannelName>,
+    /// The selected channels, in the order of each sample's values.
+    channels: Vec<Channel>,
+    time: TimeSource,
+    aligner: Aligner,
+    /// One topic whose messages carry every joint, each channel selected at most once: every
+    /// message is a sample (its selected joints, exact on the same stamp), and the aligner is
+    /// bypassed — so that stamps out of order reach `calib inspect` to be counted.
+    fast: bool,
+    /// Where the fast path's values come from: `None` for every channel in order, else the
+    /// selected raw channels.
+    pick: Option<Vec<usize>>,
+    /// Samples emitted by the fast path (every channel exact).
+    fast_samples: u64,
+    /// One reading per raw channel of the current message, NaN where it carries none.
+    raw: Vec<f64>,
+    /// The raw index of the clock channel (the first selected).
+    clock: usize,
+    /// The clock's stamps so far (see [`crate::stamps`]).
+    order: StampOrder,
+    /// Pass on clock stamps that do not increase (`calib inspect` counts them).
+    allow_unordered_time: bool,
+    /// What the number a message is known by is called in an error about stamp order: the
+    /// message's index in an MCAP file, its row id in a bag.
+    key_name: &'static str,
+    /// What the reader noticed so far (the MCAP reader's truncation and damaged chunks).
+    pub(crate) diagnostics: ReadDiagnostics,
+}
+
+/// A reader of an MCAP file or a bag, as [`crate::LogReader`] holds either: its samples, and the
+/// layer it hands its messages to for the rest. `Send`: commands decode on a second thread.
+pub(crate) trait Ros2Reader: Iterator<Item = Result<Sample, Error>> + Send {
+    /// The channels, the selection and what was noticed.
+    fn samples(&self) -> &Samples;
+    /// The same, to select channels.
+    fn samples_mut(&mut self) -> &mut Samples;
+}
+
+/// Why a message could not be read; each reader says where it is.
+pub(crate) enum Failure {
+    /// The message's topic was not met when the log was opened.
+    NewTopic,
+    /// What is wrong, and the joint or field concerned if not the whole message.
+    Message {
+        joint: Option<String>,
+        message: String,
+    },
+}
+
+impl Failure {
+    fn message(message: String) -> Self {
+        Failure::Message {
+            joint: None,
+            message,
+        }
+    }
+}
+
+impl Samples {
+    /// Lays out the channels of the topics `registry` learnt, every one selected; `key_name`
+    /// is what the reader's errors call a message's number.
+    pub(crate) fn new(mut registry: Registry, opts: &ReadOptions, key_name: &'static str) -> Self {
+        let (names, all_channels) = lay_out_channels(&mut registry, opts);
+        let width = all_channels.len();
+        let mut samples = Samples {
+            registry,
+            all_channels,
+            names,
+            channels: Vec::new(),
+            time: opts.time,
+            aligner: Aligner::new(vec![0], AlignOptions::default()),
+            fast: false,
+            pick: None,
+            fast_samples: 0,
+            raw: vec![f64::NAN; width],
+            clock: 0,
+            order: StampOrder::default(),
+            allow_unordered_time: opts.allow_unordered_time,
+            key_name,
+            diagnostics: ReadDiagnostics::default(),
+        };
+        let all: Vec<usize> = (0..width).collect();
+        samples.select(&all, AlignOptions::default());
+        samples
+    }
+
+    /// The selected channels, in the order of each sample's values.
+    pub(crate) fn channels(&self) -> &[Channel] {
+        &self.channels
+    }
+
+    /// Every channel's name, in raw order.
+    pub(crate) fn names(&self) -> &[ChannelName] {
+        &self.names
+    }
+
+    /// Reads only `channels` (raw indices), in this order, aligned on the first one's stamps.
+    pub(crate) fn select(&mut self, channels: &[usize], opts: AlignOptions) {
+        let width = self.all_channels.len();
+        let distinct = channels
+            .iter()
+            .enumerate()
+            .all(|(k, c)| *c < width && !channels[..k].contains(c));
+        self.fast = self.registry.topics.len() == 1 && !self.registry.topics[0].subset && distinct;
+        self.pick = (!channels.iter().copied().eq(0..width)).then(|| channels.to_vec());
+        self.aligner = Aligner::new(channels.to_vec(), opts);
+        self.clock = channels.first().copied().unwrap_or(0);
+        self.channels = channels
+            .iter()
+            .map(|&i| self.all_channels[i].clone())
+            .collect();
+    }
+
+    /// How the selected channels were aligned on the first one's clock, the fast path's samples
+    /// counted as exact.
+    pub(crate) fn alignment(&self) -> Alignment {
+        let names: Vec<String> = self.names.iter().map(|n| n.display.clone()).collect();
+        let mut alignment = self.aligner.report(&names);
+        alignment.clock_samples += self.fast_samples;
+        alignment.samples += self.fast_samples;
+        for c in &mut alignment.channels {
+            c.exact += self.fast_samples;
+        }
+        alignment
+    }
+
+    /// Every topic: those read with their channels, then those skipped.
+    pub(crate) fn topics(&self) -> Vec<TopicInfo> {
+        self.registry.topic_infos(&self.names)
+    }
+
+    /// Topics skipped because calib does not read their type, in the order met.
+    pub(crate) fn ignored_topics(&self) -> &[IgnoredTopic] {
+        &self.registry.ignored
+    }
+
+    /// A sample the aligner has completed (the fast path leaves it empty).
+    pub(crate) fn pop(&mut self) -> Option<Sample> {
+        if self.fast {
+            return None;
+        }
+        self.aligner.pop()
+    }
+
+    /// The log has ended: what the aligner holds can now be decided.
+    pub(crate) fn finish(&mut self) {
+        self.aligner.finish();
+    }
+
+    /// Decodes one message, known to the reader's errors by `key`; a sample if it completes one.
+    pub(crate) fn step(
+        &mut self,
+        message: &mcap::Message,
+        key: i64,
+    ) -> Result<Option<Sample>, Failure> {
+        let k = match self.registry.resolve(&message.channel) {
+            Ok(Resolved::Topic(k)) => k,
+            Ok(Resolved::Ignored(k)) => {
+                self.registry.ignored_stats[k].note(message.log_time);
+                return Ok(None);
+            }
+            Ok(Resolved::NewTopic(_)) => return Err(Failure::NewTopic),
+            Err(m) => return Err(Failure::message(m)),
+        };
+        let topic = &mut self.registry.topics[k];
+        topic.stats.note(message.log_time);
+        let failed = |(joint, message)| Failure::Message { joint, message };
+        if self.fast {
+            // With a selection, every joint into the scratch row and the selected ones into the
+            // sample; with every channel in order, straight into the sample.
+            let (stamp, full, values) = match &self.pick {
+                Some(pick) => {
+                    self.raw.fill(f64::NAN);
+                    let (stamp, full) =
+                        decode(topic, message, self.time, &mut self.raw).map_err(failed)?;
+                    (stamp, full, pick.iter().map(|&i| self.raw[i]).collect())
+                }
+                None => {
+                    let mut values = vec![f64::NAN; topic.names.len()];
+                    let (stamp, full) =
+                        decode(topic, message, self.time, &mut values).map_err(failed)?;
+                    (stamp, full, values)
+                }
+            };
+            // The clock sits first in a selection, else at its raw index.
+            let clock = if self.pick.is_some() { 0 } else { self.clock };
+            if values.get(clock).is_some_and(|v| !v.is_nan()) {
+                self.check_stamp(stamp, key)?;
+            }
+            if full {
+                self.fast_samples += 1;
+                return Ok(Some(Sample {
+                    t: seconds(stamp),
+                    values,
+                    session: None,
+                }));
+            }
+            // A message with a subset of the joints: from here on, through the aligner (which
+            // is empty, so the order of samples is kept), which takes the whole row.
+            self.fast = false;
+            if self.pick.is_none() {
+                self.raw.copy_from_slice(&values);
+            }
+            self.aligner.push(stamp, seconds(stamp), &self.raw, None);
+            return Ok(self.aligner.pop());
+        }
+        let range = topic.offset..topic.offset + topic.names.len();
+        self.raw.fill(f64::NAN);
+        let (stamp, _) = decode(topic, message, self.time, &mut self.raw[range]).map_err(failed)?;
+        if !self.raw[self.clock].is_nan() {
+            self.check_stamp(stamp, key)?;
+        }
+        self.aligner.push(stamp, seconds(stamp), &self.raw, None);
+        Ok(self.aligner.pop())
+    }
+
+    /// Refuses a clock stamp that does not increase (see [`crate::stamps`]), unless told to
+    /// pass it on.
+    fn check_stamp(&mut self, stamp: i64, key: i64) -> Result<(), Failure> {
+        if self.allow_unordered_time {
+            return Ok(());
+        }
+        self.order.check(stamp, key).map_err(|b| {
+            Failure::message(b.describe(&self.names[self.clock].display, self.key_name, self.time))
+        })
+    }
+}
+
+/// Places each topic's joints in a sample's values, one after the other in the order the
+/// topics were found, and names them; returns the names and the channels with their units.
+fn lay_out_channels(
+    registry: &mut Registry,
+    opts: &ReadOptions,
+) -> (Vec<ChannelName>, Vec<Channel>) {
+    let mut offset = 0;
+    for topic in &mut registry.topics {
+        topic.offset = offset;
+        offset += topic.names.len();
+    }
+    let names = names_of(registry.topics.iter().flat_map(Topic::channel_names));
+    let mut all_channels: Vec<Channel> = Vec::with_capacity(names.len());
+    for topic in &registry.topics {
+        let unit = match topic.encoding {
+            Encoding::JointState(_) => AngleUnit::Rad,
+            Encoding::Json | Encoding::Scalar(_) | Encoding::Field => {
+                opts.unit.unwrap_or(AngleUnit::Deg)
+            }
+        };
+        for _ in &topic.names {
+            all_channels.push(Channel {
+                name: names[all_channels.len()].display.clone(),
+                unit,
+            });
+        }
+    }
+    (names, all_channels)
+}
