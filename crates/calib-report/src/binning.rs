@@ -57,7 +57,7 @@ mod tests {
     fn bins_hold_mean_and_spread() {
         let points: Vec<(f64, f64)> = (0..36_000)
             .map(|i| {
-                let x = i as f64 * 0.01;
+                let x = (i as f64 + 0.5) * 0.01;
                 (x, if i % 2 == 0 { 1.0 } else { -1.0 } + x / 100.0)
             })
             .collect();
