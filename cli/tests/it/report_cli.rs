@@ -26,6 +26,29 @@ fn figure<'a>(html: &'a str, id: &str) -> &'a str {
     &html[start..end]
 }
 
+/// The rows of the table with this caption (start), header row excluded.
+fn table_rows(html: &str, caption: &str) -> usize {
+    let start = html
+        .find(&format!("<caption>{caption}"))
+        .unwrap_or_else(|| panic!("no table {caption}"));
+    let end = start + html[start..].find("</table>").unwrap();
+    html[start..end].matches("<tr>").count() - 1
+}
+
+/// The number of points of each line drawn in a figure.
+fn polylines(figure: &str) -> Vec<usize> {
+    figure
+        .split("<polyline")
+        .skip(1)
+        .map(|p| {
+            let points = &p[p.find("points=\"").unwrap() + 8..];
+            points[..points.find('"').unwrap()]
+                .split_whitespace()
+                .count()
+        })
+        .collect()
+}
+
 /// Every `id="…"` of a page.
 fn ids(html: &str) -> Vec<&str> {
     html.split(" id=\"")
@@ -189,7 +212,11 @@ fn shift_angle_report_shows_polygon_encoder_band_and_residuals() {
     );
     assert_mentions(
         figure(&html, "map-encoder"),
-        &["expanded uncertainty U (k = 2.160, budget)", "<polygon"],
+        &[
+            "expanded uncertainty U (k = 2.160, budget)",
+            "U (″)",
+            "<polygon",
+        ],
     );
     let polygon = figure(&html, "polygon");
     assert_mentions(polygon, &["pitch deviation β (″)", "face"]);
@@ -227,9 +254,23 @@ fn reports_with_a_reference_encoder() {
             "effective-range",
         ],
     );
+    let map = figure(&html, "map-b");
     assert_mentions(
-        figure(&html, "map-b"),
-        &["reference measurement − calibrated map", "residual (″)"],
+        map,
+        &[
+            "reference measurement − calibrated map (mean per ",
+            "° bin)",
+            "±1 s of the samples in each bin",
+            "residual (″)",
+            "± expanded uncertainty U (k = 2)",
+        ],
+    );
+    // Issue 31: the residual against the reference was drawn through every sample (a wall of
+    // noise); it is one mean per bin of angle, 360 to 3600 of them.
+    let lines = polylines(map);
+    assert!(
+        lines.iter().any(|&n| (360..=3600).contains(&n)),
+        "no binned residual: {lines:?}"
     );
     let y = figure(&html, "effective-range");
     assert_mentions(
@@ -248,15 +289,150 @@ fn reports_with_a_reference_encoder() {
     let o = reference(&log, "b", "ref", &out, &[]);
     expect_exit(&o, 0);
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    check_page(&html, &["map-b", "zoom-b", "spectrum"]);
+    check_page(&html, &["map-b", "zoom-b", "iso-b", "spectrum"]);
     assert_mentions(
         &html,
         &[
             "E bidirectional systematic positioning deviation",
             "R↑ unidirectional repeatability",
-            "expanded uncertainty (k = 2)",
+            "expanded uncertainty U (k = 2), u excludes the reference",
         ],
     );
+}
+
+/// Issue 31: `calib reference` draws ISO 230-2's chart (each direction's mean deviation and
+/// ±2s at every target), lists the per-target statistics that were only in report.json, and
+/// draws what the correction leaves in each direction against ±U.
+#[test]
+fn reference_report_has_the_iso_230_2_chart_and_targets() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate(&testdata("scenarios/backlash.toml"), dir.path(), "b.mcap");
+    let out = dir.path().join("out");
+    expect_exit(&reference(&log, "dut", "ref", &out, &[]), 0);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    check_page(&html, &["map-dut", "directions-dut", "iso-dut"]);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let targets = json["details"]["iso230_2_targets"]
+        .as_array()
+        .unwrap()
+        .len();
+    assert_eq!(targets, 20);
+
+    let iso = figure(&html, "iso-dut");
+    assert_mentions(
+        iso,
+        &[
+            "positioning deviation (″)",
+            "deviation − bidirectional mean (″)",
+            "increasing ↑ mean deviation",
+            "decreasing ↓ x̄ ± 2s",
+            "<polygon",
+        ],
+    );
+    // A dot per target and direction in each of the two panels; the legend draws no dots.
+    assert_eq!(iso.matches("<circle").count(), 2 * 2 * targets);
+    assert!(polylines(iso).iter().filter(|&&n| n == targets).count() >= 4);
+    assert_eq!(
+        table_rows(&html, "ISO 230-2 statistics per target"),
+        targets,
+        "one row per target"
+    );
+    assert_mentions(
+        &html,
+        &[
+            "mean deviation x̄↑ (″)",
+            "s↓ (″)",
+            "reversal B = x̄↑ − x̄↓ (″)",
+        ],
+    );
+    // Large figures also in degrees: E is about 830″.
+    assert_mentions(&html, &["(0.23°)"]);
+
+    let after = figure(&html, "directions-dut");
+    assert_mentions(
+        after,
+        &[
+            "after correction",
+            "± expanded uncertainty U (k = 2)",
+            "increasing",
+            "decreasing",
+            "<polygon",
+        ],
+    );
+    assert_mentions(
+        figure(&html, "map-dut"),
+        &["U (″)", "expanded uncertainty U (k = 2), u excludes"],
+    );
+}
+
+/// Issue 31: `calib tdr`'s report draws the coast (speed over time against the fitted motion)
+/// and the fit's residual over time, the ±U band on the residual against the reference, and the
+/// drag where it was separated.
+#[test]
+fn tdr_report_shows_the_coast_the_residual_and_the_drag() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate(&testdata("scenarios/spindown.toml"), dir.path(), "s.mcap");
+    let out = dir.path().join("out");
+    let o = calib(&[
+        "tdr",
+        s(&log),
+        "--channel",
+        "enc",
+        "--ref",
+        "ref",
+        "-o",
+        s(&out),
+    ]);
+    expect_exit(&o, 0);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    check_page(&html, &["coast", "map-enc", "zoom-enc", "spectrum"]);
+    let coast = figure(&html, "coast");
+    assert_mentions(
+        coast,
+        &[
+            "time from the coast",
+            "speed (r/min)",
+            "fitted free motion",
+            "fit residual (″)",
+            "smallest to largest in each interval",
+        ],
+    );
+    // One dot per interval of the coast (and the legend's), the fitted speed a smooth line.
+    let dots = coast.matches("<circle").count() - 1;
+    assert!((300..=400).contains(&dots), "{dots} intervals");
+    let lines = polylines(coast);
+    assert!(lines.contains(&601), "{lines:?}");
+    assert!(
+        lines.contains(&dots),
+        "the residual's mean per interval: {lines:?}"
+    );
+    let map = figure(&html, "map-enc");
+    assert_mentions(
+        map,
+        &[
+            "enc − ref (reference) − calibrated map",
+            "± expanded uncertainty U (k = 2)",
+            "U (″)",
+        ],
+    );
+    // The orders the map holds only: no zero rows under "largest".
+    assert!(!html.contains("<td>0.0000</td>"));
+
+    let log = simulate(
+        &testdata("scenarios/spindown-drag.toml"),
+        dir.path(),
+        "d.mcap",
+    );
+    let out = dir.path().join("drag");
+    expect_exit(
+        &calib(&["tdr", s(&log), "--channel", "enc", "-o", s(&out)]),
+        0,
+    );
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let drag = figure(&html, "drag");
+    assert_mentions(drag, &["deceleration (rad/s²)", "drag deceleration"]);
+    assert!(polylines(drag).contains(&721));
 }
 
 /// A failed run writes no report.html either.
@@ -276,36 +452,57 @@ fn a_failed_run_leaves_no_report() {
     assert!(!out.join("report.html").exists() && !out.join("report.json").exists());
 }
 
-/// Renders a report in headless Chromium (`cargo test -p calib-cli --test it report_cli:: -- --ignored`
-/// on a machine with the `chromium` package) and checks that a screenshot came out.
+/// Renders the reports of csrr, reference and tdr in headless Chromium (`cargo test -p
+/// calib-cli --test it report_cli:: -- --ignored` on a machine with the `chromium` package) and
+/// checks that a screenshot of each came out; with `CALIB_SHOTS=DIR` the screenshots are kept
+/// there (`csrr.png`, `reference.png`, `tdr.png`) for a person to look at.
 #[test]
 #[ignore = "needs chromium"]
 fn renders_in_chromium() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    let o = calib(&["csrr", s(&testdata("examples/quick.mcap")), "-o", s(&out)]);
+    let shots = std::env::var_os("CALIB_SHOTS").map_or(dir.path().to_path_buf(), Into::into);
+    std::fs::create_dir_all(&shots).unwrap();
+    let csrr = dir.path().join("csrr");
+    let o = calib(&["csrr", s(&testdata("examples/quick.mcap")), "-o", s(&csrr)]);
     expect_exit(&o, 0);
-    let shot = dir.path().join("shot.png");
-    let profile = dir.path().join("profile");
-    let status = std::process::Command::new("chromium")
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--no-first-run",
-            "--disable-background-networking",
-            &format!("--user-data-dir={}", profile.display()),
-            &format!("--screenshot={}", shot.display()),
-            "--window-size=1300,4000",
-        ])
-        .arg(format!("file://{}", out.join("report.html").display()))
-        .status()
-        .expect("chromium is not installed");
-    assert!(status.success());
-    let png = std::fs::read(Path::new(&shot)).unwrap();
-    assert!(
-        png.starts_with(b"\x89PNG") && png.len() > 50_000,
-        "{} bytes",
-        png.len()
-    );
+    let log = simulate(&testdata("scenarios/backlash.toml"), dir.path(), "b.mcap");
+    let reference_out = dir.path().join("reference");
+    expect_exit(&reference(&log, "dut", "ref", &reference_out, &[]), 0);
+    let log = simulate(&testdata("scenarios/spindown.toml"), dir.path(), "s.mcap");
+    let tdr = dir.path().join("tdr");
+    let o = calib(&[
+        "tdr",
+        s(&log),
+        "--channel",
+        "enc",
+        "--ref",
+        "ref",
+        "-o",
+        s(&tdr),
+    ]);
+    expect_exit(&o, 0);
+    for (name, out) in [("csrr", csrr), ("reference", reference_out), ("tdr", tdr)] {
+        let shot = shots.join(format!("{name}.png"));
+        let status = std::process::Command::new("chromium")
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--no-first-run",
+                "--disable-background-networking",
+                &format!("--user-data-dir={}", dir.path().join("profile").display()),
+                &format!("--screenshot={}", shot.display()),
+                "--window-size=1300,6000",
+            ])
+            .arg(format!("file://{}", out.join("report.html").display()))
+            .status()
+            .expect("chromium is not installed");
+        assert!(status.success());
+        let png = std::fs::read(Path::new(&shot)).unwrap();
+        assert!(
+            png.starts_with(b"\x89PNG") && png.len() > 50_000,
+            "{name}: {} bytes",
+            png.len()
+        );
+    }
 }

@@ -220,6 +220,9 @@ pub struct Chart {
     pub spans: Vec<Span>,
     /// Horizontal reference lines.
     pub levels: Vec<Level>,
+    /// Height relative to the figure's other panels (1 by default): a panel that only
+    /// qualifies another, as the uncertainty under a map, is drawn smaller.
+    pub height: f64,
 }
 
 impl Chart {
@@ -231,7 +234,16 @@ impl Chart {
             series: Vec::new(),
             spans: Vec::new(),
             levels: Vec::new(),
+            height: 1.0,
         }
+    }
+    /// This chart at `height` times the figure's panel height (builder style; ignored unless
+    /// positive and finite).
+    pub fn with_height(mut self, height: f64) -> Self {
+        if height.is_finite() && height > 0.0 {
+            self.height = height;
+        }
+        self
     }
     /// Adds a series (builder style).
     pub fn with(mut self, series: Series) -> Self {
@@ -355,11 +367,23 @@ impl Figure {
             panel_height: PANEL_HEIGHT,
         }
     }
+    /// Heights of the panels, pixels, top to bottom (one panel's height when there are none).
+    fn heights(&self) -> Vec<u32> {
+        let h = f64::from(self.panel_height);
+        match self.panels.is_empty() {
+            true => vec![self.panel_height],
+            false => self
+                .panels
+                .iter()
+                .map(|c| (c.height * h).round() as u32)
+                .collect(),
+        }
+    }
     /// Size in pixels.
     pub fn size(&self) -> (u32, u32) {
         (
             self.width,
-            TITLE_HEIGHT + self.panel_height * self.panels.len().max(1) as u32,
+            TITLE_HEIGHT + self.heights().iter().sum::<u32>(),
         )
     }
     /// The figure as a standalone SVG document.
@@ -397,7 +421,14 @@ impl Figure {
     ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
         root.fill(&WHITE)?;
         let body = root.titled(&self.title, ("sans-serif", 22).into_font())?;
-        let panels = body.split_evenly((self.panels.len().max(1), 1));
+        let mut breaks = Vec::new();
+        let mut top = 0;
+        for h in self.heights() {
+            top += h as i32;
+            breaks.push(top);
+        }
+        breaks.pop();
+        let panels = body.split_by_breakpoints::<i32, i32, _, _>([], breaks);
         for (chart, area) in self.panels.iter().zip(&panels) {
             let x = chart.x_range();
             let y = chart.y_range();
@@ -410,17 +441,42 @@ impl Figure {
     }
 }
 
-/// Tick labels: few significant digits, no trailing zeros, powers of ten for tiny or huge. A
-/// linear axis's zero tick comes out of the step arithmetic as ±1e-16 or so: below 1e-12 (far
-/// under any amplitude drawn, in arcseconds or degrees) a tick is zero.
-fn tick(v: f64) -> String {
-    let a = v.abs();
-    if a < 1e-12 {
-        "0".into()
-    } else if !(1e-3..1e5).contains(&a) {
-        format!("{v:.0e}")
-    } else {
-        calib_core::report::trimmed(v, 4)
+/// How the ticks of one axis are written: all as plain decimals or all as powers of ten, so
+/// that `1e-4` never stands beside `0.001` on one axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TickStyle {
+    /// Few decimals, no trailing zeros.
+    Plain,
+    /// `2e-4`, `1e6`.
+    Powers,
+}
+
+impl TickStyle {
+    /// Plain where every tick of `range` can be written with at most four decimals and under
+    /// 10⁵; on a logarithmic axis, where its smallest value is at least 10⁻³ too.
+    fn of(range: &Range<f64>, scale: Scale) -> Self {
+        let largest = range.start.abs().max(range.end.abs());
+        let smallest = match scale {
+            Scale::Log => range.start.min(range.end),
+            Scale::Linear => largest,
+        };
+        if largest < 1e5 && smallest >= 1e-3 {
+            TickStyle::Plain
+        } else {
+            TickStyle::Powers
+        }
+    }
+
+    /// A tick label. A linear axis's zero tick comes out of the step arithmetic as ±1e-16 or so:
+    /// below 1e-12 (far under any amplitude drawn, in arcseconds or degrees) a tick is zero.
+    fn label(self, v: f64) -> String {
+        if v.abs() < 1e-12 {
+            return "0".into();
+        }
+        match self {
+            TickStyle::Plain => calib_core::report::trimmed(v, 4),
+            TickStyle::Powers => format!("{v:.0e}"),
+        }
     }
 }
 
@@ -465,11 +521,16 @@ where
         .x_label_area_size(46)
         .y_label_area_size(78)
         .build_cartesian_2d(x.clone(), y)?;
+    let (x_ticks, y_ticks) = (
+        TickStyle::of(&x, Scale::Linear),
+        TickStyle::of(&y_range, chart.y.scale),
+    );
     ctx.configure_mesh()
         .x_desc(&chart.x.label)
         .y_desc(&chart.y.label)
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| tick(*v))
+        .x_label_formatter(&|v| x_ticks.label(*v))
+        .y_label_formatter(&|v| y_ticks.label(*v))
+        .y_labels(((10.0 * chart.height).round() as usize).clamp(3, 10))
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 16))
         .light_line_style(RGBColor(235, 235, 235))
@@ -661,10 +722,30 @@ mod tests {
 
     #[test]
     fn ticks_are_short() {
-        assert_eq!(tick(0.5), "0.5");
-        assert_eq!(tick(120.0), "120");
-        assert_eq!(tick(-0.00001), "-1e-5");
-        assert_eq!(tick(0.0), "0");
-        assert_eq!(tick(-2.2e-16), "0");
+        let plain = TickStyle::of(&(-25.0..120.0), Scale::Linear);
+        assert_eq!(plain.label(0.5), "0.5");
+        assert_eq!(plain.label(120.0), "120");
+        assert_eq!(plain.label(-2.2e-16), "0");
+        let tiny = TickStyle::of(&(-2e-5..2e-5), Scale::Linear);
+        assert_eq!(tiny.label(-0.00001), "-1e-5");
+        assert_eq!(tiny.label(0.0), "0");
+    }
+
+    /// A log axis from 10⁻⁴ to 10 wrote `1e-4` beside `0.001` and `10`: one style per axis.
+    #[test]
+    fn one_axis_has_one_tick_style() {
+        let log = TickStyle::of(&(1e-4..10.0), Scale::Log);
+        let labels: Vec<String> = [1e-4, 1e-3, 1.0, 10.0].map(|v| log.label(v)).to_vec();
+        assert_eq!(labels, ["1e-4", "1e-3", "1e0", "1e1"]);
+        let plain = TickStyle::of(&(1e-3..10.0), Scale::Log);
+        assert_eq!(plain.label(1e-3), "0.001");
+    }
+
+    #[test]
+    fn a_small_panel_is_drawn_smaller() {
+        let chart = || Chart::new(Axis::linear("x"), Axis::linear("y"));
+        let f = Figure::stacked("f", "f", "", vec![chart(), chart().with_height(0.5)]);
+        assert_eq!(f.size().1, TITLE_HEIGHT + PANEL_HEIGHT * 3 / 2);
+        assert!(f.to_svg().is_ok());
     }
 }

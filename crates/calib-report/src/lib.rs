@@ -31,8 +31,10 @@
 //! font or graphics packages.
 #![deny(missing_docs)]
 
+pub mod binning;
 pub mod chart;
 mod html;
+pub mod iso230;
 pub mod plots;
 pub mod trace;
 

@@ -48,7 +48,7 @@ pub fn map_points(map: &ErrorMap) -> Vec<(f64, f64)> {
 }
 
 /// What an error-map figure shows: the calibrated map and, optionally, what to compare it with
-/// and an uncertainty band around it.
+/// and the map's expanded uncertainty.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MapLayers {
     /// The calibrated map, `(angle °, error ″)` sorted by angle.
@@ -56,8 +56,24 @@ pub struct MapLayers {
     /// A truth or a reference measurement of the same error, `(angle °, error ″)`, and its name;
     /// its difference to the map (the residual after correction) gets a panel of its own.
     pub comparison: Option<(String, Vec<(f64, f64)>)>,
-    /// An uncertainty band `(angle °, half-width ″)` around the map, and its name.
+    /// Whether the comparison is raw samples (a reference read at every sample), drawn as
+    /// their mean and spread per bin of angle rather than through every point.
+    pub samples: bool,
+    /// The expanded uncertainty `(angle °, U ″)` of the map, and its name: a band around zero
+    /// on the residual panel, where a residual is read against it, and a small panel of its own.
     pub band: Option<(String, Vec<(f64, f64)>)>,
+}
+
+/// The name of a map's expanded uncertainty in every method's figures, for coverage factor `k`
+/// (and how it was found, e.g. `2.160, budget`): the legend of its own panel, and after `± ` of
+/// the band around zero on a residual panel ([`band_legend`]).
+pub fn band_name(k: &str) -> String {
+    format!("expanded uncertainty U (k = {k})")
+}
+
+/// The legend of the band `±U` around zero, from the name of `U`.
+pub fn band_legend(name: &str) -> String {
+    format!("± {name}")
 }
 
 impl MapLayers {
@@ -70,15 +86,23 @@ impl MapLayers {
         MapLayers {
             map,
             comparison: None,
+            samples: false,
             band: None,
         }
     }
-    /// With a truth or reference (builder style).
+    /// With a truth or reference map (builder style).
     pub fn compared_with(mut self, name: &str, points: Vec<(f64, f64)>) -> Self {
         self.comparison = Some((name.to_string(), points));
+        self.samples = false;
         self
     }
-    /// With an uncertainty band (builder style).
+    /// With a reference's readings at every sample (builder style): drawn binned over angle.
+    pub fn compared_with_samples(mut self, name: &str, points: Vec<(f64, f64)>) -> Self {
+        self.comparison = Some((name.to_string(), points));
+        self.samples = true;
+        self
+    }
+    /// With the expanded uncertainty `(angle °, U ″)` (builder style).
     pub fn with_band(mut self, name: &str, half_widths: Vec<(f64, f64)>) -> Self {
         self.band = Some((name.to_string(), half_widths));
         self
@@ -93,42 +117,141 @@ impl MapLayers {
                 .collect(),
         )
     }
+    /// The map, with the comparison drawn on top of it (dashed, so the map shows through).
     fn chart(&self, channel: &str, span: Option<(f64, f64)>) -> Chart {
         let inside = |p: &&(f64, f64)| span.is_none_or(|(lo, hi)| p.0 >= lo && p.0 <= hi);
         let pick =
             |v: &[(f64, f64)]| decimate(&v.iter().filter(inside).copied().collect::<Vec<_>>());
-        let mut x = Axis::linear(&format!("reading of {channel} (°)"));
-        x = match span {
-            Some((lo, hi)) => x.with_range(lo, hi),
-            None => x.with_range(0.0, 360.0),
-        };
-        let mut chart = Chart::new(x, Axis::linear("error (″)"));
-        if let Some((name, band)) = &self.band {
-            let mut lower = Vec::new();
-            let mut upper = Vec::new();
-            for &(x, h) in band.iter().filter(inside) {
-                if let Some(m) = interpolate(&self.map, x) {
-                    lower.push((x, m - h));
-                    upper.push((x, m + h));
+        let mut chart = Chart::new(angle_axis(channel, span), Axis::linear("error (″)")).with(
+            Series::new("calibrated map", Mark::Line, Colour::Blue, pick(&self.map)),
+        );
+        if let Some((name, cmp)) = &self.comparison {
+            // A bin's mean of the samples themselves would flatten (or alias) the orders whose
+            // period is near the bin's width: the map plus the residual's bin means,
+            // interpolated at every map point, keeps them.
+            let (name, points) = match (self.samples, self.residual()) {
+                (true, Some(res)) => {
+                    let (bins, width) = binned(&res);
+                    let means: Vec<(f64, f64)> = bins.iter().map(|b| (b.x, b.mean)).collect();
+                    (
+                        format!("{name} (map + mean residual per {width}° bin)"),
+                        self.map
+                            .iter()
+                            .filter_map(|&(x, m)| interpolate(&means, x).map(|r| (x, m + r)))
+                            .collect(),
+                    )
                 }
-            }
-            chart = chart.with(Series::band(
-                name,
-                Colour::Grey,
-                decimate(&lower),
-                decimate(&upper),
+                _ => (name.clone(), cmp.clone()),
+            };
+            chart = chart.with(Series::new(
+                &name,
+                Mark::Dashed,
+                Colour::Green,
+                pick(&points),
             ));
         }
-        if let Some((name, cmp)) = &self.comparison {
-            chart = chart.with(Series::new(name, Mark::Dashed, Colour::Green, pick(cmp)));
-        }
-        chart.with(Series::new(
-            "calibrated map",
-            Mark::Line,
-            Colour::Blue,
-            pick(&self.map),
+        chart
+    }
+    /// The residual around zero with the band ±U it is read against; a sampled comparison as
+    /// its mean per bin and the bin's spread (±1 standard deviation of its samples).
+    fn residual_chart(&self, channel: &str, span: Option<(f64, f64)>) -> Option<Chart> {
+        let res = self.residual()?;
+        let (name, _) = self.comparison.as_ref()?;
+        let mut chart = self.band_chart(
+            Chart::new(angle_axis(channel, span), Axis::linear("residual (″)")),
+            span,
+        );
+        let label = format!("{name} − calibrated map");
+        chart = match self.samples {
+            true => {
+                let (bins, width) = binned(&res);
+                chart
+                    .with(Series::band(
+                        "±1 s of the samples in each bin",
+                        Colour::Orange,
+                        bins.iter().map(|b| (b.x, b.mean - b.s)),
+                        bins.iter().map(|b| (b.x, b.mean + b.s)),
+                    ))
+                    .with(Series::new(
+                        &format!("{label} (mean per {width}° bin)"),
+                        Mark::Line,
+                        Colour::Red,
+                        bins.iter().map(|b| (b.x, b.mean)),
+                    ))
+            }
+            false => chart.with(Series::new(&label, Mark::Line, Colour::Red, decimate(&res))),
+        };
+        Some(chart)
+    }
+    /// `chart` with the band ±U around zero, where there is one.
+    fn band_chart(&self, chart: Chart, span: Option<(f64, f64)>) -> Chart {
+        let Some((name, band)) = &self.band else {
+            return chart;
+        };
+        let band: Vec<(f64, f64)> = band
+            .iter()
+            .filter(|p| span.is_none_or(|(lo, hi)| p.0 >= lo && p.0 <= hi))
+            .copied()
+            .collect();
+        let lower: Vec<(f64, f64)> = band.iter().map(|&(x, u)| (x, -u)).collect();
+        chart.with(Series::band(
+            &band_legend(name),
+            Colour::Grey,
+            decimate(&lower),
+            decimate(&band),
         ))
     }
+    /// The expanded uncertainty over the angle, a small panel under the map: at ±25″ of map a
+    /// band of 0.01″ around it cannot be seen.
+    fn uncertainty_chart(&self, channel: &str, span: Option<(f64, f64)>) -> Option<Chart> {
+        let (name, band) = self.band.as_ref()?;
+        let inside: Vec<(f64, f64)> = band
+            .iter()
+            .filter(|p| span.is_none_or(|(lo, hi)| p.0 >= lo && p.0 <= hi))
+            .copied()
+            .collect();
+        let top = inside.iter().map(|p| p.1).fold(0.0, f64::max);
+        let inside = decimate(&inside);
+        Some(
+            Chart::new(
+                angle_axis(channel, span),
+                Axis::linear("U (″)").with_range(0.0, if top > 0.0 { top * 1.15 } else { 1.0 }),
+            )
+            .with(Series::band(
+                name,
+                Colour::Grey,
+                inside.iter().map(|p| (p.0, 0.0)),
+                inside.iter().copied(),
+            ))
+            .with_height(0.6),
+        )
+    }
+    /// Every panel of a map figure: the map, the residual, the uncertainty.
+    fn panels(&self, channel: &str, span: Option<(f64, f64)>) -> Vec<Chart> {
+        std::iter::once(self.chart(channel, span))
+            .chain(self.residual_chart(channel, span))
+            .chain(self.uncertainty_chart(channel, span))
+            .collect()
+    }
+}
+
+/// The x axis of a map: the channel's reading over a whole turn or over `span`.
+fn angle_axis(channel: &str, span: Option<(f64, f64)>) -> Axis {
+    let (lo, hi) = span.unwrap_or((0.0, 360.0));
+    Axis::linear(&format!("reading of {channel} (°)")).with_range(lo, hi)
+}
+
+/// Samples a bin of a sampled comparison should hold, for a mean and a spread worth drawing.
+const PER_BIN: usize = 50;
+
+/// `points` (angle °, ″) binned over a turn, and the bins' width (°) as written in a legend:
+/// 360 bins (1°) at least, 3600 (0.1°) at most, else [`PER_BIN`] samples a bin.
+fn binned(points: &[(f64, f64)]) -> (Vec<crate::binning::Bin>, String) {
+    let bins = (points.len() / PER_BIN).clamp(360, 3600);
+    (
+        crate::binning::bin(points, bins, 360.0),
+        calib_core::report::trimmed(360.0 / bins as f64, 3),
+    )
 }
 
 /// `f(x)` from points sorted by x, linearly, periodic over 360° (a range map's points may pass
@@ -154,46 +277,54 @@ fn interpolate(points: &[(f64, f64)], x: f64) -> Option<f64> {
     })
 }
 
-/// The error map of `channel` over 0–360°, with the comparison and band of `layers`, and below
-/// it the residual after correction where there is a comparison.
+/// The error map of `channel` over 0–360°, with the comparison of `layers` on top; below it the
+/// residual after correction (where there is a comparison) against the band ±U, and the
+/// expanded uncertainty U over the angle (where there is one).
 pub fn error_map(id: &str, channel: &str, layers: &MapLayers) -> Figure {
-    let mut panels = vec![layers.chart(channel, None)];
     let mut caption = format!(
         "Error of {channel} (reading − true angle, zero mean) over one revolution of its own reading; \
          the correction table is its negative."
     );
-    if let (Some(res), Some((name, _))) = (layers.residual(), &layers.comparison) {
-        panels.push(
-            Chart::new(
-                Axis::linear(&format!("reading of {channel} (°)")).with_range(0.0, 360.0),
-                Axis::linear("residual (″)"),
-            )
-            .with(Series::new(
-                &format!("{name} − calibrated map"),
-                Mark::Line,
-                Colour::Red,
-                decimate(&res),
-            )),
-        );
+    if let Some((name, _)) = &layers.comparison {
         caption += &format!(
-            " Lower panel: {name} minus the calibrated map, the error left after correction."
+            " Middle panel: {name} minus the calibrated map, the error left after correction"
         );
+        caption += match (layers.samples, layers.band.is_some()) {
+            (true, true) => {
+                ", as its mean per bin of angle with the spread of the samples, against ±U."
+            }
+            (true, false) => ", as its mean per bin of angle with the spread of the samples.",
+            (false, true) => ", against ±U.",
+            (false, false) => ".",
+        };
     }
-    Figure::stacked(id, &format!("Error map of {channel}"), &caption, panels)
-}
-
-/// The error map of `channel` over the range `lo`–`hi`° its readings covered (a joint that never
-/// turned a whole revolution), with the comparison and band of `layers`.
-pub fn range_error_map(id: &str, channel: &str, layers: &MapLayers, lo: f64, hi: f64) -> Figure {
+    if layers.band.is_some() {
+        caption += " Bottom panel: the map's expanded uncertainty U.";
+    }
     Figure::stacked(
         id,
         &format!("Error map of {channel}"),
-        &format!(
-            "Error of {channel} (reading − true angle, zero mean over the range) over the range {lo:.3}°–{hi:.3}° \
-             of its own reading that the run covered; outside it the table says nothing. The correction table is its \
-             negative."
-        ),
-        vec![layers.chart(channel, Some((lo, hi)))],
+        &caption,
+        layers.panels(channel, None),
+    )
+}
+
+/// The error map of `channel` over the range `lo`–`hi`° its readings covered (a joint that never
+/// turned a whole revolution), with the panels of [`error_map`].
+pub fn range_error_map(id: &str, channel: &str, layers: &MapLayers, lo: f64, hi: f64) -> Figure {
+    let mut caption = format!(
+        "Error of {channel} (reading − true angle, zero mean over the range) over the range {lo:.3}°–{hi:.3}° \
+         of its own reading that the run covered; outside it the table says nothing. The correction table is its \
+         negative."
+    );
+    if layers.band.is_some() {
+        caption += " Bottom panel: the map's expanded uncertainty U.";
+    }
+    Figure::stacked(
+        id,
+        &format!("Error map of {channel}"),
+        &caption,
+        layers.panels(channel, Some((lo, hi))),
     )
 }
 

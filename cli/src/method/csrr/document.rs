@@ -1,6 +1,6 @@
 //! The report of `calib csrr`.
 
-use crate::document::{harmonics_table, num, provenance};
+use crate::document::{arcsec, harmonics_table, num, provenance};
 use calib_core::ErrorMap;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -13,24 +13,33 @@ use calib_report::{Document, Section, Span, Table};
 /// The truth maps of A and B, where given (`--truth`).
 type Truth<'a> = Option<(&'a ErrorMap, &'a ErrorMap)>;
 
-/// What the figure of channel A (`a = true`) or B compares the map with: its truth, else what
-/// the reference says.
-fn comparison(cal: &Calibration, truth: Truth, a: bool) -> Option<(String, Vec<(f64, f64)>)> {
+/// `layers` compared with what channel A (`a = true`) or B is checked against: its truth map,
+/// else the reference's reading at every sample (drawn binned over the angle).
+fn compared(layers: MapLayers, cal: &Calibration, truth: Truth, a: bool) -> MapLayers {
     if let Some((ta, tb)) = truth {
-        return Some(("truth".into(), plots::map_points(if a { ta } else { tb })));
+        return layers.compared_with("truth", plots::map_points(if a { ta } else { tb }));
     }
-    let r = cal.reference.as_ref()?;
+    let Some(r) = cal.reference.as_ref() else {
+        return layers;
+    };
     let pts = if a {
         &r.a_vs_reference
     } else {
         &r.b_vs_reference
     };
-    Some((
-        "reference measurement".into(),
+    layers.compared_with_samples(
+        "reference measurement",
         pts.iter()
             .map(|(x, e)| (x.to_degrees(), e * ARCSEC_PER_RAD))
             .collect(),
-    ))
+    )
+}
+
+/// Whether an order is in the maps: not left out as blind and, with the joint method, kept
+/// above the noise.
+fn kept(cal: &Calibration, order: usize) -> bool {
+    cal.excluded.iter().all(|e| e.order != order)
+        && (cal.method != Method::Joint || cal.orders.contains(&order))
 }
 
 /// The document. `trace` holds three channels: A's and B's rotation (revolutions, unwrapped)
@@ -60,9 +69,7 @@ pub fn document(
             let (band_name, band) = crate::document::uncertainty_band(map, u);
             layers = layers.with_band(&band_name, band);
         }
-        if let Some((label, pts)) = comparison(cal, truth, a) {
-            layers = layers.compared_with(&label, pts);
-        }
+        layers = compared(layers, cal, truth, a);
         let mut s = Section::new(&format!("Sensor {name}")).figure(plots::error_map(
             &format!("map-{name}"),
             name,
@@ -74,7 +81,7 @@ pub fn document(
             s = s.figure(z);
         }
         if let Some(ch) = report.channels.get(name) {
-            s = s.table(harmonics_table(name, ch));
+            s = s.table(harmonics_table(name, ch, |o| kept(cal, o)));
         }
         if let Some(u) = u {
             s = s.table(crate::document::uncertainty_table(name, u));
@@ -110,8 +117,8 @@ pub fn document(
                 .text(&format!(
                     "Largest |map − map against the reference|: {} ″ ({na}), {} ″ ({nb}); the \
                      reference's own error is part of the difference.",
-                    num(r.a_max_diff_arcsec, 3),
-                    num(r.b_max_diff_arcsec, 3)
+                    arcsec(r.a_max_diff_arcsec, 3),
+                    arcsec(r.b_max_diff_arcsec, 3)
                 ))
                 .figure(plots::y_chart("effective-range", &y))
                 .table(table),
@@ -164,24 +171,24 @@ fn summary(names: (&str, &str), cal: &Calibration, report: &Report) -> Section {
                 |a| match (&a.reference_split, a.against.as_str()) {
                     (Some(s), _) => format!(
                         "{} against the reference: its own error explains {}, the rest is {}",
-                        num(a.peak_to_peak_arcsec, 3),
-                        num(s.reference_error_arcsec, 3),
-                        num(s.rest_arcsec, 3)
+                        arcsec(a.peak_to_peak_arcsec, 3),
+                        arcsec(s.reference_error_arcsec, 3),
+                        arcsec(s.rest_arcsec, 3)
                     ),
                     (None, "reference") => format!(
                         "{} against the reference (its own error included)",
-                        num(a.peak_to_peak_arcsec, 3)
+                        arcsec(a.peak_to_peak_arcsec, 3)
                     ),
                     (None, against) => {
-                        format!("{} against the {against}", num(a.peak_to_peak_arcsec, 3))
+                        format!("{} against the {against}", arcsec(a.peak_to_peak_arcsec, 3))
                     }
                 },
             );
             channels = channels.row([
                 name.to_string(),
                 ch.table.clone(),
-                num(ch.peak_to_peak_arcsec, 3),
-                num(ch.rms_arcsec, 3),
+                arcsec(ch.peak_to_peak_arcsec, 3),
+                arcsec(ch.rms_arcsec, 3),
                 after,
             ]);
         }

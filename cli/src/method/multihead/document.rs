@@ -81,7 +81,9 @@ pub fn document(first: &str, cal: &MultiheadCalibration, report: &Report) -> Doc
         s = s.figure(z);
     }
     if let Some(ch) = report.channels.get(first) {
-        s = s.table(harmonics_table(first, ch));
+        s = s.table(harmonics_table(first, ch, |o| {
+            cal.blind.iter().all(|b| b.order != o)
+        }));
     }
     s = s.table(crate::document::uncertainty_table(first, &cal.uncertainty));
     doc.push(s);

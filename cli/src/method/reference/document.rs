@@ -1,9 +1,10 @@
 //! The report of `calib reference`.
 
-use crate::document::{harmonics_table, num, provenance};
+use crate::document::{arcsec, harmonics_table, num, provenance};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{ReferenceCalibration, TableMap};
+use calib_core::reference_cal::{PointStats, ReferenceCalibration, TableMap};
+use calib_report::iso230::{self, Direction, Target};
 use calib_report::plots::{self, MapLayers, OrderMarks};
 use calib_report::{Axis, Chart, Colour, Document, Figure, Mark, Section, Series, Table};
 
@@ -86,7 +87,7 @@ pub fn document(
         |t, (k, v)| {
             t.row([
                 iso_label(k).to_string(),
-                v.map_or("—".into(), |v| num(v, 4)),
+                v.map_or("—".into(), |v| arcsec(v, 4)),
             ])
         },
     );
@@ -109,8 +110,8 @@ pub fn document(
         .zip(&cal.u)
         .map(|(p, u)| (p.0, K * u * ARCSEC_PER_RAD))
         .collect();
-    let layers = MapLayers::of_points(points.clone())
-        .with_band(&format!("expanded uncertainty (k = {K}){excludes}"), band);
+    let band_name = format!("{}{excludes}", plots::band_name(&num(K, 0)));
+    let layers = MapLayers::of_points(points.clone()).with_band(&band_name, band.clone());
     let mut s = Section::new(&format!("Error map of {dut}")).text(&format!(
         "Error = {dut} − {reference} (mean of both directions, zero mean), as a function of \
          {dut}'s reading; the reference's own error is part of it."
@@ -135,12 +136,15 @@ pub fn document(
         }
     }
     if cal.min_passes.0 > 0 && cal.min_passes.1 > 0 {
-        s = s.figure(directions(dut, cal, &points, span));
+        s = s.figure(directions(dut, cal, &points, (&band_name, &band), span));
     }
     if let (Some(ch), TableMap::Turn(_)) = (report.channels.get(dut), &cal.map) {
-        s = s.table(harmonics_table(dut, ch));
+        s = s.table(harmonics_table(dut, ch, |_| true));
     }
     doc.push(s);
+    if !cal.targets.is_empty() {
+        doc.push(targets(dut, cal, span));
+    }
     if let TableMap::Turn(map) = &cal.map {
         let orders = (map.len() / 2).saturating_sub(1).clamp(1, 200);
         doc.push(Section::new("Harmonic spectrum").figure(plots::spectrum(
@@ -152,15 +156,75 @@ pub fn document(
     doc
 }
 
+/// ISO 230-2's section: the deviation chart over the targets and the per-target table.
+fn targets(dut: &str, cal: &ReferenceCalibration, span: Option<(f64, f64)>) -> Section {
+    let side = |p: &PointStats| {
+        (p.n > 0).then(|| Direction {
+            mean: p.mean * ARCSEC_PER_RAD,
+            s: p.s.map(|s| s * ARCSEC_PER_RAD),
+        })
+    };
+    let points: Vec<Target> = cal
+        .targets
+        .iter()
+        .map(|t| Target {
+            angle: t.angle.to_degrees(),
+            up: side(&t.up),
+            down: side(&t.down),
+        })
+        .collect();
+    let cell = |v: Option<f64>| v.map_or("—".to_string(), |v| arcsec(v, 4));
+    let table = points.iter().zip(&cal.targets).fold(
+        Table::new(
+            "ISO 230-2 statistics per target (— where a direction has no pass, or s fewer than two)",
+            &[
+                "target (°)",
+                "passes ↑ / ↓",
+                "mean deviation x̄↑ (″)",
+                "mean deviation x̄↓ (″)",
+                "s↑ (″)",
+                "s↓ (″)",
+                "reversal B = x̄↑ − x̄↓ (″)",
+            ],
+        ),
+        |t, (p, raw)| {
+            let reversal = p.up.zip(p.down).map(|(u, d)| u.mean - d.mean);
+            t.row([
+                num(p.angle, 3),
+                format!("{} / {}", raw.up.n, raw.down.n),
+                cell(p.up.map(|d| d.mean)),
+                cell(p.down.map(|d| d.mean)),
+                cell(p.up.and_then(|d| d.s)),
+                cell(p.down.and_then(|d| d.s)),
+                cell(reversal),
+            ])
+        },
+    );
+    Section::new("ISO 230-2 targets")
+        .text(&format!(
+            "Deviation = {dut} − reference at each target position, per direction of approach, \
+             with the map's constant removed (as in the map)."
+        ))
+        .figure(iso230::targets_chart(
+            &format!("iso-{dut}"),
+            dut,
+            &points,
+            span.unwrap_or((0.0, 360.0)),
+        ))
+        .table(table)
+}
+
 /// Each direction's mean deviation minus the bidirectional map: the residual after correcting
-/// by the map, direction by direction (half the reversal, with opposite signs).
+/// by the map, direction by direction (half the reversal, with opposite signs), against the
+/// band ±U it is read against.
 fn directions(
     dut: &str,
     cal: &ReferenceCalibration,
     map: &[(f64, f64)],
+    (band_name, band): (&str, &[(f64, f64)]),
     span: Option<(f64, f64)>,
 ) -> Figure {
-    let side = |stats: &[calib_core::reference_cal::PointStats]| {
+    let side = |stats: &[PointStats]| {
         plots::decimate(
             &map.iter()
                 .zip(stats)
@@ -169,18 +233,23 @@ fn directions(
                 .collect::<Vec<_>>(),
         )
     };
+    let (lo, hi) = span.unwrap_or((0.0, 360.0));
     Figure::new(
         &format!("directions-{dut}"),
-        &format!("{dut}: each direction against the corrected map"),
+        &format!("{dut} after correction: each direction against the map"),
         "Mean deviation of the passes in each direction minus the bidirectional map: what is left \
-         after correction when turning one way only (the reversal B is their difference).",
+         after correction when turning one way only (the reversal B is their difference), \
+         against the map's expanded uncertainty ±U around zero.",
         Chart::new(
-            {
-                let (lo, hi) = span.unwrap_or((0.0, 360.0));
-                Axis::linear(&format!("reading of {dut} (°)")).with_range(lo, hi)
-            },
+            Axis::linear(&format!("reading of {dut} (°)")).with_range(lo, hi),
             Axis::linear("deviation − map (″)"),
         )
+        .with(Series::band(
+            &plots::band_legend(band_name),
+            Colour::Grey,
+            plots::decimate(&band.iter().map(|&(x, u)| (x, -u)).collect::<Vec<_>>()),
+            plots::decimate(band),
+        ))
         .with(Series::new(
             "increasing",
             Mark::Line,

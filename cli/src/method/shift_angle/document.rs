@@ -37,10 +37,7 @@ fn encoder_layers(result: &ShiftAngleResult, budget: Option<&BudgetResult>) -> M
         .collect();
     let band = match budget {
         Some(b) => Some((
-            format!(
-                "expanded uncertainty U (k = {:.3}, budget)",
-                b.coverage_factor
-            ),
+            calib_report::plots::band_name(&format!("{:.3}, budget", b.coverage_factor)),
             vec![b.expanded_uncertainty; points.len()],
         )),
         None => result
@@ -48,7 +45,7 @@ fn encoder_layers(result: &ShiftAngleResult, budget: Option<&BudgetResult>) -> M
             .iter()
             .map(|p| p.u_arcsec.map(|u| 2.0 * u))
             .collect::<Option<Vec<f64>>>()
-            .map(|u| ("2u (fit, k = 2)".to_string(), u)),
+            .map(|u| (calib_report::plots::band_name("2, fit"), u)),
     };
     let layers = MapLayers::of_points(points.clone());
     match band {
@@ -97,7 +94,7 @@ fn encoder(
                     ..OrderMarks::default()
                 },
             ))
-            .table(harmonics_table("the encoder", ch));
+            .table(harmonics_table("the encoder", ch, |o| o % n != 0));
     }
     enc
 }

@@ -110,7 +110,7 @@ use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation
 use chebyshev::chebyshev_with_derivatives;
 use moments::{Moments, Normal, Samples};
 use nalgebra::{DMatrix, DVector};
-use residual::{reference_check, residual_orders};
+use residual::{coast_trace, reference_check, residual_orders};
 use std::f64::consts::TAU;
 
 mod chebyshev;
@@ -309,6 +309,25 @@ pub struct DragSeparation {
     pub separated: bool,
 }
 
+/// One interval of the coast used, for reports: the speed measured over it and what the final
+/// fit left of its samples. A coast of millions of samples is drawn from a few hundred of these.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoastBin {
+    /// Middle of the interval, seconds (the log's own time stamps).
+    pub t: f64,
+    /// Mean speed over the interval from its first and last readings, rad/s (a magnitude).
+    pub speed: f64,
+    /// Mean of the fit's residuals in the interval, radians.
+    pub residual_mean: f64,
+    /// Smallest residual in the interval, radians.
+    pub residual_min: f64,
+    /// Largest residual in the interval, radians.
+    pub residual_max: f64,
+}
+
+/// Intervals of [`TdrCalibration::coast`].
+pub const COAST_BINS: usize = 400;
+
 /// A spin-down calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TdrCalibration {
@@ -325,6 +344,9 @@ pub struct TdrCalibration {
     pub unresolved: Vec<Harmonic>,
     /// The fitted motion.
     pub motion: TdrMotion,
+    /// The coast used in [`COAST_BINS`] intervals of equal samples: measured speed and the
+    /// final fit's residual over time, what the report draws against the fitted motion.
+    pub coast: Vec<CoastBin>,
     /// RMS of the fit's residuals, radians (noise and resolution; more means an unmodelled
     /// effect).
     pub residual_rms: f64,
@@ -506,6 +528,7 @@ impl Tdr {
         // 4. What the model leaves: periodic structure in the residual above the orders fitted.
         let top = ((0.5 * densest) as usize).max(2 * h).min(4 * h.max(8));
         let unresolved = residual_orders(samples, &basis, &fit, h + 1..=top);
+        let coast_bins = coast_trace(samples, &basis, &fit, COAST_BINS);
         warnings.extend(unresolved_warning(&unresolved, h));
 
         let uncertainty = map_uncertainty(
@@ -531,6 +554,7 @@ impl Tdr {
             speed_start: motion.eval(span.0).1.abs(),
             speed_end: motion.eval(span.1).1.abs(),
             motion,
+            coast: coast_bins,
             residual_rms,
             samples_used: t.len(),
             revolutions: coast.revolutions,

@@ -3,7 +3,7 @@
 
 use super::chebyshev::chebyshev_lanes;
 use super::moments::{Moments, Samples};
-use super::{Basis, Fit, ReferenceCheck, significance_threshold};
+use super::{Basis, CoastBin, Fit, ReferenceCheck, significance_threshold};
 use crate::angle::ARCSEC_PER_RAD;
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
@@ -52,6 +52,36 @@ pub(super) fn residual_orders(
         .collect();
     found.sort_by(|a, b| b.amplitude.total_cmp(&a.amplitude));
     found
+}
+
+/// The coast in `bins` intervals of equal samples (fewer on a short coast): each interval's
+/// mean speed and the final fit's residuals over it, for a report to draw against time.
+pub(super) fn coast_trace(s: Samples, basis: &Basis, fit: &Fit, bins: usize) -> Vec<CoastBin> {
+    let model = Model::new(basis, fit);
+    let n = s.len();
+    let bins = bins.min(n / 2).max(1);
+    let mut residuals = Vec::new();
+    (0..bins)
+        .filter_map(|k| {
+            let range = k * n / bins..(k + 1) * n / bins;
+            let (first, last) = (range.start, range.end.checked_sub(1)?);
+            let dt = s.t[last] - s.t[first];
+            if last <= first || dt <= 0.0 {
+                return None;
+            }
+            residuals.clear();
+            model.points(s, range.clone(), &mut residuals);
+            let e = residuals.iter().map(|p| p.2[0]);
+            let count = residuals.len() as f64;
+            Some(CoastBin {
+                t: 0.5 * (s.t[first] + s.t[last]),
+                speed: ((s.r[last] - s.r[first]) / dt).abs(),
+                residual_mean: e.clone().sum::<f64>() / count,
+                residual_min: e.clone().fold(f64::INFINITY, f64::min),
+                residual_max: e.fold(f64::NEG_INFINITY, f64::max),
+            })
+        })
+        .collect()
 }
 
 /// The final fit as a function of a sample: the motion's series, the map, and the drag
