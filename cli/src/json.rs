@@ -1,4 +1,4 @@
-//! The `--json` outputs of the commands that are not methods (a method's is its report.json):
+//! The `--json` outputs of `simulate`, `export`, `import`, `apply` and `compose` (a method's is its report.json):
 //! each a type here, with its published schema in `docs/` (`crate::schema`), rendered with its
 //! keys in alphabetical order at every depth, as report.json is.
 
@@ -153,4 +153,26 @@ pub struct TruthJson {
     pub range: bool,
     /// Peak-to-peak of the true error, arcsec.
     pub peak_to_peak_arcsec: f64,
+}
+
+/// `calib import --json`: the table read and written.
+#[derive(Debug, Serialize, JsonSchema)]
+pub struct ImportJson {
+    /// The version of this output's shape (as report.json's).
+    pub schema_version: u32,
+    /// The file read, as given.
+    pub file: String,
+    /// Its format (`--format`).
+    pub format: String,
+    /// The calib table written.
+    pub output: String,
+    /// Points of the table.
+    pub points: usize,
+    /// What the file said of itself (a SimpleFOC table's `zero_electric_angle`, a scale read
+    /// from a header, …).
+    pub notes: Vec<String>,
+    /// Peak-to-peak of the error, arcsec.
+    pub peak_to_peak_arcsec: f64,
+    /// Its RMS, arcsec.
+    pub rms_arcsec: f64,
 }

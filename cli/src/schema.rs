@@ -1,8 +1,8 @@
 //! The JSON Schemas (2020-12) of calib's JSON outputs, generated from their types and published
 //! in the repository's `docs/`: `report.schema.json` ([`calib_core::Report`]),
 //! `summary.schema.json` ([`crate::batch::Summary`]), `inspect.schema.json`
-//! ([`crate::commands::inspect::InspectJson`]), and the `--json` of `simulate`, `export`, `apply`
-//! and `compose` (`<command>.schema.json`, the types in [`crate::json`]).
+//! ([`crate::commands::inspect::InspectJson`]), and the `--json` of `simulate`, `export`, `import`,
+//! `apply` and `compose` (`<command>.schema.json`, the types in [`crate::json`]).
 //!
 //! The published files are checked here against the types: a change of an output's shape fails
 //! the test until the files are regenerated (and the change recorded in CHANGELOG.md,
@@ -30,6 +30,7 @@ fn schemas() -> Vec<(&'static str, Schema)> {
             "simulate.schema.json",
             schema_for!(crate::json::SimulateJson),
         ),
+        ("import.schema.json", schema_for!(crate::json::ImportJson)),
     ]
 }
 

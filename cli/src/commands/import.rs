@@ -83,6 +83,9 @@ pub struct Args {
     /// The calib correction table to write.
     #[arg(short, long = "output", value_name = "FILE")]
     pub output: PathBuf,
+    /// Print what was read as JSON (docs/import.schema.json) instead of the summary.
+    #[arg(long)]
+    pub json: bool,
     /// moteus: the motor_position source to read (0, 1 or 2; default: the only one the file
     /// has a table for).
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..3))]
@@ -118,6 +121,18 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .with_context(|| format!("cannot read {}", args.file.display()))?;
     calib_io::table::write_table(&args.output, &table.map, None)?;
     let map = &table.map;
+    if args.json {
+        return crate::json::render(&crate::json::ImportJson {
+            schema_version: calib_core::report::SCHEMA_VERSION,
+            file: args.file.display().to_string(),
+            format: opts.format.name().to_string(),
+            output: args.output.display().to_string(),
+            points: map.len(),
+            notes: table.notes.clone(),
+            peak_to_peak_arcsec: map.peak_to_peak() * ARCSEC_PER_RAD,
+            rms_arcsec: map.rms() * ARCSEC_PER_RAD,
+        });
+    }
     let mut o = format!(
         "wrote {}: {} points from {} (--format {})\n",
         args.output.display(),

@@ -190,7 +190,7 @@ fn inspect_json_matches_the_schema() {
     }
 }
 
-/// `--json` of simulate, export, apply and compose, on a simulated run: each valid against its
+/// `--json` of simulate, export, import, apply and compose, on a simulated run: each valid against its
 /// schema and saying what the command did (the files it names exist, the counts are the run's).
 #[test]
 fn tool_json_outputs_match_their_schemas() {
@@ -225,6 +225,22 @@ fn tool_json_outputs_match_their_schemas() {
     let exp = assert_valid("export.schema.json", &stdout(&o), "export --json");
     assert_eq!(exp["format"], "lut-i16");
     assert!(lut.exists());
+
+    let back = dir.path().join("back.csv");
+    let o = calib(&[
+        "import",
+        s(&lut),
+        "--format",
+        "lut-i16",
+        "-o",
+        s(&back),
+        "--json",
+    ]);
+    expect_exit(&o, 0);
+    let imp = assert_valid("import.schema.json", &stdout(&o), "import --json");
+    // The table exported and read back holds the truth's error to the i16 quantum.
+    let pp = |v: &Value| v["peak_to_peak_arcsec"].as_f64().unwrap();
+    assert!((pp(&imp) - pp(&sim["truth"][0])).abs() < 0.1, "{imp}");
 
     let fixed = dir.path().join("fixed.mcap");
     let o = calib(&[
