@@ -81,6 +81,7 @@ pub mod error_map;
 pub mod harmonics;
 pub mod inspect;
 pub mod multihead;
+pub(crate) mod nufft;
 pub mod nufft2d;
 pub mod plan;
 pub mod purpose;

@@ -53,11 +53,11 @@
 //! Order `h` is blind when `h·(Δ_k − Δ_0) ≡ 0 (mod 2π)` for all `k` and poorly determined near it
 //! ([`super::observability`]); such orders are left out of both maps and reported.
 
-use super::nufft::{GridTransform, Stencils};
 use super::observability::{coefficient_variance, observability};
 use super::{CsrrError, SessionData};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
+use crate::nufft::{GridTransform, Stencils};
 
 /// Options of the joint solve.
 #[derive(Debug, Clone, Copy, PartialEq)]

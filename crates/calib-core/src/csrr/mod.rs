@@ -22,7 +22,6 @@
 // building blocks stay private, and the reference check's types are re-exported here.
 mod bins;
 pub mod joint;
-pub(crate) mod nufft;
 mod observability;
 pub mod paper;
 mod reference;

@@ -4,8 +4,8 @@
 //! of the library's interface.
 
 use super::bins::SessionBinner;
-use super::nufft::Stencils;
 use super::{CsrrError, CsrrOptions, SessionData, joint};
+use crate::nufft::Stencils;
 use crate::segment::Segmenter;
 
 /// The sessions of a log reduced to bins.

@@ -5,8 +5,8 @@ use super::bins::Binned;
 use super::joint::JointFit;
 use super::{ExcludedOrder, Head, MultiheadError, SetEstimate};
 use crate::angle::{DEG_PER_RAD, wrap_pi};
-use crate::csrr::nufft::GridTransform;
 use crate::harmonics::FourierSeries;
+use crate::nufft::GridTransform;
 use realfft::num_complex::Complex;
 use std::f64::consts::TAU;
 

@@ -4,8 +4,8 @@
 use super::bins::Binned;
 use super::{ExcludedOrder, MAX_ITERATIONS, MultiheadError, MultiheadOptions, TOLERANCE};
 use crate::angle::wrap_2pi;
-use crate::csrr::nufft::{GridTransform, Stencils};
 use crate::harmonics::FourierSeries;
+use crate::nufft::{GridTransform, Stencils};
 use realfft::num_complex::Complex;
 
 /// The joint solution.
