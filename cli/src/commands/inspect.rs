@@ -122,10 +122,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             suggestions,
             warnings,
         };
-        // Through a `Value`: its keys are written in alphabetical order at every depth.
-        return Ok(calib_io::report::render_json(&serde_json::to_value(
-            &json,
-        )?)?);
+        return crate::json::render(&json);
     }
     if point_list {
         return Ok(render_points(
