@@ -70,8 +70,9 @@ fn bars() -> &'static MultiProgress {
     })
 }
 
-/// A spinner counting the samples of the log at `path` while it is read: advance
-/// it by [`TICK`] every [`TICK`] samples, and finish it with [`ProgressBar::finish_and_clear`].
+/// A spinner counting the samples of the log at `path` while it is read: advance it by each
+/// batch's samples (drawing on each sample would cost time), and finish it with
+/// [`ProgressBar::finish_and_clear`].
 pub fn reading(path: &Path) -> ProgressBar {
     let name = path.file_name().map_or_else(
         || path.display().to_string(),
@@ -97,6 +98,3 @@ pub fn working(what: &str) -> ProgressBar {
     bar.enable_steady_tick(Duration::from_millis(120));
     bar
 }
-
-/// Advances the reading bar every this many samples (drawing on each would cost time).
-pub const TICK: u64 = 4096;

@@ -98,9 +98,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     );
     // Decoding runs ahead on a second thread.
     let mut samples = Prefetch::new(reader);
-    for sample in samples.by_ref() {
-        let s = sample.with_context(|| format!("cannot read {}", args.log.display()))?;
-        inspector.push(s.t, &s.values, s.session);
+    while let Some(batch) = samples.next_batch() {
+        let batch = batch.with_context(|| format!("cannot read {}", args.log.display()))?;
+        for s in batch.iter() {
+            inspector.push(s.t, s.values, s.session);
+        }
     }
     let reader = samples.finish();
     let result = inspector.finish();

@@ -18,7 +18,7 @@ use crate::input::{
 use crate::units::UnitCheck;
 use anyhow::Context;
 use calib_core::report::ReportSection;
-use calib_core::{AngleUnit, Report, Sample};
+use calib_core::{AngleUnit, Report, SampleRef};
 use calib_io::LogReader;
 use calib_io::prefetch::Prefetch;
 use calib_report::Document;
@@ -148,18 +148,18 @@ pub fn run<M: Method>(m: &M) -> anyhow::Result<String> {
 pub fn for_each_sample(
     log: &Path,
     reader: LogReader,
-    mut push: impl FnMut(&Sample),
+    mut push: impl FnMut(SampleRef),
 ) -> anyhow::Result<LogReader> {
     let bar = crate::ui::reading(log);
     let mut units = UnitCheck::new(&reader);
     let mut samples = Prefetch::new(reader);
-    for (n, sample) in samples.by_ref().enumerate() {
-        let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
-        if n as u64 % crate::ui::TICK == 0 {
-            bar.inc(crate::ui::TICK);
+    while let Some(batch) = samples.next_batch() {
+        let batch = batch.with_context(|| format!("cannot read {}", log.display()))?;
+        bar.inc(batch.len() as u64);
+        for s in batch.iter() {
+            units.push(s.values);
+            push(s);
         }
-        units.push(&s.values);
-        push(&s);
     }
     bar.finish_and_clear();
     units.finish(log)?;

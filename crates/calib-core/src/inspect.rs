@@ -116,34 +116,52 @@ struct ChannelAcc {
 /// other classes and do not masquerade as speed variation over the revolution.
 #[derive(Debug, Clone, Default)]
 struct SpeedProfiles {
-    classes: std::collections::BTreeMap<i32, (Vec<f64>, Vec<f64>)>,
+    /// Each class met, and where its profile is in `profiles`.
+    classes: std::collections::BTreeMap<i32, usize>,
+    /// Per class met, angle-binned `(Σdθ, Σdt)`.
+    profiles: Vec<(Vec<f64>, Vec<f64>)>,
+    /// The last class met (its profile's index) and the least and greatest speeds seen in it:
+    /// a speed between two of one class is in that class (the logarithm is monotonic), so most
+    /// samples need neither the logarithm nor the lookup.
+    last: Option<(usize, f64, f64)>,
 }
 
 impl SpeedProfiles {
     fn add(&mut self, bin: usize, dtheta: f64, dt: f64) {
-        let class = ((dtheta / dt).log2() * 8.0).floor() as i32;
-        let (a, t) = self
-            .classes
-            .entry(class)
-            .or_insert_with(|| (vec![0.0; SPEED_BINS], vec![0.0; SPEED_BINS]));
+        let speed = dtheta / dt;
+        let k = match self.last {
+            Some((k, lo, hi)) if lo <= speed && speed <= hi => k,
+            last => {
+                let class = (speed.log2() * 8.0).floor() as i32;
+                let next = self.profiles.len();
+                let k = *self.classes.entry(class).or_insert(next);
+                if k == next {
+                    self.profiles
+                        .push((vec![0.0; SPEED_BINS], vec![0.0; SPEED_BINS]));
+                }
+                self.last = Some(match last {
+                    Some((l, lo, hi)) if l == k => (k, lo.min(speed), hi.max(speed)),
+                    _ => (k, speed, speed),
+                });
+                k
+            }
+        };
+        let (a, t) = &mut self.profiles[k];
         a[bin] += dtheta;
         t[bin] += dt;
     }
     /// The classes within ±2 (±19 %) of the one that holds the most time.
     fn cruise(&self) -> Option<(Vec<f64>, Vec<f64>)> {
-        let busiest = self
+        let time = |k: &usize| self.profiles[*k].1.iter().sum::<f64>();
+        let busiest = *self
             .classes
             .iter()
-            .max_by(|x, y| {
-                x.1.1
-                    .iter()
-                    .sum::<f64>()
-                    .total_cmp(&y.1.1.iter().sum::<f64>())
-            })?
+            .max_by(|x, y| time(x.1).total_cmp(&time(y.1)))?
             .0;
         let mut a = vec![0.0; SPEED_BINS];
         let mut t = vec![0.0; SPEED_BINS];
-        for (_, (ca, ct)) in self.classes.range(busiest - 2..=busiest + 2) {
+        for (_, k) in self.classes.range(busiest - 2..=busiest + 2) {
+            let (ca, ct) = &self.profiles[*k];
             a.iter_mut().zip(ca).for_each(|(x, y)| *x += y);
             t.iter_mut().zip(ct).for_each(|(x, y)| *x += y);
         }

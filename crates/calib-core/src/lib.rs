@@ -101,4 +101,4 @@ pub use error_map::ErrorMap;
 pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
 pub use range_map::RangeMap;
 pub use report::{ChannelReport, Report, SessionReport};
-pub use sample::{Channel, Sample};
+pub use sample::{Channel, Sample, SampleBatch, SampleRef};

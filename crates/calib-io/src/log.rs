@@ -4,10 +4,10 @@ use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
-use crate::ros2::samples::Ros2Reader;
+use crate::ros2::samples::{OneByOne, Ros2Reader};
 use crate::rosbag::{self, BagReader, PreparedStorage, SQLITE_MAGIC};
 use crate::{Error, ReadDiagnostics, ReadOptions};
-use calib_core::{AngleUnit, Channel, Sample};
+use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
 use std::io::Read;
 use std::path::Path;
 
@@ -189,6 +189,8 @@ pub struct LogReader {
     csv_aligner: Option<(Aligner, bool)>,
     /// A bag's warnings about how it was found (a missing `metadata.yaml`).
     bag_warnings: Vec<String>,
+    /// The samples read but not yet handed on by [`Iterator::next`].
+    one: OneByOne,
     /// A bag's temporary files and the splits (or bag) errors name instead.
     renames: Vec<(std::path::PathBuf, std::path::PathBuf)>,
     /// A bag's decompressed or merged files, removed when the reader is dropped (after it:
@@ -249,6 +251,7 @@ impl LogReader {
             selection: None,
             csv_aligner: None,
             bag_warnings,
+            one: OneByOne::default(),
             renames,
             _temp: temp,
         })
@@ -407,46 +410,74 @@ impl LogReader {
     }
 }
 
-impl Iterator for LogReader {
-    type Item = Result<Sample, Error>;
-    fn next(&mut self) -> Option<Self::Item> {
-        match &mut self.inner {
-            Inner::Csv(r) if self.csv_aligner.is_some() => {
-                let (aligner, ended) = self.csv_aligner.as_mut()?;
-                loop {
-                    if let Some(s) = aligner.pop() {
-                        return Some(Ok(s));
+impl LogReader {
+    /// Appends samples to `batch` until it holds `max` or the log ends (a few more where channels
+    /// are aligned and several complete at once). The samples read before an error stay in
+    /// `batch`; the error ends the log. `batch` holds one reading per selected channel
+    /// ([`channels`](Self::channels)).
+    pub fn fill(&mut self, batch: &mut SampleBatch, max: usize) -> Result<(), Error> {
+        if let Inner::Ros2(r) = &mut self.inner {
+            return r.fill(batch, max).map_err(|e| e.renamed(&self.renames));
+        }
+        while batch.len() < max {
+            match self.next_csv() {
+                Some(Ok(s)) => batch.push(s.t, &s.values, s.session),
+                Some(Err(e)) => return Err(e),
+                None => break,
+            }
+        }
+        Ok(())
+    }
+
+    /// The next sample of a CSV log, its selected columns aligned where the file is sparse.
+    fn next_csv(&mut self) -> Option<Result<Sample, Error>> {
+        let Inner::Csv(r) = &mut self.inner else {
+            return None;
+        };
+        if let Some((aligner, ended)) = self.csv_aligner.as_mut() {
+            loop {
+                if let Some(s) = aligner.pop() {
+                    return Some(Ok(s));
+                }
+                if *ended {
+                    return None;
+                }
+                match r.next() {
+                    Some(Ok(s)) => {
+                        aligner.push((s.t * 1e9).round() as i64, s.t, &s.values, s.session)
                     }
-                    if *ended {
-                        return None;
+                    Some(Err(e)) => {
+                        *ended = true;
+                        return Some(Err(e));
                     }
-                    match r.next() {
-                        Some(Ok(s)) => {
-                            aligner.push((s.t * 1e9).round() as i64, s.t, &s.values, s.session)
-                        }
-                        Some(Err(e)) => {
-                            *ended = true;
-                            return Some(Err(e));
-                        }
-                        None => {
-                            *ended = true;
-                            aligner.finish();
-                        }
+                    None => {
+                        *ended = true;
+                        aligner.finish();
                     }
                 }
             }
-            Inner::Csv(r) => {
-                let sample = r.next()?;
-                Some(match (sample, &self.selection) {
-                    (Ok(mut s), Some((columns, _))) => {
-                        s.values = columns.iter().map(|&i| s.values[i]).collect();
-                        Ok(s)
-                    }
-                    (other, _) => other,
-                })
-            }
-            Inner::Ros2(r) => r.next().map(|s| s.map_err(|e| e.renamed(&self.renames))),
         }
+        let sample = r.next()?;
+        Some(match (sample, &self.selection) {
+            (Ok(mut s), Some((columns, _))) => {
+                s.values = columns.iter().map(|&i| s.values[i]).collect();
+                Ok(s)
+            }
+            (other, _) => other,
+        })
+    }
+}
+
+impl Iterator for LogReader {
+    type Item = Result<Sample, Error>;
+    fn next(&mut self) -> Option<Self::Item> {
+        if matches!(self.inner, Inner::Csv(_)) {
+            return self.next_csv();
+        }
+        let mut one = std::mem::take(&mut self.one);
+        let next = one.next(self.channels().len(), |batch| self.fill(batch, 1));
+        self.one = one;
+        next
     }
 }
 

@@ -39,7 +39,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, sync_channel};
 
-use calib_core::{AngleUnit, Channel, Sample};
+use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
 use rusqlite::{Connection, OpenFlags};
 
 use crate::align::{AlignOptions, Alignment};
@@ -48,7 +48,7 @@ use crate::naming::ChannelName;
 use crate::ros2::PEEK_WINDOW;
 use crate::ros2::encoding::Encoding;
 use crate::ros2::registry::{IgnoredTopic, Registry, Resolved, TopicInfo, too_many_topics};
-use crate::ros2::samples::{Failure, Ros2Reader, Samples};
+use crate::ros2::samples::{Failure, OneByOne, Ros2Reader, Samples};
 use crate::ros2::topic::TopicStats;
 use crate::{Error, ReadDiagnostics, ReadOptions};
 
@@ -882,6 +882,8 @@ pub struct BagReader {
     warnings: Vec<String>,
     done: bool,
     failed: bool,
+    /// The samples read but not yet handed on by [`Iterator::next`].
+    one: OneByOne,
 }
 
 /// The MCAP message a bag row stands for: log and publish time the row's `timestamp`.
@@ -1064,6 +1066,7 @@ impl BagReader {
             warnings,
             done: false,
             failed: false,
+            one: OneByOne::default(),
         })
     }
 
@@ -1126,8 +1129,8 @@ impl BagReader {
         rx
     }
 
-    /// Decodes one row; a sample if it completes one.
-    fn step(&mut self, row: &Row) -> Result<Option<Sample>, Error> {
+    /// Decodes one row, appending to `out` the samples it completes.
+    fn step(&mut self, row: &Row, out: &mut SampleBatch) -> Result<(), Error> {
         let file = &self.files[row.file];
         let channel = &self.topic_channels[row.topic];
         let fail = |m: String| {
@@ -1146,7 +1149,7 @@ impl BagReader {
             )));
         }
         self.samples
-            .step(&message(channel, row), row.id)
+            .step(&message(channel, row), row.id, out)
             .map_err(|failure| {
                 fail(match failure {
                     Failure::NewTopic => "this topic's first message was not met when the bag \
@@ -1173,46 +1176,43 @@ impl Ros2Reader for BagReader {
     fn samples_mut(&mut self) -> &mut Samples {
         &mut self.samples
     }
+
+    fn fill(&mut self, out: &mut SampleBatch, max: usize) -> Result<(), Error> {
+        while out.len() < max && !self.done && !self.failed {
+            if self.rows.is_none() {
+                self.rows = Some(self.start());
+            }
+            let received = self.rows.as_ref().map(Receiver::recv);
+            match received {
+                Some(Ok(Ok(row))) => {
+                    if let Err(e) = self.step(&row, out) {
+                        self.failed = true;
+                        return Err(e);
+                    }
+                }
+                Some(Ok(Err(e))) => {
+                    self.failed = true;
+                    return Err(e);
+                }
+                // The thread has read every row.
+                Some(Err(_)) | None => {
+                    self.done = true;
+                    self.samples.finish(out);
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Iterator for BagReader {
     type Item = Result<Sample, Error>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.failed {
-            return None;
-        }
-        loop {
-            if let Some(sample) = self.samples.pop() {
-                return Some(Ok(sample));
-            }
-            if self.done {
-                return None;
-            }
-            if self.rows.is_none() {
-                self.rows = Some(self.start());
-            }
-            let received = self.rows.as_ref().map(Receiver::recv);
-            match received {
-                Some(Ok(Ok(row))) => match self.step(&row) {
-                    Ok(Some(sample)) => return Some(Ok(sample)),
-                    Ok(None) => {}
-                    Err(e) => {
-                        self.failed = true;
-                        return Some(Err(e));
-                    }
-                },
-                Some(Ok(Err(e))) => {
-                    self.failed = true;
-                    return Some(Err(e));
-                }
-                // The thread has read every row.
-                Some(Err(_)) | None => {
-                    self.done = true;
-                    self.samples.finish();
-                }
-            }
-        }
+        let mut one = std::mem::take(&mut self.one);
+        let next = one.next(self.samples.channels().len(), |batch| self.fill(batch, 1));
+        self.one = one;
+        next
     }
 }
 

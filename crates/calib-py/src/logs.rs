@@ -1,7 +1,7 @@
 //! Reading logs: `calib.read`, and the opening and streaming the `*_log` methods share.
 
 use crate::errors::{data, usage};
-use calib_core::{AngleUnit, Sample};
+use calib_core::{AngleUnit, SampleRef};
 use calib_io::align::AlignOptions;
 use calib_io::prefetch::Prefetch;
 use calib_io::{LogReader, ReadOptions, TimeSource};
@@ -105,12 +105,12 @@ pub fn open(path: &Path, names: Option<&[String]>, opts: &LogOptions) -> PyResul
 pub fn for_each_sample(
     path: &Path,
     reader: LogReader,
-    mut push: impl FnMut(&Sample),
+    mut push: impl FnMut(SampleRef),
 ) -> Result<LogReader, String> {
     let mut samples = Prefetch::new(reader);
-    for sample in samples.by_ref() {
-        let s = sample.map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        push(&s);
+    while let Some(batch) = samples.next_batch() {
+        let batch = batch.map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        batch.iter().for_each(&mut push);
     }
     Ok(samples.finish())
 }
@@ -149,7 +149,7 @@ pub fn read<'py>(
             let mut sessions = Vec::new();
             let reader = for_each_sample(&path, reader, |s| {
                 t.push(s.t);
-                for (column, v) in values.iter_mut().zip(&s.values) {
+                for (column, v) in values.iter_mut().zip(s.values) {
                     column.push(*v);
                 }
                 if marks {

@@ -295,7 +295,7 @@ fn open(args: &Args, log: &Path, names: &[&str]) -> anyhow::Result<LogReader> {
 /// Every sample's values of a point list.
 fn read_points(log: &Path, reader: LogReader) -> anyhow::Result<(Vec<Vec<f64>>, LogReader)> {
     let mut values = Vec::new();
-    let reader = for_each_sample(log, reader, |s| values.push(s.values.clone()))?;
+    let reader = for_each_sample(log, reader, |s| values.push(s.values.to_vec()))?;
     Ok((values, reader))
 }
 

@@ -50,7 +50,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use calib_core::{AngleUnit, Channel, Sample};
+use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
 use mcap::McapError;
 use mcap::sans_io::{LinearReaderOptions, SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 
@@ -62,7 +62,7 @@ use crate::naming::ChannelName;
 use crate::ros2::PEEK_WINDOW;
 use crate::ros2::encoding::Encoding;
 use crate::ros2::registry::{IgnoredTopic, Registry, Resolved, TopicInfo, too_many_topics};
-use crate::ros2::samples::{Failure, Ros2Reader, Samples};
+use crate::ros2::samples::{Failure, OneByOne, Ros2Reader, Samples};
 use crate::{DamagedChunk, Error, ReadDiagnostics, ReadOptions, Truncation};
 
 /// Chunks a file's summary must list for them to be read on worker threads: a file of one chunk
@@ -110,6 +110,8 @@ pub struct McapReader {
     skip_damaged: bool,
     /// Messages the streaming reader skips after taking over: those handed on already.
     skip: u64,
+    /// The samples read but not yet handed on by [`Iterator::next`].
+    one: OneByOne,
 }
 
 /// Read buffer of the stream: large enough that reading costs few system calls, small against
@@ -310,6 +312,7 @@ impl McapReader {
             reopen,
             skip_damaged: opts.skip_damaged,
             skip: 0,
+            one: OneByOne::default(),
         })
     }
 
@@ -355,10 +358,15 @@ impl McapReader {
         self.samples.ignored_topics()
     }
 
-    /// Decodes one message; a sample if it completes one.
-    fn step(&mut self, message: &mcap::Message, index: u64) -> Result<Option<Sample>, Error> {
+    /// Decodes one message, appending to `out` the samples it completes.
+    fn step(
+        &mut self,
+        message: &mcap::Message,
+        index: u64,
+        out: &mut SampleBatch,
+    ) -> Result<(), Error> {
         let key = i64::try_from(index).unwrap_or(i64::MAX);
-        self.samples.step(message, key).map_err(|failure| {
+        self.samples.step(message, key, out).map_err(|failure| {
             let (channel, m) = match failure {
                 Failure::NewTopic => (
                     None,
@@ -405,12 +413,18 @@ impl McapReader {
         true
     }
 
-    /// The stream has ended: what the aligner holds can now be decided, and the damaged chunks
-    /// left out are listed.
-    fn finish(&mut self) {
+    /// The stream has ended: what the aligner holds is decided and appended to `out`, and the
+    /// damaged chunks left out are listed.
+    fn finish(&mut self, out: &mut SampleBatch) {
+        self.stop();
+        self.samples.finish(out);
+    }
+
+    /// The stream has failed: the damaged chunks left out are listed, and what the aligner holds
+    /// is not handed on (the error ends the log).
+    fn stop(&mut self) {
         self.done = true;
         self.samples.diagnostics.damaged_chunks = self.stream.damaged().to_vec();
-        self.samples.finish();
     }
 }
 
@@ -422,22 +436,9 @@ impl Ros2Reader for McapReader {
     fn samples_mut(&mut self) -> &mut Samples {
         &mut self.samples
     }
-}
 
-impl Iterator for McapReader {
-    type Item = Result<Sample, Error>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.failed {
-            return None;
-        }
-        loop {
-            if let Some(sample) = self.samples.pop() {
-                return Some(Ok(sample));
-            }
-            if self.done {
-                return None;
-            }
+    fn fill(&mut self, out: &mut SampleBatch, max: usize) -> Result<(), Error> {
+        while out.len() < max && !self.done && !self.failed {
             let message = match self.stream.next() {
                 Some(Ok(message)) => {
                     // Chunks are held until checked: where this message's bytes ended is where
@@ -451,14 +452,14 @@ impl Iterator for McapReader {
                 }
                 Some(Err(StreamError::Fallback)) => {
                     if let Err(e) = self.take_over() {
-                        self.finish();
+                        self.stop();
                         self.failed = true;
-                        return Some(Err(e));
+                        return Err(e);
                     }
                     continue;
                 }
                 None => {
-                    self.finish();
+                    self.finish(out);
                     // The stream stops at the data end record, before the end of the file. It
                     // also ends cleanly when the file ends between two records (it is told to
                     // expect no end magic): then the data end record is missing.
@@ -468,19 +469,20 @@ impl Iterator for McapReader {
                     continue;
                 }
                 Some(Err(e)) => {
-                    self.finish();
                     // Reading stopped at the first incomplete record, or inside it (a cut chunk)
                     // where the last message came out.
                     if matches!(e, StreamError::Mcap(McapError::UnexpectedEof))
                         && self.note_truncation()
                     {
+                        self.finish(out);
                         continue;
                     }
+                    self.stop();
                     self.failed = true;
                     if matches!(e, StreamError::Damaged(_) | StreamError::DataCrc) {
-                        return Some(Err(damaged_error(&self.path, self.index, &e)));
+                        return Err(damaged_error(&self.path, self.index, &e));
                     }
-                    return Some(Err(mcap_error(
+                    return Err(mcap_error(
                         &self.path,
                         Some(self.index),
                         None,
@@ -488,22 +490,30 @@ impl Iterator for McapReader {
                             "the file is damaged here ({e}); the messages before it were \
                              read: recover the rest with `mcap recover`"
                         ),
-                    )));
+                    ));
                 }
             };
             let index = self.index;
             self.index += 1;
-            let stepped = self.step(&message, index);
+            let stepped = self.step(&message, index, out);
             self.stream.recycle(message);
-            match stepped {
-                Ok(Some(sample)) => return Some(Ok(sample)),
-                Ok(None) => {}
-                Err(e) => {
-                    self.failed = true;
-                    return Some(Err(e));
-                }
+            if let Err(e) = stepped {
+                self.failed = true;
+                return Err(e);
             }
         }
+        Ok(())
+    }
+}
+
+impl Iterator for McapReader {
+    type Item = Result<Sample, Error>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let mut one = std::mem::take(&mut self.one);
+        let next = one.next(self.samples.channels().len(), |batch| self.fill(batch, 1));
+        self.one = one;
+        next
     }
 }
 

@@ -3,7 +3,7 @@
 //! path that bypasses it. The MCAP and the bag reader each hold one and hand it their messages;
 //! only how messages come out of their files differs between them.
 
-use calib_core::{AngleUnit, Channel, Sample};
+use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
 
 use super::decode::{decode, seconds};
 use super::encoding::Encoding;
@@ -51,11 +51,14 @@ pub(crate) struct Samples {
 
 /// A reader of an MCAP file or a bag, as [`crate::LogReader`] holds either: its samples, and the
 /// layer it hands its messages to for the rest. `Send`: commands decode on a second thread.
-pub(crate) trait Ros2Reader: Iterator<Item = Result<Sample, Error>> + Send {
+pub(crate) trait Ros2Reader: Send {
     /// The channels, the selection and what was noticed.
     fn samples(&self) -> &Samples;
     /// The same, to select channels.
     fn samples_mut(&mut self) -> &mut Samples;
+    /// Appends samples to `out` until it holds `max` or the log ends (a few more where the
+    /// aligner completes several at once); after an error, which ends the log, nothing.
+    fn fill(&mut self, out: &mut SampleBatch, max: usize) -> Result<(), Error>;
 }
 
 /// Why a message could not be read; each reader says where it is.
@@ -156,30 +159,32 @@ impl Samples {
         &self.registry.ignored
     }
 
-    /// A sample the aligner has completed (the fast path leaves it empty).
-    pub(crate) fn pop(&mut self) -> Option<Sample> {
-        if self.fast {
-            return None;
-        }
-        self.aligner.pop()
-    }
-
-    /// The log has ended: what the aligner holds can now be decided.
-    pub(crate) fn finish(&mut self) {
+    /// The log has ended: what the aligner holds is decided and appended to `out`.
+    pub(crate) fn finish(&mut self, out: &mut SampleBatch) {
         self.aligner.finish();
+        self.drain(out);
     }
 
-    /// Decodes one message, known to the reader's errors by `key`; a sample if it completes one.
+    /// Appends the samples the aligner has completed to `out` (the fast path leaves none).
+    fn drain(&mut self, out: &mut SampleBatch) {
+        while let Some(s) = self.aligner.pop() {
+            out.push(s.t, &s.values, s.session);
+        }
+    }
+
+    /// Decodes one message, known to the reader's errors by `key`, and appends to `out` the
+    /// samples it completes (one on the fast path, none or several through the aligner).
     pub(crate) fn step(
         &mut self,
         message: &mcap::Message,
         key: i64,
-    ) -> Result<Option<Sample>, Failure> {
+        out: &mut SampleBatch,
+    ) -> Result<(), Failure> {
         let k = match self.registry.resolve(&message.channel) {
             Ok(Resolved::Topic(k)) => k,
             Ok(Resolved::Ignored(k)) => {
                 self.registry.ignored_stats[k].note(message.log_time);
-                return Ok(None);
+                return Ok(());
             }
             Ok(Resolved::NewTopic(_)) => return Err(Failure::NewTopic),
             Err(m) => return Err(Failure::message(m)),
@@ -188,43 +193,27 @@ impl Samples {
         topic.stats.note(message.log_time);
         let failed = |(joint, message)| Failure::Message { joint, message };
         if self.fast {
-            // With a selection, every joint into the scratch row and the selected ones into the
-            // sample; with every channel in order, straight into the sample.
-            let (stamp, full, values) = match &self.pick {
-                Some(pick) => {
-                    self.raw.fill(f64::NAN);
-                    let (stamp, full) =
-                        decode(topic, message, self.time, &mut self.raw).map_err(failed)?;
-                    (stamp, full, pick.iter().map(|&i| self.raw[i]).collect())
-                }
-                None => {
-                    let mut values = vec![f64::NAN; topic.names.len()];
-                    let (stamp, full) =
-                        decode(topic, message, self.time, &mut values).map_err(failed)?;
-                    (stamp, full, values)
-                }
-            };
-            // The clock sits first in a selection, else at its raw index.
-            let clock = if self.pick.is_some() { 0 } else { self.clock };
-            if values.get(clock).is_some_and(|v| !v.is_nan()) {
+            // Every joint into the scratch row, then the selected ones (or all, in order) into
+            // the batch.
+            self.raw.fill(f64::NAN);
+            let (stamp, full) = decode(topic, message, self.time, &mut self.raw).map_err(failed)?;
+            if !self.raw[self.clock].is_nan() {
                 self.check_stamp(stamp, key)?;
             }
             if full {
                 self.fast_samples += 1;
-                return Ok(Some(Sample {
-                    t: seconds(stamp),
-                    values,
-                    session: None,
-                }));
+                match &self.pick {
+                    Some(pick) => out.push_picked(seconds(stamp), &self.raw, pick, None),
+                    None => out.push(seconds(stamp), &self.raw, None),
+                }
+                return Ok(());
             }
             // A message with a subset of the joints: from here on, through the aligner (which
             // is empty, so the order of samples is kept), which takes the whole row.
             self.fast = false;
-            if self.pick.is_none() {
-                self.raw.copy_from_slice(&values);
-            }
             self.aligner.push(stamp, seconds(stamp), &self.raw, None);
-            return Ok(self.aligner.pop());
+            self.drain(out);
+            return Ok(());
         }
         let range = topic.offset..topic.offset + topic.names.len();
         self.raw.fill(f64::NAN);
@@ -233,7 +222,8 @@ impl Samples {
             self.check_stamp(stamp, key)?;
         }
         self.aligner.push(stamp, seconds(stamp), &self.raw, None);
-        Ok(self.aligner.pop())
+        self.drain(out);
+        Ok(())
     }
 
     /// Refuses a clock stamp that does not increase (see [`crate::stamps`]), unless told to
@@ -276,4 +266,40 @@ fn lay_out_channels(
         }
     }
     (names, all_channels)
+}
+
+/// Samples handed on one at a time from a reader that fills batches: the readers' [`Iterator`].
+#[derive(Default)]
+pub(crate) struct OneByOne {
+    batch: SampleBatch,
+    next: usize,
+    /// The error that ended the log, once the samples before it are handed on.
+    error: Option<Error>,
+}
+
+impl OneByOne {
+    /// The next sample, reading another batch of `width` readings with `fill` when none is left.
+    pub(crate) fn next(
+        &mut self,
+        width: usize,
+        fill: impl FnOnce(&mut SampleBatch) -> Result<(), Error>,
+    ) -> Option<Result<Sample, Error>> {
+        if self.next == self.batch.len() {
+            if let Some(e) = self.error.take() {
+                return Some(Err(e));
+            }
+            if self.batch.width() != width {
+                self.batch = SampleBatch::new(width);
+            }
+            self.batch.clear();
+            self.next = 0;
+            self.error = fill(&mut self.batch).err();
+            if self.batch.is_empty() {
+                return self.error.take().map(Err);
+            }
+        }
+        let sample = self.batch.get(self.next).to_sample();
+        self.next += 1;
+        Some(Ok(sample))
+    }
 }
