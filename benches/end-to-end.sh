@@ -8,10 +8,12 @@
 #   CALIB=/path/to/other/calib benches/end-to-end.sh   # measure another build beside the floor
 #   CALIB=.../calib FLOOR=.../mcap_floor benches/end-to-end.sh   # builds nothing
 #   WRITERS=python BAG_SAMPLES=0 COAST_HZ=0 benches/end-to-end.sh   # the Python writer's log only
+#   WRITERS= COAST_HZ=0 benches/end-to-end.sh   # the bag only
 #
 # The log: two 72-pole-pair sensors and a reference as in testdata/scenarios/csrr72.toml,
 # 5 CSRR sessions at 60 r/min sampled at 10 kHz, as ROS 2 JointState messages (joints a, b,
-# ref) on /joint_states in zstd chunks, written by each writer of WRITERS (default both):
+# ref) on /joint_states in zstd chunks, written by each writer of WRITERS (default both; empty:
+# none):
 #   calib      `calib simulate` (the mcap crate's Writer: zstd chunks of its default size,
 #              header stamps and log times the simulated times, from 0)
 #   python     benches/gen_python_mcap.py: the official Python `mcap` writer (its defaults: zstd
@@ -72,7 +74,7 @@ if [[ ! -x /usr/bin/time ]]; then
   apt-get install -y time >&2
 fi
 
-writers=${WRITERS:-calib python}
+writers=${WRITERS-calib python}
 bag_samples=${BAG_SAMPLES:-1000000}
 for writer in $writers; do
   case $writer in

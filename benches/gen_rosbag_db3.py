@@ -148,9 +148,7 @@ def main():
             )
             db.execute("COMMIT")
     yaml = metadata_yaml(db3, args.topic, len(t), int(received[0]), int(received[-1]))
-    db.execute(
-        "INSERT INTO metadata (metadata_version, metadata) VALUES (?, ?)", (5, yaml)
-    )
+    db.execute("INSERT INTO metadata (metadata_version, metadata) VALUES (?, ?)", (5, yaml))
     db.close()
     with open(os.path.join(part, "metadata.yaml"), "w", encoding="utf-8") as f:
         f.write(yaml)

@@ -102,8 +102,11 @@ JITTER_NS = 50_000
 
 def read_run(path, joints):
     """Times (s) and positions (rad, one column per joint) of a `calib simulate` CSV."""
-    with open(path, encoding="utf-8") as f:
-        header = f.readline().strip().split(",")
+    try:
+        with open(path, encoding="utf-8") as f:
+            header = f.readline().strip().split(",")
+    except OSError as e:
+        raise SystemExit(f"{path}: cannot read it ({e.strerror}); give the CSV of a run") from e
     missing = [j for j in ["t", *joints] if j not in header]
     if missing:
         raise SystemExit(
@@ -111,7 +114,13 @@ def read_run(path, joints):
             "give the CSV `calib simulate SCENARIO -o run.csv` writes"
         )
     columns = [header.index(c) for c in ["t", *joints]]
-    table = np.loadtxt(path, delimiter=",", skiprows=1, usecols=columns, ndmin=2)
+    try:
+        table = np.loadtxt(path, delimiter=",", skiprows=1, usecols=columns, ndmin=2)
+    except ValueError as e:
+        raise SystemExit(
+            f"{path}: {str(e).rstrip('.')} (rows and columns counted from 0, after the header); "
+            "every line after the header must hold numbers"
+        ) from e
     if len(table) == 0:
         raise SystemExit(f"{path}: no samples after the header")
     # calib's CSV reader converts degrees as `value * (π / 180)`; numpy's deg2rad is the same.
