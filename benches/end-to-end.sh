@@ -1,16 +1,32 @@
 #!/usr/bin/env bash
-# calib's commands against the floor, on one large JointState MCAP, in one run.
+# calib's commands against the floor, on one large JointState MCAP from each writer, and on a
+# rosbag2 SQLite bag, in one run.
 #
 #   benches/end-to-end.sh                    # 10 M samples, 5 runs of each
 #   SAMPLES=2000000 REPEAT=3 benches/end-to-end.sh
-#   KEEP=/tmp/e2e benches/end-to-end.sh      # keep the log (and reuse it next time)
+#   KEEP=/tmp/e2e benches/end-to-end.sh      # keep the logs (and reuse them next time)
 #   CALIB=/path/to/other/calib benches/end-to-end.sh   # measure another build beside the floor
+#   CALIB=.../calib FLOOR=.../mcap_floor benches/end-to-end.sh   # builds nothing
+#   WRITERS=python BAG_SAMPLES=0 COAST_HZ=0 benches/end-to-end.sh   # the Python writer's log only
+#   WRITERS= COAST_HZ=0 benches/end-to-end.sh   # the bag only
 #
 # The log: two 72-pole-pair sensors and a reference as in testdata/scenarios/csrr72.toml,
-# 5 CSRR sessions at 60 r/min sampled at 10 kHz, zstd chunks, simulated with `calib simulate`.
-# The floor: `mcap_floor` (crates/calib-io/examples/mcap_floor.rs) — the mcap crate's
-# MessageStream over the memory-mapped file plus the least decode of each JointState's
-# positions, one thread. Then, alternating with it REPEAT times each:
+# 5 CSRR sessions at 60 r/min sampled at 10 kHz, as ROS 2 JointState messages (joints a, b,
+# ref) on /joint_states in zstd chunks, written by each writer of WRITERS (default both; empty:
+# none):
+#   calib      `calib simulate` (the mcap crate's Writer: zstd chunks of its default size,
+#              header stamps and log times the simulated times, from 0)
+#   python     benches/gen_python_mcap.py: the official Python `mcap` writer (its defaults: zstd
+#              chunks of 1 MiB) from the CSV `calib simulate` writes of the same scenario — the
+#              same samples, schema text and channel metadata as rosbag2 records them, stamps
+#              from 2023-11-14 (the simulated times + 1,700,000,000 s), log and publish times
+#              the receive times 200–250 µs later, sequence 0
+# The Python generators run in a virtual environment, VENV (default WORK/venv, made with
+# `python3 -m venv` and `pip install mcap numpy` when it lacks them).
+# The floor: FLOOR (default `mcap_floor`, crates/calib-io/examples/mcap_floor.rs, built here) —
+# the mcap crate's MessageStream over the memory-mapped file plus the least decode of each
+# JointState's positions, one thread. Then, on each writer's log, alternating with it REPEAT
+# times each, printing one table per writer:
 #   inspect    calib inspect LOG --json
 #   csrr       calib csrr LOG -o OUT -q
 #   reference  calib reference LOG --dut b --ref ref -o OUT -q
@@ -18,14 +34,33 @@
 #              beside floor+write: `mcap_floor LOG --write COPY`, the floor plus every message
 #              written unchanged into a new MCAP through the mcap crate's Writer (the input's
 #              zstd, default chunk size and level, one thread) — the floor of a rewriter
-# Then on a second log, a coast for `calib tdr`: testdata/scenarios/spindown.toml (an air-bearing
+# With both writers, csrr's maps on the two logs are compared (benches/compare_tables.py: the
+# largest difference of error_arcsec and u_arcsec, against a quarter of the smallest u).
+# Then a rosbag2 bag (benches/gen_rosbag_db3.py: a folder with metadata.yaml and one .db3 file,
+# the tables rosbag2's sqlite3 storage writes, the Python writer's messages) of BAG_SAMPLES
+# samples of the same scenario (default 1,000,000: 980,001 messages; 0 leaves the bag out), and
+# alternating REPEAT times each:
+#   bag-floor  BAG_FLOOR, a shell command run by bash with $DB3 the .db3 file (and $BAG the bag
+#              folder, $VENV the environment); default the sqlite3 command-line tool (installed
+#              with apt-get when missing) scanning every message's timestamp and data in the
+#              order a bag is replayed, through rosbag2's timestamp index, one thread:
+#              sqlite3 -readonly "$DB3" 'SELECT count(*), total(timestamp), sum(length(data))
+#                FROM (SELECT timestamp, data FROM messages ORDER BY timestamp, id)'
+#              (it decodes nothing); BAG_FLOOR='"$VENV"/bin/python benches/db3_floor.py "$DB3"'
+#              is a Python sqlite3 scan that also decodes every position with numpy.frombuffer
+#              (slower: Python's cost per row)
+#   inspect    calib inspect BAG --json
+#   csrr       calib csrr BAG -o OUT -q   (its maps compared with calib csrr on the bag's CSV)
+# Then on a last log, a coast for `calib tdr`: testdata/scenarios/spindown.toml (an air-bearing
 # spin-down from 600 r/min, two channels) recorded for COAST_S s at COAST_HZ (default 100 s at
-# 100 kHz: 10,000,001 samples, 600 → 80 r/min), the floor on it alternating REPEAT times with
+# 100 kHz: 10,000,001 samples, 600 → 80 r/min) by calib, the floor on it alternating REPEAT
+# times with
 #   tdr        calib tdr COAST --channel enc -o OUT -q
 # (COAST_HZ=0 leaves it out: a tdr run takes minutes, the fit and not the reading.)
 # It prints each one's median wall and CPU time, its peak RSS, and the ratio of its median wall
-# time to the floor's (apply's: to floor+write's). The log is read from the page cache (a first,
-# unmeasured read warms it).
+# time to the floor's (apply's: to floor+write's; the bag's: to bag-floor's). Each log is read
+# from the page cache (a first, unmeasured read warms it). Logs are made again only when their
+# scenario or generator changed.
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
@@ -39,10 +74,29 @@ if [[ ! -x /usr/bin/time ]]; then
   apt-get install -y time >&2
 fi
 
-cargo build --release --locked -p calib-cli >&2
-cargo build --release --locked -p calib-io --example mcap_floor >&2
+writers=${WRITERS-calib python}
+bag_samples=${BAG_SAMPLES:-1000000}
+for writer in $writers; do
+  case $writer in
+    calib | python) ;;
+    *) echo "WRITERS: unknown writer \`$writer\`; give calib, python or both" >&2; exit 2 ;;
+  esac
+done
+if [[ -z ${BAG_FLOOR:-} && $bag_samples != 0 ]] && ! command -v sqlite3 > /dev/null; then
+  echo "installing the sqlite3 command-line tool (apt-get install sqlite3)" >&2
+  apt-get install -y sqlite3 >&2
+fi
+
+if [[ -z ${CALIB:-} ]]; then
+  cargo build --release --locked -p calib-cli >&2
+fi
+if [[ -z ${FLOOR:-} ]]; then
+  cargo build --release --locked -p calib-io --example mcap_floor >&2
+fi
 calib=${CALIB:-$PWD/target/release/calib}
-floor="$PWD/target/release/examples/mcap_floor"
+floor=${FLOOR:-$PWD/target/release/examples/mcap_floor}
+build="calib $(git rev-parse --short HEAD)"
+[[ -n ${CALIB:-} ]] && build="calib $CALIB"
 if [[ -n ${KEEP:-} ]]; then
   work=$KEEP
   mkdir -p "$work"
@@ -50,15 +104,26 @@ else
   work=$(mktemp -d)
   trap 'rm -rf "$work"' EXIT
 fi
+export VENV=${VENV:-$work/venv}
+# The Python generators' environment: made once, kept in WORK (or VENV).
+python_env() {
+  if ! "$VENV/bin/python" -c 'import mcap, numpy' 2> /dev/null; then
+    echo "making $VENV (python3 -m venv; pip install mcap numpy)" >&2
+    python3 -m venv "$VENV" >&2
+    "$VENV/bin/pip" install --quiet mcap numpy >&2
+  fi
+}
 
+# Writes the csrr72 scenario for SAMPLES samples into FILE.
 # Per session: ramps of 1 s, a 1 s pause; 4 relative turns of 2 s; 28 s besides the revolutions.
-revolutions=$(awk -v n="$samples" -v r="$rate_hz" -v s="$speed_rpm" \
-  'BEGIN{printf "%d", (n / r - 28) * s / 60 / 5 + 0.5}')
-scenario="$work/run.toml"
-log="$work/run.mcap"
-sed -e "/^rate_hz/s/.*/rate_hz = $rate_hz.0/" -e "/^speed_rpm/s/.*/speed_rpm = $speed_rpm.0/" \
-  -e "/^revolutions/s/.*/revolutions = $revolutions.0/" \
-  testdata/scenarios/csrr72.toml > "$scenario"
+csrr_scenario() {
+  local revolutions
+  revolutions=$(awk -v n="$1" -v r="$rate_hz" -v s="$speed_rpm" \
+    'BEGIN{printf "%d", (n / r - 28) * s / 60 / 5 + 0.5}')
+  sed -e "/^rate_hz/s/.*/rate_hz = $rate_hz.0/" -e "/^speed_rpm/s/.*/speed_rpm = $speed_rpm.0/" \
+    -e "/^revolutions/s/.*/revolutions = $revolutions.0/" \
+    testdata/scenarios/csrr72.toml > "$2"
+}
 # Simulates SCENARIO into LOG unless LOG was made from the same scenario (kept in LOG.toml).
 simulate_once() {
   if [[ ! -s $2 ]] || ! cmp -s "$1" "$2.toml"; then
@@ -67,9 +132,34 @@ simulate_once() {
     cp "$1" "$2.toml"
   fi
 }
-simulate_once "$scenario" "$log"
-"$floor" "$log" >&2
-"$calib" csrr "$log" -o "$work/table" -q > /dev/null
+# Whether OUT is missing or older than any of the files after it.
+stale() {
+  local out=$1 f
+  shift
+  [[ -e $out ]] || return 0
+  for f in "$@"; do [[ $f -nt $out ]] && return 0; done
+  return 1
+}
+scenario="$work/run.toml"
+csrr_scenario "$samples" "$scenario"
+# The log of each writer.
+declare -A logs
+for writer in $writers; do
+  case $writer in
+    calib)
+      logs[calib]="$work/run.mcap"
+      simulate_once "$scenario" "${logs[calib]}"
+      ;;
+    python)
+      logs[python]="$work/run-python.mcap"
+      simulate_once "$scenario" "$work/run.csv"
+      if stale "${logs[python]}" "$work/run.csv" benches/gen_python_mcap.py benches/joint_states.py; then
+        python_env
+        "$VENV/bin/python" benches/gen_python_mcap.py "$work/run.csv" "${logs[python]}"
+      fi
+      ;;
+  esac
+done
 
 # One line: wall_s cpu_s max_rss_kb.
 measure() {
@@ -83,34 +173,83 @@ run() {
   case $1 in
     floor) measure "$floor" "$log" ;;
     inspect) measure "$calib" inspect "$log" --json ;;
-    csrr) measure "$calib" csrr "$log" -o "$work/out-csrr" -q ;;
-    reference) measure "$calib" reference "$log" --dut b --ref ref -o "$work/out-ref" -q ;;
+    csrr) measure "$calib" csrr "$log" -o "$work/out-csrr-$writer" -q ;;
+    reference) measure "$calib" reference "$log" --dut b --ref ref -o "$work/out-ref-$writer" -q ;;
     floor+write) rm -f "$work/floor-copy.mcap"
       measure "$floor" "$log" --write "$work/floor-copy.mcap" ;;
     apply) rm -f "$work/applied.mcap"
-      measure "$calib" apply "$work/table/a.csv" "$log" --channel a -o "$work/applied.mcap" -q ;;
+      measure "$calib" apply "$work/table-$writer/a.csv" "$log" --channel a \
+        -o "$work/applied.mcap" -q ;;
   esac
 }
-for name in "${names[@]}"; do : > "$work/$name.txt"; done
-for ((i = 1; i <= repeat; i++)); do
-  echo "round $i/$repeat ($(uptime | sed 's/.*load/load/'))" >&2
-  for name in "${names[@]}"; do run "$name" >> "$work/$name.txt"; done
+# Prints one line per name: its median wall and CPU time, peak RSS and wall ÷ BASE's wall,
+# from WORK/NAME.txt (apply's ratio is to floor+write's).
+table() {
+  local base=$1 name wall cpu rss f
+  shift
+  printf '%-11s %10s %10s %10s %9s\n' command "wall s" "cpu s" "peak MB" "÷ floor"
+  for name in "$@"; do
+    wall=$(cut -d' ' -f1 "$work/$name.txt" | median)
+    cpu=$(cut -d' ' -f2 "$work/$name.txt" | median)
+    rss=$(cut -d' ' -f3 "$work/$name.txt" | sort -g | tail -1)
+    f=$(cut -d' ' -f1 "$work/$base.txt" | median)
+    [[ $name == apply ]] && f=$(cut -d' ' -f1 "$work/floor+write.txt" | median)
+    awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$f" \
+      'BEGIN{printf "%-11s %10.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
+  done
+}
+size_mb() { du -sb "$1" | awk '{printf "%.0f MB", $1 / 1e6}'; }
+for writer in $writers; do
+  log=${logs[$writer]}
+  "$floor" "$log" >&2
+  "$calib" csrr "$log" -o "$work/table-$writer" -q > /dev/null
+  for name in "${names[@]}"; do : > "$work/$name.txt"; done
+  for ((i = 1; i <= repeat; i++)); do
+    echo "$writer round $i/$repeat ($(uptime | sed 's/.*load/load/'))" >&2
+    for name in "${names[@]}"; do run "$name" >> "$work/$name.txt"; done
+  done
+  echo "# $(date -u +%Y-%m-%dT%H:%MZ), $(nproc) cores, $build, writer $writer: $(basename "$log"), $(size_mb "$log"), $repeat runs each"
+  table floor "${names[@]}"
+  echo "# load after: $(uptime | sed 's/.*load/load/')"
 done
+if [[ -n ${logs[calib]:-} && -n ${logs[python]:-} ]]; then
+  echo "# csrr's maps, calib's log against the Python writer's (compare_tables.py):"
+  python3 benches/compare_tables.py "$work/out-csrr-calib" "$work/out-csrr-python" a.csv b.csv ||
+    echo "# the maps differ beyond u/4: a writer's log is not read as the other's" >&2
+fi
 
-echo "# $(date -u +%Y-%m-%dT%H:%MZ), $(nproc) cores, calib $(git rev-parse --short HEAD), $(stat -c %s "$log" | awk '{printf "%.0f MB", $1 / 1e6}') log, $repeat runs each"
-floor_s=$(cut -d' ' -f1 "$work/floor.txt" | median)
-write_s=$(cut -d' ' -f1 "$work/floor+write.txt" | median)
-printf '%-11s %10s %10s %10s %9s\n' command "wall s" "cpu s" "peak MB" "÷ floor"
-for name in "${names[@]}"; do
-  wall=$(cut -d' ' -f1 "$work/$name.txt" | median)
-  cpu=$(cut -d' ' -f2 "$work/$name.txt" | median)
-  rss=$(cut -d' ' -f3 "$work/$name.txt" | sort -g | tail -1)
-  base=$floor_s
-  [[ $name == apply ]] && base=$write_s # apply: ÷ floor+write
-  awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$base" \
-    'BEGIN{printf "%-11s %10.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
-done
-echo "# load after: $(uptime | sed 's/.*load/load/')"
+# The bag, and calib on it against a bare SQLite scan.
+if [[ $bag_samples != 0 ]]; then
+  bag_scenario="$work/bag.toml"
+  csrr_scenario "$bag_samples" "$bag_scenario"
+  simulate_once "$bag_scenario" "$work/bag.csv"
+  export BAG="$work/bag" DB3="$work/bag/bag_0.db3"
+  if stale "$DB3" "$work/bag.csv" benches/gen_rosbag_db3.py benches/joint_states.py; then
+    python_env
+    rm -rf "$BAG"
+    "$VENV/bin/python" benches/gen_rosbag_db3.py "$work/bag.csv" "$BAG"
+  fi
+  bag_floor=${BAG_FLOOR:-'sqlite3 -readonly "$DB3" "SELECT count(*), total(timestamp),
+    sum(length(data)) FROM (SELECT timestamp, data FROM messages ORDER BY timestamp, id)"'}
+  bash -c "$bag_floor" >&2
+  : > "$work/bag-floor.txt"
+  : > "$work/inspect.txt"
+  : > "$work/csrr.txt"
+  for ((i = 1; i <= repeat; i++)); do
+    echo "bag round $i/$repeat ($(uptime | sed 's/.*load/load/'))" >&2
+    measure bash -c "$bag_floor" >> "$work/bag-floor.txt"
+    measure "$calib" inspect "$BAG" --json >> "$work/inspect.txt"
+    measure "$calib" csrr "$BAG" -o "$work/out-csrr-bag" -q >> "$work/csrr.txt"
+  done
+  echo "# $(date -u +%Y-%m-%dT%H:%MZ), rosbag2 bag (sqlite3): $(basename "$DB3"), $(sqlite3 "$DB3" 'SELECT count(*) FROM messages' 2> /dev/null || echo "$bag_samples") messages, $(size_mb "$BAG"), $repeat runs each"
+  echo "# bag-floor: ${BAG_FLOOR:-sqlite3 ordered scan}"
+  table bag-floor bag-floor inspect csrr
+  echo "# load after: $(uptime | sed 's/.*load/load/')"
+  "$calib" csrr "$work/bag.csv" -o "$work/out-csrr-bag-csv" -q > /dev/null
+  echo "# csrr's maps, the bag against its CSV (compare_tables.py):"
+  python3 benches/compare_tables.py "$work/out-csrr-bag-csv" "$work/out-csrr-bag" a.csv b.csv ||
+    echo "# the maps differ beyond u/4: the bag is not read as its CSV" >&2
+fi
 
 # The coast log for `calib tdr`, and tdr against the floor on that log.
 coast_hz=${COAST_HZ:-100000}
@@ -129,14 +268,7 @@ if [[ $coast_hz != 0 ]]; then
     measure "$floor" "$coast" >> "$work/floor-coast.txt"
     measure "$calib" tdr "$coast" --channel enc -o "$work/out-tdr" -q >> "$work/tdr.txt"
   done
-  echo "# $(stat -c %s "$coast" | awk '{printf "%.0f MB", $1 / 1e6}') coast log, $repeat runs each"
-  floor_s=$(cut -d' ' -f1 "$work/floor-coast.txt" | median)
-  for name in floor-coast tdr; do
-    wall=$(cut -d' ' -f1 "$work/$name.txt" | median)
-    cpu=$(cut -d' ' -f2 "$work/$name.txt" | median)
-    rss=$(cut -d' ' -f3 "$work/$name.txt" | sort -g | tail -1)
-    awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$floor_s" \
-      'BEGIN{printf "%-11s %10.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
-  done
+  echo "# $(size_mb "$coast") coast log, $repeat runs each"
+  table floor-coast floor-coast tdr
   echo "# load after: $(uptime | sed 's/.*load/load/')"
 fi
