@@ -37,7 +37,7 @@ use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::mpsc::{Receiver, sync_channel};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
 use rusqlite::{Connection, OpenFlags};
@@ -58,9 +58,15 @@ pub const SQLITE_MAGIC: &[u8; 16] = b"SQLite format 3\0";
 /// The metadata file of a bag directory.
 pub const METADATA: &str = "metadata.yaml";
 
-/// Rows in flight between the thread reading the bag and the iterator: enough to keep both busy,
-/// few enough that memory stays small (a JointState message is ~100 bytes).
-const ROWS_IN_FLIGHT: usize = 1024;
+/// Rows handed over at once from the thread reading the bag to the reader: enough that the
+/// hand-over costs nothing per row.
+const ROWS_PER_BLOCK: usize = 512;
+/// Payload bytes after which a block is handed over with fewer rows, so that large messages
+/// keep it small.
+const BLOCK_BYTES: usize = 1 << 20;
+/// Blocks in flight between the two threads: enough to keep both busy, few enough that memory
+/// stays small.
+const BLOCKS_IN_FLIGHT: usize = 4;
 
 /// The storage files of a bag, in reading order.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -689,14 +695,57 @@ fn parse_metadata(text: &str) -> Result<Metadata, String> {
 }
 
 /// One row of a `messages` table, its topic resolved to the reader's.
-struct Row {
+struct Row<'a> {
     /// Index of the `.db3` file.
     file: usize,
     id: i64,
     /// Index into [`BagReader::topic_channels`].
     topic: usize,
     timestamp: i64,
+    data: &'a [u8],
+}
+
+/// Rows read one after the other, handed from the thread reading the bag to the reader in one
+/// piece and handed back to be filled again: their keys, and their payloads end to end.
+#[derive(Default)]
+struct RowBlock {
+    /// Per row: file, id, topic and timestamp as in [`Row`], and where its payload ends.
+    keys: Vec<(usize, i64, usize, i64, usize)>,
     data: Vec<u8>,
+}
+
+impl RowBlock {
+    fn len(&self) -> usize {
+        self.keys.len()
+    }
+
+    fn push(&mut self, row: &Row) {
+        self.data.extend_from_slice(row.data);
+        self.keys
+            .push((row.file, row.id, row.topic, row.timestamp, self.data.len()));
+    }
+
+    /// Whether the block is ready to be handed over.
+    fn is_full(&self) -> bool {
+        self.keys.len() >= ROWS_PER_BLOCK || self.data.len() >= BLOCK_BYTES
+    }
+
+    fn clear(&mut self) {
+        self.keys.clear();
+        self.data.clear();
+    }
+
+    fn row(&self, i: usize) -> Row<'_> {
+        let (file, id, topic, timestamp, end) = self.keys[i];
+        let start = i.checked_sub(1).map_or(0, |p| self.keys[p].4);
+        Row {
+            file,
+            id,
+            topic,
+            timestamp,
+            data: &self.data[start..end],
+        }
+    }
 }
 
 /// The topics of each file to read: per file, the `topic_id`s and the reader's topic of each.
@@ -780,7 +829,7 @@ fn scan(
     files: &[PathBuf],
     wanted: &Wanted,
     compressed: bool,
-    mut f: impl FnMut(Row) -> bool,
+    mut f: impl FnMut(Row<'_>) -> bool,
 ) -> Result<(), Error> {
     for (k, (path, topics)) in files.iter().zip(wanted).enumerate() {
         if topics.is_empty() {
@@ -819,10 +868,21 @@ fn scan(
                 )
             };
             let timestamp: i64 = row.get(2).map_err(column)?;
-            let mut data: Vec<u8> = row.get(3).map_err(column)?;
+            // The payload where SQLite holds it, copied only where it is not a blob (for
+            // `get`'s error) or is decompressed.
+            let owned: Vec<u8>;
+            let mut data: &[u8] = match row.get_ref(3) {
+                Ok(rusqlite::types::ValueRef::Blob(blob)) => blob,
+                _ => {
+                    owned = row.get(3).map_err(column)?;
+                    &owned
+                }
+            };
+            let decompressed: Vec<u8>;
             if compressed {
-                data = decompress_payload(&data)
+                decompressed = decompress_payload(data)
                     .map_err(|m| bag_error(path, Some("messages"), Some(id), None, m))?;
+                data = &decompressed;
             }
             let Some(&topic) = of_id.get(&topic_id) else {
                 continue;
@@ -878,7 +938,12 @@ pub struct BagReader {
     topic_channels: Vec<Arc<mcap::Channel<'static>>>,
     /// The channels, the selection and the samples in progress, shared with the MCAP reader.
     samples: Samples,
-    rows: Option<Receiver<Result<Row, Error>>>,
+    rows: Option<Receiver<Result<RowBlock, Error>>>,
+    /// Blocks decoded, handed back to the thread to be filled again.
+    spent: Option<SyncSender<RowBlock>>,
+    /// The block being decoded, and its next row.
+    block: RowBlock,
+    next_row: usize,
     warnings: Vec<String>,
     done: bool,
     failed: bool,
@@ -887,14 +952,14 @@ pub struct BagReader {
 }
 
 /// The MCAP message a bag row stands for: log and publish time the row's `timestamp`.
-fn message<'a>(channel: &Arc<mcap::Channel<'static>>, row: &'a Row) -> mcap::Message<'a> {
+fn message<'a>(channel: &Arc<mcap::Channel<'static>>, row: &Row<'a>) -> mcap::Message<'a> {
     let log_time = u64::try_from(row.timestamp).unwrap_or(0);
     mcap::Message {
         channel: Arc::clone(channel),
         sequence: 0,
         log_time,
         publish_time: log_time,
-        data: Cow::Borrowed(&row.data),
+        data: Cow::Borrowed(row.data),
     }
 }
 
@@ -1063,6 +1128,9 @@ impl BagReader {
             topic_channels,
             samples: Samples::new(registry, opts, "message id"),
             rows: None,
+            spent: None,
+            block: RowBlock::default(),
+            next_row: 0,
             warnings,
             done: false,
             failed: false,
@@ -1114,14 +1182,29 @@ impl BagReader {
         self.samples.topics()
     }
 
-    /// Starts the thread that streams the rows of the topics read.
-    fn start(&mut self) -> Receiver<Result<Row, Error>> {
-        let (tx, rx) = sync_channel(ROWS_IN_FLIGHT);
+    /// Starts the thread that streams the rows of the topics read, in blocks; the spent blocks
+    /// go back to it through `spent`.
+    fn start(&mut self) -> Receiver<Result<RowBlock, Error>> {
+        let (tx, rx) = sync_channel(BLOCKS_IN_FLIGHT);
+        let (spent, spent_rx) = sync_channel::<RowBlock>(BLOCKS_IN_FLIGHT + 2);
+        self.spent = Some(spent);
         let (files, wanted, compressed) =
             (self.files.clone(), self.wanted.clone(), self.compressed);
         std::thread::spawn(move || {
-            // A failed send means the reader was dropped: stop reading.
-            let result = scan(&files, &wanted, compressed, |row| tx.send(Ok(row)).is_ok());
+            let mut block = RowBlock::default();
+            let result = scan(&files, &wanted, compressed, |row| {
+                block.push(&row);
+                if !block.is_full() {
+                    return true;
+                }
+                let mut next = spent_rx.try_recv().unwrap_or_default();
+                next.clear();
+                // A failed send means the reader was dropped: stop reading.
+                tx.send(Ok(std::mem::replace(&mut block, next))).is_ok()
+            });
+            if block.len() > 0 {
+                let _ = tx.send(Ok(block));
+            }
             if let Err(e) = result {
                 let _ = tx.send(Err(e));
             }
@@ -1179,16 +1262,32 @@ impl Ros2Reader for BagReader {
 
     fn fill(&mut self, out: &mut SampleBatch, max: usize) -> Result<(), Error> {
         while out.len() < max && !self.done && !self.failed {
+            if self.next_row < self.block.len() {
+                // The block is taken out while its rows are decoded (they borrow it).
+                let block = std::mem::take(&mut self.block);
+                let mut stepped = Ok(());
+                while self.next_row < block.len() && out.len() < max && stepped.is_ok() {
+                    stepped = self.step(&block.row(self.next_row), out);
+                    self.next_row += 1;
+                }
+                self.block = block;
+                if let Err(e) = stepped {
+                    self.failed = true;
+                    return Err(e);
+                }
+                continue;
+            }
             if self.rows.is_none() {
                 self.rows = Some(self.start());
             }
             let received = self.rows.as_ref().map(Receiver::recv);
             match received {
-                Some(Ok(Ok(row))) => {
-                    if let Err(e) = self.step(&row, out) {
-                        self.failed = true;
-                        return Err(e);
+                Some(Ok(Ok(block))) => {
+                    let spent = std::mem::replace(&mut self.block, block);
+                    if let Some(back) = &self.spent {
+                        let _ = back.try_send(spent);
                     }
+                    self.next_row = 0;
                 }
                 Some(Ok(Err(e))) => {
                     self.failed = true;

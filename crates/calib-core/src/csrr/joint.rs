@@ -230,22 +230,50 @@ const NEWTON_TOLERANCE: f64 = 1e-14;
 const NEWTON_STEPS: usize = 8;
 
 /// One Gauss–Newton step's linear operator `A` and its weighted transpose.
+///
+/// The two sensors' halves of each product are independent (each its own series, stencils and
+/// grid) and run side by side on rayon's threads; each is computed exactly as it would be alone,
+/// so the result does not depend on the number of threads.
 struct Step<'a> {
     orders: &'a [usize],
     /// Bins `sessions[k]` belong to session `k` (bins are grouped by session).
     sessions: &'a [std::ops::Range<usize>],
     n: &'a [f64],
-    at_a: Stencils,
-    at_b: Stencils,
-    scale_a: Vec<f64>,
-    scale_b: Vec<f64>,
-    /// `n·scale_a` and `−n·scale_b`, the weights of [`Step::transpose_weighted`].
-    weight_a: Vec<f64>,
-    weight_b: Vec<f64>,
+    /// Sensor `a`'s half, its weights `n·scale_a`.
+    a: Side<'a>,
+    /// Sensor `b`'s half, its weights `−n·scale_b`.
+    b: Side<'a>,
+}
+
+/// One sensor's half of a [`Step`]: its series evaluated at the bins' angles, and the transpose.
+struct Side<'a> {
+    at: Stencils,
+    scale: Vec<f64>,
+    /// The weights of [`Side::transpose`]: `±n·scale`.
+    weight: Vec<f64>,
     fft: &'a mut GridTransform,
-    grid_buf: Vec<f64>,
-    ea: Vec<f64>,
-    eb: Vec<f64>,
+    grid: Vec<f64>,
+    /// The series at each bin (after [`Side::evaluate`]), or the weighted residual.
+    e: Vec<f64>,
+}
+
+impl Side<'_> {
+    /// `e = Σ_h c_h cos hθ + s_h sin hθ` at the bins' angles.
+    fn evaluate(&mut self, orders: &[usize], cos: &[f64], sin: &[f64]) {
+        self.fft.synthesize(orders, cos, sin, &mut self.grid);
+        self.at.gather(&self.grid, &mut self.e);
+    }
+
+    /// `(gc, gs) = Σ_j weight_j r_j (cos hθ_j, sin hθ_j)`, the transpose of
+    /// [`Side::evaluate`] applied to the weighted `r`.
+    fn transpose(&mut self, orders: &[usize], r: &[f64], gc: &mut [f64], gs: &mut [f64]) {
+        for ((e, &w), &r) in self.e.iter_mut().zip(&self.weight).zip(r) {
+            *e = w * r;
+        }
+        self.grid.fill(0.0);
+        self.at.scatter(&self.e, &mut self.grid);
+        self.fft.analyze_transpose(&mut self.grid, orders, gc, gs);
+    }
 }
 
 impl Step<'_> {
@@ -256,21 +284,17 @@ impl Step<'_> {
     /// `r = A·u` (per bin, unweighted).
     fn apply(&mut self, u: &[f64], r: &mut [f64]) {
         let l = self.orders.len();
-        self.fft
-            .synthesize(self.orders, &u[..l], &u[l..2 * l], &mut self.grid_buf);
-        self.at_a.gather(&self.grid_buf, &mut self.ea);
-        self.fft.synthesize(
-            self.orders,
-            &u[2 * l..3 * l],
-            &u[3 * l..4 * l],
-            &mut self.grid_buf,
+        let orders = self.orders;
+        let (a, b) = (&mut self.a, &mut self.b);
+        rayon::join(
+            || a.evaluate(orders, &u[..l], &u[l..2 * l]),
+            || b.evaluate(orders, &u[2 * l..3 * l], &u[3 * l..4 * l]),
         );
-        self.at_b.gather(&self.grid_buf, &mut self.eb);
         let deltas = &u[4 * l..];
         for (range, &delta) in self.sessions.iter().zip(deltas) {
             let r = &mut r[range.clone()];
-            let (sa, ea) = (&self.scale_a[range.clone()], &self.ea[range.clone()]);
-            let (sb, eb) = (&self.scale_b[range.clone()], &self.eb[range.clone()]);
+            let (sa, ea) = (&self.a.scale[range.clone()], &self.a.e[range.clone()]);
+            let (sb, eb) = (&self.b.scale[range.clone()], &self.b.e[range.clone()]);
             for ((((rj, &sa), &ea), &sb), &eb) in r.iter_mut().zip(sa).zip(ea).zip(sb).zip(eb) {
                 *rj = sa * ea - sb * eb + delta;
             }
@@ -280,24 +304,16 @@ impl Step<'_> {
     /// `g = Aᵀ·(N∘r)`.
     fn transpose_weighted(&mut self, r: &[f64], g: &mut [f64]) {
         let l = self.orders.len();
+        let orders = self.orders;
         let (ga, rest) = g.split_at_mut(2 * l);
         let (gb, gd) = rest.split_at_mut(2 * l);
-        for ((e, &w), &r) in self.ea.iter_mut().zip(&self.weight_a).zip(r) {
-            *e = w * r;
-        }
-        self.grid_buf.fill(0.0);
-        self.at_a.scatter(&self.ea, &mut self.grid_buf);
         let (gac, gas) = ga.split_at_mut(l);
-        self.fft
-            .analyze_transpose(&mut self.grid_buf, self.orders, gac, gas);
-        for ((e, &w), &r) in self.eb.iter_mut().zip(&self.weight_b).zip(r) {
-            *e = w * r;
-        }
-        self.grid_buf.fill(0.0);
-        self.at_b.scatter(&self.eb, &mut self.grid_buf);
         let (gbc, gbs) = gb.split_at_mut(l);
-        self.fft
-            .analyze_transpose(&mut self.grid_buf, self.orders, gbc, gbs);
+        let (a, b) = (&mut self.a, &mut self.b);
+        rayon::join(
+            || a.transpose(orders, r, gac, gas),
+            || b.transpose(orders, r, gbc, gbs),
+        );
         for (range, gd) in self.sessions.iter().zip(gd) {
             *gd = self.n[range.clone()]
                 .iter()
@@ -525,15 +541,22 @@ pub(crate) fn solve(
     let mut steps = 0;
     let mut residual = vec![0.0; m];
     let mut du = vec![0.0; 4 * l + k_count];
-    let mut fft = GridTransform::new(grid);
+    let (mut fft_a, mut fft_b) = (GridTransform::new(grid), GridTransform::new(grid));
     // Each step's inversion starts from the last step's angles.
     let mut theta_a = xs.clone();
     let mut theta_b = ys.clone();
     while steps < opts.max_steps {
-        eval_a.load(&ca, &sa);
-        eval_b.load(&cb, &sb);
-        let (at_a, scale_a) = eval_a.invert(&xs, &mut theta_a);
-        let (at_b, scale_b) = eval_b.invert(&ys, &mut theta_b);
+        // The two sensors side by side (see [`Step`]).
+        let ((at_a, scale_a), (at_b, scale_b)) = rayon::join(
+            || {
+                eval_a.load(&ca, &sa);
+                eval_a.invert(&xs, &mut theta_a)
+            },
+            || {
+                eval_b.load(&cb, &sb);
+                eval_b.invert(&ys, &mut theta_b)
+            },
+        );
         for j in 0..m {
             let model =
                 (xs[j] - theta_a[j]) - (ys[j] - theta_b[j]) + deltas[session_of[j] as usize];
@@ -543,16 +566,22 @@ pub(crate) fn solve(
             orders: &orders,
             sessions: &ranges,
             n: &n,
-            at_a,
-            at_b,
-            weight_a: n.iter().zip(&scale_a).map(|(n, s)| n * s).collect(),
-            weight_b: n.iter().zip(&scale_b).map(|(n, s)| -n * s).collect(),
-            scale_a,
-            scale_b,
-            fft: &mut fft,
-            grid_buf: vec![0.0; grid],
-            ea: vec![0.0; m],
-            eb: vec![0.0; m],
+            a: Side {
+                at: at_a,
+                weight: n.iter().zip(&scale_a).map(|(n, s)| n * s).collect(),
+                scale: scale_a,
+                fft: &mut fft_a,
+                grid: vec![0.0; grid],
+                e: vec![0.0; m],
+            },
+            b: Side {
+                at: at_b,
+                weight: n.iter().zip(&scale_b).map(|(n, s)| -n * s).collect(),
+                scale: scale_b,
+                fft: &mut fft_b,
+                grid: vec![0.0; grid],
+                e: vec![0.0; m],
+            },
         };
         let (its, ok) = conjugate_gradient(&mut step, &precond, &residual, &mut du, opts);
         let step_noise = (n.iter().zip(&residual).map(|(n, r)| n * r * r).sum::<f64>()
@@ -583,10 +612,16 @@ pub(crate) fn solve(
     }
 
     // Residual of the final model, per sample: between-bin part plus the spread inside bins.
-    eval_a.load(&ca, &sa);
-    eval_b.load(&cb, &sb);
-    eval_a.invert(&xs, &mut theta_a);
-    eval_b.invert(&ys, &mut theta_b);
+    rayon::join(
+        || {
+            eval_a.load(&ca, &sa);
+            eval_a.invert(&xs, &mut theta_a)
+        },
+        || {
+            eval_b.load(&cb, &sb);
+            eval_b.invert(&ys, &mut theta_b)
+        },
+    );
     let total: f64 = n.iter().sum();
     let within: f64 = sessions
         .iter()
