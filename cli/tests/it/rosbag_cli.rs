@@ -891,3 +891,97 @@ fn the_committed_compressed_bag_fixture_is_read_as_the_uncompressed_one() {
     let strip = |o: &std::process::Output, name: &str| stdout(o).replace(name, "BAG");
     assert_eq!(strip(&plain, "small_bag"), strip(&packed, "small_bag_zstd"));
 }
+
+/// The temporary files and folders of calib's naming in `dir` (`.<name>.calib-<pid>.….tmp`).
+fn calib_temps(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".calib-") && n.ends_with(".tmp"))
+        .collect()
+}
+
+/// SIGTERM or SIGINT while a compressed bag is read: before, its decompressed copy (up to
+/// 1.3 GB) stayed in the temporary folder although calib said it removed its temporary files;
+/// now the copy goes, no output appears, and calib exits at once with 143 or 130 (128 + the
+/// signal, as a shell reports a process killed by it).
+#[test]
+fn a_signal_while_a_compressed_bag_is_read_leaves_no_temporary_copy() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    // 300,000 messages: about a second of reading in a debug build, time enough to signal the
+    // run while it reads.
+    const N: i64 = 300_000;
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("plain");
+    std::fs::create_dir(&plain).unwrap();
+    let db = create_db3(
+        &plain.join("run_bag_0.db3"),
+        &[("/joint_states", JOINT_STATE)],
+    );
+    db.execute_batch("BEGIN").unwrap();
+    for i in 0..N {
+        let t = 1_000_000_000 + i * 1_000_000;
+        let q = (i as f64 * 0.001) % 6.0;
+        insert(&db, 1, t, &joint_state(t, &["a", "b"], &[q, q + 0.1]));
+    }
+    db.execute_batch("COMMIT").unwrap();
+    drop(db);
+    let bag = dir.path().join("run_bag");
+    compress_files(&plain, &bag, "sqlite3", &["run_bag_0.db3"]);
+    // Signalled as soon as the temporary folder appears (while decompressing), and 300 ms later
+    // (while reading the messages).
+    for (signal, status, after) in [
+        ("TERM", 143, 0),
+        ("INT", 130, 0),
+        ("TERM", 143, 300),
+        ("INT", 130, 300),
+    ] {
+        let signal_at = format!("{signal}-{after}");
+        let tmp = dir.path().join(format!("tmp-{signal_at}"));
+        std::fs::create_dir(&tmp).unwrap();
+        let out = dir.path().join(format!("out-{signal_at}"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_calib"))
+            .args(["csrr", s(&bag), "-o", s(&out)])
+            .env("TMPDIR", &tmp)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let started = Instant::now();
+        let deadline = started + Duration::from_secs(60);
+        while calib_temps(&tmp).is_empty() {
+            assert!(Instant::now() < deadline, "no temporary folder appeared");
+            assert!(child.try_wait().unwrap().is_none(), "finished too soon");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        std::thread::sleep(Duration::from_millis(after));
+        assert!(child.try_wait().unwrap().is_none(), "finished too soon");
+        Command::new("kill")
+            .args([&format!("-{signal}"), &child.id().to_string()])
+            .status()
+            .unwrap();
+        let sent = Instant::now();
+        let exit = child.wait().unwrap();
+        let took = sent.elapsed();
+        eprintln!(
+            "SIG{signal_at} ms: sent {:?} after the start, exit after {took:?}",
+            sent - started
+        );
+        assert_eq!(exit.code(), Some(status), "SIG{signal_at}");
+        assert!(took < Duration::from_secs(5), "SIG{signal_at}: {took:?}");
+        assert!(
+            calib_temps(&tmp).is_empty(),
+            "SIG{signal}: {:?}",
+            calib_temps(&tmp)
+        );
+        assert!(
+            calib_temps(dir.path()).is_empty(),
+            "{:?}",
+            calib_temps(dir.path())
+        );
+        assert!(!out.exists());
+    }
+}
