@@ -985,3 +985,110 @@ fn a_signal_while_a_compressed_bag_is_read_leaves_no_temporary_copy() {
         assert!(!out.exists());
     }
 }
+
+/// A WAL-mode `.db3` of 400 JointState rows at 1 kHz, written to `dir/wal.db3` with every row
+/// still in its write-ahead log `wal.db3-wal` (copied while the writer held it open, as a
+/// recorder that crashed leaves it).
+fn wal_bag_with_rows_in_its_log(dir: &Path) -> PathBuf {
+    let scratch = tempfile::tempdir().unwrap();
+    let db3 = scratch.path().join("wal.db3");
+    let db = create_db3(&db3, &[("/joint_states", JOINT_STATE)]);
+    db.pragma_update(None, "journal_mode", "WAL").unwrap();
+    db.pragma_update(None, "wal_autocheckpoint", 0).unwrap();
+    db.execute_batch("BEGIN").unwrap();
+    for i in 0..400 {
+        let t = 1_000_000_000 + i * 1_000_000;
+        let q = i as f64 * 1e-3;
+        insert(&db, 1, t, &joint_state(t, &["a", "b"], &[q, -q]));
+    }
+    db.execute_batch("COMMIT").unwrap();
+    let path = dir.join("wal.db3");
+    for (from, to) in [("wal.db3", "wal.db3"), ("wal.db3-wal", "wal.db3-wal")] {
+        std::fs::copy(scratch.path().join(from), dir.join(to)).unwrap();
+    }
+    drop(db);
+    path
+}
+
+/// A WAL-mode bag in a folder calib cannot write: before, "not a rosbag2 bag"; now its rows
+/// are read from a temporary copy of the file and its log, all 400. The folder is made
+/// read-only by a read-only bind mount in a mount namespace of its own (`unshare -m`: the
+/// tests run as root, whom permissions do not stop); where that cannot be made, by permissions
+/// (not root), else the case is reported skipped.
+#[test]
+fn a_wal_bag_in_a_read_only_folder_is_read_from_a_temporary_copy() {
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("recording");
+    std::fs::create_dir(&src).unwrap();
+    wal_bag_with_rows_in_its_log(&src);
+    let before = std::fs::read_dir(&src).unwrap().count();
+    let ro = dir.path().join("ro");
+    std::fs::create_dir(&ro).unwrap();
+    let calib = env!("CARGO_BIN_EXE_calib");
+    let script = format!(
+        "mount --bind '{src}' '{ro}' && mount -o remount,bind,ro '{ro}' || exit 90; \
+         touch '{ro}/probe' 2>/dev/null && exit 91; exec '{calib}' inspect '{ro}/wal.db3'",
+        src = src.display(),
+        ro = ro.display()
+    );
+    let o = Command::new("unshare")
+        .args(["-m", "sh", "-c", &script])
+        .output();
+    let o = match o {
+        Ok(o) if !matches!(o.status.code(), Some(90 | 91) | None) => o,
+        _ => {
+            use std::os::unix::fs::PermissionsExt;
+            eprintln!("no read-only bind mount here: the folder is made read-only by permissions");
+            std::fs::set_permissions(&src, std::fs::Permissions::from_mode(0o555)).unwrap();
+            if std::fs::write(src.join("probe"), "").is_ok() {
+                eprintln!(
+                    "skipped: no read-only bind mount here, and permissions do not stop root"
+                );
+                return;
+            }
+            let o = Command::new(calib)
+                .args(["inspect", s(&src.join("wal.db3"))])
+                .output()
+                .unwrap();
+            std::fs::set_permissions(&src, std::fs::Permissions::from_mode(0o755)).unwrap();
+            o
+        }
+    };
+    expect_exit(&o, 0);
+    assert!(stdout(&o).contains("  400 samples over "), "{}", stdout(&o));
+    assert_eq!(std::fs::read_dir(&src).unwrap().count(), before);
+}
+
+/// The same bag where no temporary folder can be made (TMPDIR names a file): the error names
+/// the split, its log, why a copy is needed and what to do — not the random name of a folder
+/// that was never made — and nothing is written beside the recording.
+#[test]
+fn a_wal_bag_without_a_temporary_folder_says_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let db3 = wal_bag_with_rows_in_its_log(dir.path());
+    let not_a_folder = write(dir.path(), "tmp-file", "");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+        .args(["inspect", s(&db3)])
+        .env("TMPDIR", &not_a_folder)
+        .output()
+        .unwrap();
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            &format!("{}: cannot create a temporary folder in ", db3.display()),
+            "tmp-file (",
+            "wal.db3-wal: transactions not yet in the file",
+            "set TMPDIR to a folder you can write",
+            "or copy the bag to such a folder",
+        ],
+    );
+    assert!(!err.contains(".bag.calib-"), "{err}");
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["tmp-file", "wal.db3", "wal.db3-wal"]);
+}
