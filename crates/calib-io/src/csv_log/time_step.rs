@@ -80,9 +80,9 @@ impl TimeStep {
 
     /// The unit the column would have to be in for its median step to be an encoder log's
     /// ([`PLAUSIBLE_STEP_S`]) when it is not one in the unit read, and what to say: "the time
-    /// column `t` steps by 1 (read as seconds, the default: 1 sample per 1 s); if it is in
-    /// milliseconds, say `--time-unit ms`". `None` when the step is plausible or no other unit
-    /// makes it so.
+    /// column `t` steps by 1 (median of its first rows), read as seconds (the default …): 1
+    /// sample per 1 s, outside …; if it is in milliseconds, say `--time-unit ms`". `None` when
+    /// the step is plausible or no other unit makes it so.
     pub fn unit_hint(&self) -> Option<String> {
         let step_s = self.median_s()?;
         if PLAUSIBLE_STEP_S.contains(&step_s) {
@@ -109,7 +109,8 @@ impl TimeStep {
         };
         Some(format!(
             "the time column `{}` steps by {} (median of its first rows), read as {} ({from}): \
-             {rate}, which no encoder log is; if it is in {}, say `--time-unit {}`",
+             {rate}, outside the 2 Hz to 500 kHz encoders are logged at; if it is in {}, say \
+             `--time-unit {}`",
             self.column,
             crate::limits::readable(raw),
             name(self.unit),
