@@ -47,7 +47,8 @@ pub struct LogArgs {
     #[arg(long, value_name = "NAME")]
     pub time_column: Option<String>,
     /// Unit of a CSV log's time column: s, ms, us, ns or 100ns (FILETIME ticks) (default: its
-    /// name's suffix, else the units row's entry, else s).
+    /// name's suffix, else the units row's entry, else s). A run that "never moves" whose
+    /// column steps by more than 0.5 s, or less than 2 µs, in that unit names the unit that fits.
     #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
     pub time_unit: Option<TimeUnit>,
     /// Leave out MCAP chunks whose checksum (CRC) does not match, warning and listing each in

@@ -81,6 +81,29 @@ impl UnitCheck {
         }
     }
 
+    /// A check of one channel's readings known by their range in the unit `unit` they were read
+    /// in, and whether all are whole numbers (`calib apply`'s first pass finds them), where no
+    /// `--unit` was given (`declared`): a channel read in degrees is checked, others are not.
+    pub fn of_range(
+        name: &str,
+        declared: Option<AngleUnit>,
+        unit: AngleUnit,
+        (lo, hi): (f64, f64),
+        whole: bool,
+    ) -> Self {
+        if declared.is_some() || unit != AngleUnit::Deg {
+            return UnitCheck::default();
+        }
+        UnitCheck {
+            channels: vec![Some(Span {
+                name: name.to_string(),
+                lo,
+                hi,
+                whole,
+            })],
+        }
+    }
+
     /// Adds one sample's readings (radians, in the reader's channel order).
     pub fn push(&mut self, values: &[f64]) {
         for (span, v) in self.channels.iter_mut().zip(values) {

@@ -3,12 +3,13 @@
 use crate::exit::Usage;
 use crate::input::{channel, open_log, parse_unit};
 use crate::json::ApplyJson;
+use crate::units::UnitCheck;
 use anyhow::Context;
 use calib_core::AngleUnit;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::correction::Wrapping;
 use calib_io::LogFormat;
-use calib_io::apply::{Applied, ApplyOptions, MapRef, apply_map};
+use calib_io::apply::{Applied, ApplyOptions, MapRef, apply_scanned, scan};
 use calib_io::table::AnyTable;
 use std::fmt::Write;
 use std::path::PathBuf;
@@ -61,7 +62,9 @@ pub struct Args {
     #[arg(long)]
     pub channel: Option<String>,
     /// Unit of CSV readings and JSON fields: deg (default), rad, arcsec, rev, counts:N.
-    /// JointState positions are radians.
+    /// JointState positions are radians. Without it, readings that fit radians or counts and
+    /// not degrees (a whole turn within [0, 2π), whole numbers beyond 1024) are refused before
+    /// anything is written, naming the likely unit, as the methods refuse them.
     #[arg(long, value_parser = parse_unit)]
     pub unit: Option<AngleUnit>,
     /// How the channel's readings are wrapped (revolutions of their unit).
@@ -111,8 +114,19 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         AnyTable::Turn(t) => MapRef::Turn(&t.map),
         AnyTable::Range(t) => MapRef::Range(&t.map),
     };
-    let done = apply_map(&args.log, &args.output, map, &opts)
-        .with_context(|| format!("cannot correct {}", args.log.display()))?;
+    let cannot = || format!("cannot correct {}", args.log.display());
+    let readings = scan(&args.log, &opts).with_context(cannot)?;
+    // The unit checked against the readings as the methods check it, before anything is written.
+    UnitCheck::of_range(
+        &name,
+        args.unit,
+        readings.unit,
+        (readings.min, readings.max),
+        readings.whole,
+    )
+    .finish(&args.log)?;
+    let done =
+        apply_scanned(&args.log, &args.output, map, &opts, &readings).with_context(cannot)?;
     if args.json {
         return render_json(args, &name, &table, &done, &notes);
     }

@@ -112,6 +112,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let suggestions = calib_core::purpose::suggestions(&result);
     let mut warnings = reader.warnings(&args.log);
     warnings.extend(reader.notes());
+    warnings.extend(
+        reader
+            .time_unit_hint()
+            .map(|hint| format!("{}: {hint}", args.log.display())),
+    );
     let topics = reader.topics();
     let alignment = reader.alignment();
     if args.json {

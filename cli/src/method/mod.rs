@@ -166,6 +166,19 @@ pub fn for_each_sample(
     Ok(samples.finish())
 }
 
+/// A method's error that its log's speed decides (a channel that "never moves"), with what the
+/// CSV time column's step says where it fits another unit better: a column in milliseconds read
+/// as seconds makes every speed 1000× too slow.
+pub fn with_time_hint<E>(err: E, reader: &LogReader) -> anyhow::Error
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    match reader.time_unit_hint() {
+        Some(hint) => anyhow::anyhow!("{err}; {hint}"),
+        None => anyhow::Error::new(err),
+    }
+}
+
 /// The context a failed run's error gets from its log: a log cut short says so, whatever the
 /// method then lacks (a missing session, a short coast) — the cut is the likelier cause.
 pub fn in_log(err: anyhow::Error, reader: &LogReader, log: &Path) -> anyhow::Error {

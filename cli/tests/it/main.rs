@@ -27,3 +27,4 @@ mod shift_angle_cli;
 mod simulate_cli;
 mod snapshots;
 mod tdr_cli;
+mod unit_hints_cli;

@@ -891,3 +891,204 @@ fn the_committed_compressed_bag_fixture_is_read_as_the_uncompressed_one() {
     let strip = |o: &std::process::Output, name: &str| stdout(o).replace(name, "BAG");
     assert_eq!(strip(&plain, "small_bag"), strip(&packed, "small_bag_zstd"));
 }
+
+/// The temporary files and folders of calib's naming in `dir` (`.<name>.calib-<pid>.….tmp`).
+fn calib_temps(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".calib-") && n.ends_with(".tmp"))
+        .collect()
+}
+
+/// SIGTERM or SIGINT while a compressed bag is read: before, its decompressed copy (up to
+/// 1.3 GB) stayed in the temporary folder although calib said it removed its temporary files;
+/// now the copy goes, no output appears, and calib exits at once with 143 or 130 (128 + the
+/// signal, as a shell reports a process killed by it).
+#[test]
+fn a_signal_while_a_compressed_bag_is_read_leaves_no_temporary_copy() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    // 300,000 messages: about a second of reading in a debug build, time enough to signal the
+    // run while it reads.
+    const N: i64 = 300_000;
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("plain");
+    std::fs::create_dir(&plain).unwrap();
+    let db = create_db3(
+        &plain.join("run_bag_0.db3"),
+        &[("/joint_states", JOINT_STATE)],
+    );
+    db.execute_batch("BEGIN").unwrap();
+    for i in 0..N {
+        let t = 1_000_000_000 + i * 1_000_000;
+        let q = (i as f64 * 0.001) % 6.0;
+        insert(&db, 1, t, &joint_state(t, &["a", "b"], &[q, q + 0.1]));
+    }
+    db.execute_batch("COMMIT").unwrap();
+    drop(db);
+    let bag = dir.path().join("run_bag");
+    compress_files(&plain, &bag, "sqlite3", &["run_bag_0.db3"]);
+    // Signalled as soon as the temporary folder appears (while decompressing), and 300 ms later
+    // (while reading the messages).
+    for (signal, status, after) in [
+        ("TERM", 143, 0),
+        ("INT", 130, 0),
+        ("TERM", 143, 300),
+        ("INT", 130, 300),
+    ] {
+        let signal_at = format!("{signal}-{after}");
+        let tmp = dir.path().join(format!("tmp-{signal_at}"));
+        std::fs::create_dir(&tmp).unwrap();
+        let out = dir.path().join(format!("out-{signal_at}"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_calib"))
+            .args(["csrr", s(&bag), "-o", s(&out)])
+            .env("TMPDIR", &tmp)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let started = Instant::now();
+        let deadline = started + Duration::from_secs(60);
+        while calib_temps(&tmp).is_empty() {
+            assert!(Instant::now() < deadline, "no temporary folder appeared");
+            assert!(child.try_wait().unwrap().is_none(), "finished too soon");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        std::thread::sleep(Duration::from_millis(after));
+        assert!(child.try_wait().unwrap().is_none(), "finished too soon");
+        Command::new("kill")
+            .args([&format!("-{signal}"), &child.id().to_string()])
+            .status()
+            .unwrap();
+        let sent = Instant::now();
+        let exit = child.wait().unwrap();
+        let took = sent.elapsed();
+        eprintln!(
+            "SIG{signal_at} ms: sent {:?} after the start, exit after {took:?}",
+            sent - started
+        );
+        assert_eq!(exit.code(), Some(status), "SIG{signal_at}");
+        assert!(took < Duration::from_secs(5), "SIG{signal_at}: {took:?}");
+        assert!(
+            calib_temps(&tmp).is_empty(),
+            "SIG{signal}: {:?}",
+            calib_temps(&tmp)
+        );
+        assert!(
+            calib_temps(dir.path()).is_empty(),
+            "{:?}",
+            calib_temps(dir.path())
+        );
+        assert!(!out.exists());
+    }
+}
+
+/// A WAL-mode `.db3` of 400 JointState rows at 1 kHz, written to `dir/wal.db3` with every row
+/// still in its write-ahead log `wal.db3-wal` (copied while the writer held it open, as a
+/// recorder that crashed leaves it).
+fn wal_bag_with_rows_in_its_log(dir: &Path) -> PathBuf {
+    let scratch = tempfile::tempdir().unwrap();
+    let db3 = scratch.path().join("wal.db3");
+    let db = create_db3(&db3, &[("/joint_states", JOINT_STATE)]);
+    db.pragma_update(None, "journal_mode", "WAL").unwrap();
+    db.pragma_update(None, "wal_autocheckpoint", 0).unwrap();
+    db.execute_batch("BEGIN").unwrap();
+    for i in 0..400 {
+        let t = 1_000_000_000 + i * 1_000_000;
+        let q = i as f64 * 1e-3;
+        insert(&db, 1, t, &joint_state(t, &["a", "b"], &[q, -q]));
+    }
+    db.execute_batch("COMMIT").unwrap();
+    let path = dir.join("wal.db3");
+    for (from, to) in [("wal.db3", "wal.db3"), ("wal.db3-wal", "wal.db3-wal")] {
+        std::fs::copy(scratch.path().join(from), dir.join(to)).unwrap();
+    }
+    drop(db);
+    path
+}
+
+/// A WAL-mode bag in a folder calib cannot write: before, "not a rosbag2 bag"; now its rows
+/// are read from a temporary copy of the file and its log, all 400. The folder is made
+/// read-only by a read-only bind mount in a mount namespace of its own (`unshare -m`: the
+/// tests run as root, whom permissions do not stop); where that cannot be made, by permissions
+/// (not root), else the case is reported skipped.
+#[test]
+fn a_wal_bag_in_a_read_only_folder_is_read_from_a_temporary_copy() {
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("recording");
+    std::fs::create_dir(&src).unwrap();
+    wal_bag_with_rows_in_its_log(&src);
+    let before = std::fs::read_dir(&src).unwrap().count();
+    let ro = dir.path().join("ro");
+    std::fs::create_dir(&ro).unwrap();
+    let calib = env!("CARGO_BIN_EXE_calib");
+    let script = format!(
+        "mount --bind '{src}' '{ro}' && mount -o remount,bind,ro '{ro}' || exit 90; \
+         touch '{ro}/probe' 2>/dev/null && exit 91; exec '{calib}' inspect '{ro}/wal.db3'",
+        src = src.display(),
+        ro = ro.display()
+    );
+    let o = Command::new("unshare")
+        .args(["-m", "sh", "-c", &script])
+        .output();
+    let o = match o {
+        Ok(o) if !matches!(o.status.code(), Some(90 | 91) | None) => o,
+        _ => {
+            use std::os::unix::fs::PermissionsExt;
+            eprintln!("no read-only bind mount here: the folder is made read-only by permissions");
+            std::fs::set_permissions(&src, std::fs::Permissions::from_mode(0o555)).unwrap();
+            if std::fs::write(src.join("probe"), "").is_ok() {
+                eprintln!(
+                    "skipped: no read-only bind mount here, and permissions do not stop root"
+                );
+                return;
+            }
+            let o = Command::new(calib)
+                .args(["inspect", s(&src.join("wal.db3"))])
+                .output()
+                .unwrap();
+            std::fs::set_permissions(&src, std::fs::Permissions::from_mode(0o755)).unwrap();
+            o
+        }
+    };
+    expect_exit(&o, 0);
+    assert!(stdout(&o).contains("  400 samples over "), "{}", stdout(&o));
+    assert_eq!(std::fs::read_dir(&src).unwrap().count(), before);
+}
+
+/// The same bag where no temporary folder can be made (TMPDIR names a file): the error names
+/// the split, its log, why a copy is needed and what to do — not the random name of a folder
+/// that was never made — and nothing is written beside the recording.
+#[test]
+fn a_wal_bag_without_a_temporary_folder_says_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let db3 = wal_bag_with_rows_in_its_log(dir.path());
+    let not_a_folder = write(dir.path(), "tmp-file", "");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+        .args(["inspect", s(&db3)])
+        .env("TMPDIR", &not_a_folder)
+        .output()
+        .unwrap();
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            &format!("{}: cannot create a temporary folder in ", db3.display()),
+            "tmp-file (",
+            "wal.db3-wal: transactions not yet in the file",
+            "set TMPDIR to a folder you can write",
+            "or copy the bag to such a folder",
+        ],
+    );
+    assert!(!err.contains(".bag.calib-"), "{err}");
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["tmp-file", "wal.db3", "wal.db3-wal"]);
+}

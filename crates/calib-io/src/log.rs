@@ -309,6 +309,16 @@ impl LogReader {
         }
     }
 
+    /// What to say when the log seems not to move (or to turn impossibly fast) and a CSV time
+    /// column's step fits another unit better than the one it was read in (see
+    /// [`crate::csv_log::time_step`]), from the rows read so far; `None` otherwise.
+    pub fn time_unit_hint(&self) -> Option<String> {
+        match &self.inner {
+            Inner::Csv(r) => r.time_step().and_then(|s| s.unit_hint()),
+            Inner::Ros2(_) => None,
+        }
+    }
+
     /// Whether the log marks CSRR sessions (a CSV `session` column).
     pub fn has_session_marks(&self) -> bool {
         matches!(&self.inner, Inner::Csv(r) if r.has_session_column())

@@ -325,13 +325,12 @@ pub fn prepare_with(path: &Path, skip_damaged: bool) -> Result<PreparedBag, Erro
     let mut warnings = found.warnings.clone();
     let renames = std::cell::RefCell::new(Vec::new());
     let mut temp = None;
-    let mut folder = || -> Result<PathBuf, Error> {
+    // The temporary folder, made when a file (`for_file`) first needs it (`why`).
+    let mut folder = |for_file: &Path, why: &str| -> Result<PathBuf, Error> {
         if temp.is_none() {
             temp = Some(
-                crate::atomic::TempFolder::create("bag").map_err(|source| Error::Io {
-                    path: std::env::temp_dir(),
-                    source,
-                })?,
+                crate::atomic::TempFolder::create("bag")
+                    .map_err(|e| no_temporary_folder(for_file, why, &e))?,
             );
         }
         Ok(temp
@@ -345,7 +344,7 @@ pub fn prepare_with(path: &Path, skip_damaged: bool) -> Result<PreparedBag, Erro
         files
             .iter()
             .map(|split| {
-                let dir = folder()?;
+                let dir = folder(split, "to decompress the split (compression_mode: FILE)")?;
                 let out = decompress(split, &dir)?;
                 renames.borrow_mut().push((out.clone(), split.clone()));
                 Ok(out)
@@ -360,7 +359,16 @@ pub fn prepare_with(path: &Path, skip_damaged: bool) -> Result<PreparedBag, Erro
             // and cannot open it at all in a read-only folder).
             for file in &mut files {
                 if is_wal(file) && has_wal_log(file) {
-                    let copy = copy_with_wal(file, &folder()?)?;
+                    let why = format!(
+                        "to read it with its write-ahead log ({}: transactions not yet in the \
+                         file) from a copy of both, as SQLite cannot read them in place without \
+                         writing beside them",
+                        wal_log(file)
+                            .file_name()
+                            .unwrap_or_default()
+                            .to_string_lossy()
+                    );
+                    let copy = copy_with_wal(file, &folder(file, &why)?)?;
                     renames.borrow_mut().push((copy.clone(), file.clone()));
                     *file = copy;
                 }
@@ -373,7 +381,8 @@ pub fn prepare_with(path: &Path, skip_damaged: bool) -> Result<PreparedBag, Erro
                 Ok([file]) => PreparedStorage::Mcap(file),
                 Err(files) => {
                     let name = path.file_name().unwrap_or_default().to_string_lossy();
-                    let merged = folder()?.join(format!("{name}.merged.mcap"));
+                    let merged = folder(path, "to merge its MCAP splits into one file")?
+                        .join(format!("{name}.merged.mcap"));
                     let splits: Vec<(&Path, &Path)> = files
                         .iter()
                         .zip(&originals)
@@ -395,6 +404,29 @@ pub fn prepare_with(path: &Path, skip_damaged: bool) -> Result<PreparedBag, Erro
         renames: renames.into_inner(),
         temp,
     })
+}
+
+/// The error of a bag whose file `file` must be copied or decompressed (`why`) into a temporary
+/// folder that cannot be made (`e`): calib writes nothing beside a recording, so the remedy is
+/// another temporary folder, or a copy of the bag where it can be read in place.
+fn no_temporary_folder(file: &Path, why: &str, e: &std::io::Error) -> Error {
+    // The reason alone: the error's own text names the folder's random name, never made.
+    let reason = e.raw_os_error().map_or_else(
+        || e.kind().to_string(),
+        |code| std::io::Error::from_raw_os_error(code).to_string(),
+    );
+    bag_error(
+        file,
+        None,
+        None,
+        None,
+        format!(
+            "cannot create a temporary folder in {} ({reason}), needed {why}; set TMPDIR to a folder \
+             you can write with room for the bag, or copy the bag to such a folder and read it \
+             there",
+            std::env::temp_dir().display()
+        ),
+    )
 }
 
 /// Decompresses the zstd-compressed split `split` (`bag_0.db3.zstd`) into `dir` under its name

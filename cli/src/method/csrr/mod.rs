@@ -5,7 +5,7 @@ mod summary;
 
 use crate::batch::Outcome;
 use crate::exit::Usage;
-use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
+use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log, with_time_hint};
 use crate::output::{table_name, turn_table};
 use crate::reference_table::ReferenceTable;
 use anyhow::Context;
@@ -234,14 +234,17 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             return anyhow::Error::new(e).context(hint);
         }
         let pair = format!("{}: channels `{}` and `{}`", log.display(), args.a, args.b);
-        let context = match &e {
+        let (e, context) = match &e {
             CsrrError::NeverMoves { sensor } => {
                 let name = if *sensor == 'A' { &args.a } else { &args.b };
-                format!("{pair}: channel `{name}`")
+                (
+                    with_time_hint(e, &reader),
+                    format!("{pair}: channel `{name}`"),
+                )
             }
-            _ => pair,
+            _ => (anyhow::Error::new(e), pair),
         };
-        in_log(anyhow::Error::new(e).context(context), &reader, log)
+        in_log(e.context(context), &reader, log)
     })?;
     let truth = truth.as_ref().map(|(a, b)| (a, b));
     let mut section = cal.report_section((&args.a, &args.b), args.reference.as_deref(), truth);

@@ -6,13 +6,13 @@ mod summary;
 use crate::batch::Outcome;
 use crate::exit::Usage;
 use crate::input::{channel, open_log_with};
-use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
+use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log, with_time_hint};
 use crate::output::table_name;
 use crate::reference_table::ReferenceTable;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
-    Latency, ReferenceCal, ReferenceKind, ReferenceOptions, TableMap, Targets,
+    Latency, ReferenceCal, ReferenceError, ReferenceKind, ReferenceOptions, TableMap, Targets,
 };
 use calib_core::reference_points::{PointOptions, calibrate_points};
 use calib_io::{LogReader, ReadOptions};
@@ -402,6 +402,12 @@ fn calibrate(
         })?;
         let cal = cal
             .finish()
+            .map_err(|e| match e {
+                ReferenceError::TooLittleMotion { .. } | ReferenceError::NotCovered { .. } => {
+                    with_time_hint(e, &reader)
+                }
+                e => anyhow::Error::new(e),
+            })
             .with_context(context)
             .map_err(|e| in_log(e, &reader, log))?;
         (cal, reader, None)

@@ -9,7 +9,7 @@
 //! found as the reader finds them, and copied as they are, so the output keeps the input's
 //! dialect.
 
-use super::Range;
+use super::Readings;
 use crate::Error;
 use crate::atomic::AtomicFile;
 use crate::csv_log::dialect::{self, Dialect};
@@ -260,8 +260,8 @@ fn walk(
 }
 
 /// The range of the channel's readings.
-pub(super) fn scan(path: &Path, channel: &str, unit: AngleUnit) -> Result<Range, Error> {
-    let mut range = Range::new(unit);
+pub(super) fn scan(path: &Path, channel: &str, unit: AngleUnit) -> Result<Readings, Error> {
+    let mut range = Readings::new(unit);
     walk(path, channel, |_, reading| {
         if let Some((_, x)) = reading {
             range.add(x, unit);

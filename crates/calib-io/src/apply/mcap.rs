@@ -24,7 +24,7 @@
 //! is called with the same records in the same order either way, so the output's bytes are the
 //! same as writing message by message on one thread.
 
-use super::Range;
+use super::Readings;
 use crate::atomic::AtomicFile;
 use crate::mcap_log::cdr::{JointFormat, JointState};
 use crate::mcap_log::chunks::{self, Chunked, Fallback};
@@ -420,8 +420,8 @@ pub(super) fn scan(
     json_unit: AngleUnit,
     skip_damaged: bool,
     parallel_chunks: usize,
-) -> Result<Range, Error> {
-    let mut range = Range::new(json_unit);
+) -> Result<Readings, Error> {
+    let mut range = Readings::new(json_unit);
     walk(path, channel, skip_damaged, parallel_chunks, |_, _, hit| {
         match hit {
             Some(Hit::Joint { value, .. }) => range.add(value, AngleUnit::Rad),

@@ -89,28 +89,38 @@ pub enum MapRef<'a> {
     Range(&'a RangeMap),
 }
 
-/// The readings of a channel seen by a pass over a log.
+/// The readings of the channel a first pass over a log finds ([`scan`]): what decides their
+/// wrapping, and what a caller checks their unit against before anything is written.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Range {
-    count: u64,
-    min: f64,
-    max: f64,
-    unit: AngleUnit,
+pub struct Readings {
+    /// How many.
+    pub count: u64,
+    /// The smallest, in `unit`.
+    pub min: f64,
+    /// The largest, in `unit`.
+    pub max: f64,
+    /// Their unit: radians for JointState positions, else [`ApplyOptions::unit`] (degrees if
+    /// `None`).
+    pub unit: AngleUnit,
+    /// Every one is a whole number in `unit` (encoder counts read as degrees look so).
+    pub whole: bool,
 }
 
-impl Range {
+impl Readings {
     fn new(unit: AngleUnit) -> Self {
-        Range {
+        Readings {
             count: 0,
             min: f64::INFINITY,
             max: f64::NEG_INFINITY,
             unit,
+            whole: true,
         }
     }
     fn add(&mut self, x: f64, unit: AngleUnit) {
         self.count += 1;
         self.min = self.min.min(x);
         self.max = self.max.max(x);
+        self.whole &= x.fract() == 0.0;
         self.unit = unit;
     }
 }
@@ -142,14 +152,8 @@ fn bag_not_rewritten(input: &Path) -> Error {
     }
 }
 
-/// [`apply`] with a whole-turn or a range map; with a range map the readings outside its range
-/// are copied unchanged and counted in [`Applied::outside`].
-pub fn apply_map(
-    input: &Path,
-    output: &Path,
-    map: MapRef<'_>,
-    opts: &ApplyOptions,
-) -> Result<Applied, Error> {
+/// The format of `input`, which `output` must have too; a bag is refused.
+fn formats(input: &Path, output: &Path) -> Result<LogFormat, Error> {
     let format = LogFormat::detect(input)?;
     if format == LogFormat::Rosbag {
         return Err(bag_not_rewritten(input));
@@ -166,6 +170,26 @@ pub fn apply_map(
             ),
         });
     }
+    Ok(format)
+}
+
+/// [`apply`] with a whole-turn or a range map; with a range map the readings outside its range
+/// are copied unchanged and counted in [`Applied::outside`].
+pub fn apply_map(
+    input: &Path,
+    output: &Path,
+    map: MapRef<'_>,
+    opts: &ApplyOptions,
+) -> Result<Applied, Error> {
+    formats(input, output)?;
+    let range = scan(input, opts)?;
+    apply_scanned(input, output, map, opts, &range)
+}
+
+/// The first pass of [`apply_map`] over `input`: the readings of `opts.channel`. An error if the
+/// log is a bag, or holds no readings of the channel.
+pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
+    let format = LogFormat::detect(input)?;
     let unit = opts.unit.unwrap_or(AngleUnit::Deg);
     let range = match format {
         LogFormat::Csv => csv::scan(input, &opts.channel, unit)?,
@@ -204,6 +228,20 @@ pub fn apply_map(
             message,
         });
     }
+    Ok(range)
+}
+
+/// The second pass of [`apply_map`]: writes `output` from `input` with the readings `range`
+/// found by [`scan`] (checked by the caller in between).
+pub fn apply_scanned(
+    input: &Path,
+    output: &Path,
+    map: MapRef<'_>,
+    opts: &ApplyOptions,
+    range: &Readings,
+) -> Result<Applied, Error> {
+    let format = formats(input, output)?;
+    let unit = opts.unit.unwrap_or(AngleUnit::Deg);
     let wrapping = opts
         .wrapping
         .unwrap_or_else(|| Wrapping::detect(range.min, range.max, range.unit));

@@ -29,6 +29,7 @@
 pub mod dialect;
 mod fields;
 mod reader;
+pub mod time_step;
 mod writer;
 
 pub(crate) use fields::{

@@ -2,6 +2,7 @@
 
 use super::dialect::{self, Dialect, Header, TimeUnit, WHITESPACE};
 use super::fields::{self, line_of, parse_f64, parse_f64_comma, parse_integer};
+use super::time_step::{TimeStep, UnitFrom};
 use crate::limits::LineLimit;
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
@@ -70,6 +71,8 @@ pub struct CsvReader {
     allow_unordered_time: bool,
     /// The previous row's time stamp and position, for the monotonicity check and its message.
     prev: Option<(f64, csv::Position)>,
+    /// The time column's steps between the first rows (`None` without a time column).
+    time_step: Option<TimeStep>,
     diagnostics: ReadDiagnostics,
 }
 
@@ -227,23 +230,27 @@ impl CsvReader {
         let unit_of = |i: usize| units.as_ref().and_then(|u| u.get(i));
         let filetime = matches!(&dialect.header, Header::Properties(p) if p.filetime);
         let found = if filetime && opts.time_column.is_none() {
-            Some((0, opts.time_unit.unwrap_or(TimeUnit::Ticks)))
+            Some(match opts.time_unit {
+                Some(unit) => (0, unit, UnitFrom::Option),
+                None => (0, TimeUnit::Ticks, UnitFrom::UnitsRow),
+            })
         } else {
             dialect::time_column(&names, opts.time_column.as_deref(), None).map(|(i, _)| {
                 // --time-unit, else the name's suffix, else the units row's entry, else seconds.
-                let unit = opts
-                    .time_unit
-                    .or_else(|| dialect::time_unit_of(&names[i]))
-                    .or_else(|| {
-                        unit_of(i).and_then(|u| TimeUnit::from_suffix(dialect::unbracket(u)))
-                    })
-                    .unwrap_or(TimeUnit::S);
-                (i, unit)
+                let row_unit =
+                    || unit_of(i).and_then(|u| TimeUnit::from_suffix(dialect::unbracket(u)));
+                match (opts.time_unit, dialect::time_unit_of(&names[i]), row_unit()) {
+                    (Some(unit), _, _) => (i, unit, UnitFrom::Option),
+                    (None, Some(unit), _) => (i, unit, UnitFrom::Name),
+                    (None, None, Some(unit)) => (i, unit, UnitFrom::UnitsRow),
+                    (None, None, None) => (i, TimeUnit::S, UnitFrom::Default),
+                }
             })
         };
+        let time_step = found.map(|(col, unit, from)| TimeStep::new(&names[col], unit, from));
         let mut point_list = false;
         let time = match (found, &dialect.header) {
-            (Some((col, unit)), _) => Time::Column {
+            (Some((col, unit, _)), _) => Time::Column {
                 col,
                 scale: unit.seconds(),
             },
@@ -365,6 +372,7 @@ impl CsvReader {
             rad_per_unit: unit.radians_per_unit(),
             allow_unordered_time: opts.allow_unordered_time,
             prev: None,
+            time_step,
             diagnostics: ReadDiagnostics::default(),
         })
     }
@@ -395,6 +403,12 @@ impl CsvReader {
     /// The log's channels, in column order (without `t` and `session`).
     pub fn channels(&self) -> &[Channel] {
         &self.channels
+    }
+
+    /// The time column and the steps between its first rows' stamps, read so far (`None` for a
+    /// file without a time column).
+    pub fn time_step(&self) -> Option<&TimeStep> {
+        self.time_step.as_ref()
     }
 
     /// What the reader noticed; a CSV log has nothing to report beyond its errors, so this is
@@ -556,6 +570,9 @@ impl CsvReader {
             }
         };
         self.rows += 1;
+        if let Some(steps) = &mut self.time_step {
+            steps.push(t);
+        }
         // The header and the rows always have positions; the default only satisfies the type.
         self.prev = Some((
             t,

@@ -1,0 +1,198 @@
+//! Units the data contradicts (issue 33): a CSV time column in milliseconds read as seconds
+//! ("sensor A never moves"), named with the `--time-unit` that fits; and `calib apply`'s
+//! readings checked against the default unit as the methods check them, before anything is
+//! written.
+
+use crate::common::{self, inspect};
+
+use common::*;
+use inspect::inspect;
+use std::path::{Path, PathBuf};
+
+/// `log` (quick.toml's `t,a,b,session`, 5 ms apart) as a lab DAQ exports it: three metadata
+/// lines, `;` separators, the time in milliseconds under a header `Time` that does not say so,
+/// no session column. Returns the export.
+fn lab_export_in_ms(log: &Path, dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(log).unwrap();
+    let mut o = String::from("Device;DAQ-4\nOperator;lab\nSample rate;200 Hz\n\nTime;a;b\n");
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let ms = (f[0].parse::<f64>().unwrap() * 1e3).round() as i64;
+        o.push_str(&format!("{ms};{};{}\n", f[1], f[2]));
+    }
+    write(dir, "export.csv", &o)
+}
+
+/// The run in ms read as seconds turns at 1/1000 of its speed, under `--min-speed` (1°/s):
+/// before, "sensor A never moves" and nothing else; now the error ends with the column's step
+/// and `--time-unit ms`, `reference` says the same, `inspect` warns; with `--time-unit ms` the
+/// maps are those of the same run in seconds.
+#[test]
+fn a_time_column_in_milliseconds_read_as_seconds_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate_quick(dir.path(), "run.csv", &[]);
+    let export = lab_export_in_ms(&log, dir.path());
+
+    let o = calib(&["csrr", s(&export), "-o", s(&dir.path().join("out"))]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            "export.csv: channels `a` and `b`: channel `a`",
+            "sensor A never moves",
+            "the time column `Time` steps by 5 (median of its first rows), read as seconds \
+             (the default for a column without a unit): 1 sample per 5 s",
+            "if it is in milliseconds, say `--time-unit ms`",
+        ],
+    );
+    assert_no_output(&dir.path().join("out"));
+
+    let o = reference_run(&export, dir.path().join("ref"), &[]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            "export.csv: DUT `a`, reference `b`",
+            "while moving",
+            "the time column `Time` steps by 5",
+            "say `--time-unit ms`",
+        ],
+    );
+
+    let report = inspect(&export, &[]);
+    assert!(
+        report.contains("warning: ") && report.contains("say `--time-unit ms`"),
+        "{report}"
+    );
+
+    // Told the unit: the maps of the same run in seconds. Stamps k·5·10⁻³ and k·0.005 differ
+    // in their last bit, which can move a session's edge over the speed threshold by a sample:
+    // the maps then agree within their standard uncertainty u (0.0067″ here), not bit for bit.
+    let plain = write(
+        dir.path(),
+        "plain.csv",
+        &std::fs::read_to_string(&log)
+            .unwrap()
+            .lines()
+            .map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n")
+            .collect::<String>(),
+    );
+    let (ms_out, s_out) = (dir.path().join("ms"), dir.path().join("s"));
+    let o = calib(&["csrr", s(&export), "--time-unit", "ms", "-o", s(&ms_out)]);
+    expect_exit(&o, 0);
+    assert!(!stderr(&o).contains("--time-unit"), "{}", stderr(&o));
+    expect_exit(&calib(&["csrr", s(&plain), "-o", s(&s_out)]), 0);
+    for name in ["a.csv", "b.csv"] {
+        let (got, want) = (
+            table_rows(&ms_out.join(name)),
+            table_rows(&s_out.join(name)),
+        );
+        assert_eq!(got.len(), want.len());
+        for (g, w) in got.iter().zip(&want) {
+            assert!(
+                (g[1] - w[1]).abs() <= w[3],
+                "{name} at {}°: {g:?} {w:?}",
+                w[0]
+            );
+        }
+    }
+}
+
+/// The rows of a table with its `u_arcsec` column: `[angle, error, correction, u]`.
+fn table_rows(path: &Path) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(text.starts_with("angle_deg,error_arcsec,correction_arcsec,u_arcsec\n"));
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect()
+}
+
+fn reference_run(log: &Path, out: PathBuf, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "reference",
+        s(log),
+        "--dut",
+        "a",
+        "--ref",
+        "b",
+        "-o",
+        s(&out),
+    ];
+    args.extend_from_slice(extra);
+    calib(&args)
+}
+
+/// The reverse: a `time_ms` column that holds seconds, 1 ms apart, reads as 1 µs apart (1 MHz):
+/// `inspect` names `--time-unit s`. A column in ms that says so, 2.5 ms apart, gets no warning.
+#[test]
+fn seconds_under_a_millisecond_name_are_named_and_a_true_one_is_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("time_ms,a,b\n");
+    for k in 0..2000 {
+        let x = k as f64 * 0.36;
+        text.push_str(&format!("{:.3},{x:.4},{:.4}\n", k as f64 * 1e-3, x + 30.0));
+    }
+    let log = write(dir.path(), "seconds.csv", &text);
+    let report = inspect(&log, &[]);
+    assert_mentions(
+        &report,
+        &[
+            "warning: ",
+            "seconds.csv: the time column `time_ms` steps by 0.001 (median of its first rows), \
+             read as milliseconds (as its name says): 1000000 samples per second",
+            "if it is in seconds, say `--time-unit s`",
+        ],
+    );
+    let report = inspect(&testdata("csv/lab-export.csv"), &[]);
+    assert!(!report.contains("--time-unit"), "{report}");
+}
+
+/// A log in radians or encoder counts read as degrees: before, `apply` corrected it with the
+/// degree map and exit 0 (a correction 57× off, at the wrong angles); now exit 2 naming the
+/// unit, and no output, as the methods refuse it. With `--unit` it is corrected as told.
+#[test]
+fn apply_checks_the_default_unit_against_the_readings() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate_quick(dir.path(), "run.csv", &[]);
+    let tables = dir.path().join("cal");
+    expect_exit(&calib(&["csrr", s(&log), "-o", s(&tables)]), 0);
+    let text = std::fs::read_to_string(&log).unwrap();
+    let convert = |f: &dyn Fn(f64) -> String| {
+        let mut o = String::from("t,a,b\n");
+        for line in text.lines().skip(1) {
+            let v: Vec<&str> = line.split(',').collect();
+            let (a, b) = (v[1].parse().unwrap(), v[2].parse().unwrap());
+            o.push_str(&format!("{},{},{}\n", v[0], f(a), f(b)));
+        }
+        o
+    };
+    let rad = write(
+        dir.path(),
+        "rad.csv",
+        &convert(&|deg: f64| format!("{:.9}", deg.to_radians())),
+    );
+    let counts = write(
+        dir.path(),
+        "counts.csv",
+        &convert(&|deg: f64| format!("{}", (deg / 360.0 * 16384.0).floor())),
+    );
+    let table = tables.join("a.csv");
+    let out = dir.path().join("corrected.csv");
+    for (log, unit, named) in [
+        (&rad, "rad", "--unit rad"),
+        (&counts, "counts:16384", "(counts:16384 if they wrap there)"),
+    ] {
+        let o = calib(&["apply", s(&table), s(log), "-o", s(&out)]);
+        let err = expect_exit(&o, 2);
+        let name = log.file_name().unwrap().to_string_lossy();
+        assert_mentions(&err, &[&format!("{name}: the readings of `a`"), named]);
+        assert!(!out.exists());
+        let o = calib(&["apply", s(&table), s(log), "-o", s(&out), "--unit", unit]);
+        expect_exit(&o, 0);
+        assert!(stdout(&o).contains("corrected 3301 readings of `a`"));
+        std::fs::remove_file(&out).unwrap();
+    }
+    // Degrees, as the default says: corrected.
+    expect_exit(&calib(&["apply", s(&table), s(&log), "-o", s(&out)]), 0);
+}
