@@ -30,7 +30,11 @@ pub struct BatchArgs {
     /// Also write every plot of report.html as a standalone SVG and PNG into DIR (one log).
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
-    /// Logs calibrated at the same time (default: the number of cores).
+    /// Threads to compute on (default: the CALIB_JOBS environment variable, else the number of
+    /// cores). 1: the log is read and calibrated on one thread. More: a log is read ahead on a
+    /// second thread (MCAP chunks decompressed on up to two more) while the solver splits its
+    /// work over N threads, and several logs are calibrated N at a time. Results are the same
+    /// whatever N.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub jobs: Option<u16>,
     /// Write a JUnit XML file: one test case per log, a <failure> where a gate failed, an
@@ -254,24 +258,16 @@ where
     crate::overwrite::check(&summary_path, &format!("-o {}", crate::ui::shown(output)))?;
     std::fs::create_dir_all(output)
         .with_context(|| format!("cannot create the output folder {}", output.display()))?;
-    let jobs = match opts.jobs {
-        Some(n) => usize::from(n),
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs)
-        .build()
-        .context("cannot start the worker threads")?;
-    // `collect` keeps the input order whatever order the logs finish in.
-    let results: Vec<LogResult> = pool.install(|| {
-        logs.par_iter()
-            .zip(&folders)
-            .map(|(log, folder)| {
-                let result = calibrate(log, &output.join(folder));
-                judge(log, folder, result.as_ref(), opts)
-            })
-            .collect()
-    });
+    // On rayon's threads, as many as `--jobs` (crate::threads); `collect` keeps the input order
+    // whatever order the logs finish in.
+    let results: Vec<LogResult> = logs
+        .par_iter()
+        .zip(&folders)
+        .map(|(log, folder)| {
+            let result = calibrate(log, &output.join(folder));
+            judge(log, folder, result.as_ref(), opts)
+        })
+        .collect();
 
     let count = |s: Status| results.iter().filter(|r| r.status == s).count();
     let (passed, failed, errors) = (

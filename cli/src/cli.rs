@@ -49,6 +49,19 @@ pub enum Command {
 }
 
 impl Command {
+    /// The command's `--jobs`, where it has one (see [`crate::threads`]).
+    pub fn jobs(&self) -> Option<u16> {
+        match self {
+            Command::Inspect(a) => a.jobs,
+            Command::Csrr(a) => a.common.batch.jobs,
+            Command::Multihead(a) => a.common.batch.jobs,
+            Command::Tdr(a) => a.common.batch.jobs,
+            Command::Reference(a) => a.common.batch.jobs,
+            Command::ShiftAngle(a) => a.batch.jobs,
+            _ => None,
+        }
+    }
+
     /// Every path the command reads, with what it is: none of them may be written
     /// ([`crate::overwrite`]). A new command or input option is listed here.
     pub fn inputs(&self) -> Inputs {

@@ -78,6 +78,7 @@ impl LogArgs {
             time_column: self.time_column.clone(),
             time_unit: self.time_unit,
             skip_damaged: self.skip_damaged,
+            one_thread: crate::threads::read_inline(),
             ..ReadOptions::default()
         };
         Ok((

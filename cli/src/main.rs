@@ -19,6 +19,7 @@ mod reference_table;
 #[cfg(test)]
 mod schema;
 mod summary;
+mod threads;
 mod ui;
 mod units;
 
@@ -61,6 +62,7 @@ fn main() -> ExitCode {
 fn run(cli: cli::Cli) -> anyhow::Result<String> {
     use cli::Command;
     ui::set(cli.global);
+    threads::declare(cli.command.jobs())?;
     overwrite::protect(cli.command.inputs());
     match cli.command {
         Command::Inspect(args) => commands::inspect::run(&args),

@@ -8,7 +8,6 @@ use calib_core::inspect::{Inspection, Inspector};
 use calib_core::segment::{SegmentKind, SegmentOptions};
 use calib_io::ReadOptions;
 use calib_io::mcap_log::TopicInfo;
-use calib_io::prefetch::Prefetch;
 use std::fmt::Write;
 use std::path::PathBuf;
 
@@ -41,6 +40,11 @@ pub struct Args {
     /// Print the findings as JSON instead of tables.
     #[arg(long)]
     pub json: bool,
+    /// Threads to read on (default: the CALIB_JOBS environment variable, else the number of
+    /// cores). 1: the log is read and inspected on one thread; more: it is read ahead on a
+    /// second thread (MCAP chunks decompressed on up to two more).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub jobs: Option<u16>,
     /// How the log is timed (CSV time column, MCAP stamps) and its channels aligned.
     #[command(flatten)]
     pub input: LogArgs,
@@ -97,7 +101,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         },
     );
     // Decoding runs ahead on a second thread.
-    let mut samples = Prefetch::new(reader);
+    let mut samples = crate::threads::prefetch(reader);
     while let Some(batch) = samples.next_batch() {
         let batch = batch.with_context(|| format!("cannot read {}", args.log.display()))?;
         for s in batch.iter() {

@@ -20,7 +20,6 @@ use anyhow::Context;
 use calib_core::report::ReportSection;
 use calib_core::{AngleUnit, Report, SampleRef};
 use calib_io::LogReader;
-use calib_io::prefetch::Prefetch;
 use calib_report::Document;
 use std::path::{Path, PathBuf};
 
@@ -140,7 +139,7 @@ pub fn run<M: Method>(m: &M) -> anyhow::Result<String> {
 }
 
 /// Reads every sample of `reader` (opened on `log` by [`MethodArgs::open`]) and calls `push`
-/// with it. Decoding runs ahead on a second thread ([`Prefetch`]) while this one pushes; a
+/// with it. Decoding runs ahead on a second thread ([`crate::threads::prefetch`]) while this one pushes; a
 /// progress bar shows on a terminal; a sample that cannot be read stops the loop with an error
 /// naming the log; readings that fit another unit than the default they were read in are a
 /// usage error once all are read ([`UnitCheck`]). Returns the reader, for its warnings and
@@ -152,7 +151,7 @@ pub fn for_each_sample(
 ) -> anyhow::Result<LogReader> {
     let bar = crate::ui::reading(log);
     let mut units = UnitCheck::new(&reader);
-    let mut samples = Prefetch::new(reader);
+    let mut samples = crate::threads::prefetch(reader);
     while let Some(batch) = samples.next_batch() {
         let batch = batch.with_context(|| format!("cannot read {}", log.display()))?;
         bar.inc(batch.len() as u64);

@@ -101,6 +101,9 @@ pub struct ReadOptions {
     /// the unit of [`unit`](Self::unit). Names of other forms are ignored here (pass every
     /// channel name the command was given).
     pub fields: Vec<String>,
+    /// Read on the calling thread only: MCAP chunks are not decompressed on worker threads (for
+    /// a caller limited to one thread, `calib --jobs 1`).
+    pub one_thread: bool,
 }
 
 /// The time of a message: the stamp its publisher wrote, or when the recorder logged it.

@@ -247,7 +247,12 @@ impl McapReader {
     /// Errors if the file cannot be read, is empty, is not MCAP, holds no JointState or JSON
     /// topic, names the same channel on two topics, or its first message of a topic is bad.
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
-        Self::open_with(path, opts, PARALLEL_CHUNKS)
+        let parallel_chunks = if opts.one_thread {
+            usize::MAX
+        } else {
+            PARALLEL_CHUNKS
+        };
+        Self::open_with(path, opts, parallel_chunks)
     }
 
     /// [`open`](Self::open), reading the chunks on worker threads where the summary lists at
