@@ -128,6 +128,9 @@ pub struct Runs<'a> {
 pub fn run<M: Method>(m: &M) -> anyhow::Result<String> {
     let prepared = m.prepare()?;
     let runs = m.runs();
+    if runs.json {
+        crate::ui::json_output();
+    }
     crate::units::declare(runs.unit);
     batch::run(
         M::NAME,
@@ -141,7 +144,8 @@ pub fn run<M: Method>(m: &M) -> anyhow::Result<String> {
 
 /// Reads every sample of `reader` (opened on `log` by [`MethodArgs::open`]) and calls `push`
 /// with it. Decoding runs ahead on a second thread ([`Prefetch`]) while this one pushes; a
-/// progress bar shows on a terminal; a sample that cannot be read stops the loop with an error
+/// progress line with the bytes read of the log's size and the time left shows on a terminal
+/// (not with `--quiet` or `--json`); a sample that cannot be read stops the loop with an error
 /// naming the log; readings that fit another unit than the default they were read in are a
 /// usage error once all are read ([`UnitCheck`]). Returns the reader, for its warnings and
 /// alignment.
@@ -150,13 +154,14 @@ pub fn for_each_sample(
     reader: LogReader,
     mut push: impl FnMut(&Sample),
 ) -> anyhow::Result<LogReader> {
-    let bar = crate::ui::reading(log);
+    let progress = reader.progress();
+    let bar = crate::ui::reading(log, progress.as_ref());
     let mut units = UnitCheck::new(&reader);
     let mut samples = Prefetch::new(reader);
     for (n, sample) in samples.by_ref().enumerate() {
         let s = sample.with_context(|| format!("cannot read {}", log.display()))?;
         if n as u64 % crate::ui::TICK == 0 {
-            bar.inc(crate::ui::TICK);
+            crate::ui::advance(&bar, progress.as_ref(), n as u64);
         }
         units.push(&s.values);
         push(&s);

@@ -56,6 +56,11 @@ pub(crate) trait Ros2Reader: Iterator<Item = Result<Sample, Error>> + Send {
     fn samples(&self) -> &Samples;
     /// The same, to select channels.
     fn samples_mut(&mut self) -> &mut Samples;
+    /// How far the reader has got through its file; `None` where it reads no one file front
+    /// to back (a SQLite bag).
+    fn progress(&self) -> Option<crate::progress::ReadProgress> {
+        None
+    }
 }
 
 /// Why a message could not be read; each reader says where it is.
