@@ -128,3 +128,33 @@ pub fn working(what: &str) -> ProgressBar {
 
 /// Advances the reading bar every this many samples (drawing on each would cost time).
 pub const TICK: u64 = 4096;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The reading line of a log read front to back counts its bytes against the file's size
+    /// (issue 31: a total and an ETA, where it counted samples and overshot), and moves to where
+    /// the reader is, never past the end.
+    #[test]
+    fn the_reading_line_counts_bytes_of_the_files_size() {
+        let log = Path::new(env!("CARGO_MANIFEST_DIR")).join("../testdata/examples/quick.mcap");
+        let mut reader =
+            calib_io::LogReader::open(&log, &calib_io::ReadOptions::default()).unwrap();
+        let progress = reader.progress().unwrap();
+        let bar = reading(&log, Some(&progress));
+        let size = std::fs::metadata(&log).unwrap().len();
+        assert_eq!(bar.length(), Some(size));
+        let samples = reader.by_ref().count() as u64;
+        advance(&bar, Some(&progress), samples);
+        assert!(
+            bar.position() > 0 && bar.position() <= size,
+            "{}",
+            bar.position()
+        );
+        // Without a reader's count (a SQLite bag): the samples, with no total.
+        let spinner = reading(&log, None);
+        advance(&spinner, None, samples);
+        assert_eq!((spinner.length(), spinner.position()), (None, samples));
+    }
+}

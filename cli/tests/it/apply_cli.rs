@@ -111,9 +111,21 @@ fn keep_adds_the_corrected_channel_beside_the_raw_one() {
         expect_exit(&o, 0);
         assert_mentions(
             &stdout(&o),
-            &["`a` kept as it was (--keep)", &format!("`{added}`"), "wrote"],
+            &[
+                "`a` kept as it was (--keep)",
+                &format!("`{added}`"),
+                "wrote",
+            ],
         );
-        let o = calib(&["apply", s(&table), s(&log), "-o", s(&out), "--keep", "--json"]);
+        let o = calib(&[
+            "apply",
+            s(&table),
+            s(&log),
+            "-o",
+            s(&out),
+            "--keep",
+            "--json",
+        ]);
         expect_exit(&o, 0);
         let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
         assert_eq!(json["beside"], serde_json::json!([added]), "{json}");
@@ -138,7 +150,10 @@ fn keep_adds_the_corrected_channel_beside_the_raw_one() {
             n += 1;
         }
         assert_eq!(n, truth.len(), "{ext}");
-        assert!(worst_raw > 20.0, "{ext}: the raw channel is kept: {worst_raw}″");
+        assert!(
+            worst_raw > 20.0,
+            "{ext}: the raw channel is kept: {worst_raw}″"
+        );
         assert!(worst_fixed <= 0.0451, "{ext}: {worst_fixed}″");
     }
 }

@@ -1019,7 +1019,15 @@ mod tests {
         let fix = Correction::new(map, AngleUnit::Rad, Wrapping::Positive);
         let done =
             scan(path, "a", AngleUnit::Deg, skip_damaged, parallel_chunks).and_then(|range| {
-                let done = rewrite(path, &out, "a", (&fix, &fix), skip_damaged, false, parallel_chunks)?;
+                let done = rewrite(
+                    path,
+                    &out,
+                    "a",
+                    (&fix, &fix),
+                    skip_damaged,
+                    false,
+                    parallel_chunks,
+                )?;
                 Ok((range, done))
             });
         match done {

@@ -451,7 +451,7 @@ impl Iterator for McapReader {
                     // Chunks are held until checked: where this message's bytes ended is where
                     // the reader was when it gave the message, not where the check got to.
                     self.consumed_at_last = self.stream.consumed_at_last();
-                    self.progress.set(self.consumed_at_last);
+                    self.progress.set(self.consumed.load(Ordering::Relaxed));
                     if self.skip > 0 {
                         self.skip -= 1;
                         continue;

@@ -508,7 +508,10 @@ fn keep_copies_the_corrected_messages_onto_their_own_topic() {
     let (before, after) = (messages(&fixture()), messages(&out));
     assert_eq!(after.len(), before.len() + 300);
     let originals: Vec<_> = after.iter().filter(|m| m.0 != u16::MAX).cloned().collect();
-    assert_eq!(originals, before, "the input's messages, unchanged and in order");
+    assert_eq!(
+        originals, before,
+        "the input's messages, unchanged and in order"
+    );
     // Read back: the original and the corrected joint, at the same stamps.
     let reader = LogReader::open(&out, &ReadOptions::default()).unwrap();
     let names: Vec<String> = reader.names().iter().map(|n| n.qualified.clone()).collect();
