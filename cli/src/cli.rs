@@ -2,7 +2,7 @@
 
 use crate::overwrite::Inputs;
 use crate::{commands, method};
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
 /// Calibrate angular encoders and angle sensors from recorded runs.
@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 /// 3 a gate failed (--max-pp, --max-residual, --fail-on-warning, En > 1 in compare; the outputs
 /// are written all the same).
 #[derive(Debug, Parser, PartialEq)]
-#[command(name = "calib", version, about, long_about, after_help = calib_io::limits::help_text())]
+#[command(name = "calib", version, after_help = calib_io::limits::help_text())]
 pub struct Cli {
     /// Options of every command.
     #[command(flatten)]
@@ -24,6 +24,51 @@ pub struct Cli {
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
+}
+
+impl Cli {
+    /// The arguments of this process, parsed by [`command`] (exits with clap's message and
+    /// status 2 on bad usage, and after printing `--help` or `--version`).
+    pub fn from_env() -> Self {
+        let matches = command().get_matches();
+        Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+    }
+}
+
+/// The command line as clap parses and prints it: the derived one, with every command's short
+/// help (`-h`, the command list) set to the first paragraph of its long help (`--help`), so the
+/// two start with the same sentence (clap derive drops the short one's final period).
+pub fn command() -> clap::Command {
+    same_first_sentence(Cli::command())
+}
+
+/// `cmd` and its subcommands, each with its short help set to its long help's first paragraph.
+fn same_first_sentence(cmd: clap::Command) -> clap::Command {
+    let long = cmd
+        .get_long_about()
+        .or(cmd.get_about())
+        .map(|text| first_paragraph(&text.to_string()));
+    let cmd = match long {
+        Some(about) => cmd.about(about),
+        None => cmd,
+    };
+    let names: Vec<String> = cmd
+        .get_subcommands()
+        .map(|c| c.get_name().to_string())
+        .collect();
+    names.into_iter().fold(cmd, |cmd, name| {
+        cmd.mut_subcommand(name, same_first_sentence)
+    })
+}
+
+/// The first paragraph of a help text on one line, ending with a period.
+fn first_paragraph(text: &str) -> String {
+    let paragraph = text.trim_start().split("\n\n").next().unwrap_or("");
+    let line = paragraph.split_whitespace().collect::<Vec<_>>().join(" ");
+    match line.ends_with(['.', ':', '?']) {
+        true => line,
+        false => format!("{line}."),
+    }
 }
 
 /// The subcommands.
@@ -114,13 +159,43 @@ impl Command {
 
 #[cfg(test)]
 mod tests {
-    use super::Cli;
-    use clap::CommandFactory;
+    /// `calib CMD -h` and `calib CMD --help` start with the same sentence, for every command
+    /// and the tool itself (issue 31), and the command list shows that sentence.
+    #[test]
+    fn short_and_long_help_start_alike() {
+        fn check(cmd: &mut clap::Command, path: &str) {
+            let path = format!("{path} {}", cmd.get_name()).trim().to_string();
+            let short = cmd.render_help().to_string();
+            let long = cmd.render_long_help().to_string();
+            let first = |help: &str| help.lines().next().unwrap_or("").to_string();
+            let (s, l) = (first(&short), first(&long));
+            assert!(s.ends_with('.'), "{path} -h: {s}");
+            assert!(
+                l.starts_with(s.trim_end_matches('.')) || s.starts_with(&l),
+                "{path}: -h starts {s:?}, --help {l:?}"
+            );
+            let names: Vec<String> = cmd
+                .get_subcommands()
+                .map(|c| c.get_name().to_string())
+                .collect();
+            for name in names {
+                if name != "help" {
+                    check(cmd.find_subcommand_mut(&name).unwrap(), &path);
+                }
+            }
+        }
+        check(&mut super::command(), "");
+        let list = super::command().render_help().to_string();
+        assert!(
+            list.contains("inspect      Show what a log holds: channels, rates, gaps, segments and CSRR sessions."),
+            "{list}"
+        );
+    }
 
     /// The channel-naming paragraph is written once and shown by every command that reads a log.
     #[test]
     fn every_log_command_explains_channel_names_once() {
-        let mut cli = Cli::command();
+        let mut cli = super::command();
         for name in ["inspect", "csrr", "multihead", "tdr", "reference"] {
             let help = cli
                 .find_subcommand_mut(name)

@@ -85,6 +85,9 @@ pub struct ApplyJson {
     /// How the corrected readings are wrapped: `positive` ([0, 1 rev)), `signed`
     /// ([−½, ½ rev)) or `unwrapped`.
     pub wrapping: String,
+    /// With `--keep`: the CSV column or MCAP topics holding the corrected readings beside the
+    /// unchanged channel; empty without it.
+    pub beside: Vec<String>,
     /// MCAP messages copied unchanged (other topics', and those without the channel); absent
     /// for CSV.
     pub copied: Option<u64>,

@@ -23,13 +23,12 @@ mod threads;
 mod ui;
 mod units;
 
-use clap::Parser;
 use std::io::Write;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
     clean_up_on_signals();
-    let cli = cli::Cli::parse();
+    let cli = cli::Cli::from_env();
     let (output, code) = match run(cli) {
         Ok(output) => (output, 0),
         // Outputs written and a summary to print, but a non-zero status (a gate, failed logs).

@@ -4,9 +4,11 @@
 //! The option is set once, from `main`, before the command runs; the bars read it, so no
 //! command passes it around.
 
+use calib_io::progress::ReadProgress;
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::Path;
 use std::sync::OnceLock;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 /// Options of every command (clap `global`: accepted before or after the subcommand).
@@ -18,6 +20,15 @@ pub struct Global {
 }
 
 static GLOBAL: OnceLock<Global> = OnceLock::new();
+
+/// The command prints JSON (`--json`): no progress line either, as with `--quiet`.
+static JSON: AtomicBool = AtomicBool::new(false);
+
+/// Hides every progress line: the command's output is JSON for a program. Call it before the
+/// first line is drawn.
+pub fn json_output() {
+    JSON.store(true, Ordering::Relaxed);
+}
 
 /// Sets the global options; the first call wins.
 pub fn set(global: Global) {
@@ -61,7 +72,7 @@ pub fn escape_controls(text: &str) -> String {
 fn bars() -> &'static MultiProgress {
     static BARS: OnceLock<MultiProgress> = OnceLock::new();
     BARS.get_or_init(|| {
-        MultiProgress::with_draw_target(if global().quiet {
+        MultiProgress::with_draw_target(if global().quiet || JSON.load(Ordering::Relaxed) {
             ProgressDrawTarget::hidden()
         } else {
             // indicatif draws nothing when standard error is not a terminal (CI logs stay clean).
@@ -70,21 +81,38 @@ fn bars() -> &'static MultiProgress {
     })
 }
 
-/// A spinner counting the samples of the log at `path` while it is read: advance it by each
-/// batch's samples (drawing on each sample would cost time), and finish it with
+/// The progress line of the log at `path` while it is read: with the reader's `progress`, the
+/// bytes read of the file's size and the time left at the rate so far; without it (a SQLite
+/// bag), a spinner counting the samples. Update it with [`advance`] after each batch of samples
+/// (drawing on each sample would cost time), and finish it with
 /// [`ProgressBar::finish_and_clear`].
-pub fn reading(path: &Path) -> ProgressBar {
+pub fn reading(path: &Path, progress: Option<&ReadProgress>) -> ProgressBar {
     let name = path.file_name().map_or_else(
         || path.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    let bar = bars().add(ProgressBar::new_spinner());
+    let (bar, template) = match progress {
+        Some(p) => (
+            ProgressBar::new(p.total()),
+            "{spinner} reading {msg}: {bytes} of {total_bytes} ({percent} %), {eta} left",
+        ),
+        None => (
+            ProgressBar::new_spinner(),
+            "{spinner} reading {msg}: {human_pos} samples ({elapsed})",
+        ),
+    };
+    let bar = bars().add(bar);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} reading {msg}: {human_pos} samples ({elapsed})")
-            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_spinner()),
     );
     bar.set_message(name);
     bar
+}
+
+/// Moves the reading line to the reader's position: the bytes read where the reader counts them,
+/// else the `samples` read so far (never more than were read).
+pub fn advance(bar: &ProgressBar, progress: Option<&ReadProgress>, samples: u64) {
+    bar.set_position(progress.map_or(samples, ReadProgress::read));
 }
 
 /// A spinner with the elapsed time, for a step without a measure of progress (a solve).
@@ -97,4 +125,34 @@ pub fn working(what: &str) -> ProgressBar {
     bar.set_message(what.to_string());
     bar.enable_steady_tick(Duration::from_millis(120));
     bar
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The reading line of a log read front to back counts its bytes against the file's size
+    /// (issue 31: a total and an ETA, where it counted samples and overshot), and moves to where
+    /// the reader is, never past the end.
+    #[test]
+    fn the_reading_line_counts_bytes_of_the_files_size() {
+        let log = Path::new(env!("CARGO_MANIFEST_DIR")).join("../testdata/examples/quick.mcap");
+        let mut reader =
+            calib_io::LogReader::open(&log, &calib_io::ReadOptions::default()).unwrap();
+        let progress = reader.progress().unwrap();
+        let bar = reading(&log, Some(&progress));
+        let size = std::fs::metadata(&log).unwrap().len();
+        assert_eq!(bar.length(), Some(size));
+        let samples = reader.by_ref().count() as u64;
+        advance(&bar, Some(&progress), samples);
+        assert!(
+            bar.position() > 0 && bar.position() <= size,
+            "{}",
+            bar.position()
+        );
+        // Without a reader's count (a SQLite bag): the samples, with no total.
+        let spinner = reading(&log, None);
+        advance(&spinner, None, samples);
+        assert_eq!((spinner.length(), spinner.position()), (None, samples));
+    }
 }

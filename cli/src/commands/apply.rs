@@ -45,6 +45,9 @@ pub enum Wrap {
 /// HI`) corrects the readings inside its range; readings outside it are copied unchanged,
 /// counted in the summary and warned about (never extrapolated).
 ///
+/// With --keep the channel stays as it was and the corrected readings are added beside it (a
+/// CSV column, an MCAP topic): see --keep.
+///
 /// Example: `calib apply calib-out/a.csv run.mcap -o run-corrected.mcap`
 #[derive(Debug, clap::Args, PartialEq)]
 pub struct Args {
@@ -75,6 +78,13 @@ pub struct Args {
     /// is written.
     #[arg(long)]
     pub skip_damaged: bool,
+    /// Keep the channel as it was and add the corrected one beside it, for viewers (Foxglove,
+    /// PlotJuggler) to plot the two together: a CSV gets a column `<channel>_corrected` right
+    /// after the channel's; an MCAP log a copy of every message carrying the channel, corrected,
+    /// on the topic `<topic>/corrected` (same schema; the joint or field keeps its name, so calib
+    /// reads it back as `<topic>/corrected/<channel>`).
+    #[arg(long)]
+    pub keep: bool,
     /// Print what was done as JSON (docs/apply.schema.json) instead of the summary.
     #[arg(long)]
     pub json: bool,
@@ -109,6 +119,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             Wrap::None => Some(Wrapping::Unwrapped),
         },
         skip_damaged: args.skip_damaged,
+        keep: args.keep,
     };
     let map = match &table {
         AnyTable::Turn(t) => MapRef::Turn(&t.map),
@@ -233,6 +244,19 @@ fn render_summary(
             ""
         }
     );
+    if args.keep {
+        let what = if format == LogFormat::Csv {
+            "column"
+        } else {
+            "topic"
+        };
+        let names: Vec<String> = done.beside.iter().map(|n| format!("`{n}`")).collect();
+        let _ = writeln!(
+            o,
+            "  `{name}` kept as it was (--keep); the corrected readings are beside it, in {what} {}",
+            names.join(", ")
+        );
+    }
     if format == LogFormat::Mcap {
         let _ = writeln!(
             o,
@@ -310,6 +334,7 @@ fn render_json(
         corrected: done.readings - done.outside,
         outside: done.outside,
         range: [done.range.0, done.range.1],
+        beside: done.beside.clone(),
         wrapping: match done.wrapping {
             Wrapping::Positive => "positive",
             Wrapping::Signed => "signed",

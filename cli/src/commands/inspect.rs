@@ -234,10 +234,12 @@ fn render_topics(topics: &[TopicInfo]) -> String {
             t.message_encoding,
             t.messages,
             rate,
-            if t.channels.is_empty() {
-                "  (not read)"
-            } else {
+            if !t.channels.is_empty() {
                 ""
+            } else if calib_io::bookkeeping::is_bookkeeping(&t.topic) {
+                "  (not read: ROS bookkeeping)"
+            } else {
+                "  (not read)"
             }
         );
         let mut line = String::from("     ");

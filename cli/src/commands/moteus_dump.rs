@@ -50,7 +50,9 @@ pub struct Args {
     /// Pole pairs of the motor (default: from the dump).
     #[arg(long)]
     pub pole_pairs: Option<u32>,
-    /// Points of encoder.csv.
+    /// Points of encoder.csv: the grid at which the encoder is measured against the commanded
+    /// angle, 0.1° apart by default, fixed as `calib reference --points` is (the map is measured
+    /// at its points, not summed from fitted harmonics as csrr's, multihead's and tdr's).
     #[arg(long, default_value_t = 3600)]
     pub points: usize,
     /// The `motor_position.sources.N` index of moteus.txt's lines.

@@ -127,6 +127,9 @@ pub struct Runs<'a> {
 pub fn run<M: Method>(m: &M) -> anyhow::Result<String> {
     let prepared = m.prepare()?;
     let runs = m.runs();
+    if runs.json {
+        crate::ui::json_output();
+    }
     crate::units::declare(runs.unit);
     batch::run(
         M::NAME,
@@ -139,8 +142,10 @@ pub fn run<M: Method>(m: &M) -> anyhow::Result<String> {
 }
 
 /// Reads every sample of `reader` (opened on `log` by [`MethodArgs::open`]) and calls `push`
-/// with it. Decoding runs ahead on a second thread ([`crate::threads::prefetch`]) while this one pushes; a
-/// progress bar shows on a terminal; a sample that cannot be read stops the loop with an error
+/// with it. Decoding runs ahead on a second thread ([`crate::threads::prefetch`]) while this
+/// one pushes; a progress line with the bytes read of the log's size and the time left shows on
+/// a terminal (not with `--quiet` or `--json`); a sample that cannot be read stops the loop with
+/// an error
 /// naming the log; readings that fit another unit than the default they were read in are a
 /// usage error once all are read ([`UnitCheck`]). Returns the reader, for its warnings and
 /// alignment.
@@ -149,12 +154,15 @@ pub fn for_each_sample(
     reader: LogReader,
     mut push: impl FnMut(SampleRef),
 ) -> anyhow::Result<LogReader> {
-    let bar = crate::ui::reading(log);
+    let progress = reader.progress();
+    let bar = crate::ui::reading(log, progress.as_ref());
     let mut units = UnitCheck::new(&reader);
     let mut samples = crate::threads::prefetch(reader);
+    let mut read = 0;
     while let Some(batch) = samples.next_batch() {
         let batch = batch.with_context(|| format!("cannot read {}", log.display()))?;
-        bar.inc(batch.len() as u64);
+        read += batch.len() as u64;
+        crate::ui::advance(&bar, progress.as_ref(), read);
         for s in batch.iter() {
             units.push(s.values);
             push(s);

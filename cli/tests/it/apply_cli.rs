@@ -85,6 +85,79 @@ fn the_true_table_gives_back_the_true_angle_within_quantization() {
     }
 }
 
+/// `--keep` (issue 31): the raw channel stays as it was and the corrected one is beside it — a
+/// CSV column `a_corrected`, an MCAP topic `/joint_states/corrected` — named in the summary and
+/// `--json`. Against the simulator's truth the corrected channel is what `apply` without --keep
+/// writes (the same bound, half the 0.09″ quantum: see above) and the raw one is untouched
+/// (its 26.6″ error).
+#[test]
+fn keep_adds_the_corrected_channel_beside_the_raw_one() {
+    for (ext, raw, corrected, added) in [
+        ("csv", "a", "a_corrected", "a_corrected"),
+        (
+            "mcap",
+            "/joint_states/a",
+            "/joint_states/corrected/a",
+            "/joint_states/corrected",
+        ),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let text = noiseless_quick();
+        let scenario = write(dir.path(), "quick.toml", &text);
+        let log = simulate(&scenario, dir.path(), &format!("run.{ext}"));
+        let table = dir.path().join("run.truth/a.csv");
+        let out = dir.path().join(format!("kept.{ext}"));
+        let o = calib(&["apply", s(&table), s(&log), "-o", s(&out), "--keep"]);
+        expect_exit(&o, 0);
+        assert_mentions(
+            &stdout(&o),
+            &[
+                "`a` kept as it was (--keep)",
+                &format!("`{added}`"),
+                "wrote",
+            ],
+        );
+        let o = calib(&[
+            "apply",
+            s(&table),
+            s(&log),
+            "-o",
+            s(&out),
+            "--keep",
+            "--json",
+        ]);
+        expect_exit(&o, 0);
+        let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        assert_eq!(json["beside"], serde_json::json!([added]), "{json}");
+
+        let mut reader = LogReader::open(&out, &ReadOptions::default()).unwrap();
+        let names: Vec<String> = reader.names().iter().map(|n| n.qualified.clone()).collect();
+        let find = |name: &str| {
+            names
+                .iter()
+                .position(|n| n == name)
+                .unwrap_or_else(|| panic!("{name} not in {names:?}"))
+        };
+        reader.select(&[find(raw), find(corrected)], Default::default());
+        let scenario: Scenario = toml::from_str(&text).unwrap();
+        let truth: Vec<_> = scenario.samples().unwrap().with_truth().collect();
+        let (mut worst_raw, mut worst_fixed, mut n) = (0.0f64, 0.0f64, 0);
+        for (sample, t) in reader.zip(&truth) {
+            let v = sample.unwrap().values;
+            let off = |x: f64| wrap_pi(x - t.true_angles[0]).abs() * ARCSEC_PER_RAD;
+            worst_raw = worst_raw.max(off(v[0]));
+            worst_fixed = worst_fixed.max(off(v[1]));
+            n += 1;
+        }
+        assert_eq!(n, truth.len(), "{ext}");
+        assert!(
+            worst_raw > 20.0,
+            "{ext}: the raw channel is kept: {worst_raw}″"
+        );
+        assert!(worst_fixed <= 0.0451, "{ext}: {worst_fixed}″");
+    }
+}
+
 /// Tables from `calib csrr` on the standard quick.toml run (noise 0.05″) correct both sensors to
 /// the method's accuracy. Per sample, corrected − true = the map's error at the reading (≤ 0.25″,
 /// csrr_cli.rs's bound for this run) + noise (σ 0.05″, ≤ 0.25″ at 5σ over ~3300 samples) +

@@ -1,6 +1,7 @@
-//! The README's commands, run as a reader runs them, and their output compared with what the
-//! README shows (issue 31): every code block's `$ ` lines run in order in one working folder
-//! (the repository's `testdata` linked into it, the `calib` under test first on the `PATH`),
+//! The README's commands (and the CI page's, `docs/ci.md`), run as a reader runs them, and their
+//! output compared with what the page shows (issue 31): every code block's `$ ` lines run in
+//! order in one working folder (the repository's `testdata` linked into it, the `calib` under
+//! test first on the `PATH`),
 //! each command's standard output and error together against the lines that follow it. A line
 //! `…` in the README stands for any number of lines; a command followed by nothing (the README
 //! shows a step, not its output) must succeed. A block that starts `#!/usr/bin/env bash` then
@@ -45,8 +46,20 @@ fn matches(shown: &[String], got: &[&str]) -> bool {
 
 #[test]
 fn readme_commands_print_what_the_readme_shows() {
+    run_the_commands_of("README.md", 20);
+}
+
+/// The CI page's lab example, moved out of the README (issue 31), is checked the same way.
+#[test]
+fn ci_page_commands_print_what_the_page_shows() {
+    run_the_commands_of("docs/ci.md", 7);
+}
+
+/// Runs every `$ ` command of the page `file` (relative to the repository) in order in one
+/// fresh folder and compares its output with the page's; at least `fewest` commands.
+fn run_the_commands_of(file: &str, fewest: usize) {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let readme = std::fs::read_to_string(repo.join("README.md")).unwrap();
+    let readme = std::fs::read_to_string(repo.join(file)).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let work = dir.path();
     std::os::unix::fs::symlink(
@@ -109,13 +122,13 @@ fn readme_commands_print_what_the_readme_shows() {
         let got: Vec<&str> = got.lines().collect();
         assert!(
             matches(&step.shown, &got),
-            "`{}` printed\n{}\nbut the README shows\n{}",
+            "`{}` printed\n{}\nbut {file} shows\n{}",
             step.command,
             got.join("\n"),
             step.shown.join("\n")
         );
     }
-    assert!(ran >= 10, "only {ran} README commands found");
+    assert!(ran >= fewest, "only {ran} commands found in {file}");
 }
 
 #[test]

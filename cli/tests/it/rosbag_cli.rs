@@ -213,15 +213,74 @@ fn inspect_lists_the_topics_calib_does_not_read() {
             "tf2_msgs/msg/TFMessage",
             "200 msg",
             "100.00 Hz",
-            "(not read)",
+            "(not read: ROS bookkeeping)",
         ],
     );
+    assert!(!out.contains("warning: topic `/tf`"), "{out}");
     assert!(out.contains("      enc_a, enc_b\n"), "{out}");
     assert!(out.contains("  200 samples over "), "{out}");
     // The same file under another extension is recognised by SQLite's magic number.
     let renamed = dir.path().join("robot.bag2");
     std::fs::copy(&db3, &renamed).unwrap();
     expect_exit(&calib(&["inspect", s(&renamed)]), 0);
+}
+
+/// ROS 2 bookkeeping topics (`/rosout`, `/tf_static`, `/events/…`) are listed as not read
+/// and not warned about; a topic of a type calib does not read that is not bookkeeping (it may
+/// hold what the user meant to calibrate) is warned about by name (issue 31).
+#[test]
+fn bookkeeping_topics_are_listed_and_only_unknown_ones_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let db3 = dir.path().join("robot.db3");
+    let db = create_db3(
+        &db3,
+        &[
+            ("/joint_states", JOINT_STATE),
+            ("/rosout", "rcl_interfaces/msg/Log"),
+            ("/tf_static", "tf2_msgs/msg/TFMessage"),
+            (
+                "/events/write_split",
+                "rosbag2_interfaces/msg/WriteSplitEvent",
+            ),
+            ("/motor/encoder_raw", "acme_msgs/msg/EncoderFrame"),
+        ],
+    );
+    db.execute_batch("BEGIN").unwrap();
+    for i in 0..200i64 {
+        let t = 1_000_000_000 + i * 10_000_000;
+        let angle = i as f64 * 0.01;
+        insert(
+            &db,
+            1,
+            t,
+            &joint_state(t, &["enc_a", "enc_b"], &[angle, angle + 0.5]),
+        );
+        for topic in 2..=5 {
+            insert(&db, topic, t + 1000, &[0, 1, 0, 0, 7, 7, 7, 7]);
+        }
+    }
+    db.execute_batch("COMMIT").unwrap();
+    drop(db);
+    let out = inspect(&db3, &[]);
+    assert!(out.contains("\ntopics: 1 read, 4 not read\n"), "{out}");
+    for topic in ["/rosout", "/tf_static", "/events/write_split"] {
+        let line = out
+            .lines()
+            .find(|l| l.trim_start().starts_with(topic))
+            .unwrap_or_else(|| panic!("{topic} missing:\n{out}"));
+        assert!(line.ends_with("(not read: ROS bookkeeping)"), "{line}");
+        assert!(!out.contains(&format!("topic `{topic}`")), "{out}");
+    }
+    assert!(
+        out.contains(
+            "warning: topic `/motor/encoder_raw` (acme_msgs/msg/EncoderFrame, cdr) is not \
+             JointState, a std_msgs scalar or JSON and was skipped"
+        ),
+        "{out}"
+    );
+    let json = inspect_json(&db3, &[]);
+    let warnings = json["warnings"].as_array().unwrap();
+    assert_eq!(warnings.len(), 1, "{json}");
 }
 
 #[test]

@@ -45,6 +45,7 @@
 pub mod align;
 pub mod apply;
 pub mod atomic;
+pub mod bookkeeping;
 pub mod budget;
 pub mod compare;
 pub mod csv_log;
@@ -58,6 +59,7 @@ pub mod moteus_dump;
 pub mod naming;
 pub mod points;
 pub mod prefetch;
+pub mod progress;
 pub mod readings;
 pub mod report;
 mod ros2;

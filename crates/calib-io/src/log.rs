@@ -319,6 +319,16 @@ impl LogReader {
         }
     }
 
+    /// How far the reader has got through the log's file, of its size: a handle to read from
+    /// another thread while it reads; `None` for a SQLite bag, whose messages are not read in
+    /// the file's order.
+    pub fn progress(&self) -> Option<crate::progress::ReadProgress> {
+        match &self.inner {
+            Inner::Csv(r) => Some(r.progress()),
+            Inner::Ros2(r) => r.progress(),
+        }
+    }
+
     /// Whether the log marks CSRR sessions (a CSV `session` column).
     pub fn has_session_marks(&self) -> bool {
         matches!(&self.inner, Inner::Csv(r) if r.has_session_column())
@@ -353,7 +363,9 @@ impl LogReader {
         }
     }
 
-    /// Notes for the user about parts of the log that were not read (topics of other schemas).
+    /// Notes for the user about parts of the log that were not read (topics of other schemas),
+    /// but for the ROS 2 bookkeeping topics every recording carries
+    /// ([`crate::bookkeeping`]: `/rosout`, `/tf`, …), which are expected.
     pub fn notes(&self) -> Vec<String> {
         let Inner::Ros2(r) = &self.inner else {
             return Vec::new();
@@ -361,6 +373,7 @@ impl LogReader {
         r.samples()
             .ignored_topics()
             .iter()
+            .filter(|t| !crate::bookkeeping::is_bookkeeping(&t.topic))
             .map(|t| {
                 format!(
                     "topic `{}` ({}, {}) is not JointState, a std_msgs scalar or JSON and was \

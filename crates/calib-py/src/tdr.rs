@@ -20,9 +20,9 @@ fn options(
     max_drag_order: usize,
     motion_degree: Option<usize>,
     min_revolutions: f64,
-    points: usize,
+    points: Option<usize>,
 ) -> PyResult<TdrOptions> {
-    check_points(Some(points))?;
+    check_points(points)?;
     if let Some(h) = max_order.filter(|h| !(1..=MAX_ORDER).contains(h)) {
         return Err(usage(format!(
             "max_order={h} is outside its range, 1 to {MAX_ORDER}"
@@ -72,7 +72,7 @@ fn tdr_result<'py>(
 
 /// Spin-down self-calibration of one encoder from arrays (see `calib.tdr`).
 #[pyfunction]
-#[pyo3(signature = (t, readings, r#ref=None, *, name="encoder".to_string(), max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=3600))]
+#[pyo3(signature = (t, readings, r#ref=None, *, name="encoder".to_string(), max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn tdr<'py>(
     py: Python<'py>,
@@ -84,7 +84,7 @@ pub fn tdr<'py>(
     max_drag_order: usize,
     motion_degree: Option<usize>,
     min_revolutions: f64,
-    points: usize,
+    points: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (t, x) = (t.as_slice()?, readings.as_slice()?);
     same_length("readings", x, t.len())?;
@@ -123,7 +123,7 @@ pub fn tdr<'py>(
 
 /// Spin-down self-calibration of a log's channel (see `calib.tdr_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, channel, r#ref=None, max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=3600, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, channel, r#ref=None, max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn tdr_log<'py>(
     py: Python<'py>,
@@ -134,7 +134,7 @@ pub fn tdr_log<'py>(
     max_drag_order: usize,
     motion_degree: Option<usize>,
     min_revolutions: f64,
-    points: usize,
+    points: Option<usize>,
     unit: Option<&str>,
     time: &str,
     max_gap: Option<f64>,

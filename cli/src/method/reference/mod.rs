@@ -73,7 +73,10 @@ pub struct Args {
     /// its readings are corrected by it, and its largest u is combined into every u_arcsec.
     #[arg(long, value_name = "FILE")]
     pub ref_table: Option<PathBuf>,
-    /// Points of the output table.
+    /// Points of the output table: the grid at which every pass is measured (where the DUT's
+    /// reading crosses each point), 0.1° apart over a turn by default. A fixed default, unlike
+    /// csrr's, multihead's and tdr's (from the harmonics they fit): this map is measured at its
+    /// points, not summed from harmonics; a finer grid needs samples closer than its step.
     #[arg(long, default_value_t = 3600)]
     pub points: usize,
     /// Speed below which the DUT counts as stopped, degrees per second.

@@ -73,9 +73,10 @@ pub struct Args {
     /// Fewest revolutions of coast accepted.
     #[arg(long, default_value_t = 10.0)]
     pub min_revolutions: f64,
-    /// Points of the output table.
-    #[arg(long, default_value_t = 3600)]
-    pub points: usize,
+    /// Points of the output table (default: enough for linear interpolation to 0.01″, ≥ 3600,
+    /// as csrr and multihead choose them: the map is a sum of the harmonics kept).
+    #[arg(long)]
+    pub points: Option<usize>,
     /// Logs, output, unit, output form, gates, timing.
     #[command(flatten)]
     pub common: MethodArgs,
@@ -108,7 +109,7 @@ fn prepare(args: &Args) -> anyhow::Result<()> {
         ))
         .into());
     }
-    crate::input::check_points(Some(args.points))?;
+    crate::input::check_points(args.points)?;
     if let Some(h) = args.max_order {
         crate::input::check_count("--max-order", h, 1, Some(MAX_ORDER))?;
     }

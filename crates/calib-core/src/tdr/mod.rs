@@ -133,8 +133,10 @@ pub struct TdrOptions {
     pub max_drag_order: usize,
     /// Degree of the motion's Chebyshev series; `None` (default) chooses it by BIC.
     pub motion_degree: Option<usize>,
-    /// Grid points of the map (default 3600).
-    pub points: usize,
+    /// Grid points of the map; `None` (default): enough for linear interpolation between them to
+    /// err by at most 0.01″ ([`crate::csrr::table_points`], at least 3600), as CSRR's and
+    /// multi-head's maps, which are sums of harmonics too.
+    pub points: Option<usize>,
     /// Fewest revolutions of coast accepted (default 10).
     pub min_revolutions: f64,
     /// The coast ends where the speed falls below this fraction of its peak (default 0.1): at
@@ -148,7 +150,7 @@ impl Default for TdrOptions {
             max_order: None,
             max_drag_order: 16,
             motion_degree: None,
-            points: 3600,
+            points: None,
             min_revolutions: 10.0,
             min_speed_fraction: 0.1,
         }
@@ -522,7 +524,11 @@ impl Tdr {
         let residual_rms = (fit.rss / t.len() as f64).sqrt();
 
         let (series, motion) = series_and_motion(&basis, &fit, h, y0);
-        let map = ErrorMap::from_series(&series, self.opts.points);
+        let points = self
+            .opts
+            .points
+            .unwrap_or_else(|| crate::csrr::table_points(&series));
+        let map = ErrorMap::from_series(&series, points);
         let drag = drag_terms(&basis, &fit, speeds.drag_gain);
 
         // 4. What the model leaves: periodic structure in the residual above the orders fitted.
@@ -531,14 +537,8 @@ impl Tdr {
         let coast_bins = coast_trace(samples, &basis, &fit, COAST_BINS);
         warnings.extend(unresolved_warning(&unresolved, h));
 
-        let uncertainty = map_uncertainty(
-            &basis,
-            &fit,
-            &series,
-            &unresolved,
-            screen.dropped,
-            self.opts.points,
-        );
+        let uncertainty =
+            map_uncertainty(&basis, &fit, &series, &unresolved, screen.dropped, points);
         let seen = union(
             &orders,
             &unresolved.iter().map(|u| u.order).collect::<Vec<_>>(),

@@ -509,3 +509,45 @@ fn one_thread_and_two_give_the_same_bits() {
     // Debug prints every f64 with the digits that round-trip it: equal text, equal bits.
     assert_eq!(format!("{one:?}"), format!("{two:?}"));
 }
+
+/// The table's points come from the map, as csrr's and multihead's do (issue 31: one default
+/// for the methods that fit harmonics): 3600 where linear interpolation between them errs by
+/// at most 0.01″ (the bundled coast: at most 0.002″ at 0.1° steps), more where the map is
+/// curved enough to ask for them — 300″ at order 40 errs by up to
+/// 300″·(40·2π/3600)²/8 = 0.18″ on 0.1° steps.
+#[test]
+fn the_default_table_points_hold_linear_interpolation_to_a_hundredth_of_an_arcsecond() {
+    let bound = |cal: &TdrCalibration| {
+        let step = TAU / cal.map.len() as f64;
+        let curvature: f64 = cal
+            .series
+            .harmonics()
+            .iter()
+            .map(|h| h.amplitude * (h.order as f64 * step).powi(2) / 8.0)
+            .sum();
+        arcsec(curvature)
+    };
+    let (plain, _) = run(&scenario("spindown.toml"));
+    assert_eq!(plain.map.len(), 3600);
+    assert!(bound(&plain) <= 0.01, "{}", bound(&plain));
+
+    let text = std::fs::read_to_string(format!(
+        "{}/../../testdata/scenarios/spindown.toml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap()
+    .replace(
+        "{ order = 16, amplitude_arcsec = 3.0, phase_deg = 75.0 },",
+        "{ order = 16, amplitude_arcsec = 3.0, phase_deg = 75.0 },\n  \
+         { order = 40, amplitude_arcsec = 300.0, phase_deg = 20.0 },",
+    );
+    let curved: Scenario = toml::from_str(&text).unwrap();
+    let (cal, _) = run(&curved);
+    assert!(cal.orders.contains(&40), "{:?}", cal.orders);
+    assert!(
+        cal.map.len() > 3600 && cal.map.len() % 3600 == 0,
+        "{}",
+        cal.map.len()
+    );
+    assert!(bound(&cal) <= 0.01, "{}", bound(&cal));
+}

@@ -159,18 +159,32 @@ impl Records {
         }
     }
 
+    /// Whether the current record has a field reading `name` (spaces around it aside).
+    fn has_field(&self, name: &str) -> bool {
+        (0..self.fields.len()).any(|i| self.field(i).trim_ascii() == name.as_bytes())
+    }
+
     fn error(&self, column: Option<&str>, message: String) -> Error {
         csv_error(&self.path, self.line, column, message)
     }
 }
 
-/// A pass over the log: `each(records, Some((column, value)))` for every data row with the
-/// channel's column and value (in the file's unit), `each(records, None)` for the header and
-/// blank lines.
+/// A record of the log as [`walk`] hands it on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Row {
+    /// A line before the header, or a blank line.
+    Other,
+    /// The header, and the channel's column in it.
+    Header(usize),
+    /// A data row: the channel's column and its value (in the file's unit).
+    Data(usize, f64),
+}
+
+/// A pass over the log: `each(records, row)` for every record, in order (see [`Row`]).
 fn walk(
     path: &Path,
     channel: &str,
-    mut each: impl FnMut(&Records, Option<(usize, f64)>) -> Result<(), Error>,
+    mut each: impl FnMut(&Records, Row) -> Result<(), Error>,
 ) -> Result<(), Error> {
     let (mut records, dialect) = Records::open(path)?;
     // The lines before the header (instrument, date, …) are copied as they are: `skip`
@@ -183,7 +197,7 @@ fn walk(
         if !records.fields.is_empty() {
             skipped += 1;
         }
-        each(&records, None)?;
+        each(&records, Row::Other)?;
     }
     // The header is the first record that is not a blank line.
     loop {
@@ -196,7 +210,7 @@ fn walk(
         if !records.fields.is_empty() {
             break;
         }
-        each(&records, None)?;
+        each(&records, Row::Other)?;
     }
     let names: Vec<String> = (0..records.fields.len())
         .map(|i| {
@@ -209,7 +223,6 @@ fn walk(
             String::from_utf8_lossy(f.trim_ascii()).into_owned()
         })
         .collect();
-    each(&records, None)?;
     let time = dialect::time_column(&names, None, None).map(|(i, _)| i);
     let is_channel = |i: usize| Some(i) != time && names[i] != "session";
     let column = (0..names.len())
@@ -227,9 +240,10 @@ fn walk(
                 ),
             )
         })?;
+    each(&records, Row::Header(column))?;
     while records.next()? {
         if records.fields.is_empty() {
-            each(&records, None)?;
+            each(&records, Row::Other)?;
             continue;
         }
         if records.fields.len() != names.len() {
@@ -254,7 +268,7 @@ fn walk(
                 ),
             )
         })?;
-        each(&records, Some((column, value)))?;
+        each(&records, Row::Data(column, value))?;
     }
     Ok(())
 }
@@ -262,8 +276,8 @@ fn walk(
 /// The range of the channel's readings.
 pub(super) fn scan(path: &Path, channel: &str, unit: AngleUnit) -> Result<Readings, Error> {
     let mut range = Readings::new(unit);
-    walk(path, channel, |_, reading| {
-        if let Some((_, x)) = reading {
+    walk(path, channel, |_, row| {
+        if let Row::Data(_, x) = row {
             range.add(x, unit);
         }
         Ok(())
@@ -300,12 +314,15 @@ fn as_written(value: f64, field: &[u8], unit: AngleUnit) -> Option<String> {
     Some(format!("{value:.decimals$}").replace('.', &mark.to_string()))
 }
 
-/// Writes `output` with the channel's readings corrected; returns how many.
+/// Writes `output` with the channel's readings corrected; returns how many. With `keep`, the
+/// channel's field stays as it was and a field is added after it: `keep` in the header, the
+/// corrected reading in every row.
 pub(super) fn rewrite(
     input: &Path,
     output: &Path,
     channel: &str,
     fix: &Correction,
+    keep: Option<&str>,
 ) -> Result<u64, Error> {
     let mut out = AtomicFile::create(output)?;
     let io = |source| Error::Io {
@@ -314,20 +331,46 @@ pub(super) fn rewrite(
     };
     let mut count = 0u64;
     let mut number = ryu::Buffer::new();
-    walk(input, channel, |records, reading| {
-        let Some((column, x)) = reading else {
-            return out.write_all(&records.record).map_err(io);
+    walk(input, channel, |records, row| {
+        let (column, x) = match row {
+            Row::Other => return out.write_all(&records.record).map_err(io),
+            Row::Header(column) => {
+                let Some(name) = keep else {
+                    return out.write_all(&records.record).map_err(io);
+                };
+                if records.has_field(name) {
+                    return Err(records.error(
+                        Some(name),
+                        format!(
+                            "the header has a column `{name}` already, where --keep would add \
+                             the corrected `{channel}`; rename that column or leave out --keep"
+                        ),
+                    ));
+                }
+                let end = records.fields[column].end;
+                out.write_all(&records.record[..end])
+                    .and_then(|()| out.write_all(&[records.separator]))
+                    .and_then(|()| out.write_all(name.as_bytes()))
+                    .and_then(|()| out.write_all(&records.record[end..]))
+                    .map_err(io)?;
+                return Ok(());
+            }
+            Row::Data(column, x) => (column, x),
         };
         let span = records.fields[column].clone();
-        out.write_all(&records.record[..span.start]).map_err(io)?;
-        let corrected = fix.apply(x);
         let field = &records.record[span.clone()];
-        match as_written(corrected, field, fix.unit()) {
-            Some(text) => out.write_all(text.as_bytes()),
-            None => out.write_all(number.format_finite(corrected).as_bytes()),
+        let corrected = fix.apply(x);
+        let text = as_written(corrected, field, fix.unit())
+            .unwrap_or_else(|| number.format_finite(corrected).to_string());
+        if keep.is_some() {
+            out.write_all(&records.record[..span.end])
+                .and_then(|()| out.write_all(&[records.separator]))
+        } else {
+            out.write_all(&records.record[..span.start])
         }
+        .and_then(|()| out.write_all(text.as_bytes()))
+        .and_then(|()| out.write_all(&records.record[span.end..]))
         .map_err(io)?;
-        out.write_all(&records.record[span.end..]).map_err(io)?;
         count += 1;
         Ok(())
     })?;

@@ -443,6 +443,52 @@ pub(super) struct Rewritten {
     pub copied: u64,
     pub truncated: Option<Truncation>,
     pub damaged: Vec<DamagedChunk>,
+    /// With `keep`: the topics the corrected messages were copied to.
+    pub beside: Vec<String>,
+}
+
+/// The channels `keep` adds: one per input channel carrying the readings, on
+/// [`corrected_topic`](super::corrected_topic) with the same schema, encoding and metadata. Their
+/// IDs count down from the largest, away from the input's, which count up from 0 or 1.
+struct Companions {
+    /// The input's channels by ID, as their records came.
+    channels: HashMap<u16, mcap::records::Channel>,
+    /// The companion of each input channel given one.
+    added: HashMap<u16, u16>,
+    next: u16,
+}
+
+impl Companions {
+    fn new() -> Self {
+        Companions {
+            channels: HashMap::new(),
+            added: HashMap::new(),
+            next: u16::MAX,
+        }
+    }
+
+    /// The companion of channel `id`, and its channel record if it is new (to be written before
+    /// its first message); `None` for a channel whose record was not met or when IDs run out.
+    fn of(&mut self, id: u16) -> Option<(u16, Option<mcap::records::Channel>)> {
+        if let Some(&c) = self.added.get(&id) {
+            return Some((c, None));
+        }
+        let input = self.channels.get(&id)?;
+        let companion = self.next;
+        if self.channels.contains_key(&companion) {
+            return None;
+        }
+        self.next -= 1;
+        self.added.insert(id, companion);
+        Some((
+            companion,
+            Some(mcap::records::Channel {
+                id: companion,
+                topic: super::corrected_topic(&input.topic),
+                ..input.clone()
+            }),
+        ))
+    }
 }
 
 /// The writer's options for a copy of the log at `path`: its header's profile and library, and
@@ -720,9 +766,11 @@ pub(super) fn rewrite(
     channel: &str,
     fix: (&Correction, &Correction),
     skip_damaged: bool,
+    keep: bool,
     parallel_chunks: usize,
 ) -> Result<Rewritten, Error> {
     let (joint_fix, json_fix) = fix;
+    let mut companions = Companions::new();
     let mut out: Option<Output> = None;
     let mut batch = Batch::default();
     let mut done = Rewritten {
@@ -730,6 +778,7 @@ pub(super) fn rewrite(
         copied: 0,
         truncated: None,
         damaged: Vec::new(),
+        beside: Vec::new(),
     };
     let mut number = ryu::Buffer::new();
     let fail = |(index, e): Failed| match e {
@@ -764,6 +813,9 @@ pub(super) fn rewrite(
                 ));
             }
         };
+        if let Record::Channel(c) = record {
+            companions.channels.insert(c.id, c.clone());
+        }
         let Record::Message { header, data } = record else {
             // The rest is structure (chunks, indexes, summary, footer) the writer makes anew, or
             // a second header, which the specification does not allow and which is dropped.
@@ -777,6 +829,36 @@ pub(super) fn rewrite(
             }
             return w.put(Out::Record(copy)).map_err(fail);
         };
+        let mut header = *header;
+        if let (true, Some(_)) = (keep, &hit) {
+            // The original first, unchanged; the corrected copy follows on the companion.
+            let (companion, new) = companions.of(header.channel_id).ok_or_else(|| {
+                mcap_error(
+                    input,
+                    Some(index),
+                    None,
+                    "--keep needs a channel for the corrected copies and the log uses every \
+                     channel ID, or its message comes before its channel record; correct it \
+                     without --keep"
+                        .into(),
+                )
+            })?;
+            if let Some(channel) = new {
+                done.beside.push(channel.topic.clone());
+                if !batch.headers.is_empty() {
+                    let next = w.batch(index);
+                    w.put(Out::Messages(std::mem::replace(&mut batch, next)))
+                        .map_err(fail)?;
+                }
+                w.put(Out::Record(Record::Channel(channel))).map_err(fail)?;
+            }
+            if batch.headers.is_empty() {
+                batch.first = index;
+            }
+            batch.data.extend_from_slice(data);
+            batch.headers.push((header, batch.data.len()));
+            header.channel_id = companion;
+        }
         if batch.headers.is_empty() {
             batch.first = index;
         }
@@ -808,7 +890,7 @@ pub(super) fn rewrite(
                 done.readings += fields.len() as u64;
             }
         }
-        batch.headers.push((*header, batch.data.len()));
+        batch.headers.push((header, batch.data.len()));
         if batch.full() {
             let next = w.batch(index + 1);
             w.put(Out::Messages(std::mem::replace(&mut batch, next)))
@@ -937,7 +1019,15 @@ mod tests {
         let fix = Correction::new(map, AngleUnit::Rad, Wrapping::Positive);
         let done =
             scan(path, "a", AngleUnit::Deg, skip_damaged, parallel_chunks).and_then(|range| {
-                let done = rewrite(path, &out, "a", (&fix, &fix), skip_damaged, parallel_chunks)?;
+                let done = rewrite(
+                    path,
+                    &out,
+                    "a",
+                    (&fix, &fix),
+                    skip_damaged,
+                    false,
+                    parallel_chunks,
+                )?;
                 Ok((range, done))
             });
         match done {

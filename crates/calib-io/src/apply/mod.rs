@@ -13,6 +13,12 @@
 //!   `position`, in a JSON message the text of that field's number. Chunks are re-formed (with the
 //!   input's compression, where its summary names it) and the summary and indexes rewritten.
 //!
+//! With [`ApplyOptions::keep`] the channel is copied as it was and the corrected readings are
+//! added beside it: a CSV column [`corrected_name`] right after the channel's (its header and
+//! every row; the rest of each line as read), or, in an MCAP log, a copy of each message carrying
+//! the channel, corrected as above, on a new channel of the same schema and encoding whose topic
+//! is [`corrected_topic`] (the message right after the original, with its times and sequence).
+//!
 //! Both stream: memory stays bounded by a row or a few MCAP chunks, whatever the log's length.
 //! An MCAP log of several chunks is read with its chunks decompressed on worker threads and
 //! written on a thread of its own (see the `mcap` module).
@@ -52,6 +58,23 @@ pub struct ApplyOptions {
     /// MCAP: leave out chunks that do not match their CRC (listed in
     /// [`Applied::damaged_chunks`]) instead of failing on the first.
     pub skip_damaged: bool,
+    /// Keep the channel as it was and add the corrected readings beside it (see
+    /// [`Applied::beside`]), instead of replacing them: a CSV gets the column
+    /// [`corrected_name`]`(channel)` right after the channel's, an MCAP log a copy of every
+    /// message carrying the channel, corrected, on the topic [`corrected_topic`]`(topic)`.
+    pub keep: bool,
+}
+
+/// The CSV column `--keep` adds beside channel `channel`: `a` → `a_corrected`.
+pub fn corrected_name(channel: &str) -> String {
+    format!("{channel}_corrected")
+}
+
+/// The MCAP topic `--keep` copies the corrected messages of `topic` to: `/joint_states` →
+/// `/joint_states/corrected` (the joint keeps its name, so viewers plot the two side by side;
+/// calib names it `/joint_states/corrected/a`).
+pub fn corrected_topic(topic: &str) -> String {
+    format!("{}/corrected", topic.trim_end_matches('/'))
 }
 
 /// What [`apply`] did.
@@ -78,6 +101,9 @@ pub struct Applied {
     pub damaged_chunks: Vec<DamagedChunk>,
     /// Readings outside a range table's range, copied unchanged (0 for a whole-turn table).
     pub outside: u64,
+    /// With [`ApplyOptions::keep`]: the CSV column, or the MCAP topics, that hold the corrected
+    /// readings beside the unchanged channel; empty otherwise.
+    pub beside: Vec<String>,
 }
 
 /// The map [`apply_map`] corrects with.
@@ -249,10 +275,13 @@ pub fn apply_scanned(
         MapRef::Turn(m) => Correction::new(m.clone(), unit, wrapping),
         MapRef::Range(m) => Correction::with_range(m.clone(), unit, wrapping),
     };
+    let mut beside = Vec::new();
     let (readings, copied, truncated, outside, damaged_chunks) = match format {
         LogFormat::Csv => {
             let f = fix(unit);
-            let n = csv::rewrite(input, output, &opts.channel, &f)?;
+            let keep = opts.keep.then(|| corrected_name(&opts.channel));
+            let n = csv::rewrite(input, output, &opts.channel, &f, keep.as_deref())?;
+            beside.extend(keep);
             (n, 0, None, f.outside(), Vec::new())
         }
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
@@ -264,8 +293,10 @@ pub fn apply_scanned(
                 &opts.channel,
                 (&joint, &json),
                 opts.skip_damaged,
+                opts.keep,
                 PARALLEL_CHUNKS,
             )?;
+            beside.extend(done.beside);
             (
                 done.readings,
                 done.copied,
@@ -285,5 +316,6 @@ pub fn apply_scanned(
         truncated,
         damaged_chunks,
         outside,
+        beside,
     })
 }

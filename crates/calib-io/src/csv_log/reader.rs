@@ -4,6 +4,7 @@ use super::dialect::{self, Dialect, Header, TimeUnit, WHITESPACE};
 use super::fields::{self, line_of, parse_f64, parse_f64_comma, parse_integer};
 use super::time_step::{TimeStep, UnitFrom};
 use crate::limits::LineLimit;
+use crate::progress::ReadProgress;
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample};
 use csv::ByteRecord;
@@ -64,6 +65,8 @@ pub struct CsvReader {
     point_list: bool,
     dialect: Dialect,
     session_col: Option<usize>,
+    /// Bytes of the file read so far, of its size.
+    progress: ReadProgress,
     /// The column of each channel, in the order of `channels`.
     value_cols: Vec<usize>,
     rad_per_unit: f64,
@@ -113,6 +116,14 @@ impl Records {
             })
         } else {
             Records::Csv(fields::csv_reader_with(file, dialect.separator))
+        }
+    }
+
+    /// The byte offset of the next record.
+    fn position(&self) -> u64 {
+        match self {
+            Records::Csv(r) => r.position().byte(),
+            Records::Whitespace(w) => w.offset,
         }
     }
 
@@ -352,7 +363,9 @@ impl CsvReader {
                 ),
             });
         }
+        let size = std::fs::metadata(path).map_or(0, |m| m.len());
         Ok(CsvReader {
+            progress: ReadProgress::new(size),
             path: path.to_path_buf(),
             reader,
             record,
@@ -409,6 +422,11 @@ impl CsvReader {
     /// file without a time column).
     pub fn time_step(&self) -> Option<&TimeStep> {
         self.time_step.as_ref()
+    }
+
+    /// How far the reader has got through the file: a handle to read from another thread.
+    pub fn progress(&self) -> ReadProgress {
+        self.progress.clone()
     }
 
     /// What the reader noticed; a CSV log has nothing to report beyond its errors, so this is
@@ -600,7 +618,7 @@ impl Iterator for CsvReader {
                     self.done = true;
                     return None;
                 }
-                Ok(true) => {}
+                Ok(true) => self.progress.set(self.reader.position()),
                 Ok(false) => {
                     self.done = true;
                     return None;

@@ -59,6 +59,7 @@ use super::chunks;
 use super::records::{self, StreamError};
 use crate::align::{AlignOptions, Alignment};
 use crate::naming::ChannelName;
+use crate::progress::ReadProgress;
 use crate::ros2::PEEK_WINDOW;
 use crate::ros2::encoding::Encoding;
 use crate::ros2::registry::{IgnoredTopic, Registry, Resolved, TopicInfo, too_many_topics};
@@ -97,6 +98,8 @@ pub struct McapReader {
     consumed_at_last: u64,
     /// The file's length when opened.
     len: u64,
+    /// Bytes of the file read so far, of `len`, for a progress line.
+    progress: ReadProgress,
     /// The channels, the selection and the samples in progress, shared with the bag reader.
     samples: Samples,
     /// Messages taken from the stream so far (all topics).
@@ -310,6 +313,7 @@ impl McapReader {
             consumed,
             consumed_at_last: 0,
             len,
+            progress: ReadProgress::new(len),
             samples: Samples::new(registry, opts, "message"),
             index: 0,
             done: false,
@@ -438,6 +442,10 @@ impl Ros2Reader for McapReader {
         &self.samples
     }
 
+    fn progress(&self) -> Option<ReadProgress> {
+        Some(self.progress.clone())
+    }
+
     fn samples_mut(&mut self) -> &mut Samples {
         &mut self.samples
     }
@@ -449,6 +457,7 @@ impl Ros2Reader for McapReader {
                     // Chunks are held until checked: where this message's bytes ended is where
                     // the reader was when it gave the message, not where the check got to.
                     self.consumed_at_last = self.stream.consumed_at_last();
+                    self.progress.set(self.consumed.load(Ordering::Relaxed));
                     if self.skip > 0 {
                         self.skip -= 1;
                         continue;

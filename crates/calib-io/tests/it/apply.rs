@@ -45,6 +45,7 @@ fn opts(channel: &str) -> ApplyOptions {
         unit: None,
         wrapping: None,
         skip_damaged: false,
+        keep: false,
     }
 }
 
@@ -441,4 +442,95 @@ fn formats_must_match_and_a_channel_without_readings_is_an_error() {
         "{err}"
     );
     assert!(!out.exists());
+}
+
+/// `keep` (issue 31, `calib apply --keep`): a CSV keeps the channel's column as it was and gets
+/// `a_corrected` right after it, header and rows, every other byte of each line as read.
+#[test]
+fn keep_adds_the_corrected_csv_column_beside_the_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("run.csv");
+    let readings = [0.0f64, 45.5, 123.25, 359.75];
+    let mut text = String::from("t,a,b\n");
+    for (i, x) in readings.iter().enumerate() {
+        text += &format!("{i},{x:.6},{}\n", 7 + i);
+    }
+    std::fs::write(&log, &text).unwrap();
+    let out = dir.path().join("out.csv");
+    let o = ApplyOptions {
+        keep: true,
+        ..opts("a")
+    };
+    let done = apply(&log, &out, &map(), &o).unwrap();
+    assert_eq!(done.readings, 4);
+    assert_eq!(done.beside, ["a_corrected"]);
+    let got = std::fs::read_to_string(&out).unwrap();
+    let lines: Vec<&str> = got.lines().collect();
+    assert_eq!(lines[0], "t,a,a_corrected,b");
+    for ((line, given), x) in lines[1..].iter().zip(text.lines().skip(1)).zip(readings) {
+        let f: Vec<&str> = line.split(',').collect();
+        let g: Vec<&str> = given.split(',').collect();
+        // t, a and b exactly as given; a_corrected = a − e(a), in degrees, written with 7
+        // decimals (0.001″ resolved): within half the last decimal.
+        assert_eq!((f[0], f[1], f[3]), (g[0], g[1], g[2]), "{line}");
+        let want = (x.to_radians() - error_at(x.to_radians())).to_degrees();
+        let v: f64 = f[2].parse().unwrap();
+        // Kept in [0, 360) as the readings are: compared modulo a turn.
+        let off = (v - want).rem_euclid(360.0);
+        assert!(off.min(360.0 - off) <= 0.5e-7, "{line}: want {want}");
+    }
+    // Read back, the two channels stand side by side.
+    let (names, samples) = samples(&out);
+    assert_eq!(names, ["a", "a_corrected", "b"]);
+    assert_eq!(samples.len(), 4);
+    // A header that has the column already is an error naming it; nothing is written.
+    std::fs::write(&log, "t,a,a_corrected\n0,1,1\n").unwrap();
+    let out2 = dir.path().join("out2.csv");
+    let err = apply(&log, &out2, &map(), &o).unwrap_err().to_string();
+    assert!(err.contains("`a_corrected` already"), "{err}");
+    assert!(!out2.exists());
+}
+
+/// `keep` on an MCAP log: every original message is copied unchanged, and each message carrying
+/// the channel is followed by a corrected copy on `<topic>/corrected` (same schema, times and
+/// sequence), which calib reads as `/joint_states/corrected/a`.
+#[test]
+fn keep_copies_the_corrected_messages_onto_their_own_topic() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.mcap");
+    let o = ApplyOptions {
+        keep: true,
+        ..opts("a")
+    };
+    let done = apply(&fixture(), &out, &map(), &o).unwrap();
+    assert_eq!(done.readings, 300);
+    assert_eq!(done.beside, ["/joint_states/corrected"]);
+    let (before, after) = (messages(&fixture()), messages(&out));
+    assert_eq!(after.len(), before.len() + 300);
+    let originals: Vec<_> = after.iter().filter(|m| m.0 != u16::MAX).cloned().collect();
+    assert_eq!(
+        originals, before,
+        "the input's messages, unchanged and in order"
+    );
+    // Read back: the original and the corrected joint, at the same stamps.
+    let reader = LogReader::open(&out, &ReadOptions::default()).unwrap();
+    let names: Vec<String> = reader.names().iter().map(|n| n.qualified.clone()).collect();
+    let raw = names.iter().position(|n| n == "/joint_states/a").unwrap();
+    let fixed = names
+        .iter()
+        .position(|n| n == "/joint_states/corrected/a")
+        .unwrap_or_else(|| panic!("{names:?}"));
+    let mut reader = reader;
+    reader.select(&[raw, fixed], Default::default());
+    let mut n = 0;
+    for s in reader {
+        let s = s.unwrap();
+        let (a, c) = (s.values[0], s.values[1]);
+        // JointState positions are f64 radians: the correction exactly as computed.
+        // Kept in [0, 2π) as the readings are: compared modulo a turn.
+        let off = (c - (a - error_at(a))).rem_euclid(TAU);
+        assert!(off.min(TAU - off) < 1e-12, "{a} {c}");
+        n += 1;
+    }
+    assert_eq!(n, 300);
 }

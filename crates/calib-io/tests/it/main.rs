@@ -9,6 +9,7 @@ mod csv_writer;
 mod fuzz_regressions;
 mod mcap_read;
 mod mcap_write;
+mod read_progress;
 mod reader_findings;
 mod rosbag_read;
 mod table_io;

@@ -978,6 +978,7 @@ fn apply_on_a_field_path_says_field_paths_are_not_rewritten() {
         unit: None,
         wrapping: None,
         skip_damaged: false,
+        keep: false,
     };
     let err = calib_io::apply::apply(&path, &dir.path().join("out.mcap"), &map, &opts)
         .unwrap_err()

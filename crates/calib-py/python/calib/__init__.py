@@ -595,7 +595,7 @@ def tdr(
     max_drag_order: int = 16,
     motion_degree: Optional[int] = None,
     min_revolutions: float = 10.0,
-    points: int = 3600,
+    points: Optional[int] = None,
 ) -> Result:
     """Self-calibration of one encoder from a free spin-down (``calib tdr``, Lu & Trumper's
     time-domain method): the shaft coasts freely, many revolutions, and the encoder's error,
@@ -610,7 +610,8 @@ def tdr(
         max_drag_order: highest order of the angle-periodic drag fitted with it.
         motion_degree: degree of the Chebyshev series of the motion (default: chosen).
         min_revolutions: the shortest coast accepted, revolutions.
-        points: points of the table.
+        points: points of the table (default: enough for linear interpolation to 0.01″,
+            at least 3600).
     """
     return Result(
         _calib.tdr(
@@ -636,7 +637,7 @@ def tdr_log(
     max_drag_order: int = 16,
     motion_degree: Optional[int] = None,
     min_revolutions: float = 10.0,
-    points: int = 3600,
+    points: Optional[int] = None,
     unit: Optional[str] = None,
     time: str = "header",
     max_gap: Optional[float] = None,

@@ -132,7 +132,7 @@ def tdr(
     max_drag_order: int = 16,
     motion_degree: Optional[int] = None,
     min_revolutions: float = 10.0,
-    points: int = 3600,
+    points: Optional[int] = None,
 ) -> Dict[str, Any]: ...
 def tdr_log(
     path: str,
@@ -143,7 +143,7 @@ def tdr_log(
     max_drag_order: int = 16,
     motion_degree: Optional[int] = None,
     min_revolutions: float = 10.0,
-    points: int = 3600,
+    points: Optional[int] = None,
     unit: Optional[str] = None,
     time: str = "header",
     max_gap: Optional[float] = None,

@@ -1,0 +1,41 @@
+//! How far a reader has got through its log, for a progress line with a total and an ETA.
+//!
+//! A reader counts the bytes of its file it has read into a [`ReadProgress`]; a clone of it
+//! reads the count from another thread (the reader runs on its own, [`crate::prefetch`]). The
+//! total is the file's size, known before the first sample: a CSV log's rows, an MCAP log's
+//! records and chunks all lie between its first and last byte.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Bytes of a log read so far, of its size.
+#[derive(Debug, Clone)]
+pub struct ReadProgress {
+    read: Arc<AtomicU64>,
+    total: u64,
+}
+
+impl ReadProgress {
+    /// No byte read yet of a file of `total` bytes.
+    pub(crate) fn new(total: u64) -> Self {
+        ReadProgress {
+            read: Arc::new(AtomicU64::new(0)),
+            total,
+        }
+    }
+
+    /// Records that the reader has got to byte `at`.
+    pub(crate) fn set(&self, at: u64) {
+        self.read.store(at, Ordering::Relaxed);
+    }
+
+    /// Bytes read so far (at most [`total`](Self::total)).
+    pub fn read(&self) -> u64 {
+        self.read.load(Ordering::Relaxed).min(self.total)
+    }
+
+    /// The file's size in bytes.
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+}
