@@ -236,7 +236,7 @@ pub fn inspect(
     let (result, reader) = py
         .detach(|| {
             let reader =
-                for_each_sample(&path, reader, |s| inspector.push(s.t, &s.values, s.session))?;
+                for_each_sample(&path, reader, |s| inspector.push(s.t, s.values, s.session))?;
             Ok::<_, String>((inspector.finish(), reader))
         })
         .map_err(data)?;

@@ -188,7 +188,7 @@ pub fn multihead_log<'py>(
     let (cal, reader) = py
         .detach(|| {
             let mut mh = Multihead::new(heads.clone(), opts).map_err(|e| e.to_string())?;
-            let reader = for_each_sample(&path, reader, |s| mh.push(&s.values))?;
+            let reader = for_each_sample(&path, reader, |s| mh.push(s.values))?;
             let cal = mh
                 .finish()
                 .map_err(|e| format!("{what}: heads {}: {e}", joined(&heads)))?;

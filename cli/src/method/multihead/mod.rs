@@ -222,7 +222,7 @@ fn calibrate(
     // The sample's values are the heads' readings, in the heads' order.
     let reader = for_each_sample(log, reader, |s| {
         travel.push(s.values[0]);
-        mh.push(&s.values);
+        mh.push(s.values);
     })?;
     let cal = mh.finish().map_err(|e| {
         let hint = travel.no_whole_turn(
