@@ -27,4 +27,5 @@ mod shift_angle_cli;
 mod simulate_cli;
 mod snapshots;
 mod tdr_cli;
+mod threads_cli;
 mod unit_hints_cli;

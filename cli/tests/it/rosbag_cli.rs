@@ -970,8 +970,8 @@ fn calib_temps(dir: &Path) -> Vec<String> {
 fn a_signal_while_a_compressed_bag_is_read_leaves_no_temporary_copy() {
     use std::process::{Command, Stdio};
     use std::time::{Duration, Instant};
-    // 300,000 messages: about a second of reading in a debug build, time enough to signal the
-    // run while it reads.
+    // 300,000 messages: a few hundred milliseconds of reading in a debug build, time enough to
+    // signal the run while it reads.
     const N: i64 = 300_000;
     let dir = tempfile::tempdir().unwrap();
     let plain = dir.path().join("plain");
@@ -990,13 +990,33 @@ fn a_signal_while_a_compressed_bag_is_read_leaves_no_temporary_copy() {
     drop(db);
     let bag = dir.path().join("run_bag");
     compress_files(&plain, &bag, "sqlite3", &["run_bag_0.db3"]);
-    // Signalled as soon as the temporary folder appears (while decompressing), and 300 ms later
-    // (while reading the messages).
+    // How long a whole run lasts from the moment its temporary folder appears (however fast this
+    // build reads), to signal the runs below halfway through it.
+    let whole = {
+        let tmp = dir.path().join("tmp-whole");
+        std::fs::create_dir(&tmp).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_calib"))
+            .args(["csrr", s(&bag), "-o", s(&dir.path().join("out-whole"))])
+            .env("TMPDIR", &tmp)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        while calib_temps(&tmp).is_empty() && child.try_wait().unwrap().is_none() {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let appeared = Instant::now();
+        child.wait().unwrap();
+        appeared.elapsed()
+    };
+    let halfway = u64::try_from(whole.as_millis() / 2).unwrap();
+    // Signalled as soon as the temporary folder appears (while decompressing), and halfway
+    // through the run (while reading the messages).
     for (signal, status, after) in [
         ("TERM", 143, 0),
         ("INT", 130, 0),
-        ("TERM", 143, 300),
-        ("INT", 130, 300),
+        ("TERM", 143, halfway),
+        ("INT", 130, halfway),
     ] {
         let signal_at = format!("{signal}-{after}");
         let tmp = dir.path().join(format!("tmp-{signal_at}"));

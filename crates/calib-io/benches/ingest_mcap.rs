@@ -1,5 +1,12 @@
-//! Reading a large JointState log: how much `McapReader` (CDR decode into `Sample`s) costs over
+//! Reading a large JointState log: how much calib's reading (CDR decode into samples) costs over
 //! the bare `mcap::MessageStream` iteration that any reader has to do.
+//!
+//! - `message_stream`: the mcap crate's iteration over the memory-mapped file, nothing decoded;
+//! - `mcap_reader`: `McapReader` as an iterator, one owned `Sample` per message;
+//! - `log_reader_batches`: `LogReader::fill` into one reused `SampleBatch` of 4096 samples, as
+//!   the commands read on one thread (`--jobs 1`): no allocation per sample;
+//! - `prefetch_batches`: the same batches filled ahead on a second thread (`Prefetch`), as the
+//!   commands read by default.
 //!
 //! The log (1e6 messages, joints `a`, `b`, `c`, zstd) is written at run time by `McapWriter`
 //! into a temporary directory; the time that takes is printed once.
@@ -12,9 +19,10 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::Instant;
 
-use calib_core::{AngleUnit, Channel, Sample};
-use calib_io::ReadOptions;
+use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
 use calib_io::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter};
+use calib_io::prefetch::{BATCH, Prefetch};
+use calib_io::{LogReader, ReadOptions};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
 const MESSAGES: usize = 1_000_000;
@@ -75,6 +83,34 @@ fn ingest(c: &mut Criterion) {
             let mut sum = 0.0;
             for sample in reader {
                 sum += black_box(sample.expect("sample").values[0]);
+            }
+            sum
+        })
+    });
+    group.bench_function("log_reader_batches", |b| {
+        b.iter(|| {
+            let mut reader = LogReader::open(&path, &ReadOptions::default()).expect("open");
+            let mut batch = SampleBatch::with_capacity(reader.channels().len(), BATCH);
+            let mut sum = 0.0;
+            loop {
+                batch.clear();
+                reader.fill(&mut batch, BATCH).expect("batch");
+                if batch.is_empty() {
+                    break;
+                }
+                sum += batch.iter().map(|s| black_box(s.values[0])).sum::<f64>();
+            }
+            sum
+        })
+    });
+    group.bench_function("prefetch_batches", |b| {
+        b.iter(|| {
+            let reader = LogReader::open(&path, &ReadOptions::default()).expect("open");
+            let mut ahead = Prefetch::new(reader);
+            let mut sum = 0.0;
+            while let Some(batch) = ahead.next_batch() {
+                let batch = batch.expect("batch");
+                sum += batch.iter().map(|s| black_box(s.values[0])).sum::<f64>();
             }
             sum
         })

@@ -213,8 +213,12 @@ impl TempFolder {
 
 impl Drop for TempFolder {
     fn drop(&mut self) {
-        // The `TempDir` dropped after this removes the folder.
-        lock_live().retain(|p| p != self.dir.path());
+        // Removed under the lock, so that a signal's clean-up (which holds it while it removes
+        // what is registered, then exits) finds the folder either registered or gone, never
+        // half-removed and forgotten. The `TempDir` dropped after this finds nothing to remove.
+        let mut live = lock_live();
+        let _ = std::fs::remove_dir_all(self.dir.path());
+        live.retain(|p| p != self.dir.path());
     }
 }
 
