@@ -41,14 +41,18 @@
 # samples of the same scenario (default 1,000,000: 980,001 messages; 0 leaves the bag out), and
 # alternating REPEAT times each:
 #   bag-floor  BAG_FLOOR, a shell command run by bash with $DB3 the .db3 file (and $BAG the bag
-#              folder, $VENV the environment); default the sqlite3 command-line tool (installed
-#              with apt-get when missing) scanning every message's timestamp and data in the
-#              order a bag is replayed, through rosbag2's timestamp index, one thread:
+#              folder, $VENV the environment); default `bag_floor` beside the MCAP floor
+#              (crates/calib-io/examples/bag_floor.rs): one rusqlite scan of the messages in the
+#              order a bag is replayed (ORDER BY timestamp, id, through rosbag2's timestamp
+#              index), each payload borrowed from SQLite and its JointState positions decoded as
+#              mcap_floor decodes them, one thread. Where that binary is missing (FLOOR given
+#              without it), the sqlite3 command-line tool (installed with apt-get when missing)
+#              scanning the same rows without decoding them:
 #              sqlite3 -readonly "$DB3" 'SELECT count(*), total(timestamp), sum(length(data))
-#                FROM (SELECT timestamp, data FROM messages ORDER BY timestamp, id)'
-#              (it decodes nothing); BAG_FLOOR='"$VENV"/bin/python benches/db3_floor.py "$DB3"'
-#              is a Python sqlite3 scan that also decodes every position with numpy.frombuffer
-#              (slower: Python's cost per row)
+#                FROM (SELECT timestamp, data FROM messages ORDER BY timestamp, id)';
+#              BAG_FLOOR='"$VENV"/bin/python benches/db3_floor.py "$DB3"' is a Python sqlite3
+#              scan that also decodes every position with numpy.frombuffer (slower: Python's cost
+#              per row)
 #   inspect    calib inspect BAG --json
 #   csrr       calib csrr BAG -o OUT -q   (its maps compared with calib csrr on the bag's CSV)
 # Then on a last log, a coast for `calib tdr`: testdata/scenarios/spindown.toml (an air-bearing
@@ -82,7 +86,13 @@ for writer in $writers; do
     *) echo "WRITERS: unknown writer \`$writer\`; give calib, python or both" >&2; exit 2 ;;
   esac
 done
-if [[ -z ${BAG_FLOOR:-} && $bag_samples != 0 ]] && ! command -v sqlite3 > /dev/null; then
+if [[ -z ${FLOOR:-} ]]; then
+  cargo build --release --locked -p calib-io --example mcap_floor --example bag_floor >&2
+fi
+floor=${FLOOR:-$PWD/target/release/examples/mcap_floor}
+rusqlite_floor="$(dirname "$floor")/bag_floor"
+if [[ -z ${BAG_FLOOR:-} && $bag_samples != 0 && ! -x $rusqlite_floor ]] \
+  && ! command -v sqlite3 > /dev/null; then
   echo "installing the sqlite3 command-line tool (apt-get install sqlite3)" >&2
   apt-get install -y sqlite3 >&2
 fi
@@ -90,11 +100,7 @@ fi
 if [[ -z ${CALIB:-} ]]; then
   cargo build --release --locked -p calib-cli >&2
 fi
-if [[ -z ${FLOOR:-} ]]; then
-  cargo build --release --locked -p calib-io --example mcap_floor >&2
-fi
 calib=${CALIB:-$PWD/target/release/calib}
-floor=${FLOOR:-$PWD/target/release/examples/mcap_floor}
 build="calib $(git rev-parse --short HEAD)"
 [[ -n ${CALIB:-} ]] && build="calib $CALIB"
 if [[ -n ${KEEP:-} ]]; then
@@ -229,8 +235,17 @@ if [[ $bag_samples != 0 ]]; then
     rm -rf "$BAG"
     "$VENV/bin/python" benches/gen_rosbag_db3.py "$work/bag.csv" "$BAG"
   fi
-  bag_floor=${BAG_FLOOR:-'sqlite3 -readonly "$DB3" "SELECT count(*), total(timestamp),
-    sum(length(data)) FROM (SELECT timestamp, data FROM messages ORDER BY timestamp, id)"'}
+  if [[ -n ${BAG_FLOOR:-} ]]; then
+    bag_floor=$BAG_FLOOR
+    bag_floor_name=$BAG_FLOOR
+  elif [[ -x $rusqlite_floor ]]; then
+    bag_floor="\"$rusqlite_floor\" \"\$DB3\""
+    bag_floor_name="bag_floor: rusqlite ordered scan + JointState decode"
+  else
+    bag_floor='sqlite3 -readonly "$DB3" "SELECT count(*), total(timestamp),
+      sum(length(data)) FROM (SELECT timestamp, data FROM messages ORDER BY timestamp, id)"'
+    bag_floor_name="sqlite3 ordered scan, nothing decoded"
+  fi
   bash -c "$bag_floor" >&2
   : > "$work/bag-floor.txt"
   : > "$work/inspect.txt"
@@ -242,7 +257,7 @@ if [[ $bag_samples != 0 ]]; then
     measure "$calib" csrr "$BAG" -o "$work/out-csrr-bag" -q >> "$work/csrr.txt"
   done
   echo "# $(date -u +%Y-%m-%dT%H:%MZ), rosbag2 bag (sqlite3): $(basename "$DB3"), $(sqlite3 "$DB3" 'SELECT count(*) FROM messages' 2> /dev/null || echo "$bag_samples") messages, $(size_mb "$BAG"), $repeat runs each"
-  echo "# bag-floor: ${BAG_FLOOR:-sqlite3 ordered scan}"
+  echo "# bag-floor: $bag_floor_name"
   table bag-floor bag-floor inspect csrr
   echo "# load after: $(uptime | sed 's/.*load/load/')"
   "$calib" csrr "$work/bag.csv" -o "$work/out-csrr-bag-csv" -q > /dev/null
