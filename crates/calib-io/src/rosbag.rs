@@ -39,7 +39,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
-use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
+use calib_core::{AngleUnit, Channel, SampleBatch};
 use rusqlite::{Connection, OpenFlags};
 
 use crate::align::{AlignOptions, Alignment};
@@ -48,7 +48,7 @@ use crate::naming::ChannelName;
 use crate::ros2::PEEK_WINDOW;
 use crate::ros2::encoding::Encoding;
 use crate::ros2::registry::{IgnoredTopic, Registry, Resolved, TopicInfo, too_many_topics};
-use crate::ros2::samples::{Failure, OneByOne, Ros2Reader, Samples};
+use crate::ros2::samples::{Failure, Ros2Reader, Samples};
 use crate::ros2::topic::TopicStats;
 use crate::{Error, ReadDiagnostics, ReadOptions};
 
@@ -979,8 +979,6 @@ pub struct BagReader {
     warnings: Vec<String>,
     done: bool,
     failed: bool,
-    /// The samples read but not yet handed on by [`Iterator::next`].
-    one: OneByOne,
 }
 
 /// The MCAP message a bag row stands for: log and publish time the row's `timestamp`.
@@ -1166,7 +1164,6 @@ impl BagReader {
             warnings,
             done: false,
             failed: false,
-            one: OneByOne::default(),
         })
     }
 
@@ -1333,17 +1330,6 @@ impl Ros2Reader for BagReader {
             }
         }
         Ok(())
-    }
-}
-
-impl Iterator for BagReader {
-    type Item = Result<Sample, Error>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        let mut one = std::mem::take(&mut self.one);
-        let next = one.next(self.samples.channels().len(), |batch| self.fill(batch, 1));
-        self.one = one;
-        next
     }
 }
 

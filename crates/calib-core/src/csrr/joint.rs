@@ -221,6 +221,33 @@ impl SeriesEval {
     }
 }
 
+/// A sensor's stencils at its inverted angles and `1/(1 + ε′)` there ([`SeriesEval::invert`]).
+type Inverted = (Stencils, Vec<f64>);
+
+/// A series' `cos` and `sin` coefficients, one per order.
+type Coefficients<'a> = (&'a [f64], &'a [f64]);
+
+/// Both sensors' series loaded with their `(cos, sin)` coefficients and inverted at their
+/// readings ([`SeriesEval::invert`]), side by side on rayon's threads: each exactly as alone.
+fn invert_both(
+    evals: (&mut SeriesEval, &mut SeriesEval),
+    coefficients: (Coefficients, Coefficients),
+    readings: (&[f64], &[f64]),
+    theta: (&mut [f64], &mut [f64]),
+) -> (Inverted, Inverted) {
+    let ((ca, sa), (cb, sb)) = coefficients;
+    rayon::join(
+        || {
+            evals.0.load(ca, sa);
+            evals.0.invert(readings.0, theta.0)
+        },
+        || {
+            evals.1.load(cb, sb);
+            evals.1.invert(readings.1, theta.1)
+        },
+    )
+}
+
 /// Newton's updates in [`SeriesEval::invert`] stop below this, rad (2·10⁻⁹″).
 const NEWTON_TOLERANCE: f64 = 1e-14;
 
@@ -546,16 +573,11 @@ pub(crate) fn solve(
     let mut theta_a = xs.clone();
     let mut theta_b = ys.clone();
     while steps < opts.max_steps {
-        // The two sensors side by side (see [`Step`]).
-        let ((at_a, scale_a), (at_b, scale_b)) = rayon::join(
-            || {
-                eval_a.load(&ca, &sa);
-                eval_a.invert(&xs, &mut theta_a)
-            },
-            || {
-                eval_b.load(&cb, &sb);
-                eval_b.invert(&ys, &mut theta_b)
-            },
+        let ((at_a, scale_a), (at_b, scale_b)) = invert_both(
+            (&mut eval_a, &mut eval_b),
+            ((&ca, &sa), (&cb, &sb)),
+            (&xs, &ys),
+            (&mut theta_a, &mut theta_b),
         );
         for j in 0..m {
             let model =
@@ -612,15 +634,11 @@ pub(crate) fn solve(
     }
 
     // Residual of the final model, per sample: between-bin part plus the spread inside bins.
-    rayon::join(
-        || {
-            eval_a.load(&ca, &sa);
-            eval_a.invert(&xs, &mut theta_a)
-        },
-        || {
-            eval_b.load(&cb, &sb);
-            eval_b.invert(&ys, &mut theta_b)
-        },
+    invert_both(
+        (&mut eval_a, &mut eval_b),
+        ((&ca, &sa), (&cb, &sb)),
+        (&xs, &ys),
+        (&mut theta_a, &mut theta_b),
     );
     let total: f64 = n.iter().sum();
     let within: f64 = sessions
