@@ -3,7 +3,7 @@
 use crate::document::{arcsec, harmonics_table, num, provenance};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{PointStats, ReferenceCalibration, TableMap};
+use calib_core::reference_cal::{PointStats, ReferenceCalibration, Ripple, TableMap};
 use calib_report::iso230::{self, Direction, Target};
 use calib_report::plots::{self, MapLayers, OrderMarks};
 use calib_report::{Axis, Chart, Colour, Document, Figure, Mark, Section, Series, Table};
@@ -142,6 +142,9 @@ pub fn document(
         s = s.table(harmonics_table(dut, ch, |_| true));
     }
     doc.push(s);
+    if let Some(r) = &cal.ripple {
+        doc.push(ripple(reference, r));
+    }
     if !cal.targets.is_empty() {
         doc.push(targets(dut, cal, span));
     }
@@ -154,6 +157,45 @@ pub fn document(
         )));
     }
     doc
+}
+
+/// A commanded reference's motor ripple, fitted at `k × pole pairs` cycles per revolution and
+/// taken out of the map: each term with its standard uncertainty.
+fn ripple(reference: &str, r: &Ripple) -> Section {
+    let table = r.terms.iter().fold(
+        Table::new(
+            "Ripple terms",
+            &[
+                "k (per electrical turn)",
+                "order (per revolution)",
+                "amplitude (″)",
+                "u (″)",
+                "phase (°)",
+            ],
+        ),
+        |t, term| {
+            t.row([
+                term.harmonic.to_string(),
+                term.order.to_string(),
+                arcsec(term.amplitude * ARCSEC_PER_RAD, 3),
+                arcsec(term.u_amplitude * ARCSEC_PER_RAD, 3),
+                num(term.phase.to_degrees(), 1),
+            ])
+        },
+    );
+    Section::new("Motor ripple taken out")
+        .text(&format!(
+            "The reference `{reference}` is the angle the motor was commanded to, not where it \
+             was: a motor with {} pole pairs lags and leads it periodically in the electrical \
+             angle. That ripple ({}″ peak to peak over the map, fitted at {} grid points) was \
+             fitted at k × {} cycles per revolution and taken out of the map; the encoder's own \
+             error at those orders cannot be told from it.",
+            r.pole_pairs,
+            num(r.peak_to_peak * ARCSEC_PER_RAD, 3),
+            r.fitted_points,
+            r.pole_pairs
+        ))
+        .table(table)
 }
 
 /// ISO 230-2's section: the deviation chart over the targets and the per-target table.
