@@ -965,6 +965,9 @@ impl ReferenceCal {
             .iter()
             .map(|&i| f64::from(self.up[i].n + self.down[i].n))
             .sum();
+        // The ripple taken out at each point (zero without one), out of each direction's mean
+        // as out of the map: it is the reference's error, not the DUT's.
+        let mut ripple_at = vec![0.0; raw.len()];
         let ripple = match self.opts.reference_kind {
             ReferenceKind::Encoder => None,
             ReferenceKind::Commanded { pole_pairs } => {
@@ -990,6 +993,7 @@ impl ReferenceCal {
                     raw[j] -= value[j];
                     extra_u2[j] += u_fit[j] * u_fit[j];
                 }
+                ripple_at = value;
                 Some(fit)
             }
         };
@@ -1009,13 +1013,21 @@ impl ReferenceCal {
             }
         }
         let offset = raw.iter().sum::<f64>() / raw.len() as f64;
-        let stats = |w: &Welford| PointStats {
+        let stats = |w: &Welford, ripple: f64| PointStats {
             n: w.n,
-            mean: w.mean - offset,
+            mean: w.mean - offset - ripple,
             s: (w.n >= 2).then(|| (w.m2.max(0.0) / f64::from(w.n - 1)).sqrt()),
         };
-        let up: Vec<PointStats> = bins.iter().map(|&i| stats(&self.up[i])).collect();
-        let down: Vec<PointStats> = bins.iter().map(|&i| stats(&self.down[i])).collect();
+        let up: Vec<PointStats> = bins
+            .iter()
+            .zip(&ripple_at)
+            .map(|(&i, &r)| stats(&self.up[i], r))
+            .collect();
+        let down: Vec<PointStats> = bins
+            .iter()
+            .zip(&ripple_at)
+            .map(|(&i, &r)| stats(&self.down[i], r))
+            .collect();
         let sem2 = |p: &PointStats, pool: Option<f64>| -> Option<f64> {
             let s = p.s.or(pool)?;
             Some(s * s / f64::from(p.n))
