@@ -4,7 +4,7 @@
 //! The option is set once, from `main`, before the command runs; the bars read it, so no
 //! command passes it around.
 
-use calib_io::progress::ReadProgress;
+use calib_io::progress::{ProgressUnit, ReadProgress};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::Path;
 use std::sync::OnceLock;
@@ -81,27 +81,24 @@ fn bars() -> &'static MultiProgress {
     })
 }
 
-/// The progress line of the log at `path` while it is read: with the reader's `progress`, the
-/// bytes read of the file's size and the time left at the rate so far; without it (a SQLite
-/// bag), a spinner counting the samples. Update it with [`advance`] after each batch of samples
-/// (drawing on each sample would cost time), and finish it with
-/// [`ProgressBar::finish_and_clear`].
-pub fn reading(path: &Path, progress: Option<&ReadProgress>) -> ProgressBar {
+/// The progress line of the log at `path` while it is read: the reader's `progress` — bytes of
+/// the file, or a bag's messages — of its total, and the time left at the rate so far. Update it
+/// with [`advance`] after each batch of samples (drawing on each sample would cost time), and
+/// finish it with [`ProgressBar::finish_and_clear`].
+pub fn reading(path: &Path, progress: &ReadProgress) -> ProgressBar {
     let name = path.file_name().map_or_else(
         || path.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    let (bar, template) = match progress {
-        Some(p) => (
-            ProgressBar::new(p.total()),
-            "{spinner} reading {msg}: {bytes} of {total_bytes} ({percent} %), {eta} left",
-        ),
-        None => (
-            ProgressBar::new_spinner(),
-            "{spinner} reading {msg}: {human_pos} samples ({elapsed})",
-        ),
+    let template = match progress.unit() {
+        ProgressUnit::Bytes => {
+            "{spinner} reading {msg}: {bytes} of {total_bytes} ({percent} %), {eta} left"
+        }
+        ProgressUnit::Messages => {
+            "{spinner} reading {msg}: {human_pos} of {human_len} messages ({percent} %), {eta} left"
+        }
     };
-    let bar = bars().add(bar);
+    let bar = bars().add(ProgressBar::new(progress.total()));
     bar.set_style(
         ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_spinner()),
     );
@@ -109,10 +106,9 @@ pub fn reading(path: &Path, progress: Option<&ReadProgress>) -> ProgressBar {
     bar
 }
 
-/// Moves the reading line to the reader's position: the bytes read where the reader counts them,
-/// else the `samples` read so far (never more than were read).
-pub fn advance(bar: &ProgressBar, progress: Option<&ReadProgress>, samples: u64) {
-    bar.set_position(progress.map_or(samples, ReadProgress::read));
+/// Moves the reading line to where the reader is.
+pub fn advance(bar: &ProgressBar, progress: &ReadProgress) {
+    bar.set_position(progress.read());
 }
 
 /// A spinner with the elapsed time, for a step without a measure of progress (a solve).
@@ -139,20 +135,33 @@ mod tests {
         let log = Path::new(env!("CARGO_MANIFEST_DIR")).join("../testdata/examples/quick.mcap");
         let mut reader =
             calib_io::LogReader::open(&log, &calib_io::ReadOptions::default()).unwrap();
-        let progress = reader.progress().unwrap();
-        let bar = reading(&log, Some(&progress));
+        let progress = reader.progress();
+        let bar = reading(&log, &progress);
         let size = std::fs::metadata(&log).unwrap().len();
         assert_eq!(bar.length(), Some(size));
-        let samples = reader.by_ref().count() as u64;
-        advance(&bar, Some(&progress), samples);
+        assert!(reader.by_ref().count() > 0);
+        advance(&bar, &progress);
         assert!(
             bar.position() > 0 && bar.position() <= size,
             "{}",
             bar.position()
         );
-        // Without a reader's count (a SQLite bag): the samples, with no total.
-        let spinner = reading(&log, None);
-        advance(&spinner, None, samples);
-        assert_eq!((spinner.length(), spinner.position()), (None, samples));
+    }
+
+    /// A SQLite bag's rows are not read in the file's order: its line counts messages, of the
+    /// number its `messages` tables hold for the topics read (issue 31: a total, where it counted
+    /// samples and overshot), and ends at that number.
+    #[test]
+    fn a_bags_reading_line_counts_its_messages() {
+        let bag = Path::new(env!("CARGO_MANIFEST_DIR")).join("../testdata/rosbag/small_bag");
+        let mut reader =
+            calib_io::LogReader::open(&bag, &calib_io::ReadOptions::default()).unwrap();
+        let progress = reader.progress();
+        let bar = reading(&bag, &progress);
+        let samples = reader.by_ref().count() as u64;
+        advance(&bar, &progress);
+        assert!(samples > 0);
+        assert_eq!(bar.length(), Some(progress.total()));
+        assert_eq!(bar.position(), progress.total(), "{samples} samples");
     }
 }

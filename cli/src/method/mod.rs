@@ -155,14 +155,12 @@ pub fn for_each_sample(
     mut push: impl FnMut(SampleRef),
 ) -> anyhow::Result<LogReader> {
     let progress = reader.progress();
-    let bar = crate::ui::reading(log, progress.as_ref());
+    let bar = crate::ui::reading(log, &progress);
     let mut units = UnitCheck::new(&reader);
     let mut samples = crate::threads::prefetch(reader);
-    let mut read = 0;
     while let Some(batch) = samples.next_batch() {
         let batch = batch.with_context(|| format!("cannot read {}", log.display()))?;
-        read += batch.len() as u64;
-        crate::ui::advance(&bar, progress.as_ref(), read);
+        crate::ui::advance(&bar, &progress);
         for s in batch.iter() {
             units.push(s.values);
             push(s);

@@ -319,12 +319,12 @@ impl LogReader {
         }
     }
 
-    /// How far the reader has got through the log's file, of its size: a handle to read from
-    /// another thread while it reads; `None` for a SQLite bag, whose messages are not read in
-    /// the file's order.
-    pub fn progress(&self) -> Option<crate::progress::ReadProgress> {
+    /// How far the reader has got through the log's file, of its size (a SQLite bag, whose rows
+    /// are not read in the file's order: its messages, of those of the topics read): a handle to
+    /// read from another thread while it reads.
+    pub fn progress(&self) -> crate::progress::ReadProgress {
         match &self.inner {
-            Inner::Csv(r) => Some(r.progress()),
+            Inner::Csv(r) => r.progress(),
             Inner::Ros2(r) => r.progress(),
         }
     }

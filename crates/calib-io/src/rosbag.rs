@@ -45,6 +45,7 @@ use rusqlite::{Connection, OpenFlags};
 use crate::align::{AlignOptions, Alignment};
 use crate::mcap_log::JOINT_STATE_SCHEMA;
 use crate::naming::ChannelName;
+use crate::progress::ReadProgress;
 use crate::ros2::PEEK_WINDOW;
 use crate::ros2::encoding::Encoding;
 use crate::ros2::registry::{IgnoredTopic, Registry, Resolved, TopicInfo, too_many_topics};
@@ -976,6 +977,9 @@ pub struct BagReader {
     /// The block being decoded, and its next row.
     block: RowBlock,
     next_row: usize,
+    /// Rows decoded so far, of those of the topics read.
+    progress: ReadProgress,
+    rows_done: u64,
     warnings: Vec<String>,
     done: bool,
     failed: bool,
@@ -1010,6 +1014,8 @@ impl BagReader {
         let mut topic_channels: Vec<Arc<mcap::Channel<'static>>> = Vec::new();
         let mut stats: Vec<TopicStats> = Vec::new();
         let mut wanted: Wanted = Vec::with_capacity(files.len());
+        // The rows of the topics read, for the progress line.
+        let mut rows_wanted = 0u64;
         // Each topic's index by name, and the file that listed it first.
         let mut by_name: HashMap<String, (usize, usize)> = HashMap::new();
         for (f, file) in files.iter().enumerate() {
@@ -1080,6 +1086,7 @@ impl BagReader {
                 }
                 if Encoding::from_names(&format, &kind).is_some() {
                     of_file.push((id, k));
+                    rows_wanted += counts.get(&id).map_or(0, |c| c.0);
                 }
             }
             wanted.push(of_file);
@@ -1161,6 +1168,8 @@ impl BagReader {
             spent: None,
             block: RowBlock::default(),
             next_row: 0,
+            progress: ReadProgress::messages(rows_wanted),
+            rows_done: 0,
             warnings,
             done: false,
             failed: false,
@@ -1289,17 +1298,24 @@ impl Ros2Reader for BagReader {
         &mut self.samples
     }
 
+    fn progress(&self) -> ReadProgress {
+        self.progress.clone()
+    }
+
     fn fill(&mut self, out: &mut SampleBatch, max: usize) -> Result<(), Error> {
         while out.len() < max && !self.done && !self.failed {
             if self.next_row < self.block.len() {
                 // The block is taken out while its rows are decoded (they borrow it).
                 let block = std::mem::take(&mut self.block);
                 let mut stepped = Ok(());
+                let first = self.next_row;
                 while self.next_row < block.len() && out.len() < max && stepped.is_ok() {
                     stepped = self.step(&block.row(self.next_row), out);
                     self.next_row += 1;
                 }
                 self.block = block;
+                self.rows_done += (self.next_row - first) as u64;
+                self.progress.set(self.rows_done);
                 if let Err(e) = stepped {
                     self.failed = true;
                     return Err(e);

@@ -442,8 +442,8 @@ impl Ros2Reader for McapReader {
         &self.samples
     }
 
-    fn progress(&self) -> Option<ReadProgress> {
-        Some(self.progress.clone())
+    fn progress(&self) -> ReadProgress {
+        self.progress.clone()
     }
 
     fn samples_mut(&mut self) -> &mut Samples {

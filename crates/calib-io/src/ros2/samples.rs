@@ -59,11 +59,8 @@ pub(crate) trait Ros2Reader: Send {
     /// Appends samples to `out` until it holds `max` or the log ends (a few more where the
     /// aligner completes several at once); after an error, which ends the log, nothing.
     fn fill(&mut self, out: &mut SampleBatch, max: usize) -> Result<(), Error>;
-    /// How far the reader has got through its file; `None` where it reads no one file front
-    /// to back (a SQLite bag).
-    fn progress(&self) -> Option<crate::progress::ReadProgress> {
-        None
-    }
+    /// How far the reader has got through its file (a SQLite bag: its messages).
+    fn progress(&self) -> crate::progress::ReadProgress;
 }
 
 /// Why a message could not be read; each reader says where it is.
