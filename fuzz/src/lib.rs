@@ -63,6 +63,21 @@ pub fn check_sample(sample: &Sample, channels: usize) {
     }
 }
 
+/// What every row of a sparse CSV file must satisfy (its empty cells are NaN until
+/// [`calib_io::LogReader`] aligns the channels): one value per channel, each finite or NaN, and a
+/// finite time stamp.
+pub fn check_sparse_row(sample: &Sample, channels: usize) {
+    assert_eq!(sample.values.len(), channels, "one value per channel");
+    assert!(
+        sample.t.is_finite(),
+        "time stamp {} is not finite",
+        sample.t
+    );
+    for v in &sample.values {
+        assert!(v.is_finite() || v.is_nan(), "reading {v} is infinite");
+    }
+}
+
 /// How [`wrap_messages`] lays out the payloads.
 pub struct Layout {
     /// The payloads are JSON messages (else JointState CDR).
