@@ -27,7 +27,6 @@ message (about 6–7 µs: 10 M messages take a minute or more). The output is th
 same CSV and seed. It is written under a temporary name beside the target and renamed at the end.
 """
 
-import argparse
 import os
 import sys
 import time
@@ -40,18 +39,7 @@ BLOCK = 1_000_000
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("csv", help="the CSV `calib simulate SCENARIO -o run.csv` wrote")
-    parser.add_argument("out", help="the MCAP file to write")
-    parser.add_argument("--joints", default="a,b,ref", help="columns to write (default a,b,ref)")
-    parser.add_argument("--topic", default="/joint_states")
-    parser.add_argument("--seed", type=int, default=26, help="seed of the receive-time jitter")
-    parser.add_argument(
-        "--epoch",
-        type=int,
-        default=js.EPOCH_S,
-        help=f"whole seconds added to the simulated times (default {js.EPOCH_S})",
-    )
+    parser = js.arguments(__doc__, "out", "the MCAP file to write")
     args = parser.parse_args()
     joints = args.joints.split(",")
 

@@ -27,7 +27,6 @@ The bag is built in `BAG.part` and renamed to BAG when complete; an existing BAG
 same CSV, seed and epoch give the same rows.
 """
 
-import argparse
 import os
 import sqlite3
 import sys
@@ -89,18 +88,7 @@ def metadata_yaml(db3, topic, count, start_ns, end_ns):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("csv", help="the CSV `calib simulate SCENARIO -o run.csv` wrote")
-    parser.add_argument("bag", help="the bag folder to create")
-    parser.add_argument("--joints", default="a,b,ref", help="columns to write (default a,b,ref)")
-    parser.add_argument("--topic", default="/joint_states")
-    parser.add_argument("--seed", type=int, default=26, help="seed of the receive-time jitter")
-    parser.add_argument(
-        "--epoch",
-        type=int,
-        default=js.EPOCH_S,
-        help=f"whole seconds added to the simulated times (default {js.EPOCH_S})",
-    )
+    parser = js.arguments(__doc__, "bag", "the bag folder to create")
     parser.add_argument(
         "--batch", type=int, default=1000, help="messages per transaction (default 1000)"
     )

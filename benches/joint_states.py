@@ -21,6 +21,7 @@ calib's results on their logs can be compared with its results on the log `calib
   (`crates/calib-io/src/mcap_log/cdr.rs`, `JointStateEncoder`).
 """
 
+import argparse
 import struct
 
 import numpy as np
@@ -98,6 +99,23 @@ EPOCH_S = 1_700_000_000
 # (uniform in [0, JITTER_NS)), in ns: a same-host DDS hop.
 LATENCY_NS = 200_000
 JITTER_NS = 50_000
+
+
+def arguments(doc, output, output_help):
+    """The generators' command line: the simulated CSV, the output, and the options they share."""
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    parser.add_argument("csv", help="the CSV `calib simulate SCENARIO -o run.csv` wrote")
+    parser.add_argument(output, help=output_help)
+    parser.add_argument("--joints", default="a,b,ref", help="columns to write (default a,b,ref)")
+    parser.add_argument("--topic", default="/joint_states")
+    parser.add_argument("--seed", type=int, default=26, help="seed of the receive-time jitter")
+    parser.add_argument(
+        "--epoch",
+        type=int,
+        default=EPOCH_S,
+        help=f"whole seconds added to the simulated times (default {EPOCH_S})",
+    )
+    return parser
 
 
 def read_run(path, joints):
