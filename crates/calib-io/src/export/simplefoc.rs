@@ -5,8 +5,11 @@
 //! From `src/encoders/calibrated/CalibratedSensor.{h,cpp}` of simplefoc/Arduino-FOC-drivers as
 //! changed by PR #75 ("Bug calibrated sensor + uint16 lut", merged 2025-12):
 //! - `CalibratedSensor(Sensor& wrapped, int n_lut = 200, uint16_t* lut = nullptr)`: a table given
-//!   at construction is used as it is (compiled in, it is kept across boots). Before PR #83,
-//!   `calibrate()` measures a new table over it; since, it leaves a given table alone.
+//!   at construction is used as it is (compiled in, it is kept across boots). From PR #75 until
+//!   PR #83 ("Allow calibration with provided lut", merged 2026-04) `calibrate()` returns at once
+//!   when a table was given; since PR #83 it measures a new table into the given array, as the
+//!   float releases before PR #75 did. Read at commit `89b8e95` of Schnilz/Arduino-FOC-drivers
+//!   (the fork PR #83 was merged from) and, for PR #75 alone, an upstream copy without a commit id.
 //! - Entries are `uint16_t` codes of an offset in radians: `encodeOffsetU16(offset) =
 //!   (uint16_t)(offset·LUT_SCALE + LUT_OFFSET)`, `decodeOffsetU16(code) = (code − LUT_OFFSET) /
 //!   LUT_SCALE`, with `LUT_SCALE = 10430.2191955f` (65535/2π) and `LUT_OFFSET = 32767.0f`: one
@@ -156,8 +159,8 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
             ),
             "simplefoc: raw is the wrapped sensor's getMechanicalAngle() in [0, 2*PI), so \
              calibrate that reading; pass the table as CalibratedSensor(sensor, N, \
-             calibrationLut), and do not call calibrate() on a release without PR #83 (it would \
-             measure a new table over this one); zero_electric_angle and sensor_direction, which \
+             calibrationLut), and do not call calibrate() with it (since PR #83 it measures a new \
+             table into this array); zero_electric_angle and sensor_direction, which \
              printLUT() also prints, come from your usual initialisation"
                 .to_string(),
             format!(
