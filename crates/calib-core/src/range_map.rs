@@ -83,6 +83,17 @@ impl RangeMap {
     pub fn end(&self) -> f64 {
         self.start + self.span()
     }
+    /// The first and last grid angles in the sensor's own reading convention, degrees: as
+    /// [`start`](Self::start)…[`end`](Self::end), except that a range crossing the reading 0 is
+    /// signed (−40°…95°, not 320°…455°): never an angle above 360°.
+    pub fn ends_deg(&self) -> (f64, f64) {
+        let (lo, hi) = (self.start().to_degrees(), self.end().to_degrees());
+        if hi > 360.0 {
+            (lo - 360.0, hi - 360.0)
+        } else {
+            (lo, hi)
+        }
+    }
     /// `end − start`, radians (less than a revolution).
     pub fn span(&self) -> f64 {
         self.step * (self.values.len() - 1) as f64

@@ -236,13 +236,7 @@ fn push_rows(
 /// the rows of `map`'s grid as [`render_table`] writes them.
 pub fn render_range_table(map: &RangeMap, u: Option<&[f64]>) -> Result<String, RenderError> {
     let n = map.len();
-    let (lo, hi) = (map.start().to_degrees(), map.end().to_degrees());
-    // Across the reading 0: the signed form, never angles above 360°.
-    let (lo, hi) = if hi > 360.0 {
-        (lo - 360.0, hi - 360.0)
-    } else {
-        (lo, hi)
-    };
+    let (lo, hi) = map.ends_deg();
     let mut out = String::with_capacity(48 * (n + 2));
     out.push_str(RANGE_MARKER);
     out.push(' ');

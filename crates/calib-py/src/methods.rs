@@ -42,17 +42,20 @@ pub fn result<'py>(
     let all = PyDict::new(py);
     for t in tables {
         let table = PyDict::new(py);
-        let angles: Vec<f64> = (0..t.errors.len())
-            .map(|i| (t.start + t.step * i as f64).to_degrees())
-            .collect();
+        let n = t.errors.len();
+        let is_range = t.step * n as f64 + 1e-12 < std::f64::consts::TAU;
+        let (mut lo, step) = (t.start.to_degrees(), t.step.to_degrees());
+        // A range across the reading 0 in its signed form, as the CSV table (never above 360°).
+        if is_range && lo + step * (n - 1) as f64 > 360.0 {
+            lo -= 360.0;
+        }
+        let angles: Vec<f64> = (0..n).map(|i| lo + step * i as f64).collect();
+        let range_deg = is_range.then(|| (angles[0], angles[n - 1]));
         let arcsec = |v: &[f64]| v.iter().map(|x| x * ARCSEC_PER_RAD).collect::<Vec<_>>();
         table.set_item("angle_deg", PyArray1::from_vec(py, angles))?;
         table.set_item("error_arcsec", PyArray1::from_vec(py, arcsec(t.errors)))?;
         table.set_item("u_arcsec", t.u.map(|u| PyArray1::from_vec(py, arcsec(u))))?;
-        table.set_item(
-            "range",
-            t.step * t.errors.len() as f64 + 1e-12 < std::f64::consts::TAU,
-        )?;
+        table.set_item("range", range_deg)?;
         all.set_item(t.name, table)?;
     }
     out.set_item("tables", all)?;

@@ -1,12 +1,16 @@
 //! Correction tables (read, write, apply, export, compose) and the simulator.
 //!
-//! A table crosses into Python as its errors on the uniform grid `i·360°/N`, arcseconds, and
-//! its standard uncertainties where known; inside, an [`ErrorMap`] in radians.
+//! A table crosses into Python as its errors in arcseconds on a uniform grid, its standard
+//! uncertainties where known, and its range: none for a whole turn (the grid `i·360°/N`), or the
+//! first and last grid readings in degrees (`lo + (hi − lo)·i/(N − 1)`, signed across the
+//! reading 0 as the CSV table writes them). Inside, an [`ErrorMap`] or a [`RangeMap`] in radians.
 
 use crate::errors::{check_points, data, usage};
-use calib_core::ErrorMap;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_io::export::{ExportOptions, Format, Keep};
+use calib_core::range_map::RangeMap;
+use calib_core::{ErrorMap, compose::compose_uncertainty};
+use calib_io::export::{ExportOptions, Format, Keep, Span};
+use calib_io::table::AnyTable;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -27,8 +31,8 @@ const FORMATS: [Format; 11] = [
     Format::SimplefocFloat,
 ];
 
-/// The map of errors given in arcseconds, checked as a table's would be.
-fn map_of(errors_arcsec: &[f64]) -> PyResult<ErrorMap> {
+/// The errors given in arcseconds as radians, checked as a table's would be.
+fn radians_of(errors_arcsec: &[f64]) -> PyResult<Vec<f64>> {
     if errors_arcsec.len() < 2 {
         return Err(usage("a table needs at least 2 points"));
     }
@@ -38,9 +42,45 @@ fn map_of(errors_arcsec: &[f64]) -> PyResult<ErrorMap> {
             errors_arcsec[i]
         )));
     }
-    Ok(ErrorMap::new(
-        errors_arcsec.iter().map(|e| e / ARCSEC_PER_RAD).collect(),
-    ))
+    Ok(errors_arcsec.iter().map(|e| e / ARCSEC_PER_RAD).collect())
+}
+
+/// The whole-turn map of errors given in arcseconds.
+fn map_of(errors_arcsec: &[f64]) -> PyResult<ErrorMap> {
+    Ok(ErrorMap::new(radians_of(errors_arcsec)?))
+}
+
+/// A table's map: a whole turn, or the range `(lo, hi)` (degrees, both ends grid points).
+enum AnyMap {
+    Turn(ErrorMap),
+    Range(RangeMap),
+}
+
+impl AnyMap {
+    fn of(errors_arcsec: &[f64], range_deg: Option<(f64, f64)>) -> PyResult<Self> {
+        let values = radians_of(errors_arcsec)?;
+        let Some((lo, hi)) = range_deg else {
+            return Ok(Self::Turn(ErrorMap::new(values)));
+        };
+        if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+            return Err(usage(format!(
+                "range_deg=({lo}, {hi}) is not a range: give (first, last) grid readings in \
+                 degrees, first < last"
+            )));
+        }
+        let step = (hi - lo).to_radians() / (values.len() - 1) as f64;
+        RangeMap::new(lo.to_radians(), step, values)
+            .map(Self::Range)
+            .map_err(|e| usage(format!("range_deg=({lo}, {hi}): {e}")))
+    }
+
+    /// `r − e(r)`; a range map leaves readings outside its range unchanged, as `calib apply`.
+    fn correct(&self, r: f64) -> f64 {
+        match self {
+            Self::Turn(m) => r - m.eval_linear(r),
+            Self::Range(m) => m.eval_linear(r).map_or(r, |e| r - e),
+        }
+    }
 }
 
 /// Arcseconds of radians.
@@ -48,10 +88,16 @@ fn arcsec(values: &[f64]) -> Vec<f64> {
     values.iter().map(|v| v * ARCSEC_PER_RAD).collect()
 }
 
-/// A table's errors and, where it has them, uncertainties (arcseconds).
-type Columns<'py> = (Bound<'py, PyArray1<f64>>, Option<Bound<'py, PyArray1<f64>>>);
+/// A table's errors, its uncertainties where it has them (arcseconds), and its range (degrees,
+/// `None` for a whole turn).
+type Columns<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Option<Bound<'py, PyArray1<f64>>>,
+    Option<(f64, f64)>,
+);
 
-/// Reads a whole-turn correction table: `(error_arcsec, u_arcsec or None)` on its grid.
+/// Reads a correction table of either kind: `(error_arcsec, u_arcsec or None, range_deg or
+/// None)`.
 #[pyfunction]
 pub fn read_table(py: Python<'_>, path: PathBuf) -> PyResult<Columns<'_>> {
     if !path.exists() {
@@ -60,55 +106,69 @@ pub fn read_table(py: Python<'_>, path: PathBuf) -> PyResult<Columns<'_>> {
             path.display()
         )));
     }
-    let table = calib_io::table::read_table(&path).map_err(|e| data(e.to_string()))?;
+    let table = calib_io::table::read_any_table(&path).map_err(|e| data(e.to_string()))?;
+    let (values, u, range) = match &table {
+        AnyTable::Turn(t) => (t.map.values(), &t.u, None),
+        AnyTable::Range(t) => (t.map.values(), &t.u, Some(t.map.ends_deg())),
+    };
     Ok((
-        PyArray1::from_vec(py, arcsec(table.map.values())),
-        table.u.map(|u| PyArray1::from_vec(py, arcsec(&u))),
+        PyArray1::from_vec(py, arcsec(values)),
+        u.as_ref().map(|u| PyArray1::from_vec(py, arcsec(u))),
+        range,
     ))
 }
 
-/// Writes a whole-turn correction table (atomically: complete or not at all).
+/// Writes a correction table, whole-turn or over `range_deg` (atomically: complete or not at
+/// all).
 #[pyfunction]
-#[pyo3(signature = (path, error_arcsec, u_arcsec=None))]
+#[pyo3(signature = (path, error_arcsec, u_arcsec=None, range_deg=None))]
 pub fn write_table(
     path: PathBuf,
     error_arcsec: PyReadonlyArray1<'_, f64>,
     u_arcsec: Option<PyReadonlyArray1<'_, f64>>,
+    range_deg: Option<(f64, f64)>,
 ) -> PyResult<()> {
-    let map = map_of(error_arcsec.as_slice()?)?;
+    let map = AnyMap::of(error_arcsec.as_slice()?, range_deg)?;
     let u: Option<Vec<f64>> = u_arcsec
         .map(|u| {
             u.as_slice()
                 .map(|u| u.iter().map(|v| v / ARCSEC_PER_RAD).collect())
         })
         .transpose()?;
-    let text = calib_io::table::render_table(&map, u.as_deref())
-        .map_err(|e| usage(format!("{}: {e}", path.display())))?;
+    let text = match &map {
+        AnyMap::Turn(m) => calib_io::table::render_table(m, u.as_deref()),
+        AnyMap::Range(m) => calib_io::table::render_range_table(m, u.as_deref()),
+    }
+    .map_err(|e| usage(format!("{}: {e}", path.display())))?;
     calib_io::atomic::write_atomic(&path, text.as_bytes())
         .map_err(|e| data(format!("cannot write {}: {e}", path.display())))
 }
 
 /// Corrects `readings` (radians) with the table: `r − e(r)`, the table interpolated linearly
-/// and periodically (what `calib apply` and a controller do).
+/// (periodically for a whole turn); a range table leaves readings outside its range unchanged
+/// (what `calib apply` and a controller do).
 #[pyfunction]
+#[pyo3(signature = (error_arcsec, readings, range_deg=None))]
 pub fn correct<'py>(
     py: Python<'py>,
     error_arcsec: PyReadonlyArray1<'py, f64>,
     readings: PyReadonlyArray1<'py, f64>,
+    range_deg: Option<(f64, f64)>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let map = map_of(error_arcsec.as_slice()?)?;
+    let map = AnyMap::of(error_arcsec.as_slice()?, range_deg)?;
     let r = readings.as_slice()?;
-    let out: Vec<f64> = py.detach(|| r.iter().map(|&x| x - map.eval_linear(x)).collect());
+    let out: Vec<f64> = py.detach(|| r.iter().map(|&x| map.correct(x)).collect());
     Ok(PyArray1::from_vec(py, out))
 }
 
 /// The table in a controller's format, as `calib export` writes it: `(text, header lines)`.
 #[pyfunction]
-#[pyo3(signature = (error_arcsec, format, *, points=None, scale=None, orders=None, largest=None, min_amplitude=0.01, moteus_source=0, title="calib correction table".to_string()))]
+#[pyo3(signature = (error_arcsec, format, *, range_deg=None, points=None, scale=None, orders=None, largest=None, min_amplitude=0.01, moteus_source=0, title="calib correction table".to_string()))]
 #[allow(clippy::too_many_arguments)]
 pub fn export(
     error_arcsec: PyReadonlyArray1<'_, f64>,
     format: &str,
+    range_deg: Option<(f64, f64)>,
     points: Option<usize>,
     scale: Option<f64>,
     orders: Option<Vec<usize>>,
@@ -117,7 +177,18 @@ pub fn export(
     moteus_source: u8,
     title: String,
 ) -> PyResult<(String, Vec<String>)> {
-    let map = map_of(error_arcsec.as_slice()?)?;
+    // As `calib export`: the values on their grid, and the span that every format needing a
+    // whole turn refuses.
+    let (map, span) = match AnyMap::of(error_arcsec.as_slice()?, range_deg)? {
+        AnyMap::Turn(m) => (m, Span::WHOLE),
+        AnyMap::Range(m) => {
+            let (start_deg, end_deg) = (m.start().to_degrees(), m.end().to_degrees());
+            (
+                ErrorMap::new(m.values().to_vec()),
+                Span { start_deg, end_deg },
+            )
+        }
+    };
     let Some(&format) = FORMATS.iter().find(|f| f.name() == format) else {
         let names: Vec<&str> = FORMATS.iter().map(|f| f.name()).collect();
         return Err(usage(format!(
@@ -143,33 +214,53 @@ pub fn export(
         keep,
         min_amplitude_arcsec: min_amplitude,
         moteus_source,
+        span,
         ..ExportOptions::new(format, title)
     };
     let out = calib_io::export::export(&map, &opts).map_err(|e| usage(e.to_string()))?;
     Ok((out.text, out.header))
 }
 
+/// What [`compose`] returns: the composed errors, their uncertainties where both tables have
+/// them, the offset and the deviation (arcseconds).
+type Composed<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Option<Bound<'py, PyArray1<f64>>>,
+    f64,
+    f64,
+);
+
 /// One map for the map already in use followed by the residual calibrated through it
-/// (`calib compose`): `(error_arcsec, offset_arcsec, deviation_arcsec)`.
+/// (`calib compose`): `(error_arcsec, u_arcsec or None, offset_arcsec, deviation_arcsec)`, the
+/// uncertainty `√(u₁² + (F·u_R)²)` where both tables have one (as `calib compose`).
 #[pyfunction]
-#[pyo3(signature = (first_arcsec, residual_arcsec, factor=1.0, points=None))]
+#[pyo3(signature = (first_arcsec, residual_arcsec, factor=1.0, points=None, first_u_arcsec=None, residual_u_arcsec=None))]
 pub fn compose<'py>(
     py: Python<'py>,
     first_arcsec: PyReadonlyArray1<'py, f64>,
     residual_arcsec: PyReadonlyArray1<'py, f64>,
     factor: f64,
     points: Option<usize>,
-) -> PyResult<(Bound<'py, PyArray1<f64>>, f64, f64)> {
+    first_u_arcsec: Option<PyReadonlyArray1<'py, f64>>,
+    residual_u_arcsec: Option<PyReadonlyArray1<'py, f64>>,
+) -> PyResult<Composed<'py>> {
     let first = map_of(first_arcsec.as_slice()?)?;
     let residual = map_of(residual_arcsec.as_slice()?)?;
     if !factor.is_finite() {
         return Err(usage("factor must be a finite number"));
     }
     check_points(points)?;
+    let radians = |u: &[f64]| u.iter().map(|v| v / ARCSEC_PER_RAD).collect::<Vec<_>>();
+    let u = match (first_u_arcsec, residual_u_arcsec) {
+        (Some(u1), Some(ur)) => Some((radians(u1.as_slice()?), radians(ur.as_slice()?))),
+        _ => None,
+    };
     let points = points.unwrap_or(first.len().max(residual.len()));
     let c = calib_core::compose::compose(&first, &residual, factor, points);
+    let u2 = u.map(|(u1, ur)| compose_uncertainty(&first, &u1, &ur, factor, points));
     Ok((
         PyArray1::from_vec(py, arcsec(c.map.values())),
+        u2.map(|u| PyArray1::from_vec(py, arcsec(&u))),
         c.offset * ARCSEC_PER_RAD,
         c.deviation * ARCSEC_PER_RAD,
     ))

@@ -108,6 +108,57 @@ def test_export_and_compose():
     np.testing.assert_allclose(both.error_arcsec, table.error_arcsec, atol=1e-9)
 
 
+def test_compose_carries_the_uncertainty_of_both_tables():
+    n = 720
+    grid = np.arange(n) * 2 * np.pi / n
+    first = calib.Table(40.0 * np.cos(3 * grid), np.full(n, 0.3))
+    residual = calib.Table(2.0 * np.sin(11 * grid), np.full(n, 0.4))
+    both = calib.compose(first, residual)
+    # Constant u on both: √(0.3² + 0.4²) = 0.5 at every point, wherever u_R is read.
+    np.testing.assert_allclose(both.u_arcsec, 0.5, atol=1e-12)
+    half = calib.compose(first, residual, factor=0.5)
+    np.testing.assert_allclose(half.u_arcsec, np.hypot(0.3, 0.2), atol=1e-12)
+    # Without the residual's u there is none to give (as `calib compose`).
+    assert calib.compose(first, calib.Table(residual.error_arcsec)).u_arcsec is None
+
+
+def test_a_range_table_round_trips_corrects_inside_only_and_exports_where_a_range_fits(tmp_path):
+    n = 271
+    lo, hi = -40.0, 95.0
+    angles = np.linspace(lo, hi, n)
+    error = 12.0 * np.sin(np.radians(angles) * 4) + 3.0
+    error -= error.mean()  # a range map is zero-mean over its range
+    table = calib.Table(error, np.full(n, 0.2), range_deg=(lo, hi))
+    assert table.is_range
+    np.testing.assert_allclose(table.angle_deg, angles, atol=1e-12)
+    table.write(tmp_path / "r.csv")
+    # The signed form across the reading 0, never angles above 360°.
+    assert (tmp_path / "r.csv").read_text().startswith("# range_deg: -40.000000 to 95.000000")
+    back = calib.Table.read(tmp_path / "r.csv")
+    assert back.range_deg == pytest.approx((lo, hi), abs=1e-9)
+    np.testing.assert_allclose(back.error_arcsec, error, atol=5e-7)
+    np.testing.assert_allclose(back.u_arcsec, 0.2, atol=5e-7)
+    # Inside the range a reading r is corrected by the table interpolated linearly (numpy's
+    # interp on the signed grid); outside it is copied unchanged, as `calib apply` does.
+    inside = np.radians(np.linspace(-39.0, 94.0, 501))
+    expected = inside - np.interp(np.degrees(inside), angles, error) / (180 / np.pi * 3600)
+    assert np.max(np.abs(back.correct(inside) - expected)) * 180 / np.pi * 3600 < 1e-6
+    # −39° is also the reading 321°: the same point of the range.
+    np.testing.assert_allclose(
+        back.correct(inside + 2 * np.pi) - 2 * np.pi, back.correct(inside), atol=1e-12
+    )
+    outside = np.radians(np.array([100.0, 180.0, 300.0]))
+    np.testing.assert_array_equal(back.correct(outside), outside)
+    # A controller table needs a whole turn: refused, as by `calib export`; the CSV takes it.
+    with pytest.raises(calib.UsageError):
+        calib.export(back, "moteus")
+    assert "95" in calib.export(back, "csv")
+    with pytest.raises(calib.UsageError, match="whole-turn"):
+        calib.compose(back, calib.Table(np.zeros(8)))
+    with pytest.raises(calib.UsageError, match="range_deg"):
+        calib.Table(error, range_deg=(10.0, 5.0))
+
+
 def test_errors_are_the_right_exceptions(tmp_path):
     with pytest.raises(calib.UsageError, match="no such file"):
         calib.read(tmp_path / "missing.mcap")

@@ -93,6 +93,29 @@ def test_reference_finds_the_dut_minus_reference_within_0_2_arcsec():
     assert np.all(ch.u_arcsec > 0)
 
 
+def test_a_joint_that_never_turns_gives_a_range_table_in_its_own_reading_convention(tmp_path):
+    # The backlash scenario: a joint swept −40…95°, readings wrapped to [0°, 360°), 30″ of play.
+    # cli/tests/it/reference_setups_cli.rs finds the CLI's map within 0.11″ of the truth on it.
+    sim = calib.simulate(TESTDATA / "scenarios" / "backlash.toml", points=36000)
+    res = calib.reference(sim["dut"], sim["ref"], t=sim.t, names=("dut", "ref"), ref_u=0.01)
+    ch = res.channels["dut"]
+    assert ch.is_range
+    lo, hi = ch.range_deg
+    assert -40.5 < lo < -39.0 and 94.0 < hi < 95.5, ch.range_deg
+    np.testing.assert_allclose(ch.angle_deg[[0, -1]], [lo, hi])
+    table = ch.table
+    assert table.is_range and table.range_deg == ch.range_deg
+    # Against the truth over the range, both zero-mean there (a range map's mean is its own).
+    truth = calib.Table(sim.truth["dut"].error_arcsec - sim.truth["ref"].error_arcsec)
+    at = np.radians(table.angle_deg)
+    expected = truth.error_at(at)
+    expected -= expected.mean()
+    err = np.max(np.abs(table.error_arcsec - expected))
+    assert err < 0.2, f"max |map − truth| {err:.4f}″"
+    table.write(tmp_path / "dut.csv")
+    assert calib.Table.read(tmp_path / "dut.csv").range_deg == pytest.approx(ch.range_deg, abs=1e-6)
+
+
 def test_simulate_takes_a_dict_and_gives_the_same_run_as_its_toml():
     as_dict = {
         "seed": 3,

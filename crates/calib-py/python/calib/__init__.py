@@ -169,17 +169,28 @@ def read(
 
 
 class Table:
-    """A whole-turn correction table: errors on the uniform grid ``i·360°/N``.
+    """A correction table: errors on a uniform grid, over a whole turn (``i·360°/N``) or over a
+    range of readings (``lo + (hi − lo)·i/(N − 1)``, both ends grid points).
 
-    Build one from errors in arcseconds (``Table(errors)``), read one calib wrote
-    (:meth:`read`), or take one from a result (``res.channels["a"].table``).
+    Build one from errors in arcseconds (``Table(errors)``, or ``Table(errors,
+    range_deg=(lo, hi))`` for a range), read one calib wrote (:meth:`read`), or take one from a
+    result (``res.channels["a"].table``).
 
     Attributes:
         error_arcsec: the error ``reading − true angle`` at each grid point, arcseconds.
         u_arcsec: the standard uncertainty of each point, arcseconds, or None.
+        range_deg: ``(lo, hi)``, the first and last grid readings in degrees, for a table over
+            part of a turn (signed across the reading 0, e.g. ``(-40.0, 95.0)``); None for a
+            whole turn.
     """
 
-    def __init__(self, error_arcsec: Any, u_arcsec: Any = None):
+    def __init__(
+        self,
+        error_arcsec: Any,
+        u_arcsec: Any = None,
+        *,
+        range_deg: Optional[Tuple[float, float]] = None,
+    ):
         self.error_arcsec: np.ndarray = _f64("error_arcsec", error_arcsec)
         self.u_arcsec: Optional[np.ndarray] = _optional_f64("u_arcsec", u_arcsec)
         if self.u_arcsec is not None and len(self.u_arcsec) != len(self.error_arcsec):
@@ -187,11 +198,30 @@ class Table:
                 f"{len(self.u_arcsec)} uncertainties for a table of {len(self.error_arcsec)} "
                 "points; give one per grid point"
             )
+        self.range_deg: Optional[Tuple[float, float]] = None
+        if range_deg is not None:
+            lo, hi = (float(x) for x in range_deg)
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi and hi - lo < 360.0):
+                raise UsageError(
+                    f"range_deg=({lo}, {hi}) is not a range: give (first, last) grid readings "
+                    "in degrees, first < last, less than a turn apart"
+                )
+            self.range_deg = (lo, hi)
+
+    @property
+    def is_range(self) -> bool:
+        """Whether the table covers part of a turn only (see ``range_deg``)."""
+        return self.range_deg is not None
 
     @property
     def angle_deg(self) -> np.ndarray:
-        """The grid: the sensor's reading at each point, degrees (``i·360/N``)."""
-        return np.arange(len(self.error_arcsec)) * (360.0 / len(self.error_arcsec))
+        """The grid: the sensor's reading at each point, degrees (``i·360/N``, or from ``lo``
+        to ``hi`` for a range)."""
+        n = len(self.error_arcsec)
+        if self.range_deg is None:
+            return np.arange(n) * (360.0 / n)
+        lo, hi = self.range_deg
+        return lo + (hi - lo) * np.arange(n) / (n - 1)
 
     @property
     def correction_arcsec(self) -> np.ndarray:
@@ -212,29 +242,32 @@ class Table:
         return len(self.error_arcsec)
 
     def __repr__(self) -> str:
-        return f"Table({len(self)} points, {self.peak_to_peak_arcsec:.3f}″ peak to peak)"
+        over = "" if self.range_deg is None else f" over {self.range_deg[0]:g}° to {self.range_deg[1]:g}°"
+        return f"Table({len(self)} points{over}, {self.peak_to_peak_arcsec:.3f}″ peak to peak)"
 
     @classmethod
     def read(cls, path: PathLike) -> "Table":
         """Reads a correction table calib wrote (``angle_deg,error_arcsec,correction_arcsec``
-        and optionally ``u_arcsec``), checking its grid, as ``calib apply`` and ``export`` do.
+        and optionally ``u_arcsec``; a range table with its ``# range_deg:`` line), checking its
+        grid, as ``calib apply`` and ``export`` do.
 
         Raises:
             UsageError: no such file.
-            DataError: the table is not a whole-turn correction table (the message names the
-                line and column).
+            DataError: the file is not a correction table (the message names the line and
+                column).
         """
-        error, u = _calib.read_table(os.fspath(path))
-        return cls(error, u)
+        error, u, range_deg = _calib.read_table(os.fspath(path))
+        return cls(error, u, range_deg=range_deg)
 
     def write(self, path: PathLike) -> None:
         """Writes the table as calib does: complete, or not at all (through a temporary file)."""
-        _calib.write_table(os.fspath(path), self.error_arcsec, self.u_arcsec)
+        _calib.write_table(os.fspath(path), self.error_arcsec, self.u_arcsec, self.range_deg)
 
     def correct(self, readings: Any) -> np.ndarray:
         """Corrected readings ``r − e(r)`` (radians in and out), the table interpolated
-        linearly and periodically at each reading, as ``calib apply`` and a controller do."""
-        return _calib.correct(self.error_arcsec, _f64("readings", readings))
+        linearly at each reading (periodically for a whole turn), as ``calib apply`` and a
+        controller do; a range table leaves readings outside its range unchanged."""
+        return _calib.correct(self.error_arcsec, _f64("readings", readings), self.range_deg)
 
     def error_at(self, readings: Any) -> np.ndarray:
         """The table's error at ``readings`` (radians), arcseconds, interpolated as in
@@ -267,6 +300,8 @@ class Channel:
             ``harmonics``, ``after_correction`` …).
         is_range: whether the table covers part of a turn only (a joint that never turned a
             whole revolution; reference method).
+        range_deg: ``(lo, hi)``, the first and last grid readings of a range table in degrees
+            (signed across the reading 0, as the CSV table), or None for a whole turn.
     """
 
     def __init__(self, name: str, raw: Mapping[str, Any], report: dict):
@@ -274,7 +309,8 @@ class Channel:
         self.angle_deg: np.ndarray = raw["angle_deg"]
         self.error_arcsec: np.ndarray = raw["error_arcsec"]
         self.u_arcsec: Optional[np.ndarray] = raw["u_arcsec"]
-        self.is_range: bool = bool(raw["range"])
+        self.range_deg: Optional[Tuple[float, float]] = raw["range"]
+        self.is_range: bool = self.range_deg is not None
         self.report: dict = report
 
     @property
@@ -300,13 +336,9 @@ class Channel:
 
     @property
     def table(self) -> Table:
-        """The whole-turn :class:`Table` (to write, apply, export, compose)."""
-        if self.is_range:
-            raise UsageError(
-                f"channel `{self.name}` has no whole-turn table on a uniform grid (its points "
-                f"run from {self.angle_deg[0]:.6f}° to {self.angle_deg[-1]:.6f}°); use its arrays"
-            )
-        return Table(self.error_arcsec, self.u_arcsec)
+        """The channel's :class:`Table` (to write, apply, export, compose), over its range for
+        a range channel."""
+        return Table(self.error_arcsec, self.u_arcsec, range_deg=self.range_deg)
 
     def __repr__(self) -> str:
         return f"Channel({self.name!r}, {len(self.error_arcsec)} points, {self.peak_to_peak_arcsec:.3f}″ p-p)"
@@ -838,11 +870,14 @@ def export(
         The text to write or send (moteus: the ``conf set`` lines).
 
     Raises:
-        UsageError: a format calib does not know, or a table the format cannot hold.
+        UsageError: a format calib does not know, or a table the format cannot hold (a range
+            table in a format that needs a whole turn, as ``calib export``).
     """
+    t = _table(table)
     text, _header = _calib.export(
-        _table(table).error_arcsec,
+        t.error_arcsec,
         format,
+        range_deg=t.range_deg,
         points=points,
         scale=scale,
         orders=None if orders is None else [int(o) for o in orders],
@@ -863,11 +898,25 @@ def compose(
 ) -> Table:
     """One table for a table already in use (``first``) followed by the ``residual``
     calibrated through it (``calib compose``): ``e(r) = e₁(r) + factor·e_R(r − e₁(r))``, zero
-    mean, on ``points`` points (default: the larger table's)."""
-    error, _offset, _deviation = _calib.compose(
-        _table(first).error_arcsec, _table(residual).error_arcsec, factor, points
+    mean, on ``points`` points (default: the larger table's). Where both tables have
+    uncertainties the result has ``u = √(u₁² + (factor·u_R)²)``, ``u_R`` read where the
+    residual is (the two calibrations independent, as ``calib compose``); otherwise none.
+
+    Raises:
+        UsageError: a range table (composition is over a whole turn), or a bad option.
+    """
+    tables = {"first": _table(first), "residual": _table(residual)}
+    for name, t in tables.items():
+        if t.range_deg is not None:
+            raise UsageError(
+                f"{name}: compose needs whole-turn tables, and this one covers "
+                f"{t.range_deg[0]:g}° to {t.range_deg[1]:g}° only (calibrate a whole revolution)"
+            )
+    f, r = tables["first"], tables["residual"]
+    error, u, _offset, _deviation = _calib.compose(
+        f.error_arcsec, r.error_arcsec, factor, points, f.u_arcsec, r.u_arcsec
     )
-    return Table(error)
+    return Table(error, u)
 
 
 class Simulation:

@@ -93,13 +93,21 @@ def reference_log(
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
 ) -> Dict[str, Any]: ...
-def read_table(path: str) -> Tuple[F64, Optional[F64]]: ...
-def write_table(path: str, error_arcsec: F64, u_arcsec: Optional[F64] = None) -> None: ...
-def correct(error_arcsec: F64, readings: F64) -> F64: ...
+def read_table(path: str) -> Tuple[F64, Optional[F64], Optional[Tuple[float, float]]]: ...
+def write_table(
+    path: str,
+    error_arcsec: F64,
+    u_arcsec: Optional[F64] = None,
+    range_deg: Optional[Tuple[float, float]] = None,
+) -> None: ...
+def correct(
+    error_arcsec: F64, readings: F64, range_deg: Optional[Tuple[float, float]] = None
+) -> F64: ...
 def export(
     error_arcsec: F64,
     format: str,
     *,
+    range_deg: Optional[Tuple[float, float]] = None,
     points: Optional[int] = None,
     scale: Optional[float] = None,
     orders: Optional[List[int]] = None,
@@ -109,8 +117,13 @@ def export(
     title: str = "calib correction table",
 ) -> Tuple[str, List[str]]: ...
 def compose(
-    first_arcsec: F64, residual_arcsec: F64, factor: float = 1.0, points: Optional[int] = None
-) -> Tuple[F64, float, float]: ...
+    first_arcsec: F64,
+    residual_arcsec: F64,
+    factor: float = 1.0,
+    points: Optional[int] = None,
+    first_u_arcsec: Optional[F64] = None,
+    residual_u_arcsec: Optional[F64] = None,
+) -> Tuple[F64, Optional[F64], float, float]: ...
 def simulate(text: str, is_json: bool, points: int = 36000) -> Dict[str, Any]: ...
 def inspect(
     path: str,
