@@ -351,3 +351,18 @@ impl Travel {
         })
     }
 }
+
+/// `--latency`: `auto` or a lag in seconds (`0.02`, `-0.005`), within ±10 s.
+pub fn parse_latency(text: &str) -> Result<calib_core::reference_cal::Latency, String> {
+    use calib_core::reference_cal::Latency;
+    let text = text.trim();
+    if text.eq_ignore_ascii_case("auto") {
+        return Ok(Latency::Auto);
+    }
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= 10.0 => Ok(Latency::Fixed(v)),
+        _ => Err(format!(
+            "`{text}`: give `auto` or the lag in seconds, within ±10 (e.g. 0.02 for 20 ms; 0 for none)"
+        )),
+    }
+}

@@ -650,3 +650,65 @@ fn csrr_finds_the_sessions_of_sensors_with_degree_size_errors() {
         }
     }
 }
+
+/// Issue 24 item 3: B read 5 ms late (`testdata/scenarios/csrr-latency.toml`). By default the
+/// lag is found from the sessions and removed, reported in the summary and report.json, and the
+/// maps reach the truth as a run without a lag does (crates/calib-core/tests/it/csrr_latency.rs
+/// gives the reasons for the bounds); `--latency 0` leaves it in, and the refusal names it.
+#[test]
+fn a_lag_between_the_channels_is_found_and_removed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = simulate(
+        &testdata("scenarios/csrr-latency.toml"),
+        dir.path(),
+        "run.mcap",
+    );
+    let truth = dir.path().join("run.truth");
+    let out = dir.path().join("out");
+    let o = calib(&["csrr", s(&mcap), "-o", s(&out), "--truth", s(&truth)]);
+    expect_exit(&o, 0);
+    let summary = stdout(&o);
+    assert_mentions(
+        &summary,
+        &["latency        `b`'s samples 5.000 ms older, removed"],
+    );
+    let report = read_json(&out.join("report.json"));
+    let details = &report["details"];
+    let lag = details["latency_s"].as_f64().unwrap();
+    assert!((lag - 0.005).abs() < 0.005 * 0.01, "lag {lag}");
+    assert_eq!(details["latency"]["mode"], "auto");
+    assert_eq!(details["latency"]["left_significant"], false);
+    for name in ["a", "b"] {
+        let err = max_map_error(&out, &truth, name);
+        assert!(err < 0.05, "{name}: max |map − truth| {err:.4}″");
+    }
+
+    let o = calib(&[
+        "csrr",
+        s(&mcap),
+        "-o",
+        s(&dir.path().join("out0")),
+        "--latency",
+        "0",
+    ]);
+    expect_exit(&o, 1);
+    let err = stderr(&o);
+    assert_mentions(
+        &err,
+        &[
+            "B's samples are 4.9",
+            "older than A's",
+            "leave --latency at auto",
+        ],
+    );
+
+    let o = calib(&[
+        "csrr",
+        s(&mcap),
+        "-o",
+        s(&dir.path().join("outx")),
+        "--latency",
+        "soon",
+    ]);
+    expect_exit(&o, 2);
+}

@@ -28,6 +28,15 @@
 //! The block at each end of a rotating segment is not handed to the session sink, so that the
 //! edges of a relative turn made while rotating never leak into a session.
 //!
+//! # A lag between the channels
+//! Two interfaces rarely sample at the same instant. If B's sample stamped `t` was taken at
+//! `t − τ`, then `d = x − y` carries `τ·ω(t)` (to first order, `ω` the shaft's speed): a constant
+//! at a constant speed, which only shifts a session's relative rotation, but a change of
+//! `τ·Δω` wherever the speed changes. The one-revolution departures see it free of the maps:
+//! at the same reading of A the errors cancel, and what is left is `τ·(ω_now − ω_then)` plus
+//! noise. Each block's mean departure is regressed on its speed change over the sessions
+//! ([`LatencyEstimate`]); A lagging B gives a negative `τ`.
+//!
 //! The segmenter is streaming: it holds one block of samples and the list of segments.
 
 use crate::angle::{Unwrapper, wrap_2pi};
@@ -168,6 +177,79 @@ pub struct Segmenter {
     provisional_only: bool,
     /// The accepted sessions' squared departures from one revolution earlier, and their count.
     repeat: (f64, u64),
+    /// The accepted sessions' departures against their speed changes.
+    lag: LagSums,
+}
+
+/// Weighted sums of the blocks' departures `δ` against their speed changes `Δω` (weights: the
+/// samples compared), for the least-squares lag `τ = Σnδ·Δω / ΣnΔω²`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct LagSums {
+    n: f64,
+    ww: f64,
+    wd: f64,
+    dd: f64,
+    blocks: u64,
+    max_speed: f64,
+}
+
+impl LagSums {
+    fn add(&mut self, n: f64, speed_change: f64, departure: f64, speed: f64) {
+        self.n += n;
+        self.ww += n * speed_change * speed_change;
+        self.wd += n * speed_change * departure;
+        self.dd += n * departure * departure;
+        self.blocks += 1;
+        self.max_speed = self.max_speed.max(speed.abs());
+    }
+
+    fn merge(&mut self, other: &LagSums) {
+        self.n += other.n;
+        self.ww += other.ww;
+        self.wd += other.wd;
+        self.dd += other.dd;
+        self.blocks += other.blocks;
+        self.max_speed = self.max_speed.max(other.max_speed);
+    }
+
+    fn estimate(&self) -> Option<LatencyEstimate> {
+        if self.blocks < 3 || self.ww.is_nan() || self.ww <= 0.0 {
+            return None;
+        }
+        let tau = self.wd / self.ww;
+        // Σn·r² of the block means is (blocks − 1)·σ² for a per-sample departure variance σ².
+        let residual = (self.dd - tau * self.wd).max(0.0);
+        let variance = residual / (self.blocks - 1) as f64;
+        Some(LatencyEstimate {
+            tau,
+            u_tau: (variance / self.ww).sqrt(),
+            noise: (variance / 2.0).sqrt(),
+            speed_change_rms: (self.ww / self.n).sqrt(),
+            max_speed: self.max_speed,
+            blocks: self.blocks,
+        })
+    }
+}
+
+/// The lag between the two channels that the sessions' one-revolution departures show (see
+/// [A lag between the channels](self#a-lag-between-the-channels)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LatencyEstimate {
+    /// `τ`, seconds: how much older B's sample is than A's at the same stamp (negative: A's is
+    /// older).
+    pub tau: f64,
+    /// Standard uncertainty of `τ`, seconds, from the scatter of the blocks about the fit.
+    pub u_tau: f64,
+    /// The noise of `d` per sample that scatter implies, rad (the departures less the lag, over
+    /// √2: two samples' noise).
+    pub noise: f64,
+    /// RMS of the speed changes over one revolution the estimate rests on, rad/s (0 at a
+    /// perfectly constant speed: no lag is visible then).
+    pub speed_change_rms: f64,
+    /// The largest block speed in the sessions, rad/s: `τ` moves `d` by up to `τ` times it.
+    pub max_speed: f64,
+    /// Blocks compared.
+    pub blocks: u64,
 }
 
 #[derive(Debug)]
@@ -183,8 +265,8 @@ struct Open {
     mark: Option<u32>,
     /// The session id handed to the sink, for rotating segments.
     session: Option<usize>,
-    /// A rotating segment's samples `(x unwrapped, d)` of (a little over) its last revolution.
-    history: VecDeque<(f64, f64)>,
+    /// A rotating segment's samples `(x unwrapped, d, t)` of (a little over) its last revolution.
+    history: VecDeque<(f64, f64, f64)>,
     /// A rotating segment's departures from one revolution earlier, per block, while its
     /// tolerance is being set.
     departures: Vec<f64>,
@@ -192,14 +274,19 @@ struct Open {
     tol: Option<f64>,
     /// Sum of the squared per-sample departures from one revolution earlier, and their count.
     repeat: (f64, u64),
+    /// The departures against the speed changes.
+    lag: LagSums,
 }
 
 /// The mean departure of a block from one revolution earlier ([`Open::departure`]), with the
-/// sum of the squared per-sample departures and their count.
+/// sum of the squared per-sample departures and their count, and the mean speed of the block
+/// with its mean change from the speed at the same readings one revolution earlier (rad/s;
+/// `None` under two samples).
 struct Departure {
     mean: f64,
     sum_sq: f64,
     count: u64,
+    speeds: Option<(f64, f64)>,
 }
 
 impl Open {
@@ -209,6 +296,10 @@ impl Open {
     fn departure(&self, block: &[Buffered]) -> Option<Departure> {
         let dir = self.direction;
         let (mut sum, mut sum_sq, mut count) = (0.0, 0.0, 0u64);
+        // The speed now and its change from one revolution earlier, between consecutive
+        // samples compared (x, t now, t then): their sums and count.
+        let mut previous: Option<(f64, f64, f64)> = None;
+        let (mut speed, mut change, mut steps) = (0.0, 0.0, 0u32);
         let mut j = 0;
         for b in block {
             let target = b.xu - dir * TAU;
@@ -216,25 +307,69 @@ impl Open {
                 continue;
             }
             j = self.first_not_before(target, j);
-            let Some(&(x1, d1)) = self.history.get(j) else {
+            let Some(&(x1, d1, t1)) = self.history.get(j) else {
                 continue;
             };
-            let d_then = match j.checked_sub(1).and_then(|i| self.history.get(i)) {
-                Some(&(x0, d0)) if x1 != x0 => d0 + (d1 - d0) * (target - x0) / (x1 - x0),
-                _ => d1,
+            let (d_then, t_then) = match j.checked_sub(1).and_then(|i| self.history.get(i)) {
+                Some(&(x0, d0, t0)) if x1 != x0 => {
+                    let f = (target - x0) / (x1 - x0);
+                    (
+                        self.d_at(j, target).unwrap_or(d0 + (d1 - d0) * f),
+                        t0 + (t1 - t0) * f,
+                    )
+                }
+                _ => (d1, t1),
             };
             sum += b.d - d_then;
             sum_sq += (b.d - d_then).powi(2);
             count += 1;
+            if let Some((x0, t0, t0_then)) = previous {
+                let (dx, dt, dt_then) = (b.xu - x0, b.t - t0, t_then - t0_then);
+                if dt > 0.0 && dt_then > 0.0 {
+                    speed += dx / dt;
+                    change += dx / dt - dx / dt_then;
+                    steps += 1;
+                }
+            }
+            previous = Some((b.xu, b.t, t_then));
         }
         if count == 0 {
             return None;
         }
+        let speeds = (steps > 0).then(|| (speed / f64::from(steps), change / f64::from(steps)));
         Some(Departure {
             mean: sum / count as f64,
             sum_sq,
             count,
+            speeds,
         })
+    }
+
+    /// `d` one revolution earlier at `target`, by the cubic in `x` through the history's two
+    /// samples before it and two from `j` on (`None` without them): a straight line errs by
+    /// `d''·h²/8` over a step `h` of `x`, and `h` grows with the speed, so a line's error would
+    /// follow the speed and read as a lag between the channels.
+    fn d_at(&self, j: usize, target: f64) -> Option<f64> {
+        let nodes = [
+            self.history.get(j.checked_sub(2)?)?,
+            self.history.get(j - 1)?,
+            self.history.get(j)?,
+            self.history.get(j + 1)?,
+        ];
+        let mut sum = 0.0;
+        for (i, &&(xi, di, _)) in nodes.iter().enumerate() {
+            let mut w = 1.0;
+            for (k, &&(xk, _, _)) in nodes.iter().enumerate() {
+                if k != i {
+                    if xi == xk {
+                        return None;
+                    }
+                    w *= (target - xk) / (xi - xk);
+                }
+            }
+            sum += di * w;
+        }
+        Some(sum)
     }
 
     /// The first sample of the history whose `x` is not before `target` along the direction of
@@ -258,17 +393,17 @@ impl Open {
             }
         }
         self.history
-            .partition_point(|&(x, _)| (x - target) * self.direction < 0.0)
+            .partition_point(|&(x, _, _)| (x - target) * self.direction < 0.0)
     }
 
     /// Adds `block` to the history, keeping a little over one revolution.
     fn remember(&mut self, block: &[Buffered]) {
-        self.history.extend(block.iter().map(|b| (b.xu, b.d)));
+        self.history.extend(block.iter().map(|b| (b.xu, b.d, b.t)));
         let newest = block.last().map_or(self.x_end, |b| b.xu);
         while self
             .history
             .front()
-            .is_some_and(|&(x, _)| (newest - x) * self.direction > 1.1 * TAU)
+            .is_some_and(|&(x, _, _)| (newest - x) * self.direction > 1.1 * TAU)
         {
             self.history.pop_front();
         }
@@ -313,6 +448,7 @@ impl Segmenter {
             tol_applied: None,
             provisional_only: false,
             repeat: (0.0, 0),
+            lag: LagSums::default(),
         }
     }
 
@@ -368,6 +504,7 @@ impl Segmenter {
                 .or(self.provisional_only.then_some(PROVISIONAL_TOL)),
             repeatability: (self.repeat.1 > 0)
                 .then(|| (self.repeat.0 / (2.0 * self.repeat.1 as f64)).sqrt()),
+            latency: self.lag.estimate(),
         }
     }
 
@@ -449,6 +586,9 @@ impl Segmenter {
         if let (true, Some(dep), Some(open)) = (continues, &departure, &mut self.current) {
             open.repeat.0 += dep.sum_sq;
             open.repeat.1 += dep.count;
+            if let Some((speed, change)) = dep.speeds {
+                open.lag.add(dep.count as f64, change, dep.mean, speed);
+            }
         }
         if !continues {
             self.close_current(sink);
@@ -472,6 +612,7 @@ impl Segmenter {
                 departures: Vec::new(),
                 tol: None,
                 repeat: (0.0, 0),
+                lag: LagSums::default(),
             });
         }
         let open = self.current.as_mut().expect("set above");
@@ -512,6 +653,7 @@ impl Segmenter {
             if accepted {
                 self.repeat.0 += open.repeat.0;
                 self.repeat.1 += open.repeat.1;
+                self.lag.merge(&open.lag);
             } else {
                 session = None;
             }
@@ -551,6 +693,9 @@ pub struct Segmentation {
     /// errors (slightly above the noise where `d` is curved between samples); `None` when no
     /// session turned more than one revolution.
     pub repeatability: Option<f64>,
+    /// The lag between the channels the sessions show ([`LatencyEstimate`]); `None` where fewer
+    /// than three blocks were compared or the speed never changed.
+    pub latency: Option<LatencyEstimate>,
 }
 
 impl Segmentation {

@@ -99,6 +99,25 @@ pub fn open(path: &Path, names: Option<&[String]>, opts: &LogOptions) -> PyResul
     Ok(reader)
 }
 
+/// [`open`] again for a later reading of the same log (a method that reads it twice), its
+/// errors as messages: the log was opened once already, so they are data errors.
+pub fn reopen(path: &Path, names: &[String], opts: &LogOptions) -> Result<LogReader, String> {
+    let mut read = opts.read.clone();
+    read.fields = names.to_vec();
+    let mut reader =
+        LogReader::open(path, &read).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let indices = names
+        .iter()
+        .map(|n| {
+            reader
+                .resolve(n)
+                .map_err(|e| format!("{}: {e}", path.display()))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    reader.select(&indices, opts.align);
+    Ok(reader)
+}
+
 /// Calls `push` with every sample of `reader` (opened on `path`), decoding on a second thread
 /// while this one pushes. Returns the reader, for its warnings and alignment, or the message
 /// of the first sample that cannot be read.

@@ -5,11 +5,13 @@
 //! (`error_arcsec`) and standard uncertainties (`u_arcsec`, or `None`).
 
 use crate::errors::{check_non_negative, check_points, check_range, data, usage};
-use crate::logs::{LogOptions, alignment, for_each_sample, open};
+use crate::logs::{LogOptions, alignment, for_each_sample, open, reopen};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::csrr::{Csrr, CsrrError, CsrrOptions, Method};
-use calib_core::reference_cal::{ReferenceCal, ReferenceOptions, TableMap, Targets};
+use calib_core::reference_cal::{
+    Latency, ReferenceCal, ReferenceKind, ReferenceOptions, TableMap, Targets,
+};
 use calib_core::report::ReportSection;
 use calib_core::segment::SegmentOptions;
 use numpy::{PyArray1, PyReadonlyArray1};
@@ -168,6 +170,57 @@ impl CsrrArgs {
     }
 }
 
+/// `latency`: `"auto"` (or None) or the lag in seconds, within ±10, as `--latency`.
+fn latency_of(value: Option<&Bound<'_, PyAny>>) -> PyResult<Latency> {
+    let bad = |shown: String| {
+        usage(format!(
+            "latency={shown}: give \"auto\" or the lag in seconds, within ±10 (e.g. 0.02 for \
+             20 ms; 0 for none)"
+        ))
+    };
+    let Some(value) = value else {
+        return Ok(Latency::Auto);
+    };
+    if let Ok(text) = value.extract::<String>() {
+        return if text.trim().eq_ignore_ascii_case("auto") {
+            Ok(Latency::Auto)
+        } else {
+            Err(bad(format!("{text:?}")))
+        };
+    }
+    match value.extract::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= 10.0 => Ok(Latency::Fixed(v)),
+        Ok(v) => Err(bad(v.to_string())),
+        Err(_) => Err(bad(value.to_string())),
+    }
+}
+
+/// `ref_kind` and `pole_pairs`, as `--ref-kind` and `--pole-pairs`.
+fn reference_kind(
+    ref_kind: &str,
+    pole_pairs: Option<u32>,
+    points: usize,
+) -> PyResult<ReferenceKind> {
+    match (ref_kind, pole_pairs) {
+        ("encoder", None) => Ok(ReferenceKind::Encoder),
+        ("encoder", Some(_)) => Err(usage(
+            "pole_pairs is for a commanded reference: give ref_kind=\"commanded\", or leave pole_pairs out",
+        )),
+        ("commanded", None) => Err(usage(
+            "ref_kind=\"commanded\" needs the motor's pole_pairs (moteus: motor.poles / 2; a 42-pole motor has 21)",
+        )),
+        ("commanded", Some(p)) if p == 0 || points < 8 * p as usize => Err(usage(format!(
+            "pole_pairs={p} needs at least 1 and points of at least 8 per pole pair ({})",
+            8 * p.max(1) as usize
+        ))),
+        ("commanded", Some(p)) => Ok(ReferenceKind::Commanded { pole_pairs: p }),
+        (other, _) => Err(usage(format!(
+            "ref_kind=`{other}`: give \"encoder\" (an encoder on the DUT's shaft) or \"commanded\" \
+             (a motor's open-loop commanded angle)"
+        ))),
+    }
+}
+
 /// The message of a CSRR that failed on channels `a` and `b` of `what`.
 fn csrr_error(what: &str, a: &str, b: &str, e: &CsrrError) -> String {
     match e {
@@ -207,7 +260,7 @@ fn csrr_result<'py>(
 
 /// CSRR self-calibration of two coaxial sensors from arrays (see `calib.csrr`).
 #[pyfunction]
-#[pyo3(signature = (a, b, t=None, sessions=None, r#ref=None, *, names=("a".to_string(), "b".to_string()), rate_hz=1000.0, method="joint", max_order=None, points=None, session_tol=None, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0)))]
+#[pyo3(signature = (a, b, t=None, sessions=None, r#ref=None, *, names=("a".to_string(), "b".to_string()), rate_hz=1000.0, method="joint", max_order=None, points=None, session_tol=None, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0), latency=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn csrr<'py>(
     py: Python<'py>,
@@ -226,7 +279,9 @@ pub fn csrr<'py>(
     detect_sessions: bool,
     min_observability: f64,
     benchmarks: (f64, f64),
+    latency: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let latency = latency_of(latency.as_ref())?;
     let (a, b) = (a.as_slice()?, b.as_slice()?);
     let n = a.len();
     same_length("b", b, n)?;
@@ -263,15 +318,19 @@ pub fn csrr<'py>(
         sessions.is_some() && !detect_sessions,
     )?;
     let cal = py.detach(|| {
-        let mut csrr = Csrr::new(args.opts);
-        for i in 0..n {
-            let mark = sessions.and_then(|s| u32::try_from(s[i]).ok());
-            match r {
-                Some(r) => csrr.push_with_reference(t[i], a[i], b[i], r[i], mark),
-                None => csrr.push(t[i], a[i], b[i], mark),
+        // The arrays are read once per pass (`auto` latency reads them again with the lag
+        // removed).
+        calib_core::csrr::latency::calibrate(&args.opts, latency, |csrr: &mut Csrr| {
+            for i in 0..n {
+                let mark = sessions.and_then(|s| u32::try_from(s[i]).ok());
+                match r {
+                    Some(r) => csrr.push_with_reference(t[i], a[i], b[i], r[i], mark),
+                    None => csrr.push(t[i], a[i], b[i], mark),
+                }
             }
-        }
-        csrr.finish()
+            Ok::<(), std::convert::Infallible>(())
+        })
+        .unwrap_or_else(|never| match never {})
     });
     let (na, nb) = (names.0.as_str(), names.1.as_str());
     let cal = cal.map_err(|e| data(csrr_error("the arrays", na, nb, &e)))?;
@@ -281,7 +340,7 @@ pub fn csrr<'py>(
 
 /// CSRR self-calibration of two channels of a log (see `calib.csrr_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, a="a".to_string(), b="b".to_string(), r#ref=None, method="joint", max_order=None, points=None, session_tol=None, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0), unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, a="a".to_string(), b="b".to_string(), r#ref=None, method="joint", max_order=None, points=None, session_tol=None, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0), latency=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn csrr_log<'py>(
     py: Python<'py>,
@@ -297,12 +356,14 @@ pub fn csrr_log<'py>(
     detect_sessions: bool,
     min_observability: f64,
     benchmarks: (f64, f64),
+    latency: Option<Bound<'py, PyAny>>,
     unit: Option<&str>,
     time: &str,
     max_gap: Option<f64>,
     time_column: Option<String>,
     time_unit: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let latency = latency_of(latency.as_ref())?;
     if a == b {
         return Err(usage(format!(
             "a and b both name `{a}`: name the two sensors' channels"
@@ -332,18 +393,28 @@ pub fn csrr_log<'py>(
     let what = path.display().to_string();
     let (cal, reader) = py
         .detach(|| {
-            let mut csrr = Csrr::new(args.opts);
             let with_ref = r#ref.is_some();
-            let reader = for_each_sample(&path, reader, |s| {
-                let v = &s.values;
-                if with_ref {
-                    csrr.push_with_reference(s.t, v[0], v[1], v[2], s.session);
-                } else {
-                    csrr.push(s.t, v[0], v[1], s.session);
-                }
-            })?;
-            let cal = csrr.finish().map_err(|e| csrr_error(&what, &a, &b, &e))?;
-            Ok::<_, String>((cal, reader))
+            let (mut first, mut last) = (Some(reader), None);
+            // One reading of the log per pass (`auto` latency reads it again with the lag
+            // removed).
+            let cal =
+                calib_core::csrr::latency::calibrate(&args.opts, latency, |csrr: &mut Csrr| {
+                    let reader = match first.take() {
+                        Some(reader) => reader,
+                        None => reopen(&path, &names, &log)?,
+                    };
+                    last = Some(for_each_sample(&path, reader, |s| {
+                        let v = &s.values;
+                        if with_ref {
+                            csrr.push_with_reference(s.t, v[0], v[1], v[2], s.session);
+                        } else {
+                            csrr.push(s.t, v[0], v[1], s.session);
+                        }
+                    })?);
+                    Ok::<(), String>(())
+                })?
+                .map_err(|e| csrr_error(&what, &a, &b, &e))?;
+            Ok::<_, String>((cal, last.expect("the log is read at least once")))
         })
         .map_err(data)?;
     csrr_result(
@@ -380,6 +451,7 @@ fn parse_targets(targets: &Bound<'_, PyAny>) -> Option<PyResult<Targets>> {
 }
 
 /// The reference calibration's options from its keyword arguments (`calib reference`'s).
+#[allow(clippy::too_many_arguments)]
 fn reference_options(
     ref_u: Option<f64>,
     points: usize,
@@ -388,6 +460,7 @@ fn reference_options(
     bridge_gap: f64,
     targets: Option<&Bound<'_, PyAny>>,
     approach: f64,
+    (latency, ref_kind, pole_pairs): (Option<&Bound<'_, PyAny>>, &str, Option<u32>),
 ) -> PyResult<ReferenceOptions> {
     check_points(Some(points))?;
     if let Some(u) = ref_u {
@@ -407,9 +480,6 @@ fn reference_options(
         None => Targets::Count(20),
         Some(t) => parse_targets(t).ok_or_else(bad)??,
     };
-    // Options the library gains later keep their defaults (the keyword arguments name each one
-    // the CLI has).
-    #[allow(clippy::needless_update)]
     Ok(ReferenceOptions {
         points,
         min_speed: min_speed.to_radians(),
@@ -418,7 +488,8 @@ fn reference_options(
         approach: approach.to_radians(),
         max_gap: bridge_gap.to_radians(),
         targets,
-        ..ReferenceOptions::default()
+        latency: latency_of(latency)?,
+        reference_kind: reference_kind(ref_kind, pole_pairs, points)?,
     })
 }
 
@@ -451,7 +522,7 @@ fn reference_result<'py>(
 
 /// Cross-calibration against a reference encoder from arrays (see `calib.reference`).
 #[pyfunction]
-#[pyo3(signature = (dut, r#ref, t=None, *, names=("dut".to_string(), "ref".to_string()), rate_hz=1000.0, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0))]
+#[pyo3(signature = (dut, r#ref, t=None, *, names=("dut".to_string(), "ref".to_string()), rate_hz=1000.0, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, latency=None, ref_kind="encoder", pole_pairs=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference<'py>(
     py: Python<'py>,
@@ -467,6 +538,9 @@ pub fn reference<'py>(
     bridge_gap: f64,
     targets: Option<Bound<'py, PyAny>>,
     approach: f64,
+    latency: Option<Bound<'py, PyAny>>,
+    ref_kind: &str,
+    pole_pairs: Option<u32>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (d, r) = (dut.as_slice()?, r#ref.as_slice()?);
     let n = d.len();
@@ -480,6 +554,7 @@ pub fn reference<'py>(
         bridge_gap,
         targets.as_ref(),
         approach,
+        (latency.as_ref(), ref_kind, pole_pairs),
     )?;
     let cal = py.detach(|| {
         let mut cal = ReferenceCal::new(opts);
@@ -500,7 +575,7 @@ pub fn reference<'py>(
 /// Cross-calibration of a log's DUT channel against its reference channel (see
 /// `calib.reference_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, dut, r#ref, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, dut, r#ref, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, latency=None, ref_kind="encoder", pole_pairs=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference_log<'py>(
     py: Python<'py>,
@@ -514,6 +589,9 @@ pub fn reference_log<'py>(
     bridge_gap: f64,
     targets: Option<Bound<'py, PyAny>>,
     approach: f64,
+    latency: Option<Bound<'py, PyAny>>,
+    ref_kind: &str,
+    pole_pairs: Option<u32>,
     unit: Option<&str>,
     time: &str,
     max_gap: Option<f64>,
@@ -533,6 +611,7 @@ pub fn reference_log<'py>(
         bridge_gap,
         targets.as_ref(),
         approach,
+        (latency.as_ref(), ref_kind, pole_pairs),
     )?;
     let log = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
     let reader = open(&path, Some(&[dut.clone(), r#ref.clone()]), &log)?;

@@ -12,6 +12,7 @@ use anyhow::Context;
 use calib_core::ErrorMap;
 use calib_core::angle::{ARCSEC_PER_RAD, Unwrapper};
 use calib_core::csrr::{Csrr, CsrrError, CsrrOptions, Method};
+use calib_core::reference_cal::Latency;
 use calib_core::segment::SegmentOptions;
 use calib_report::trace::Trace;
 use std::f64::consts::TAU;
@@ -97,6 +98,17 @@ pub struct Args {
     /// Detect sessions from the motion even when the log has a `session` column.
     #[arg(long)]
     pub detect_sessions: bool,
+    /// B's lag behind A, removed by moving B's readings to A's instants (interpolated in
+    /// time): two interfaces rarely sample at the same instant (an SSI/BiSS master, a CAN
+    /// encoder, a resolver terminal: 1–50 ms), and a lag τ makes `a − b` change by τ × the
+    /// change of speed, which no pair of maps can hold (2 ms at 60 r/min: 2592″ between rest
+    /// and speed). `auto` measures it from how each session's `a − b` departs from one
+    /// revolution earlier as the speed changes (free of the maps) and, where significant, reads
+    /// the log again with it removed (up to 4 readings); SECONDS removes this lag (positive: B's
+    /// sample is older than its stamp, i.e. than A's); `0` removes none and warns where the
+    /// sessions show one. report.json: details.latency_s and details.latency.
+    #[arg(long, default_value = "auto", value_parser = crate::input::parse_latency, value_name = "SECONDS|auto")]
+    pub latency: Latency,
     /// Orders whose observability (0 blind … 1 ideal) is below this are left out of the maps.
     #[arg(long, default_value_t = 0.01)]
     pub min_observability: f64,
@@ -205,26 +217,42 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         .as_deref()
         .map(ReferenceTable::read)
         .transpose()?;
-    let mut csrr = Csrr::new(opts);
     let mut trace = TraceRecorder::new(&args.a, &args.b);
     let (mut travel_a, mut travel_b) = (
         crate::input::Travel::default(),
         crate::input::Travel::default(),
     );
-    // The sample's values are the channels in the order opened: A, B, then the reference.
-    let reader = for_each_sample(log, reader, |s| {
-        let (a, b) = (s.values[0], s.values[1]);
-        trace.push(s.t, a, b);
-        travel_a.push(a);
-        travel_b.push(b);
-        match s.values.get(2) {
-            Some(&r) => csrr.push_with_reference(s.t, a, b, r, s.session),
-            None => csrr.push(s.t, a, b, s.session),
+    let (mut first, mut last) = (Some(reader), None);
+    let mut solving: Option<indicatif::ProgressBar> = None;
+    // One reading of the log per pass: `auto` reads it again with the lag it found removed.
+    let cal = calib_core::csrr::latency::calibrate(&opts, args.latency, |csrr: &mut Csrr| {
+        if let Some(bar) = solving.take() {
+            bar.finish_and_clear();
         }
+        let reader = match first.take() {
+            Some(reader) => reader,
+            None => args.common.open(log, &names)?,
+        };
+        trace = TraceRecorder::new(&args.a, &args.b);
+        (travel_a, travel_b) = Default::default();
+        // The sample's values are the channels in the order opened: A, B, then the reference.
+        last = Some(for_each_sample(log, reader, |s| {
+            let (a, b) = (s.values[0], s.values[1]);
+            trace.push(s.t, a, b);
+            travel_a.push(a);
+            travel_b.push(b);
+            match s.values.get(2) {
+                Some(&r) => csrr.push_with_reference(s.t, a, b, r, s.session),
+                None => csrr.push(s.t, a, b, s.session),
+            }
+        })?);
+        solving = Some(crate::ui::working("solving"));
+        anyhow::Ok(())
     })?;
-    let solving = crate::ui::working("solving");
-    let cal = csrr.finish();
-    solving.finish_and_clear();
+    if let Some(bar) = solving {
+        bar.finish_and_clear();
+    }
+    let reader = last.expect("the log is read at least once");
     let cal = cal.map_err(|e| {
         let needs = "CSRR's self-calibration needs sessions of whole turns";
         if let Some(hint) = travel_a

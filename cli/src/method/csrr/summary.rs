@@ -6,6 +6,7 @@ use crate::summary::{TextTable, ending, key_values};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::csrr::{Calibration, Method};
+use calib_core::reference_cal::Latency;
 use std::fmt::Write;
 use std::path::Path;
 
@@ -78,6 +79,23 @@ pub(super) fn render_summary(
                 } else {
                     "from the sessions' own scatter"
                 }
+            ),
+        ));
+    }
+    if let Some(l) = cal.latency.filter(|l| l.applied != 0.0) {
+        let older = if l.applied > 0.0 { &args.b } else { &args.a };
+        facts.push((
+            "latency",
+            format!(
+                "`{older}`'s samples {:.3} ms older, removed ({}){}",
+                l.applied.abs() * 1e3,
+                match l.mode {
+                    Latency::Auto =>
+                        format!("found from the sessions, {} readings of the log", l.passes),
+                    Latency::Fixed(_) => "--latency".to_string(),
+                },
+                l.u_applied
+                    .map_or(String::new(), |u| format!("; u {:.3} µs", u * 1e6))
             ),
         ));
     }

@@ -107,7 +107,7 @@ pub struct Args {
     /// readings (a lag in ms or a backlash in ″). SECONDS removes this lag (positive: the DUT's
     /// sample is older than its stamp; a resolver terminal, SSI/BiSS or CAN encoder lags
     /// 1–50 ms); `0` assumes none. report.json: details.latency_s and details.latency.
-    #[arg(long, default_value = "auto", value_parser = parse_latency, value_name = "SECONDS|auto")]
+    #[arg(long, default_value = "auto", value_parser = crate::input::parse_latency, value_name = "SECONDS|auto")]
     pub latency: Latency,
     /// What the reference is: `encoder`, a better encoder on the DUT's shaft; or `commanded`,
     /// the commanded angle of a motor driven open loop (a firmware calibration: moteus,
@@ -145,20 +145,6 @@ pub enum RefKind {
     Encoder,
     /// The commanded angle of a motor driven open loop.
     Commanded,
-}
-
-/// `--latency`: `auto` or seconds (`0.02`, `-0.005`).
-fn parse_latency(text: &str) -> Result<Latency, String> {
-    let text = text.trim();
-    if text.eq_ignore_ascii_case("auto") {
-        return Ok(Latency::Auto);
-    }
-    match text.parse::<f64>() {
-        Ok(v) if v.is_finite() && v.abs() <= 10.0 => Ok(Latency::Fixed(v)),
-        _ => Err(format!(
-            "`{text}`: give `auto` or the DUT's lag in seconds, within ±10 (e.g. 0.02 for 20 ms; 0 for none)"
-        )),
-    }
 }
 
 /// The reference kind of the options, checked against `--pole-pairs`.

@@ -22,6 +22,7 @@
 // building blocks stay private, and the reference check's types are re-exported here.
 mod bins;
 pub mod joint;
+pub mod latency;
 mod observability;
 pub mod paper;
 mod reference;
@@ -134,6 +135,26 @@ pub enum CsrrError {
         "the solve produced non-finite values: the data are degenerate (check that both channels carry real readings)"
     )]
     NotFinite,
+    /// The solve failed with a lag between the channels left in the data ([`latency`]).
+    #[error(
+        "{older} samples are {lag_ms:.3} ms older than {newer} (u {u_ms:.3} ms), and the `latency` option \
+         ({given_ms:.3} ms) leaves it in the data, where it moves `a − b` with every change of speed: \
+         leave the `latency` option at auto to have it removed. The solve said: {cause}"
+    )]
+    Lag {
+        /// `B's` or `A's`: whose samples are older.
+        older: &'static str,
+        /// The other one.
+        newer: &'static str,
+        /// The lag the sessions show, ms.
+        lag_ms: f64,
+        /// Its standard uncertainty, ms.
+        u_ms: f64,
+        /// The lag the option removed, ms.
+        given_ms: f64,
+        /// The solve's own error.
+        cause: Box<CsrrError>,
+    },
 }
 
 /// Which solver.
@@ -179,6 +200,9 @@ pub struct CsrrOptions {
     pub benchmarks: (f64, f64),
     /// Whether samples carry a reference encoder's reading ([`Csrr::push_with_reference`]).
     pub reference: bool,
+    /// B's lag behind A to remove, seconds (default 0): B's readings are moved to A's instants
+    /// ([`latency`]). [`latency::calibrate`] finds it from the sessions.
+    pub latency_s: f64,
 }
 
 impl Default for CsrrOptions {
@@ -192,6 +216,7 @@ impl Default for CsrrOptions {
             points: None,
             benchmarks: (0.0, 0.0),
             reference: false,
+            latency_s: 0.0,
         }
     }
 }
@@ -259,6 +284,9 @@ pub struct Calibration {
     pub advice: Option<Advice>,
     /// RMS of the fit residual, rad (joint method).
     pub residual_rms: Option<f64>,
+    /// The lag between the channels removed and what the sessions show after
+    /// ([`latency::calibrate`]; `None` from [`Csrr::finish`] alone).
+    pub latency: Option<latency::LatencyOutcome>,
     /// Solver iterations (joint method).
     pub iterations: usize,
     /// The paper method's points, one per session (paper method only).
@@ -309,6 +337,7 @@ pub struct Csrr {
     opts: CsrrOptions,
     segmenter: Segmenter,
     sinks: Sinks,
+    shift: Option<latency::TimeShift>,
 }
 
 impl Csrr {
@@ -322,6 +351,7 @@ impl Csrr {
         };
         Csrr {
             segmenter: Segmenter::new(opts.segments),
+            shift: (opts.latency_s != 0.0).then(|| latency::TimeShift::new(opts.latency_s)),
             opts,
             sinks,
         }
@@ -329,19 +359,56 @@ impl Csrr {
 
     /// Feeds one synchronized sample: time (s), A's and B's readings (rad), the log's session mark.
     pub fn push(&mut self, t: f64, x: f64, y: f64, mark: Option<u32>) {
-        self.segmenter.push(t, x, y, mark, &[], &mut self.sinks);
+        self.push_extra(t, x, y, mark, &[]);
     }
 
     /// Feeds one sample with a reference encoder's reading `r` (rad) on rotor B's shaft; the
     /// options must have [`CsrrOptions::reference`] set.
     pub fn push_with_reference(&mut self, t: f64, x: f64, y: f64, r: f64, mark: Option<u32>) {
-        self.segmenter.push(t, x, y, mark, &[r], &mut self.sinks);
+        self.push_extra(t, x, y, mark, &[r]);
+    }
+
+    fn push_extra(&mut self, t: f64, x: f64, y: f64, mark: Option<u32>, extra: &[f64]) {
+        let (segmenter, sinks) = (&mut self.segmenter, &mut self.sinks);
+        match &mut self.shift {
+            None => segmenter.push(t, x, y, mark, extra, sinks),
+            Some(shift) => shift.push((t, x, y, mark, extra), |t, x, y, mark, extra| {
+                segmenter.push(t, x, y, mark, extra, sinks);
+            }),
+        }
     }
 
     /// Solves, once every sample is in.
-    pub fn finish(mut self) -> Result<Calibration, CsrrError> {
-        let segmentation = self.segmenter.finish(&mut self.sinks);
+    pub fn finish(self) -> Result<Calibration, CsrrError> {
+        self.finish_with_lag().1
+    }
+
+    /// [`finish`](Self::finish), with the lag between the channels the sessions show
+    /// (`Segmentation::latency`) whether or not the solve succeeds: a lag can be what makes it
+    /// fail.
+    pub(crate) fn finish_with_lag(
+        mut self,
+    ) -> (
+        Option<crate::segment::LatencyEstimate>,
+        Result<Calibration, CsrrError>,
+    ) {
+        let segmenter = std::mem::replace(&mut self.segmenter, Segmenter::new(self.opts.segments));
+        let segmentation = segmenter.finish(&mut self.sinks);
+        (segmentation.latency, self.solve(segmentation))
+    }
+
+    fn solve(mut self, segmentation: Segmentation) -> Result<Calibration, CsrrError> {
         let mut warnings = Vec::new();
+        if let Some(shift) = &self.shift {
+            let dropped = shift.dropped();
+            let kept: u64 = segmentation.segments.iter().map(|s| s.samples).sum();
+            if dropped * 100 > kept {
+                warnings.push(format!(
+                    "{dropped} samples left out: B's reading {:.3} ms later lies beyond the log or in a gap of it",
+                    self.opts.latency_s * 1e3
+                ));
+            }
+        }
         for s in segmentation.short_segments() {
             warnings.push(format!(
                 "the rotating segment at {:.3}–{:.3} s covers {:.2} revolutions, less than one: not used as a session",
@@ -564,6 +631,7 @@ fn finish_joint(
         iterations: sol.iterations,
         paper_points: Vec::new(),
         reference: None,
+        latency: None,
         uncertainty: Some(maps.uncertainty),
         warnings,
     })
@@ -976,6 +1044,7 @@ fn finish_paper(
         iterations: 0,
         paper_points: points,
         reference: None,
+        latency: None,
         uncertainty: Some(uncertainty),
         warnings,
     })

@@ -58,6 +58,38 @@ pub struct CsrrDetails {
     /// How the channels were aligned on one clock, where anything was interpolated or dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<super::Alignment>,
+    /// B's lag behind A removed, seconds (positive: B's sample is older than its stamp says;
+    /// 0 where none was); absent where the calibration did not look (a library caller of
+    /// `Csrr::finish`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latency_s: Option<f64>,
+    /// How the lag was found and what the sessions show after its removal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latency: Option<CsrrLatencyReport>,
+}
+
+/// The lag between the two channels (`csrr::latency`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CsrrLatencyReport {
+    /// `auto` (found from the sessions) or `given` (--latency SECONDS, 0 included).
+    pub mode: String,
+    /// The lag removed, seconds.
+    pub applied_s: f64,
+    /// Its standard uncertainty, seconds (the last reading's `u` of what was left).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub u_s: Option<f64>,
+    /// The lag the sessions still show after the removal, seconds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub left_s: Option<f64>,
+    /// Whether that is significant (more than 3 u from 0 and moving `a − b` by more than 3
+    /// noise standard deviations at the run's top speed): then a warning says so.
+    pub left_significant: bool,
+    /// Readings of the log (one per correction in `auto`).
+    pub passes: usize,
+    /// RMS change of speed over one revolution that the estimate rests on, degrees per second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_change_rms_deg_s: Option<f64>,
 }
 
 /// Periodic structure the residual holds above the orders tested.
@@ -257,6 +289,20 @@ impl Calibration {
                 }
             }),
             alignment: None,
+            latency_s: self.latency.map(|l| l.applied),
+            latency: self.latency.map(|l| CsrrLatencyReport {
+                mode: match l.mode {
+                    crate::reference_cal::Latency::Auto => "auto",
+                    crate::reference_cal::Latency::Fixed(_) => "given",
+                }
+                .to_string(),
+                applied_s: l.applied,
+                u_s: l.u_applied,
+                left_s: l.left.map(|e| e.tau),
+                left_significant: l.left_significant(),
+                passes: l.passes,
+                speed_change_rms_deg_s: l.left.map(|e| e.speed_change_rms.to_degrees()),
+            }),
         };
         ReportSection {
             method: "csrr",

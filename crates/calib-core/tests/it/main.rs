@@ -4,6 +4,7 @@
 mod coverage;
 mod csrr_accuracy;
 mod csrr_large;
+mod csrr_latency;
 mod csrr_outcomes;
 mod multihead;
 mod nufft2d;

@@ -415,6 +415,7 @@ def csrr(
     detect_sessions: bool = False,
     min_observability: float = 0.01,
     benchmarks: Tuple[float, float] = (0.0, 0.0),
+    latency: Union[str, float] = "auto",
 ) -> Result:
     """CSRR self-calibration of two coaxial sensors from arrays (``calib csrr``).
 
@@ -442,6 +443,11 @@ def csrr(
         detect_sessions: find sessions from the motion even where ``sessions`` is given.
         min_observability: orders less observable than this are left out of the maps.
         benchmarks: benchmark readings of A and B for ``method="paper"``, degrees.
+        latency: B's lag behind A, removed by moving B's readings to A's instants: ``"auto"``
+            (the default) finds it from how each session's `a − b` departs from one revolution
+            earlier as the speed changes, and reads the samples again with it removed where
+            significant; seconds (positive: B's sample is older) removes that lag; ``0`` none.
+            ``report["details"]["latency_s"]`` is the lag removed.
 
     Returns:
         A :class:`Result` with channels ``names[0]`` and ``names[1]``.
@@ -467,6 +473,7 @@ def csrr(
             detect_sessions=detect_sessions,
             min_observability=min_observability,
             benchmarks=(float(benchmarks[0]), float(benchmarks[1])),
+            latency=latency,
         )
     )
 
@@ -485,6 +492,7 @@ def csrr_log(
     detect_sessions: bool = False,
     min_observability: float = 0.01,
     benchmarks: Tuple[float, float] = (0.0, 0.0),
+    latency: Union[str, float] = "auto",
     unit: Optional[str] = None,
     time: str = "header",
     max_gap: Optional[float] = None,
@@ -512,6 +520,7 @@ def csrr_log(
             detect_sessions=detect_sessions,
             min_observability=min_observability,
             benchmarks=(float(benchmarks[0]), float(benchmarks[1])),
+            latency=latency,
             unit=unit,
             time=time,
             max_gap=max_gap,
@@ -535,6 +544,9 @@ def reference(
     bridge_gap: float = 5.0,
     targets: Union[int, Sequence[float]] = 20,
     approach: float = 1.0,
+    latency: Union[str, float] = "auto",
+    ref_kind: str = "encoder",
+    pole_pairs: Optional[int] = None,
 ) -> Result:
     """Cross-calibration of an encoder (the DUT) against a better reference encoder on the
     same shaft, from arrays (``calib reference``); ISO 230-2 figures in ``report["details"]``.
@@ -553,6 +565,14 @@ def reference(
         bridge_gap: largest part of the turn never reached that is bridged, degrees.
         targets: ISO 230-2 targets: a count, or readings in degrees.
         approach: travel before a target that counts as approaching it, degrees.
+        latency: the DUT's lag behind the reference: ``"auto"`` (the default) fits it with the
+            map and removes it where the run tells it from backlash (passes at two speeds in a
+            direction); seconds (positive: the DUT's sample is older) removes that lag; ``0``
+            none. ``report["details"]["latency_s"]``.
+        ref_kind: ``"encoder"`` (a better encoder on the DUT's shaft) or ``"commanded"`` (a
+            motor's open-loop commanded angle: the motor's ripple, periodic in the electrical
+            angle, is taken out of the map and reported).
+        pole_pairs: the motor's pole pairs, with ``ref_kind="commanded"``.
 
     Returns:
         A :class:`Result` with one channel, ``names[0]`` (a range table where the DUT never
@@ -572,6 +592,9 @@ def reference(
             bridge_gap=bridge_gap,
             targets=targets,
             approach=approach,
+            latency=latency,
+            ref_kind=ref_kind,
+            pole_pairs=pole_pairs,
         )
     )
 
@@ -588,6 +611,9 @@ def reference_log(
     bridge_gap: float = 5.0,
     targets: Union[int, Sequence[float]] = 20,
     approach: float = 1.0,
+    latency: Union[str, float] = "auto",
+    ref_kind: str = "encoder",
+    pole_pairs: Optional[int] = None,
     unit: Optional[str] = None,
     time: str = "header",
     max_gap: Optional[float] = None,
@@ -608,6 +634,9 @@ def reference_log(
             bridge_gap=bridge_gap,
             targets=targets,
             approach=approach,
+            latency=latency,
+            ref_kind=ref_kind,
+            pole_pairs=pole_pairs,
             unit=unit,
             time=time,
             max_gap=max_gap,

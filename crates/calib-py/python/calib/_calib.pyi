@@ -39,6 +39,7 @@ def csrr(
     detect_sessions: bool = False,
     min_observability: float = 0.01,
     benchmarks: Tuple[float, float] = (0.0, 0.0),
+    latency: Union[str, float, None] = None,
 ) -> Dict[str, Any]: ...
 def csrr_log(
     path: str,
@@ -54,6 +55,7 @@ def csrr_log(
     detect_sessions: bool = False,
     min_observability: float = 0.01,
     benchmarks: Tuple[float, float] = (0.0, 0.0),
+    latency: Union[str, float, None] = None,
     unit: Optional[str] = None,
     time: str = "header",
     max_gap: Optional[float] = None,
@@ -74,6 +76,9 @@ def reference(
     bridge_gap: float = 5.0,
     targets: Union[int, Sequence[float], None] = None,
     approach: float = 1.0,
+    latency: Union[str, float, None] = None,
+    ref_kind: str = "encoder",
+    pole_pairs: Optional[int] = None,
 ) -> Dict[str, Any]: ...
 def reference_log(
     path: str,
@@ -87,6 +92,9 @@ def reference_log(
     bridge_gap: float = 5.0,
     targets: Union[int, Sequence[float], None] = None,
     approach: float = 1.0,
+    latency: Union[str, float, None] = None,
+    ref_kind: str = "encoder",
+    pole_pairs: Optional[int] = None,
     unit: Optional[str] = None,
     time: str = "header",
     max_gap: Optional[float] = None,
