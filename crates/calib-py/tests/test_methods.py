@@ -212,3 +212,35 @@ def test_shift_angle_recovers_the_visible_truth_of_the_fixture():
     d = ch.error_arcsec - truth[:, 2]
     assert np.max(np.abs(d - d.mean())) < 0.15
     assert res.polygon is not None and len(res.polygon["face"]) == 24
+
+
+def test_csrr_finds_and_removes_a_lag_between_the_channels():
+    # B read 5 ms late (the CLI's and calib-core's csrr_latency tests use the same scenario).
+    sim = calib.simulate(TESTDATA / "scenarios" / "csrr-latency.toml")
+    res = calib.csrr(sim["a"], sim["b"], t=sim.t)
+    lag = res.report["details"]["latency_s"]
+    assert abs(lag - 0.005) < 0.005 * 0.01, lag
+    assert res.report["details"]["latency"]["mode"] == "auto"
+    # Left in, the lag breaks the solve, and the error names it.
+    with pytest.raises(calib.DataError, match="older than A's"):
+        calib.csrr(sim["a"], sim["b"], t=sim.t, latency=0)
+    with pytest.raises(calib.UsageError, match="latency"):
+        calib.csrr(sim["a"], sim["b"], t=sim.t, latency="soon")
+
+
+def test_reference_takes_a_commanded_reference_and_its_pole_pairs():
+    # A motor of 21 pole pairs driven open loop: its ripple at orders 126 and 252 (700″, 150″)
+    # is the motor's, not the encoder's (cli/tests/it/reference_setups_cli.rs, same scenario).
+    sim = calib.simulate(TESTDATA / "scenarios" / "commanded.toml", points=3600)
+    res = calib.reference(
+        sim["encoder"], sim["commanded"], t=sim.t, names=("encoder", "commanded"),
+        ref_u=0.0, ref_kind="commanded", pole_pairs=21,
+    )
+    ripple = res.report["details"]["ripple"]
+    assert ripple["pole_pairs"] == 21
+    by_order = {t["order"]: t["amplitude_arcsec"] for t in ripple["terms"]}
+    assert abs(by_order[126] - 700.0) < 35.0, by_order
+    orders = [h["order"] for h in res.channels["encoder"].harmonics]
+    assert 126 not in orders[:3], orders
+    with pytest.raises(calib.UsageError, match="pole_pairs"):
+        calib.reference(sim["encoder"], sim["commanded"], t=sim.t, ref_kind="commanded")
