@@ -7,6 +7,8 @@
 //!
 //! - [`csrr`]: the relative rotations `Δ_k` (CSRR paper, eqs. 5–7).
 //! - [`multihead`]: the head positions (shift-angle paper, eqs. 8–9; SelfA's head sets).
+//! - [`shift_angle`]: the shifts and readings, and the Table 3 budget (shift-angle paper).
 pub mod csrr;
 pub mod multihead;
+pub mod shift_angle;
 pub(crate) mod search;
