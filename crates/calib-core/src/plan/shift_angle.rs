@@ -28,8 +28,8 @@
 
 use crate::shift_angle::{Readings, Shift, ShiftAngleError, StartFaceRow, joint_point_uncertainty};
 use crate::uncertainty::{
-    Budget, BudgetResult, Component, Distribution, UncertaintyError,
-    dof_from_relative_uncertainty, estler_sensitivity, evaluate,
+    Budget, BudgetResult, Component, Distribution, UncertaintyError, dof_from_relative_uncertainty,
+    estler_sensitivity, evaluate,
 };
 
 /// Why a shift-angle plan cannot be made.
@@ -341,7 +341,10 @@ mod tests {
         assert_eq!(p.max_order, 180);
         assert_eq!(p.blind_orders, vec![24, 48, 72, 96, 120, 144, 168]);
         let b = &p.budget;
-        assert!((b.combined_standard_uncertainty - 0.0694).abs() < 5e-5, "{b:?}");
+        assert!(
+            (b.combined_standard_uncertainty - 0.0694).abs() < 5e-5,
+            "{b:?}"
+        );
         assert_eq!(b.effective_dof, Some(14));
         assert!((b.coverage_factor - 2.145).abs() < 5e-4);
         assert!((b.expanded_uncertainty - 0.149).abs() < 5e-4);

@@ -239,10 +239,18 @@ pub fn plan(
         return Err(invalid("the noise", rig.sigma, "finite and ≥ 0"));
     }
     if !(1..=super::csrr::MAX_PLANNED_ORDER).contains(&max_order) {
-        return Err(invalid("the highest order", max_order as f64, "in 1..=20000"));
+        return Err(invalid(
+            "the highest order",
+            max_order as f64,
+            "in 1..=20000",
+        ));
     }
     if let Some(&h) = orders.iter().find(|&&h| h == 0 || h > max_order) {
-        return Err(invalid("every expected order", h as f64, "in 1..=the highest order"));
+        return Err(invalid(
+            "every expected order",
+            h as f64,
+            "in 1..=the highest order",
+        ));
     }
     let floor = method.min_speed_fraction;
     let separating = rig.end_fraction(MAX_DRAG_VARIANCE_INFLATION.sqrt(), floor);
@@ -378,10 +386,7 @@ mod tests {
     /// Simulates the planned coast with the core's simulator (an encoder with errors at
     /// `errors`) and runs the method with the plan's highest order: its reported "noise through
     /// the fit" against the plan's, and its drag separation against the plan's.
-    fn simulate_and_calibrate(
-        p: &TdrPlan,
-        errors: &[(u32, f64)],
-    ) -> crate::tdr::TdrCalibration {
+    fn simulate_and_calibrate(p: &TdrPlan, errors: &[(u32, f64)]) -> crate::tdr::TdrCalibration {
         let friction = match p.rig.law {
             CoastLaw::Viscous => Friction {
                 viscous: p.rig.deceleration / p.rig.start_speed,
