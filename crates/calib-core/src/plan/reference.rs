@@ -32,7 +32,9 @@
 //! The reference's own error (the map is DUT − reference) and a lag between the channels
 //! (`calib reference` estimates it from passes at several speeds; the planned run has one).
 
+use crate::angle::ARCSEC_PER_RAD;
 use crate::reference_cal::{ReferenceOptions, lagrange, mean_variance, point_uncertainty};
+use crate::simulate::{Scenario, Sensor, Sweep};
 use std::f64::consts::{PI, TAU};
 
 /// Fewest distinct phases at which the targets must see each expected order.
@@ -105,6 +107,49 @@ pub struct ReferencePlan {
     /// What the user should know.
     pub warnings: Vec<String>,
 }
+
+impl ReferencePlan {
+    /// The planned run as a simulator scenario: the sweep from `−approach` to `360° + approach`
+    /// and back once per pass at the planned speed and rate, a sensor `dut` and a sensor `ref`
+    /// with the given `(noise, resolution)` (arcsec) and no error (add the errors you expect),
+    /// the DUT behind the planned backlash.
+    pub fn scenario(&self, dut: (f64, f64), reference: (f64, f64)) -> Scenario {
+        let sensor = |name: &str, (noise, q): (f64, f64), backlash: f64| Sensor {
+            name: name.into(),
+            mount: None,
+            harmonics: Vec::new(),
+            scale: None,
+            head_deg: None,
+            head_error_arcsec: None,
+            quantization_arcsec: q,
+            noise_arcsec: noise,
+            delay_s: 0.0,
+            backlash_arcsec: backlash,
+            commanded: false,
+        };
+        Scenario {
+            rate_hz: self.rig.rate_hz,
+            wrap: true,
+            sensors: vec![
+                sensor("dut", dut, self.rig.backlash * ARCSEC_PER_RAD),
+                sensor("ref", reference, 0.0),
+            ],
+            sweep: Some(Sweep {
+                from_deg: self.sweep.0.to_degrees(),
+                to_deg: self.sweep.1.to_degrees(),
+                cycles: self.rig.passes,
+                speeds_deg_s: vec![self.rig.speed.to_degrees()],
+                ramp_s: RAMP_S,
+                pause_s: PAUSE_S,
+            }),
+            ..Scenario::default()
+        }
+    }
+}
+
+/// The sweep's ramps and pauses, s (the simulator's defaults).
+const RAMP_S: f64 = 0.5;
+const PAUSE_S: f64 = 1.0;
 
 /// The mean over a crossing's place `p ∈ [0, 1)` between two samples of the squared weights
 /// of the method's centred cubic through the samples at `−1, 0, 1, 2`: the factor by which the
@@ -218,10 +263,9 @@ pub fn plan(
     }
     let approach = (APPROACH_PER_BACKLASH * rig.backlash).max(method.approach);
     let sweep = (-approach, TAU + approach);
-    // A stroke: the travel at cruise speed plus its 0.5 s ramps, then a 1 s pause (the
-    // simulator's sweep defaults, which the written scenario uses).
-    let stroke_s = (sweep.1 - sweep.0) / rig.speed + 0.5 + 1.0;
-    let duration_s = 1.0 + 2.0 * f64::from(rig.passes) * stroke_s;
+    // A stroke: the travel at cruise speed plus its ramps, then a pause.
+    let stroke_s = (sweep.1 - sweep.0) / rig.speed + RAMP_S + PAUSE_S;
+    let duration_s = PAUSE_S + 2.0 * f64::from(rig.passes) * stroke_s;
     let sample_spacing = rig.speed / rig.rate_hz;
     let sd2 = rig.dut_sigma.powi(2) + rig.reference_sigma.powi(2);
     let crossing_sigma = (sd2 * cubic_noise_factor()).sqrt();
@@ -260,9 +304,8 @@ pub fn plan(
 #[allow(clippy::print_stderr)]
 mod tests {
     use super::*;
-    use crate::angle::ARCSEC_PER_RAD;
     use crate::reference_cal::{ReferenceCal, Targets};
-    use crate::simulate::{HarmonicSpec, Scenario, Sensor, Sweep};
+    use crate::simulate::HarmonicSpec;
 
     fn rig(passes: u32, backlash_arcsec: f64) -> ReferenceRig {
         let s = |noise: f64, q: f64| (noise * noise + q * q / 12.0).sqrt() / ARCSEC_PER_RAD;
@@ -324,47 +367,18 @@ mod tests {
     fn simulate(
         p: &ReferencePlan,
         errors: &[(u32, f64)],
-        backlash_arcsec: f64,
         targets: usize,
     ) -> crate::reference_cal::ReferenceCalibration {
-        let sensor = |name: &str, noise: f64, q: f64, harmonics: &[(u32, f64)], backlash| Sensor {
-            name: name.into(),
-            mount: None,
-            harmonics: harmonics
-                .iter()
-                .map(|&(order, a)| HarmonicSpec {
-                    order,
-                    amplitude_arcsec: a,
-                    phase_deg: 10.0 * order as f64,
-                })
-                .collect(),
-            scale: None,
-            head_deg: None,
-            head_error_arcsec: None,
-            quantization_arcsec: q,
-            noise_arcsec: noise,
-            delay_s: 0.0,
-            backlash_arcsec: backlash,
-            commanded: false,
-        };
-        let scenario = Scenario {
-            seed: 21,
-            rate_hz: p.rig.rate_hz,
-            wrap: true,
-            sensors: vec![
-                sensor("dut", 0.2, 0.5, errors, backlash_arcsec),
-                sensor("ref", 0.01, 0.001, &[], 0.0),
-            ],
-            sweep: Some(Sweep {
-                from_deg: p.sweep.0.to_degrees(),
-                to_deg: p.sweep.1.to_degrees(),
-                cycles: p.rig.passes,
-                speeds_deg_s: vec![p.rig.speed.to_degrees()],
-                ramp_s: 0.5,
-                pause_s: 1.0,
-            }),
-            ..Scenario::default()
-        };
+        let mut scenario = p.scenario((0.2, 0.5), (0.01, 0.001));
+        scenario.seed = 21;
+        scenario.sensors[0].harmonics = errors
+            .iter()
+            .map(|&(order, a)| HarmonicSpec {
+                order,
+                amplitude_arcsec: a,
+                phase_deg: 10.0 * order as f64,
+            })
+            .collect();
         let mut cal = ReferenceCal::new(ReferenceOptions {
             approach: p.approach,
             targets: Targets::Count(targets),
@@ -384,7 +398,7 @@ mod tests {
     fn planned_u_matches_the_u_of_the_simulated_run() {
         for (passes, backlash) in [(5, 0.0), (3, 30.0)] {
             let p = plan(rig(passes, backlash), &[1, 4], None).unwrap();
-            let cal = simulate(&p, &[(1, 60.0), (4, 20.0)], backlash, p.targets);
+            let cal = simulate(&p, &[(1, 60.0), (4, 20.0)], p.targets);
             assert_eq!(cal.min_passes, (passes, passes));
             let mut u = cal.u.clone();
             u.sort_by(f64::total_cmp);
@@ -412,7 +426,7 @@ mod tests {
         };
         let planned = plan(r.clone(), &[72], None).unwrap();
         let m = |targets| {
-            simulate(&planned, &[(72, 10.0)], 0.0, targets)
+            simulate(&planned, &[(72, 10.0)], targets)
                 .iso
                 .mean_bidirectional
                 .unwrap()

@@ -31,6 +31,7 @@
 //! The drag itself (its size decides whether it matters, not the plan) and drag not periodic in
 //! the shaft's angle (ball and cage orders): the method's ambiguity note holds for any coast.
 
+use crate::simulate::{Friction, Scenario, Sensor, SpinDown};
 use crate::tdr::{
     MAX_DRAG_VARIANCE_INFLATION, ORDERS_PER_SAMPLE, TdrOptions, fit_noise, speed_variation,
 };
@@ -144,6 +145,45 @@ pub struct TdrPlan {
 }
 
 impl TdrPlan {
+    /// The planned coast as a simulator scenario: the release at the start speed, the
+    /// deceleration law's friction, the planned duration and rate, and one sensor `enc` with
+    /// the given noise and resolution (arcsec) and no error: add the errors you expect.
+    pub fn scenario(&self, noise_arcsec: f64, quantization_arcsec: f64) -> Scenario {
+        let friction = match self.rig.law {
+            CoastLaw::Viscous => Friction {
+                viscous: self.rig.deceleration / self.rig.start_speed,
+                ..Friction::default()
+            },
+            CoastLaw::Coulomb => Friction {
+                coulomb: self.rig.deceleration,
+                ..Friction::default()
+            },
+        };
+        Scenario {
+            rate_hz: self.rate_hz,
+            spin_down: Some(SpinDown {
+                speed_rpm: self.rig.start_speed * 60.0 / TAU,
+                duration_s: self.duration_s,
+                friction,
+                drag_harmonics: Vec::new(),
+            }),
+            sensors: vec![Sensor {
+                name: "enc".into(),
+                mount: None,
+                harmonics: Vec::new(),
+                scale: None,
+                head_deg: None,
+                head_error_arcsec: None,
+                quantization_arcsec,
+                noise_arcsec,
+                delay_s: 0.0,
+                backlash_arcsec: 0.0,
+                commanded: false,
+            }],
+            ..Scenario::default()
+        }
+    }
+
     /// RMS of `u_fit` over the circle, rad.
     pub fn rms_u_fit(&self) -> f64 {
         (self.u_fit.iter().map(|u| u * u).sum::<f64>() / self.u_fit.len() as f64).sqrt()
@@ -343,7 +383,7 @@ pub fn plan(
 mod tests {
     use super::*;
     use crate::angle::ARCSEC_PER_RAD;
-    use crate::simulate::{Friction, HarmonicSpec, Scenario, Sensor, SpinDown};
+    use crate::simulate::HarmonicSpec;
     use crate::tdr::Tdr;
 
     const RPM: f64 = TAU / 60.0;
@@ -387,47 +427,16 @@ mod tests {
     /// `errors`) and runs the method with the plan's highest order: its reported "noise through
     /// the fit" against the plan's, and its drag separation against the plan's.
     fn simulate_and_calibrate(p: &TdrPlan, errors: &[(u32, f64)]) -> crate::tdr::TdrCalibration {
-        let friction = match p.rig.law {
-            CoastLaw::Viscous => Friction {
-                viscous: p.rig.deceleration / p.rig.start_speed,
-                ..Friction::default()
-            },
-            CoastLaw::Coulomb => Friction {
-                coulomb: p.rig.deceleration,
-                ..Friction::default()
-            },
-        };
-        let scenario = Scenario {
-            seed: 11,
-            rate_hz: p.rate_hz,
-            spin_down: Some(SpinDown {
-                speed_rpm: p.rig.start_speed / RPM,
-                duration_s: p.duration_s,
-                friction,
-                drag_harmonics: Vec::new(),
-            }),
-            sensors: vec![Sensor {
-                name: "enc".into(),
-                mount: None,
-                harmonics: errors
-                    .iter()
-                    .map(|&(order, a)| HarmonicSpec {
-                        order,
-                        amplitude_arcsec: a,
-                        phase_deg: 17.0 * order as f64,
-                    })
-                    .collect(),
-                scale: None,
-                head_deg: None,
-                head_error_arcsec: None,
-                quantization_arcsec: 0.09,
-                noise_arcsec: 0.05,
-                delay_s: 0.0,
-                backlash_arcsec: 0.0,
-                commanded: false,
-            }],
-            ..Scenario::default()
-        };
+        let mut scenario = p.scenario(0.05, 0.09);
+        scenario.seed = 11;
+        scenario.sensors[0].harmonics = errors
+            .iter()
+            .map(|&(order, a)| HarmonicSpec {
+                order,
+                amplitude_arcsec: a,
+                phase_deg: 17.0 * order as f64,
+            })
+            .collect();
         let mut tdr = Tdr::new(TdrOptions {
             max_order: Some(p.max_order),
             ..TdrOptions::default()
