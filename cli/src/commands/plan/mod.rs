@@ -248,6 +248,13 @@ fn non_negative(name: &str, v: f64, unit: &str) -> anyhow::Result<()> {
     }
 }
 
+/// A number as typed: at most six decimals, no trailing zeros (30, 0.05, 111.9).
+fn num(x: f64) -> String {
+    let s = format!("{x:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
 /// Noise per sample from a reading noise and a resolution (arcsec), rad: `√(σ² + q²/12)`.
 fn sample_sigma(noise: f64, resolution: f64) -> f64 {
     (noise * noise + resolution * resolution / 12.0).sqrt() / ARCSEC_PER_RAD

@@ -1,11 +1,13 @@
 //! `calib plan reference`: ISO 230-2 targets, passes, the approach for a backlash, the sweep,
 //! and the map's u.
 
-use super::{file_name, list, non_negative, positive, sample_sigma, write_procedure};
+use super::{file_name, list, non_negative, num, positive, sample_sigma, write_procedure};
 use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::plan::reference::{ISO_PASSES, MIN_PHASES, ReferencePlan, ReferenceRig};
+use calib_core::plan::reference::{
+    ISO_PASSES, MIN_PHASES, ReferencePlan, ReferenceRig, SLOW_FRACTION,
+};
 use serde_json::json;
 use std::fmt::Write;
 use std::path::PathBuf;
@@ -30,7 +32,8 @@ pub struct ReferenceArgs {
     /// Sample rate of both channels, Hz.
     #[arg(long, default_value_t = 500.0, value_name = "HZ")]
     pub rate: f64,
-    /// Cruise speed of the sweep, degrees per second.
+    /// Cruise speed of the faster passes, degrees per second (the others at a third of it, so
+    /// that calib reference can tell a lag between the channels from backlash).
     #[arg(long, default_value_t = 30.0, value_name = "DEG_PER_S")]
     pub speed: f64,
     /// The DUT's reading noise, arcsec.
@@ -80,11 +83,8 @@ pub fn run(args: &ReferenceArgs) -> anyhow::Result<String> {
         backlash: args.backlash / ARCSEC_PER_RAD,
         passes: args.passes,
     };
-    let plan = calib_core::plan::reference::plan(rig, &args.orders, args.targets).map_err(|e| {
-        anyhow::Error::new(Usage(format!(
-            "{e} (check --speed, --passes, --orders, --targets)"
-        )))
-    })?;
+    let plan = calib_core::plan::reference::plan(rig, &args.orders, args.targets)
+        .map_err(|e| anyhow::Error::new(Usage(e.to_string())))?;
     let mut written = Vec::new();
     if let Some(path) = &args.procedure {
         let scenario = plan.scenario(
@@ -143,7 +143,7 @@ fn to_json(plan: &ReferencePlan) -> serde_json::Value {
         "passes": plan.rig.passes,
         "approach_deg": plan.approach.to_degrees(),
         "sweep_deg": [plan.sweep.0.to_degrees(), plan.sweep.1.to_degrees()],
-        "speed_deg_per_s": plan.rig.speed.to_degrees(),
+        "speeds_deg_per_s": [plan.rig.speed.to_degrees(), SLOW_FRACTION * plan.rig.speed.to_degrees()],
         "rate_hz": plan.rig.rate_hz,
         "duration_s": plan.duration_s,
         "sample_spacing_deg": plan.sample_spacing.to_degrees(),
@@ -205,12 +205,13 @@ fn render(plan: &ReferencePlan) -> String {
     );
     let _ = writeln!(
         out,
-        "  run: sweep {:.4}° → {:.4}° and back, {} times at {}°/s, sampled at {} Hz ({:.4}° \
-         between samples): about {:.0} s",
-        plan.sweep.0.to_degrees(),
-        plan.sweep.1.to_degrees(),
+        "  run: sweep {}° → {}° and back, {} times, alternately at {}°/s and {}°/s, sampled at \
+         {} Hz ({:.4}° between samples at the faster): about {:.0} s",
+        num(plan.sweep.0.to_degrees()),
+        num(plan.sweep.1.to_degrees()),
         r.passes,
-        r.speed.to_degrees(),
+        num(r.speed.to_degrees()),
+        num(SLOW_FRACTION * r.speed.to_degrees()),
         r.rate_hz,
         plan.sample_spacing.to_degrees(),
         plan.duration_s
@@ -242,14 +243,16 @@ fn render_procedure(plan: &ReferencePlan) -> String {
     let _ = writeln!(
         out,
         "1. Record the DUT and the reference together at {} Hz throughout.\n\
-         2. Rest at {:.4}°, then turn to {:.4}° at {}°/s, pause 1 s, and back to {:.4}°, pause \
-         1 s: one pass in each direction. Repeat {} times (about {:.0} s in all).\n\
+         2. Rest at {}°, then turn to {}° at {}°/s, pause 1 s, and back to {}°, pause 1 s: one \
+         pass in each direction. The next pass the same at {}°/s, and so on, alternating; {} \
+         passes in all (about {:.0} s).\n\
          3. `{}`.\n",
         r.rate_hz,
-        plan.sweep.0.to_degrees(),
-        plan.sweep.1.to_degrees(),
-        r.speed.to_degrees(),
-        plan.sweep.0.to_degrees(),
+        num(plan.sweep.0.to_degrees()),
+        num(plan.sweep.1.to_degrees()),
+        num(r.speed.to_degrees()),
+        num(plan.sweep.0.to_degrees()),
+        num(SLOW_FRACTION * r.speed.to_degrees()),
         r.passes,
         plan.duration_s,
         then(plan, "LOG")
@@ -306,7 +309,7 @@ mod tests {
     fn bad_values_are_usage_errors() {
         for extra in [
             &["--passes", "1"][..],
-            &["--speed", "0.5"],
+            &["--speed", "2.5"],
             &["--targets", "0"],
             &["--backlash=-1"],
             &["--orders", "0"],

@@ -94,7 +94,11 @@ pub fn run(args: &ShiftAngleArgs) -> anyhow::Result<String> {
 }
 
 fn shifts_text(plan: &ShiftAnglePlan) -> String {
-    let s: Vec<String> = plan.shifts_deg.iter().map(|s| format!("{s}")).collect();
+    let s: Vec<String> = plan
+        .shifts_deg
+        .iter()
+        .map(|s| format!("{}°", super::num(*s)))
+        .collect();
     if s.len() > 8 {
         format!("{}, {}, …, {}", s[0], s[1], s[s.len() - 1])
     } else {
@@ -126,12 +130,14 @@ fn render(plan: &ShiftAnglePlan) -> String {
     let spacing = pitch / plan.shifts_deg.len() as f64;
     let _ = writeln!(
         out,
-        "shift-angle plan: {n}-face polygon (pitch {pitch}°), a point every {spacing}° ({} points)",
+        "shift-angle plan: {n}-face polygon (pitch {}°), a point every {}° ({} points)",
+        super::num(pitch),
+        super::num(spacing),
         plan.points()
     );
     let _ = writeln!(
         out,
-        "  shifts S: {} ° ({} shifts)",
+        "  shifts S: {} ({} shifts)",
         shifts_text(plan),
         plan.shifts_deg.len()
     );
@@ -196,7 +202,7 @@ fn render_procedure(plan: &ShiftAnglePlan) -> String {
     let _ = writeln!(
         out,
         "# Shift-angle procedure: {n}-face polygon, a point every {}°\n",
-        360.0 / n as f64 / plan.shifts_deg.len() as f64
+        super::num(360.0 / n as f64 / plan.shifts_deg.len() as f64)
     );
     let _ = writeln!(
         out,
@@ -204,7 +210,7 @@ fn render_procedure(plan: &ShiftAnglePlan) -> String {
          by the pitch {}° {n} times, reading the autocollimator at each step (each reading the \
          mean of {} repeats). Write each reading into the readings sheet (the .csv beside this \
          file) and run `calib shift-angle SHEET.csv --budget BUDGET.toml -o out/`.\n",
-        360.0 / n as f64,
+        super::num(360.0 / n as f64),
         plan.table3.repeats
     );
     let _ = writeln!(out, "| shift S | start faces | readings |");
@@ -214,7 +220,7 @@ fn render_procedure(plan: &ShiftAnglePlan) -> String {
         let _ = writeln!(
             out,
             "| {}° | {} | {} |",
-            s.shift_deg,
+            super::num(s.shift_deg),
             if faces.len() == n {
                 format!("1–{n}")
             } else {
@@ -241,7 +247,12 @@ fn readings_sheet(plan: &ShiftAnglePlan) -> String {
     for s in plan.layout.shifts() {
         for row in &s.rows {
             for step in 1..=plan.faces {
-                let _ = writeln!(out, "{},{},{step},", s.shift_deg, row.start_face);
+                let _ = writeln!(
+                    out,
+                    "{},{},{step},",
+                    super::num(s.shift_deg),
+                    row.start_face
+                );
             }
         }
     }

@@ -1,10 +1,10 @@
 //! `calib plan tdr`: the coast-down, its duration and sample rate, and the map's u.
 
-use super::{file_name, finite, non_negative, positive, sample_sigma, write_procedure};
+use super::{file_name, finite, non_negative, num, positive, sample_sigma, write_procedure};
 use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::plan::tdr::{CoastLaw, TdrPlan, TdrRig};
+use calib_core::plan::tdr::{CoastLaw, TdrPlan, TdrPlanError, TdrRig};
 use serde_json::json;
 use std::f64::consts::TAU;
 use std::fmt::Write;
@@ -94,9 +94,12 @@ pub fn run(args: &TdrArgs) -> anyhow::Result<String> {
         args.end_rpm.map(|r| r * RPM),
     )
     .map_err(|e| {
-        anyhow::Error::new(Usage(format!(
-            "{e} (check --start-rpm, --decel, --rate, --end-rpm, --orders)"
-        )))
+        let hint = if matches!(e, TdrPlanError::Invalid { .. }) {
+            " (check --start-rpm, --decel, --rate, --end-rpm, --orders)"
+        } else {
+            ""
+        };
+        anyhow::Error::new(Usage(format!("{e}{hint}")))
     })?;
 
     let mut written = Vec::new();
@@ -108,7 +111,7 @@ pub fn run(args: &TdrArgs) -> anyhow::Result<String> {
              # planned noise and resolution and no error. Add its expected harmonics, e.g.\n\
              #   harmonics = [{{ order = 2, amplitude_arcsec = 20.0, phase_deg = 0.0 }}]\n\
              # and any drag ([spin_down] drag_harmonics), then\n\
-             # `calib simulate {} -o sim.mcap` and `calib tdr sim.mcap --max-order {} -o out/`.\n{toml}",
+             # `calib simulate {} -o sim.mcap` and `calib tdr sim.mcap --channel enc --max-order {} -o out/`.\n{toml}",
             args.max_order,
             file_name(path),
             file_name(&path.with_extension("toml")),
@@ -173,8 +176,8 @@ fn render(plan: &TdrPlan, args: &TdrArgs) -> String {
         "TDR plan: orders 1–{}, a {} coast from {} r/min ({} r/min per second at release)",
         plan.max_order,
         law_name(plan.rig.law),
-        plan.rig.start_speed / RPM,
-        plan.rig.deceleration / RPM
+        num(args.start_rpm),
+        num(args.decel)
     );
     let _ = writeln!(
         out,
@@ -238,7 +241,7 @@ fn render(plan: &TdrPlan, args: &TdrArgs) -> String {
     }
     let _ = writeln!(
         out,
-        "  then: calib tdr LOG --max-order {} -o out/",
+        "  then: calib tdr LOG --channel ENCODER --max-order {} -o out/",
         plan.max_order
     );
     out
@@ -254,18 +257,18 @@ fn render_procedure(plan: &TdrPlan) -> String {
     let _ = writeln!(
         out,
         "1. Record the encoder at {} Hz (or faster) from before the release to the end.\n\
-         2. Spin the shaft up to {:.1} r/min and hold it there for a few seconds.\n\
+         2. Spin the shaft up to {} r/min and hold it there for a few seconds.\n\
          3. Release it: open the clutch or cut the motor current (no drive torque, no braking).\n\
          4. Keep recording while it coasts down to {:.1} r/min or below: about {:.0} s and {:.0} \
          revolutions for a {} coast slowing by {} r/min per second at release.\n\
-         5. `calib tdr LOG --max-order {} -o out/`.\n",
+         5. `calib tdr LOG --channel ENCODER --max-order {} -o out/`.\n",
         plan.rate_hz,
-        plan.rig.start_speed / RPM,
+        num(plan.rig.start_speed / RPM),
         plan.end_speed / RPM,
         plan.duration_s.ceil(),
         plan.revolutions,
         law_name(plan.rig.law),
-        plan.rig.deceleration / RPM,
+        num(plan.rig.deceleration / RPM),
         plan.max_order
     );
     let _ = writeln!(

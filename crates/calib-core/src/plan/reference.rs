@@ -19,7 +19,10 @@
 //! coupling with lost motion `b` moves the DUT `b` before the reference follows (or the other
 //! way), so the plan asks for [`APPROACH_PER_BACKLASH`]` · b` (margin for wind-up), at least the
 //! method's 1°. The run: a sweep from `−approach` to `360° + approach` and back, once per pass,
-//! so that every grid point is crossed `passes` times in each direction after the approach.
+//! so that every grid point is crossed `passes` times in each direction after the approach; the
+//! passes alternate between the speed given and a third of it (both directions at each), so that
+//! the method can tell a lag between the channels from backlash (at one speed per direction the
+//! two read the same, and it warns).
 //!
 //! # The uncertainty (the method's own)
 //! The method's `u_i = √(u_mean² + u_ref²)`, `u_mean² = (s↑²/n↑ + s↓²/n↓)/4`
@@ -69,7 +72,7 @@ pub struct ReferenceRig {
     pub reference_u: f64,
     /// Sample rate, Hz.
     pub rate_hz: f64,
-    /// Cruise speed of the sweep, rad/s.
+    /// Cruise speed of the faster passes, rad/s (the others at [`SLOW_FRACTION`] of it).
     pub speed: f64,
     /// Lost motion between the DUT and the reference, rad.
     pub backlash: f64,
@@ -98,7 +101,7 @@ pub struct ReferencePlan {
     pub sweep: (f64, f64),
     /// About how long the run takes, s.
     pub duration_s: f64,
-    /// Angle between samples at the cruise speed, rad.
+    /// Angle between samples at the faster passes' speed, rad.
     pub sample_spacing: f64,
     /// Spread of one crossing's value, rad.
     pub crossing_sigma: f64,
@@ -108,7 +111,17 @@ pub struct ReferencePlan {
     pub warnings: Vec<String>,
 }
 
+/// The slower passes' speed, as a fraction of the speed given.
+pub const SLOW_FRACTION: f64 = 1.0 / 3.0;
+
 impl ReferencePlan {
+    /// The strokes' speeds in turn (the simulator's sweep repeats the list): up and down at the
+    /// speed given, then up and down at [`SLOW_FRACTION`] of it, rad/s.
+    pub fn speeds(&self) -> [f64; 4] {
+        let (fast, slow) = (self.rig.speed, SLOW_FRACTION * self.rig.speed);
+        [fast, fast, slow, slow]
+    }
+
     /// The planned run as a simulator scenario: the sweep from `−approach` to `360° + approach`
     /// and back once per pass at the planned speed and rate, a sensor `dut` and a sensor `ref`
     /// with the given `(noise, resolution)` (arcsec) and no error (add the errors you expect),
@@ -138,7 +151,7 @@ impl ReferencePlan {
                 from_deg: self.sweep.0.to_degrees(),
                 to_deg: self.sweep.1.to_degrees(),
                 cycles: self.rig.passes,
-                speeds_deg_s: vec![self.rig.speed.to_degrees()],
+                speeds_deg_s: self.speeds().iter().map(|v| v.to_degrees()).collect(),
                 ramp_s: RAMP_S,
                 pause_s: PAUSE_S,
             }),
@@ -201,11 +214,12 @@ pub fn plan(
     if !(rig.rate_hz.is_finite() && rig.rate_hz > 0.0) {
         return Err(invalid("the sample rate", rig.rate_hz, "positive"));
     }
-    if !(rig.speed.is_finite() && rig.speed > method.min_speed) {
+    if !(rig.speed.is_finite() && SLOW_FRACTION * rig.speed > method.min_speed) {
         return Err(invalid(
             "the speed (°/s)",
             rig.speed.to_degrees(),
-            "above the 1°/s below which calib reference takes the shaft as stopped",
+            "above 3°/s (the slower passes go at a third of it, and calib reference takes the \
+             shaft as stopped below 1°/s)",
         ));
     }
     if rig.passes < 2 {
@@ -263,9 +277,13 @@ pub fn plan(
     }
     let approach = (APPROACH_PER_BACKLASH * rig.backlash).max(method.approach);
     let sweep = (-approach, TAU + approach);
-    // A stroke: the travel at cruise speed plus its ramps, then a pause.
-    let stroke_s = (sweep.1 - sweep.0) / rig.speed + RAMP_S + PAUSE_S;
-    let duration_s = PAUSE_S + 2.0 * f64::from(rig.passes) * stroke_s;
+    // A stroke: the travel at its cruise speed plus its ramps, then a pause; the passes
+    // alternate fast and slow, the fast ones first.
+    let stroke_s = |v: f64| (sweep.1 - sweep.0) / v + RAMP_S + PAUSE_S;
+    let fast = f64::from(rig.passes.div_ceil(2));
+    let slow = f64::from(rig.passes / 2);
+    let duration_s =
+        PAUSE_S + 2.0 * (fast * stroke_s(rig.speed) + slow * stroke_s(SLOW_FRACTION * rig.speed));
     let sample_spacing = rig.speed / rig.rate_hz;
     let sd2 = rig.dut_sigma.powi(2) + rig.reference_sigma.powi(2);
     let crossing_sigma = (sd2 * cubic_noise_factor()).sqrt();
