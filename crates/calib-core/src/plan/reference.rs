@@ -182,7 +182,7 @@ pub fn cubic_noise_factor() -> f64 {
 }
 
 /// Distinct phases of order `h` at `k` equally spaced targets.
-fn phases(h: usize, k: usize) -> usize {
+fn distinct_phases(h: usize, k: usize) -> usize {
     fn gcd(a: usize, b: usize) -> usize {
         if b == 0 { a } else { gcd(b, a % b) }
     }
@@ -241,12 +241,12 @@ pub fn plan(
         Some(k) => (k, false),
         None => (
             (default_targets..)
-                .find(|&k| orders.iter().all(|&h| phases(h, k) >= MIN_PHASES))
+                .find(|&k| orders.iter().all(|&h| distinct_phases(h, k) >= MIN_PHASES))
                 .unwrap_or(default_targets),
             true,
         ),
     };
-    let phases: Vec<(usize, usize)> = orders.iter().map(|&h| (h, phases(h, k))).collect();
+    let phases: Vec<(usize, usize)> = orders.iter().map(|&h| (h, distinct_phases(h, k))).collect();
     let blind_orders = phases
         .iter()
         .filter(|p| p.1 == 1)
