@@ -354,3 +354,86 @@ fn plan_writes_a_procedure_and_a_scenario_that_simulates() {
     expect_exit(&o, 2);
     assert!(!clash.exists());
 }
+
+/// `calib plan tdr --procedure` and `calib plan reference --procedure` write scenarios that
+/// simulate, and the methods run on the simulations (the planned coast is one coast; the planned
+/// sweep gives the planned passes in each direction).
+#[test]
+fn tdr_and_reference_plans_write_scenarios_that_calibrate() {
+    let dir = tempfile::tempdir().unwrap();
+    let coast = dir.path().join("coast.md");
+    let o = calib(&[
+        "plan",
+        "tdr",
+        "--max-order",
+        "8",
+        "--start-rpm",
+        "600",
+        "--decel",
+        "30",
+        "--procedure",
+        s(&coast),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let scenario = std::fs::read_to_string(dir.path().join("coast.toml")).unwrap();
+    let with_error = scenario.replacen(
+        "name = \"enc\"\n",
+        "name = \"enc\"\nharmonics = [{ order = 2, amplitude_arcsec = 2.0, phase_deg = 0.0 }]\n",
+        1,
+    );
+    std::fs::write(dir.path().join("coast.toml"), with_error).unwrap();
+    let log = dir.path().join("coast.mcap");
+    let o = calib(&["simulate", s(&dir.path().join("coast.toml")), "-o", s(&log)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.path().join("tdr");
+    let o = calib(&[
+        "tdr",
+        s(&log),
+        "--channel",
+        "enc",
+        "--max-order",
+        "8",
+        "-o",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let run = dir.path().join("ref.md");
+    let o = calib(&[
+        "plan",
+        "reference",
+        "--speed",
+        "90",
+        "--passes",
+        "2",
+        "--procedure",
+        s(&run),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let log = dir.path().join("ref.csv");
+    let o = calib(&[
+        "simulate",
+        s(&dir.path().join("ref.toml")),
+        "-o",
+        s(&log),
+        "--points",
+        "360",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.path().join("ref");
+    let o = calib(&[
+        "reference",
+        s(&log),
+        "--dut",
+        "dut",
+        "--ref",
+        "ref",
+        "-o",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["details"]["min_passes"]["increasing"], 2);
+    assert_eq!(report["details"]["min_passes"]["decreasing"], 2);
+}

@@ -625,6 +625,52 @@ fn dof(readings: &Readings) -> usize {
 fn joint(readings: &Readings) -> Result<Estimate, ShiftAngleError> {
     let n = readings.faces;
     let shifts = readings.shifts.len();
+    let (m, rhs, c) = joint_system(readings);
+    let chol = m.cholesky().ok_or_else(|| {
+        ShiftAngleError::Singular(
+            "the readings do not determine every α, β and U; check for repeated identical rows"
+                .into(),
+        )
+    })?;
+    let x = chol.solve(&rhs);
+    let est_dof = dof(readings);
+    let mut est = unpack(readings, &x, est_dof);
+    let sigma = residual_sigma(readings, &est);
+    if let Some(sigma) = sigma {
+        let v = unit_variances(&chol, &c);
+        let var = |k: usize| sigma * v[k].max(0.0).sqrt();
+        let (b0, u0) = (shifts * n, shifts * n + n);
+        est.u_alpha = Some(
+            (0..shifts)
+                .map(|s| (0..n).map(|i| var(s * n + i)).collect())
+                .collect(),
+        );
+        est.u_beta = Some((0..n).map(|k| var(b0 + k)).collect());
+        let mut idx = u0;
+        est.u_setup = Some(
+            readings
+                .shifts
+                .iter()
+                .map(|s| {
+                    s.rows
+                        .iter()
+                        .map(|_| {
+                            idx += 1;
+                            var(idx - 1)
+                        })
+                        .collect()
+                })
+                .collect(),
+        );
+    }
+    Ok(est)
+}
+
+/// The joint fit's system: `M = AᵀA + CᵀC`, `Aᵀε` and the constraint rows `C` (eqs. 1, 2), for
+/// the unknowns `x = [α (shift-major), β, U (row order)]`.
+fn joint_system(readings: &Readings) -> (DMatrix<f64>, DVector<f64>, DMatrix<f64>) {
+    let n = readings.faces;
+    let shifts = readings.shifts.len();
     let rows: usize = readings.shifts.iter().map(|s| s.rows.len()).sum();
     let (a0, b0, u0) = (0, shifts * n, shifts * n + n);
     let p = u0 + rows;
@@ -661,47 +707,40 @@ fn joint(readings: &Readings) -> Result<Estimate, ShiftAngleError> {
         }
     }
     m += c.transpose() * &c;
+    (m, rhs, c)
+}
+
+/// The diagonal of `M⁻¹ − (M⁻¹Cᵀ)(M⁻¹Cᵀ)ᵀ`: every unknown's variance for readings of unit noise.
+fn unit_variances(chol: &nalgebra::Cholesky<f64, nalgebra::Dyn>, c: &DMatrix<f64>) -> Vec<f64> {
+    let minv = chol.inverse();
+    let mc = &minv * c.transpose();
+    (0..minv.nrows())
+        .map(|k| minv[(k, k)] - mc.row(k).iter().map(|v| v * v).sum::<f64>())
+        .collect()
+}
+
+/// The standard uncertainty the joint method gives each encoder point (`u[shift][step − 1]`,
+/// arcsec) for readings laid out as `readings` (their values do not matter) with independent
+/// noise `sigma_arcsec` each: `σ·√[M⁻¹ − (M⁻¹Cᵀ)(M⁻¹Cᵀ)ᵀ]_kk`, the covariance [`calibrate`]
+/// reports with `σ̂` from the residuals. For planning a measurement before it is made.
+pub fn joint_point_uncertainty(
+    readings: &Readings,
+    sigma_arcsec: f64,
+) -> Result<Vec<Vec<f64>>, ShiftAngleError> {
+    check_polygon_determined(readings)?;
+    let n = readings.faces;
+    let (m, _, c) = joint_system(readings);
     let chol = m.cholesky().ok_or_else(|| {
-        ShiftAngleError::Singular(
-            "the readings do not determine every α, β and U; check for repeated identical rows"
-                .into(),
-        )
+        ShiftAngleError::Singular("the layout does not determine every α, β and U".into())
     })?;
-    let x = chol.solve(&rhs);
-    let est_dof = dof(readings);
-    let mut est = unpack(readings, &x, est_dof);
-    let sigma = residual_sigma(readings, &est);
-    if let Some(sigma) = sigma {
-        let minv = chol.inverse();
-        let mc = &minv * c.transpose();
-        let var = |k: usize| {
-            let v = minv[(k, k)] - mc.row(k).iter().map(|v| v * v).sum::<f64>();
-            sigma * v.max(0.0).sqrt()
-        };
-        est.u_alpha = Some(
-            (0..shifts)
-                .map(|s| (0..n).map(|i| var(a0 + s * n + i)).collect())
-                .collect(),
-        );
-        est.u_beta = Some((0..n).map(|k| var(b0 + k)).collect());
-        let mut idx = u0;
-        est.u_setup = Some(
-            readings
-                .shifts
-                .iter()
-                .map(|s| {
-                    s.rows
-                        .iter()
-                        .map(|_| {
-                            idx += 1;
-                            var(idx - 1)
-                        })
-                        .collect()
-                })
-                .collect(),
-        );
-    }
-    Ok(est)
+    let v = unit_variances(&chol, &c);
+    Ok((0..readings.shifts.len())
+        .map(|s| {
+            (0..n)
+                .map(|i| sigma_arcsec * v[s * n + i].max(0.0).sqrt())
+                .collect()
+        })
+        .collect())
 }
 
 fn unpack(readings: &Readings, x: &DVector<f64>, dof: usize) -> Estimate {

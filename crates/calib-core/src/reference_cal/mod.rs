@@ -559,7 +559,7 @@ struct Step {
 
 /// The polynomial through points with distinct `x` (two to four of them), evaluated at `at`
 /// (Lagrange form).
-fn lagrange(nodes: &[(f64, f64)], at: f64) -> f64 {
+pub(crate) fn lagrange(nodes: &[(f64, f64)], at: f64) -> f64 {
     nodes
         .iter()
         .enumerate()
@@ -1044,13 +1044,13 @@ impl ReferenceCal {
                     (_, 0) => sem2(a, pool_up),
                     _ => sem2(a, pool_up)
                         .zip(sem2(b, pool_down))
-                        .map(|(x, y)| (x + y) / 4.0),
+                        .map(|(x, y)| mean_variance(Some(x), Some(y))),
                 };
                 let var = var.unwrap_or_else(|| {
                     no_repeatability = true;
                     0.0
                 });
-                Some((var + extra + self.opts.reference_u.powi(2)).sqrt())
+                Some(point_uncertainty(var, *extra, self.opts.reference_u))
             })
             .collect();
         if let Some(g) = gap {
@@ -1254,6 +1254,23 @@ fn layout(covered: &[bool], step: f64, max_gap: f64) -> Result<Layout, Reference
         first: (gap_start + gap_len) % n,
         len: n - gap_len,
     })
+}
+
+/// The variance of a point's mean deviation from its directions' squared standard errors
+/// `s²/n` (module docs, "Uncertainty"): `(s↑²/n↑ + s↓²/n↓)/4` for the bidirectional mean where
+/// both directions have passes, else the one direction's.
+pub fn mean_variance(up: Option<f64>, down: Option<f64>) -> f64 {
+    match (up, down) {
+        (Some(x), Some(y)) => (x + y) / 4.0,
+        (Some(x), None) | (None, Some(x)) => x,
+        (None, None) => 0.0,
+    }
+}
+
+/// A point's `u = √(u_mean² + extra + u_ref²)`: the variance of its mean ([`mean_variance`]),
+/// any further variance (`extra`: the lag's) and the reference's standard uncertainty `u_ref`.
+pub fn point_uncertainty(mean_variance: f64, extra: f64, reference_u: f64) -> f64 {
+    (mean_variance + extra + reference_u.powi(2)).sqrt()
 }
 
 /// The map indices of the ISO 230-2 targets, in increasing order without repeats.

@@ -129,7 +129,7 @@
 //! locked to the shaft's position.
 
 mod motion;
-mod rng;
+pub(crate) mod rng;
 mod scenario;
 mod sensor;
 mod spindown;

@@ -750,14 +750,62 @@ impl SpeedSpread {
         let n = moments.samples as f64;
         let drag_gain = moments.sum_of(|tau| speed(tau).powi(-2)) / n;
         let mean_w2 = moments.sum_of(|tau| speed(tau).powi(-4)) / n;
-        let variation = (mean_w2 / (drag_gain * drag_gain) - 1.0).max(0.0).sqrt();
-        let noise_gain = (1.0 + 1.0 / (variation * variation).max(1e-300)).sqrt();
+        let (variation, noise_gain) = speed_variation(drag_gain, mean_w2);
         SpeedSpread {
             drag_gain,
             variation,
             noise_gain,
         }
     }
+}
+
+/// How widely a coast sweeps `1/ω²`, from the means over its samples `⟨ω⁻²⟩` and `⟨ω⁻⁴⟩`:
+/// the relative RMS variation `cv = √(⟨ω⁻⁴⟩/⟨ω⁻²⟩² − 1)` and the noise gain `√(1 + 1/cv²)` of
+/// separating drag from the map ([`DragSeparation`]; the coast is separable when the gain
+/// squared is at most [`MAX_DRAG_VARIANCE_INFLATION`]).
+pub fn speed_variation(mean_inv_speed2: f64, mean_inv_speed4: f64) -> (f64, f64) {
+    let variation = (mean_inv_speed4 / (mean_inv_speed2 * mean_inv_speed2) - 1.0)
+        .max(0.0)
+        .sqrt();
+    let noise_gain = (1.0 + 1.0 / (variation * variation).max(1e-300)).sqrt();
+    (variation, noise_gain)
+}
+
+/// The "noise of the readings propagated through the fit" component of the map's `u` that
+/// [`Tdr::finish`] reports, for a coast read at times `t` (s) with continuous readings `r`
+/// (rad; a planned coast's angles will do), the map's `orders` (ascending), the motion's
+/// Chebyshev `degree` and noise `sigma` (rad) per sample: `u_fit(x) = σ·‖L⁻¹c(x)‖` at `points`
+/// grid points (the same function the method's budget uses, with its `σ̂` replaced by `sigma`).
+/// For planning a coast before it is recorded; `None` where the fit is underdetermined.
+pub fn fit_noise(
+    t: &[f64],
+    r: &[f64],
+    orders: &[usize],
+    degree: usize,
+    sigma: f64,
+    points: usize,
+) -> Option<Vec<f64>> {
+    let (&first, &last) = (t.first()?, t.last()?);
+    let h = orders.last().copied().unwrap_or(1);
+    let samples = Samples {
+        t,
+        r,
+        origin: r[0],
+        span: (first, last),
+    };
+    let moments = Moments::of_coast(samples, degree, h, 0);
+    let basis = Basis {
+        t0: first,
+        t1: last,
+        degree,
+        orders: orders.to_vec(),
+        drag: None,
+    };
+    if 4 * basis.len() > t.len() {
+        return None;
+    }
+    let fit = Fit::new(&moments, &basis)?;
+    Some(noise_through_fit(&basis, &fit.l_inv, sigma, points))
 }
 
 /// The drag orders of `basis` (fitted jointly with the map) that pass the significance rule
@@ -1197,23 +1245,7 @@ fn map_uncertainty(
     dropped: f64,
     points: usize,
 ) -> MapUncertainty {
-    let f = basis.degree + 1;
-    let n = basis.len();
-    let cols: Vec<usize> = (f..f + 2 * basis.orders.len()).collect();
-    // B = L⁻¹ restricted to the map's columns.
-    let b = DMatrix::from_fn(n, cols.len(), |i, j| fit.l_inv[(i, cols[j])]);
-    let mut c = DVector::<f64>::zeros(cols.len());
-    let u_fit: Vec<f64> = (0..points)
-        .map(|i| {
-            let x = TAU * i as f64 / points as f64;
-            for (j, &k) in basis.orders.iter().enumerate() {
-                let (sn, cs) = (k as f64 * x).sin_cos();
-                c[2 * j] = cs;
-                c[2 * j + 1] = sn;
-            }
-            fit.sigma * (&b * &c).norm()
-        })
-        .collect();
+    let u_fit = noise_through_fit(basis, &fit.l_inv, fit.sigma, points);
     let missing = (unresolved
         .iter()
         .map(|h| h.amplitude.powi(2) / 2.0)
@@ -1244,6 +1276,28 @@ fn map_uncertainty(
         u: vec![interpolation_uncertainty(&series.harmonics(), points)],
     });
     MapUncertainty::combine(points, components)
+}
+
+/// `u_fit(x) = σ·‖L⁻¹c(x)‖` at `points` grid points, `c(x)` the `cos kx, sin kx` of the map's
+/// orders in `basis` and `L⁻¹` the inverse of the fit's Cholesky factor ([`map_uncertainty`]).
+fn noise_through_fit(basis: &Basis, l_inv: &DMatrix<f64>, sigma: f64, points: usize) -> Vec<f64> {
+    let f = basis.degree + 1;
+    let n = basis.len();
+    let cols: Vec<usize> = (f..f + 2 * basis.orders.len()).collect();
+    // B = L⁻¹ restricted to the map's columns.
+    let b = DMatrix::from_fn(n, cols.len(), |i, j| l_inv[(i, cols[j])]);
+    let mut c = DVector::<f64>::zeros(cols.len());
+    (0..points)
+        .map(|i| {
+            let x = TAU * i as f64 / points as f64;
+            for (j, &k) in basis.orders.iter().enumerate() {
+                let (sn, cs) = (k as f64 * x).sin_cos();
+                c[2 * j] = cs;
+                c[2 * j + 1] = sn;
+            }
+            sigma * (&b * &c).norm()
+        })
+        .collect()
 }
 
 /// The ascending union of two ascending order lists.

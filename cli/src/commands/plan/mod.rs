@@ -10,6 +10,14 @@ use serde_json::json;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
+mod reference;
+mod shift_angle;
+mod tdr;
+
+pub use reference::ReferenceArgs;
+pub use shift_angle::ShiftAngleArgs;
+pub use tdr::TdrArgs;
+
 /// Plan a calibration run before recording it: which set-up lets the method see every order up
 /// to N, and the uncertainty it will give.
 ///
@@ -20,6 +28,10 @@ use std::path::{Path, PathBuf};
 ///   calib plan csrr --max-order 90 --procedure run.md
 ///   calib simulate run.toml -o sim.mcap
 ///   calib csrr sim.mcap -o out/
+///
+/// The planners: csrr (relative rotations), multihead (head positions), tdr (how far and how
+/// long to coast, at which rate), shift-angle (shifts, readings and the Table 3 budget),
+/// reference (ISO 230-2 targets, passes and the approach for a backlash).
 #[derive(Debug, clap::Args, PartialEq)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -48,6 +60,34 @@ pub enum Method {
     /// instead and names its blind orders (SelfA's 3/4/7-head sets: the multiples of 84). Prints
     /// the placement, the worst orders, and the map's u for the given noise and revolutions.
     Multihead(MultiheadArgs),
+    /// TDR (spin-down): how far the shaft must coast down, for how long, at which sample rate.
+    ///
+    /// The coast must sweep 1/ω² by at least 10 % RMS for calib tdr to separate an
+    /// angle-dependent drag from the encoder's error (its rule, ≈ 16 % of the speed lost); the
+    /// plan proposes coasting on to where the separation costs 1.5× the noise at the drag's
+    /// orders (or to --end-rpm), and a sample rate that gives N/0.4 samples per revolution at
+    /// the release speed. It prints the coast's duration and revolutions and the map's u from
+    /// the method's own fit on the planned samples.
+    Tdr(TdrArgs),
+    /// Shift-angle (polygon and autocollimator): the shifts and readings that give every angle
+    /// a point, the blind orders and the GUM budget of the paper's Table 3.
+    ///
+    /// Shifts S = 0, d, 2d, … below the pitch 360°/F give a point every d degrees (--spacing);
+    /// the readings follow the paper: the full F × F matrix at S = 0, start face 1 at the other
+    /// shifts. Orders F, 2F, … are blind whatever the shifts (the closure of eq. 2). Prints the
+    /// u of every point from the joint fit and Table 3's budget for F faces, evaluated as
+    /// `calib shift-angle --budget` evaluates one (no simulator scenario exists for
+    /// shift-angle readings: --procedure writes the readings sheet and the budget file).
+    ShiftAngle(ShiftAngleArgs),
+    /// Reference (ISO 230-2): targets, passes per direction, the approach after each reversal
+    /// for a backlash, the sweep that gives them, and the u of the map.
+    ///
+    /// Targets (j + ½)·360°/k, k from calib reference's 20 upwards until every expected order
+    /// of the DUT (--orders) is seen at 8 phases or more (at a divisor of an order, every target
+    /// sees the same value and the ISO figures miss it). The approach is twice the backlash, at
+    /// least the method's 1°. u is the method's: the spread of a crossing over the passes,
+    /// halved for the two directions, with the reference's u.
+    Reference(ReferenceArgs),
 }
 
 /// `calib plan multihead`.
@@ -147,7 +187,77 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     match &args.method {
         Method::Csrr(a) => csrr(a),
         Method::Multihead(a) => multihead(a),
+        Method::Tdr(a) => tdr::run(a),
+        Method::ShiftAngle(a) => shift_angle::run(a),
+        Method::Reference(a) => reference::run(a),
     }
+}
+
+/// Writes the procedure `text` to `path` and each `(extension, what, text)` beside it (the
+/// path with that extension); refuses a procedure path that one of them would overwrite.
+/// Returns the paths written.
+fn write_procedure(
+    path: &Path,
+    text: &str,
+    beside: &[(&str, &str, String)],
+) -> anyhow::Result<Vec<PathBuf>> {
+    let others: Vec<PathBuf> = beside
+        .iter()
+        .map(|(ext, _, _)| path.with_extension(ext))
+        .collect();
+    if others.iter().any(|o| o == path) {
+        let exts: Vec<String> = beside.iter().map(|b| format!(".{}", b.0)).collect();
+        return Err(anyhow::Error::new(Usage(format!(
+            "--procedure {}: the files written beside the procedure end in {}; give the \
+             procedure another extension (e.g. {})",
+            path.display(),
+            exts.join(", "),
+            path.with_extension("md").display()
+        ))));
+    }
+    calib_io::atomic::write_atomic(path, text.as_bytes())
+        .with_context(|| format!("cannot write the procedure {}", path.display()))?;
+    let mut written = vec![path.to_path_buf()];
+    for (other, (_, what, text)) in others.into_iter().zip(beside) {
+        calib_io::atomic::write_atomic(&other, text.as_bytes())
+            .with_context(|| format!("cannot write the {what} {}", other.display()))?;
+        written.push(other);
+    }
+    Ok(written)
+}
+
+/// `--name` must be a positive number.
+fn positive(name: &str, v: f64) -> anyhow::Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(anyhow::Error::new(Usage(format!(
+            "{name} must be a positive number, not {v}"
+        ))))
+    }
+}
+
+/// `--name` must be a number ≥ 0 of `unit`.
+fn non_negative(name: &str, v: f64, unit: &str) -> anyhow::Result<()> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(anyhow::Error::new(Usage(format!(
+            "{name} must be ≥ 0 {unit}, not {v}"
+        ))))
+    }
+}
+
+/// A number as typed: at most six decimals, no trailing zeros (30, 0.05, 111.9).
+fn num(x: f64) -> String {
+    let s = format!("{x:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
+/// Noise per sample from a reading noise and a resolution (arcsec), rad: `√(σ² + q²/12)`.
+fn sample_sigma(noise: f64, resolution: f64) -> f64 {
+    (noise * noise + resolution * resolution / 12.0).sqrt() / ARCSEC_PER_RAD
 }
 
 fn csrr(args: &CsrrArgs) -> anyhow::Result<String> {
@@ -586,7 +696,7 @@ mod tests {
             .m
         {
             Method::Csrr(a) => a,
-            Method::Multihead(_) => unreachable!("parsed csrr"),
+            _ => unreachable!("parsed csrr"),
         }
     }
 
