@@ -123,10 +123,14 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     );
     let topics = reader.topics();
     let alignment = reader.alignment();
+    let stated = stated_directions(&reader);
     if args.json {
         let json = InspectJson {
             schema_version: calib_core::report::SCHEMA_VERSION,
             log: args.log.display().to_string(),
+            point_list,
+            points: point_list.then_some(result.samples),
+            stated_directions: stated,
             topics,
             alignment,
             inspection: result,
@@ -140,6 +144,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             &args.log,
             &result,
             layout.as_deref(),
+            stated,
             &warnings,
         ));
     }
@@ -196,6 +201,15 @@ pub struct InspectJson {
     pub schema_version: u32,
     /// The log, as given.
     pub log: String,
+    /// The log is a list of stationary points without time (a CSV file without a time column):
+    /// its samples are its rows, timed by their index (0, 1, 2, … s), and it has no motion to
+    /// segment; `calib reference` calibrates from it.
+    pub point_list: bool,
+    /// The points of a point list; `null` for a timed log.
+    pub points: Option<u64>,
+    /// Points of a point list whose direction of approach its `direction` column states (a
+    /// non-empty cell); `null` without such a column.
+    pub stated_directions: Option<u64>,
     /// The log's topics (MCAP and rosbag2; none for CSV), read or not.
     pub topics: Vec<TopicInfo>,
     /// How the channels were aligned on one clock (`null` for one channel or CSV).
@@ -263,11 +277,20 @@ fn render_topics(topics: &[TopicInfo]) -> String {
     o
 }
 
+/// Points of a point list whose `direction` column states their direction of approach; `None`
+/// without the column.
+fn stated_directions(reader: &calib_io::LogReader) -> Option<u64> {
+    reader
+        .point_directions()
+        .map(|d| d.iter().filter(|d| d.is_some()).count() as u64)
+}
+
 /// The human report of a point list: its points and channels, and how to calibrate from it.
 fn render_points(
     path: &std::path::Path,
     r: &Inspection,
     layout: Option<&str>,
+    stated: Option<u64>,
     warnings: &[String],
 ) -> String {
     let mut o = String::new();
@@ -281,6 +304,23 @@ fn render_points(
          order measured",
         r.samples
     );
+    match stated {
+        Some(stated) if stated == r.samples => {
+            let _ = writeln!(
+                o,
+                "  directions of approach: every point's stated by its direction column"
+            );
+        }
+        Some(stated) => {
+            let _ = writeln!(
+                o,
+                "  directions of approach: {stated} of {} stated by its direction column, the \
+                 others taken from the order of the points",
+                r.samples
+            );
+        }
+        None => {}
+    }
     let _ = writeln!(o, "\nchannels");
     let mut channels = TextTable::new(&["name", "unit", "min", "max", "revs"]);
     for c in &r.channels {

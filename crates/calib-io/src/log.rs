@@ -301,6 +301,16 @@ impl LogReader {
         matches!(&self.inner, Inner::Csv(r) if r.is_point_list())
     }
 
+    /// The direction of approach each point of a point list states (`None` where its cell is
+    /// empty), by row (a sample's time is its row), read so far; `None` for a log without a
+    /// `direction` column ([`crate::csv_log::direction`]).
+    pub fn point_directions(&self) -> Option<&[Option<calib_core::reference_points::Approach>]> {
+        match &self.inner {
+            Inner::Csv(r) => r.directions(),
+            Inner::Ros2(_) => None,
+        }
+    }
+
     /// The layout of a CSV log; `None` for the other formats.
     pub fn csv_dialect(&self) -> Option<&crate::csv_log::dialect::Dialect> {
         match &self.inner {
