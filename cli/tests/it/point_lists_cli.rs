@@ -73,7 +73,11 @@ fn a_direction_column_makes_iso_230_2_right_where_the_order_cannot() {
     let out = dir.path().join("out-plain");
     let o = reference(&log, "dut", "ref", &out, &[]);
     expect_exit(&o, 0);
-    assert!(stdout(&o).contains("in one direction only"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("in one direction only"),
+        "{}",
+        stdout(&o)
+    );
     let targets = &read_json(&out.join("report.json"))["details"]["iso230_2_targets"];
     let at_20 = &targets[1];
     assert_eq!(at_20["target_deg"].as_f64(), Some(20.0));

@@ -329,6 +329,19 @@ impl LogReader {
         }
     }
 
+    /// What to say when a method found the log too slow to count as moving (under `min_speed`,
+    /// rad/s): [`time_unit_hint`](Self::time_unit_hint), else the smaller unit of a CSV time
+    /// column in which the readings, which do move, would turn fast enough (see
+    /// [`crate::csv_log::time_step`]).
+    pub fn time_unit_hint_when_still(&self, min_speed: f64) -> Option<String> {
+        match &self.inner {
+            Inner::Csv(r) => r
+                .time_step()
+                .and_then(|s| s.unit_hint_when_still(min_speed)),
+            Inner::Ros2(_) => None,
+        }
+    }
+
     /// How far the reader has got through the log's file, of its size (a SQLite bag, whose rows
     /// are not read in the file's order: its messages, of those of the topics read): a handle to
     /// read from another thread while it reads.

@@ -428,9 +428,9 @@ fn calibrate(
             .finish()
             .map_err(|e| match e {
                 ReferenceError::TooLittleMotion { .. } | ReferenceError::NotCovered { .. } => {
-                    with_time_hint(e, &reader)
+                    with_time_hint(e, &reader, Some(args.min_speed.to_radians()))
                 }
-                e => anyhow::Error::new(e),
+                e => with_time_hint(e, &reader, None),
             })
             .with_context(context)
             .map_err(|e| in_log(e, &reader, log))?;

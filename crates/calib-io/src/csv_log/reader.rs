@@ -623,7 +623,7 @@ impl CsvReader {
             self.directions.push(direction);
         }
         if let Some(steps) = &mut self.time_step {
-            steps.push(t);
+            steps.push(t, &values);
         }
         // The header and the rows always have positions; the default only satisfies the type.
         self.prev = Some((
