@@ -114,16 +114,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         anyhow::bail!("{}: the log holds no samples", args.log.display());
     }
     let suggestions = calib_core::purpose::suggestions(&result);
-    let mut warnings = reader.warnings(&args.log);
-    warnings.extend(reader.notes());
-    warnings.extend(
-        reader
-            .time_unit_hint()
-            .map(|hint| format!("{}: {hint}", args.log.display())),
-    );
+    let warnings = reader.inspect_warnings(&args.log);
     let topics = reader.topics();
     let alignment = reader.alignment();
-    let stated = stated_directions(&reader);
+    let stated = reader.stated_directions();
     if args.json {
         let json = InspectJson {
             schema_version: calib_core::report::SCHEMA_VERSION,
@@ -275,14 +269,6 @@ fn render_topics(topics: &[TopicInfo]) -> String {
     }
     let _ = writeln!(o);
     o
-}
-
-/// Points of a point list whose `direction` column states their direction of approach; `None`
-/// without the column.
-fn stated_directions(reader: &calib_io::LogReader) -> Option<u64> {
-    reader
-        .point_directions()
-        .map(|d| d.iter().filter(|d| d.is_some()).count() as u64)
 }
 
 /// The human report of a point list: its points and channels, and how to calibrate from it.

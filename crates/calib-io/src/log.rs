@@ -311,6 +311,13 @@ impl LogReader {
         }
     }
 
+    /// Points of a point list whose `direction` column states their direction of approach (a
+    /// non-empty cell), read so far; `None` without the column.
+    pub fn stated_directions(&self) -> Option<u64> {
+        self.point_directions()
+            .map(|d| d.iter().filter(|d| d.is_some()).count() as u64)
+    }
+
     /// The layout of a CSV log; `None` for the other formats.
     pub fn csv_dialect(&self) -> Option<&crate::csv_log::dialect::Dialect> {
         match &self.inner {
@@ -405,6 +412,19 @@ impl LogReader {
                 )
             })
             .collect()
+    }
+
+    /// What a description of the log (`calib inspect`, calib-py's `inspect`) warns of once it
+    /// has been read: [`warnings`](Self::warnings), [`notes`](Self::notes) and the
+    /// [`time_unit_hint`](Self::time_unit_hint), each naming `path`.
+    pub fn inspect_warnings(&self, path: &Path) -> Vec<String> {
+        let mut w = self.warnings(path);
+        w.extend(self.notes());
+        w.extend(
+            self.time_unit_hint()
+                .map(|hint| format!("{}: {hint}", path.display())),
+        );
+        w
     }
 
     /// Warnings the user must see once the log has been read: truncation, damaged chunks skipped,
