@@ -19,6 +19,9 @@ const ERRORS: [[f64; 4]; 3] = [
     [1.0, 3.0, 5.0, 5.0],
 ];
 
+/// How a row's direction cell is written, from whether the point was reached increasing.
+type Spelling = fn(bool) -> &'static str;
+
 fn overshoot_list(direction: impl Fn(bool) -> &'static str) -> String {
     let mut text = String::from("dut;ref;direction\n");
     for c in 0..2 {
@@ -47,7 +50,7 @@ fn a_direction_column_makes_iso_230_2_right_where_the_order_cannot() {
         ("repeatability_arcsec", 3.0 + 2.0 * r2),
         ("accuracy_arcsec", 4.0 + 2.0 * r2),
     ];
-    let spellings: [(&str, fn(bool) -> &'static str); 3] = [
+    let spellings: [(&str, Spelling); 3] = [
         ("signs.csv", |up| if up { "+" } else { "-" }),
         ("words.csv", |up| if up { "Up" } else { "DOWN" }),
         ("numbers.csv", |up| if up { "1" } else { "-1" }),

@@ -17,10 +17,14 @@ pub fn is_direction_column(name: &str) -> bool {
         .any(|n| name.trim().eq_ignore_ascii_case(n))
 }
 
-/// The direction a cell states: `Ok(None)` for an empty cell, `Err(())` for a word that names no
-/// direction (see the [module docs](self)).
-pub fn parse(cell: &[u8]) -> Result<Option<Approach>, ()> {
-    let text = std::str::from_utf8(cell).map_err(|_| ())?.trim();
+/// A cell that names no direction of approach (the reader's error says what to write,
+/// [`EXPECTED`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NotADirection;
+
+/// The direction a cell states: `Ok(None)` for an empty cell (see the [module docs](self)).
+pub fn parse(cell: &[u8]) -> Result<Option<Approach>, NotADirection> {
+    let text = std::str::from_utf8(cell).map_err(|_| NotADirection)?.trim();
     let word = text.to_ascii_lowercase();
     match word.as_str() {
         "" => Ok(None),
@@ -30,7 +34,7 @@ pub fn parse(cell: &[u8]) -> Result<Option<Approach>, ()> {
         "-" | "−" | "-1" | "down" | "decreasing" | "backward" | "back" | "bwd" | "neg" | "↓" => {
             Ok(Some(Approach::Decreasing))
         }
-        _ => Err(()),
+        _ => Err(NotADirection),
     }
 }
 
@@ -63,7 +67,7 @@ mod tests {
             assert_eq!(parse(cell.as_bytes()), Ok(want), "{cell:?}");
         }
         for cell in ["0", "2", "left", "cw", "+-", "\u{ff}"] {
-            assert_eq!(parse(cell.as_bytes()), Err(()), "{cell:?}");
+            assert_eq!(parse(cell.as_bytes()), Err(NotADirection), "{cell:?}");
         }
         assert!(is_direction_column(" Direction"));
         assert!(is_direction_column("DIR"));

@@ -574,7 +574,7 @@ impl CsvReader {
 
         let direction = match self.direction_col {
             None => None,
-            Some(c) => super::direction::parse(field(c)).map_err(|()| {
+            Some(c) => super::direction::parse(field(c)).map_err(|_| {
                 self.error(
                     Some(c),
                     format!(
