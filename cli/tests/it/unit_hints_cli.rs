@@ -162,7 +162,8 @@ fn retimed(log: &Path, dir: &Path, name: &str, time: &str, scale: f64) -> PathBu
 }
 
 /// The reverse below 500 Hz: quick.toml's 200 Hz run in seconds under `time_ms` reads as
-/// 200 kHz (a rate encoders are logged at, so the step says nothing) turning at ~44,000 r/min on average.
+/// 200 kHz (a rate encoders are logged at, so the step says nothing) turning at ~44,000 r/min on
+/// average.
 /// Before: "found 0 session(s)" and nothing else; now the error and `inspect` name the speed and
 /// `--time-unit s`, which gives the maps of the run read in seconds.
 #[test]
