@@ -48,7 +48,9 @@ pub struct LogArgs {
     pub time_column: Option<String>,
     /// Unit of a CSV log's time column: s, ms, us, ns or 100ns (FILETIME ticks) (default: its
     /// name's suffix, else the units row's entry, else s). A run that "never moves" whose
-    /// column steps by more than 0.5 s, or less than 2 µs, in that unit names the unit that fits.
+    /// column steps by more than 0.5 s, or less than 2 µs, in that unit names the unit that fits;
+    /// so does one whose readings turn faster than 30,000 r/min in it, or (where a method finds
+    /// the run too slow) one whose readings move but under --min-speed.
     #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
     pub time_unit: Option<TimeUnit>,
     /// Leave out MCAP chunks whose checksum (CRC) does not match, warning and listing each in

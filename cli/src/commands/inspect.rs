@@ -114,19 +114,17 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         anyhow::bail!("{}: the log holds no samples", args.log.display());
     }
     let suggestions = calib_core::purpose::suggestions(&result);
-    let mut warnings = reader.warnings(&args.log);
-    warnings.extend(reader.notes());
-    warnings.extend(
-        reader
-            .time_unit_hint()
-            .map(|hint| format!("{}: {hint}", args.log.display())),
-    );
+    let warnings = reader.inspect_warnings(&args.log);
     let topics = reader.topics();
     let alignment = reader.alignment();
+    let stated = reader.stated_directions();
     if args.json {
         let json = InspectJson {
             schema_version: calib_core::report::SCHEMA_VERSION,
             log: args.log.display().to_string(),
+            point_list,
+            points: point_list.then_some(result.samples),
+            stated_directions: stated,
             topics,
             alignment,
             inspection: result,
@@ -140,6 +138,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             &args.log,
             &result,
             layout.as_deref(),
+            stated,
             &warnings,
         ));
     }
@@ -196,6 +195,15 @@ pub struct InspectJson {
     pub schema_version: u32,
     /// The log, as given.
     pub log: String,
+    /// The log is a list of stationary points without time (a CSV file without a time column):
+    /// its samples are its rows, timed by their index (0, 1, 2, … s), and it has no motion to
+    /// segment; `calib reference` calibrates from it.
+    pub point_list: bool,
+    /// The points of a point list; `null` for a timed log.
+    pub points: Option<u64>,
+    /// Points of a point list whose direction of approach its `direction` column states (a
+    /// non-empty cell); `null` without such a column.
+    pub stated_directions: Option<u64>,
     /// The log's topics (MCAP and rosbag2; none for CSV), read or not.
     pub topics: Vec<TopicInfo>,
     /// How the channels were aligned on one clock (`null` for one channel or CSV).
@@ -268,6 +276,7 @@ fn render_points(
     path: &std::path::Path,
     r: &Inspection,
     layout: Option<&str>,
+    stated: Option<u64>,
     warnings: &[String],
 ) -> String {
     let mut o = String::new();
@@ -281,6 +290,23 @@ fn render_points(
          order measured",
         r.samples
     );
+    match stated {
+        Some(stated) if stated == r.samples => {
+            let _ = writeln!(
+                o,
+                "  directions of approach: every point's stated by its direction column"
+            );
+        }
+        Some(stated) => {
+            let _ = writeln!(
+                o,
+                "  directions of approach: {stated} of {} stated by its direction column, the \
+                 others taken from the order of the points",
+                r.samples
+            );
+        }
+        None => {}
+    }
     let _ = writeln!(o, "\nchannels");
     let mut channels = TextTable::new(&["name", "unit", "min", "max", "revs"]);
     for c in &r.channels {

@@ -171,14 +171,20 @@ pub fn for_each_sample(
     Ok(samples.finish())
 }
 
-/// A method's error that its log's speed decides (a channel that "never moves"), with what the
-/// CSV time column's step says where it fits another unit better: a column in milliseconds read
-/// as seconds makes every speed 1000× too slow.
-pub fn with_time_hint<E>(err: E, reader: &LogReader) -> anyhow::Error
+/// A method's error, with what the CSV time column's step and the readings' speed say where
+/// they fit another unit better: a column in milliseconds read as seconds makes every speed 1000×
+/// too slow, one in seconds read as milliseconds 1000× too fast. `still`: the error says the run
+/// moved slower than this speed, rad/s (a channel that "never moves"), so a smaller unit that
+/// would make it fast enough is named too.
+pub fn with_time_hint<E>(err: E, reader: &LogReader, still: Option<f64>) -> anyhow::Error
 where
     E: std::error::Error + Send + Sync + 'static,
 {
-    match reader.time_unit_hint() {
+    let hint = match still {
+        Some(min_speed) => reader.time_unit_hint_when_still(min_speed),
+        None => reader.time_unit_hint(),
+    };
+    match hint {
         Some(hint) => anyhow::anyhow!("{err}; {hint}"),
         None => anyhow::Error::new(err),
     }

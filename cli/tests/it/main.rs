@@ -14,6 +14,7 @@ mod inspect_cli;
 mod labfiles_cli;
 mod multihead_cli;
 mod outputs_cli;
+mod point_lists_cli;
 mod range_cli;
 mod readme;
 mod recordings_cli;

@@ -148,6 +148,102 @@ fn seconds_under_a_millisecond_name_are_named_and_a_true_one_is_not() {
     assert!(!report.contains("--time-unit"), "{report}");
 }
 
+/// `log` (`t,a,b,session` in seconds) rewritten with its time in `scale` units per second under
+/// the header `time`, without the session column.
+fn retimed(log: &Path, dir: &Path, name: &str, time: &str, scale: f64) -> PathBuf {
+    let text = std::fs::read_to_string(log).unwrap();
+    let mut o = format!("{time},a,b\n");
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let t = f[0].parse::<f64>().unwrap() * scale;
+        o.push_str(&format!("{t},{},{}\n", f[1], f[2]));
+    }
+    write(dir, name, &o)
+}
+
+/// The reverse below 500 Hz: quick.toml's 200 Hz run in seconds under `time_ms` reads as
+/// 200 kHz (a rate encoders are logged at, so the step says nothing) turning at ~44,000 r/min on
+/// average.
+/// Before: "found 0 session(s)" and nothing else; now the error and `inspect` name the speed and
+/// `--time-unit s`, which gives the maps of the run read in seconds.
+#[test]
+fn seconds_under_a_millisecond_name_are_named_below_500_hz() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate_quick(dir.path(), "run.csv", &[]);
+    let reversed = retimed(&log, dir.path(), "reversed.csv", "time_ms", 1.0);
+    let hint = [
+        "the time column `time_ms` steps by 0.005 (median of its first rows), read as \
+         milliseconds (as its name says): 200000 samples per second, and the readings turn at",
+        "faster than the 30000 r/min encoders are rated for; if it is in seconds, they turn at",
+        "(200 samples per second): say `--time-unit s`",
+    ];
+    let o = calib(&["csrr", s(&reversed), "-o", s(&dir.path().join("out"))]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(&err, &hint);
+    assert_no_output(&dir.path().join("out"));
+    let o = reference_run(&reversed, dir.path().join("ref"), &[]);
+    assert_mentions(&expect_exit(&o, 1), &hint);
+    let report = inspect(&reversed, &[]);
+    assert_mentions(&report, &hint);
+
+    let plain = retimed(&log, dir.path(), "plain.csv", "t", 1.0);
+    let (told, s_out) = (dir.path().join("told"), dir.path().join("s"));
+    let o = calib(&["csrr", s(&reversed), "--time-unit", "s", "-o", s(&told)]);
+    expect_exit(&o, 0);
+    assert!(!stderr(&o).contains("--time-unit"), "{}", stderr(&o));
+    expect_exit(&calib(&["csrr", s(&plain), "-o", s(&s_out)]), 0);
+    for name in ["a.csv", "b.csv"] {
+        // The same numbers read in the same unit: the same bytes.
+        assert_eq!(
+            std::fs::read(told.join(name)).unwrap(),
+            std::fs::read(s_out.join(name)).unwrap(),
+            "{name}"
+        );
+    }
+}
+
+/// Milliseconds read as seconds where the step is a plausible one: quick.toml at 4 kHz, its
+/// stamps in ms under `t`, steps by 0.25 (4 Hz read as seconds) and turns at 0.36°/s at most. By itself
+/// that is a slow run (no warning from `inspect`), but where csrr finds sensor A still the error
+/// says milliseconds would make it 360°/s at 4 kHz; told so, csrr calibrates.
+#[test]
+fn milliseconds_at_a_plausible_step_are_named_where_a_method_finds_the_run_still() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate_quick(dir.path(), "run.csv", &[("rate_hz", "rate_hz = 4000.0")]);
+    let ms = retimed(&log, dir.path(), "ms.csv", "t", 1e3);
+    let o = calib(&["csrr", s(&ms), "-o", s(&dir.path().join("out"))]);
+    let err = expect_exit(&o, 1);
+    assert_mentions(
+        &err,
+        &[
+            "sensor A never moves",
+            "on average by the time column `t` read as seconds (the default for a column \
+             without a unit), 4 samples per second; if it is in milliseconds, they turn at ",
+            "(4000 samples per second): say `--time-unit ms`",
+        ],
+    );
+    // The average from the first move over the first 20,000 rows (5 s): 360°/s turning, less
+    // over the pauses between sessions (0.2 s each of every ~2.7 s), more than half of it.
+    let said: f64 = err
+        .split("they turn at ")
+        .nth(1)
+        .and_then(|r| r.split('°').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap();
+    assert!((180.0..=360.0).contains(&said), "{said}°/s");
+    let report = inspect(&ms, &[]);
+    assert!(!report.contains("--time-unit"), "{report}");
+    let o = calib(&[
+        "csrr",
+        s(&ms),
+        "--time-unit",
+        "ms",
+        "-o",
+        s(&dir.path().join("ok")),
+    ]);
+    expect_exit(&o, 0);
+}
+
 /// A log in radians or encoder counts read as degrees: before, `apply` corrected it with the
 /// degree map and exit 0 (a correction 57× off, at the wrong angles); now exit 2 naming the
 /// unit, and no output, as the methods refuse it. With `--unit` it is corrected as told.

@@ -15,7 +15,10 @@
 //! The **direction of approach** of a point is the sign of the step that brought the DUT there
 //! (steps within `τ` do not count); a point reached without a step (the first point, or a
 //! target measured again at a reversal — ISO 230-2's sequence `1…5, 5…1`) takes the direction
-//! of the next step. Per target and direction: `n` points, the mean `x̄↑`, `x̄↓` and standard
+//! of the next step. Where the list states a point's direction ([`Approach`], a `direction`
+//! column), that direction is taken instead: a stop reached by overshooting the target and coming
+//! back to it was approached against the step from the previous stop, which the order of the
+//! points cannot show. Per target and direction: `n` points, the mean `x̄↑`, `x̄↓` and standard
 //! deviation `s`, as in [`crate::reference_cal`] (ISO 230-2:2014 §3, the same formulas and sign;
 //! here the target positions are the points themselves, not chosen on a grid).
 //!
@@ -65,6 +68,16 @@ pub struct PointOptions {
     /// Points whose DUT readings lie within this of each other are one target, radians;
     /// `None`: a tenth of the median step between consecutive points.
     pub target_tol: Option<f64>,
+}
+
+/// The direction a point was approached from, as a list states it: with increasing or with
+/// decreasing DUT readings (ISO 230-2's ↑ and ↓).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Approach {
+    /// The DUT's reading increased into the point.
+    Increasing,
+    /// The DUT's reading decreased into the point.
+    Decreasing,
 }
 
 /// Why a calibration from points cannot be made.
@@ -144,11 +157,31 @@ fn stats(x: &[f64], offset: f64) -> PointStats {
 }
 
 /// The calibration of the DUT from `points` = `(DUT reading, reference reading)`, radians, in
-/// the order they were measured (see the [module docs](self)).
+/// the order they were measured (see the [module docs](self)), each point's direction of
+/// approach taken from the order of the points.
 pub fn calibrate_points(
     points: &[(f64, f64)],
     opts: &PointOptions,
 ) -> Result<ReferenceCalibration, PointError> {
+    calibrate_points_with_directions(points, &[], opts)
+}
+
+/// As [`calibrate_points`], with the direction of approach of each point the list states:
+/// `directions` is empty or holds one entry per point, `None` where the point's direction is to
+/// be taken from the order of the points.
+pub fn calibrate_points_with_directions(
+    points: &[(f64, f64)],
+    directions: &[Option<Approach>],
+    opts: &PointOptions,
+) -> Result<ReferenceCalibration, PointError> {
+    if !directions.is_empty() && directions.len() != points.len() {
+        return Err(ReferenceError::Options(format!(
+            "{} directions of approach given for {} points; give one per point",
+            directions.len(),
+            points.len()
+        ))
+        .into());
+    }
     if opts.points < 2 {
         return Err(ReferenceError::Options(format!(
             "the map needs at least 2 points, {} asked for",
@@ -200,6 +233,12 @@ pub fn calibrate_points(
         up[k] = into.or(next).unwrap_or(true);
         if let Some(d) = into {
             next = Some(d);
+        }
+    }
+    // A stated direction rules: the steps cannot show an approach from beyond the target.
+    for (up, given) in up.iter_mut().zip(directions) {
+        if let Some(given) = given {
+            *up = *given == Approach::Increasing;
         }
     }
 
@@ -652,6 +691,75 @@ mod tests {
         let (lo, hi) = cal.map.range().unwrap();
         assert!((lo.to_degrees() - 10.0).abs() < 1e-9 && (hi.to_degrees() - 30.0).abs() < 1e-9);
         assert!((cal.map.peak_to_peak() / ARCSEC - 3.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn stated_directions_rule_where_the_steps_mislead() {
+        // The hand-worked set measured target by target, each from below and then from above
+        // (overshoot, come back): ↑ then ↓ at 10°, the same at 20° and 30°, two cycles. The
+        // step into each ↓ point is zero, so the order of the points calls it ↑ (the next step
+        // goes up): both of a target's points land in one direction and the reversal vanishes.
+        // Stated, the directions give the hand-worked figures exactly.
+        let e = [
+            [2.0, 4.0, 0.0, 0.0],
+            [6.0, 6.0, 2.0, 4.0],
+            [1.0, 3.0, 5.0, 5.0],
+        ];
+        let t = [10f64.to_radians(), 20f64.to_radians(), 30f64.to_radians()];
+        let mut p = Vec::new();
+        let mut given = Vec::new();
+        for c in 0..2 {
+            for (i, &x) in t.iter().enumerate() {
+                p.push((x, x - e[i][c] * ARCSEC));
+                given.push(Some(Approach::Increasing));
+                p.push((x, x - e[i][2 + c] * ARCSEC));
+                given.push(Some(Approach::Decreasing));
+            }
+        }
+        let iso = |cal: &ReferenceCalibration| -> std::collections::BTreeMap<_, _> {
+            cal.iso.arcsec().into_iter().collect()
+        };
+        let by_order = calibrate_points(&p, &PointOptions::default()).unwrap();
+        let at_20 = &by_order.targets[1];
+        assert_eq!((at_20.up.n, at_20.down.n), (4, 0), "the order alone");
+        assert!(
+            by_order
+                .warnings
+                .iter()
+                .any(|w| w.contains("one direction"))
+        );
+
+        let cal = calibrate_points_with_directions(&p, &given, &PointOptions::default()).unwrap();
+        let got = iso(&cal);
+        let r2 = 2f64.sqrt();
+        for (k, v) in [
+            ("reversal", 3.0),
+            ("mean_bidirectional", 3.0),
+            ("systematic", 6.0),
+            ("repeatability", 2.0 * r2 + 3.0),
+            ("accuracy", 4.0 + 2.0 * r2),
+        ] {
+            // The same sums as the hand-worked set: exact to rounding.
+            let g = got[k].unwrap();
+            assert!((g - v).abs() < 1e-9, "{k}: {g} vs {v}");
+        }
+        assert_eq!(cal.min_passes, (2, 2));
+        assert!(cal.warnings.iter().all(|w| !w.contains("one direction")));
+
+        // Only the misleading points stated (each ↓ point, and the 10° ↑ point reached from
+        // 30° at a cycle's start), the rest from the order: the same figures.
+        let partial: Vec<Option<Approach>> = given
+            .iter()
+            .enumerate()
+            .map(|(k, &d)| d.filter(|&d| d == Approach::Decreasing || k % 6 == 0))
+            .collect();
+        let cal = calibrate_points_with_directions(&p, &partial, &PointOptions::default()).unwrap();
+        assert_eq!(iso(&cal), got);
+
+        assert!(matches!(
+            calibrate_points_with_directions(&p, &given[1..], &PointOptions::default()),
+            Err(PointError::Reference(ReferenceError::Options(_)))
+        ));
     }
 
     #[test]

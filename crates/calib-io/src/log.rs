@@ -301,6 +301,23 @@ impl LogReader {
         matches!(&self.inner, Inner::Csv(r) if r.is_point_list())
     }
 
+    /// The direction of approach each point of a point list states (`None` where its cell is
+    /// empty), by row (a sample's time is its row), read so far; `None` for a log without a
+    /// `direction` column ([`crate::csv_log::direction`]).
+    pub fn point_directions(&self) -> Option<&[Option<calib_core::reference_points::Approach>]> {
+        match &self.inner {
+            Inner::Csv(r) => r.directions(),
+            Inner::Ros2(_) => None,
+        }
+    }
+
+    /// Points of a point list whose `direction` column states their direction of approach (a
+    /// non-empty cell), read so far; `None` without the column.
+    pub fn stated_directions(&self) -> Option<u64> {
+        self.point_directions()
+            .map(|d| d.iter().filter(|d| d.is_some()).count() as u64)
+    }
+
     /// The layout of a CSV log; `None` for the other formats.
     pub fn csv_dialect(&self) -> Option<&crate::csv_log::dialect::Dialect> {
         match &self.inner {
@@ -315,6 +332,19 @@ impl LogReader {
     pub fn time_unit_hint(&self) -> Option<String> {
         match &self.inner {
             Inner::Csv(r) => r.time_step().and_then(|s| s.unit_hint()),
+            Inner::Ros2(_) => None,
+        }
+    }
+
+    /// What to say when a method found the log too slow to count as moving (under `min_speed`,
+    /// rad/s): [`time_unit_hint`](Self::time_unit_hint), else the smaller unit of a CSV time
+    /// column in which the readings, which do move, would turn fast enough (see
+    /// [`crate::csv_log::time_step`]).
+    pub fn time_unit_hint_when_still(&self, min_speed: f64) -> Option<String> {
+        match &self.inner {
+            Inner::Csv(r) => r
+                .time_step()
+                .and_then(|s| s.unit_hint_when_still(min_speed)),
             Inner::Ros2(_) => None,
         }
     }
@@ -382,6 +412,19 @@ impl LogReader {
                 )
             })
             .collect()
+    }
+
+    /// What a description of the log (`calib inspect`, calib-py's `inspect`) warns of once it
+    /// has been read: [`warnings`](Self::warnings), [`notes`](Self::notes) and the
+    /// [`time_unit_hint`](Self::time_unit_hint), each naming `path`.
+    pub fn inspect_warnings(&self, path: &Path) -> Vec<String> {
+        let mut w = self.warnings(path);
+        w.extend(self.notes());
+        w.extend(
+            self.time_unit_hint()
+                .map(|hint| format!("{}: {hint}", path.display())),
+        );
+        w
     }
 
     /// Warnings the user must see once the log has been read: truncation, damaged chunks skipped,

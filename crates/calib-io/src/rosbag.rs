@@ -369,7 +369,7 @@ pub fn prepare_with(path: &Path, skip_damaged: bool) -> Result<PreparedBag, Erro
                             .unwrap_or_default()
                             .to_string_lossy()
                     );
-                    let copy = copy_with_wal(file, &folder(file, &why)?)?;
+                    let copy = copy_with_wal(file, &folder(file, &why)?, &why)?;
                     renames.borrow_mut().push((copy.clone(), file.clone()));
                     *file = copy;
                 }
@@ -482,9 +482,21 @@ fn decompress(split: &Path, dir: &Path) -> Result<PathBuf, Error> {
         source,
     })?;
     // Bounded while decompressing: one byte past the limit is enough to refuse the split.
-    let written = std::io::copy(&mut (&mut decoder).take(limit), &mut output)
-        .map_err(undecodable)?
-        + head.len() as u64;
+    let written = std::io::copy(&mut (&mut decoder).take(limit), &mut output).map_err(|e| {
+        // Reading a zstd stream never fills a disk: that is the copy being written.
+        if is_disk_full(&e) {
+            let written = std::fs::metadata(&out).map_or(0, |m| m.len());
+            copy_failed(
+                split,
+                dir,
+                &format!("more than the {} written", bytes(written)),
+                "to decompress the split (compression_mode: FILE)",
+                &e,
+            )
+        } else {
+            undecodable(e)
+        }
+    })? + head.len() as u64;
     if written >= limit {
         return Err(fail(format!(
             "the split decompresses to more than {limit} bytes, {}× its {compressed} bytes \
@@ -806,17 +818,56 @@ fn has_wal_log(path: &Path) -> bool {
     std::fs::metadata(wal_log(path)).is_ok_and(|m| m.len() > 0)
 }
 
-/// Copies the WAL-mode split `split` and its write-ahead log into `dir`; the copy's path.
-fn copy_with_wal(split: &Path, dir: &Path) -> Result<PathBuf, Error> {
+/// Copies the WAL-mode split `split` and its write-ahead log into `dir` (`why`: what for); the
+/// copy's path.
+fn copy_with_wal(split: &Path, dir: &Path, why: &str) -> Result<PathBuf, Error> {
     let name = split.file_name().unwrap_or_default();
     let out = dir.join(name);
+    let size = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
+    let needed = size(split) + size(&wal_log(split));
     for (from, to) in [
         (split.to_path_buf(), out.clone()),
         (wal_log(split), wal_log(&out)),
     ] {
-        std::fs::copy(&from, &to).map_err(|source| Error::Io { path: from, source })?;
+        std::fs::copy(&from, &to).map_err(|e| copy_failed(&from, dir, &bytes(needed), why, &e))?;
     }
     Ok(out)
+}
+
+/// Whether `e` says the disk (or the user's quota on it) is full.
+fn is_disk_full(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded
+    )
+}
+
+/// `n` bytes, and in MB: "73400320 bytes (73.4 MB)".
+fn bytes(n: u64) -> String {
+    format!("{n} bytes ({:.1} MB)", n as f64 / 1e6)
+}
+
+/// The error of a copy of the bag's file `from` into the temporary folder `dir` (`needed`: how
+/// much it takes, in words; `why`: what for) that failed with `e`. A full disk is named as such,
+/// with the folder, the bytes and what to do: the generic I/O message named only `from`, which
+/// is intact.
+fn copy_failed(from: &Path, dir: &Path, needed: &str, why: &str, e: &std::io::Error) -> Error {
+    let message = if is_disk_full(e) {
+        format!(
+            "cannot copy it into the temporary folder {}: the disk is full ({e}); the copy needs \
+             {needed}, {why}. Set TMPDIR to a folder on a disk with that much room (e.g. \
+             `TMPDIR=/mnt/big calib …`), or free space in {}; the partial copy was removed",
+            dir.display(),
+            std::env::temp_dir().display()
+        )
+    } else {
+        format!(
+            "cannot copy it into the temporary folder {} ({e}), {why}; set TMPDIR to a folder \
+             you can write with room for {needed}",
+            dir.display()
+        )
+    };
+    bag_error(from, None, None, None, message)
 }
 
 /// A `file:` URI of `path` opening it immutable: SQLite then takes no lock and writes no `-shm`
@@ -1457,6 +1508,54 @@ fn read_counts(db: &Connection, file: &Path) -> Result<HashMap<i64, (u64, u64, u
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_full_disk_under_a_copy_is_named_with_the_folder_the_bytes_and_tmpdir() {
+        // What std::fs::copy returns when the temporary folder's disk fills (ENOSPC, or EDQUOT
+        // over a quota): no bounded folder is needed to check the message it becomes.
+        let dir = tempfile::tempdir().unwrap();
+        let split = dir.path().join("rec").join("rec_0.db3");
+        let temp = dir.path().join("calib-bag-1234");
+        for e in [
+            std::io::Error::from(std::io::ErrorKind::StorageFull),
+            std::io::Error::from(std::io::ErrorKind::QuotaExceeded),
+        ] {
+            let err = copy_failed(
+                &split,
+                &temp,
+                &bytes(73_400_320),
+                "to read it with its write-ahead log",
+                &e,
+            )
+            .to_string();
+            for part in [
+                &split.display().to_string(),
+                &format!(
+                    "cannot copy it into the temporary folder {}",
+                    temp.display()
+                ),
+                "the disk is full",
+                "the copy needs 73400320 bytes (73.4 MB), to read it with its write-ahead log",
+                "Set TMPDIR to a folder on a disk with that much room",
+            ] {
+                assert!(err.contains(part), "{part:?} not in {err}");
+            }
+        }
+        // Another failure keeps its own reason, still naming the folder.
+        let err = copy_failed(
+            &split,
+            &temp,
+            &bytes(10),
+            "to read it",
+            &std::io::Error::from(std::io::ErrorKind::PermissionDenied),
+        )
+        .to_string();
+        assert!(
+            err.contains("permission denied") && err.contains("calib-bag-1234"),
+            "{err}"
+        );
+        assert!(!err.contains("disk is full"), "{err}");
+    }
 
     #[test]
     fn metadata_as_rosbag2_writes_it() {

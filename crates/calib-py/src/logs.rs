@@ -216,6 +216,7 @@ pub fn inspect(
     check_log_path(&path)?;
     let read = ReadOptions {
         allow_unordered_time: true,
+        allow_point_list: true,
         fields: [&a, &b].into_iter().flatten().cloned().collect(),
         ..opts.read
     };
@@ -232,8 +233,10 @@ pub fn inspect(
         None if names.iter().any(|n| n == default) => resolve(default).map(Some),
         None => Ok((fallback < names.len()).then_some(fallback)),
     };
+    let point_list = reader.is_point_list();
     let pair = match (pick(&a, "a", 0)?, pick(&b, "b", 1)?) {
-        (Some(a), Some(b)) if a != b => Some((a, b)),
+        // A point list has no motion to segment.
+        (Some(a), Some(b)) if a != b && !point_list => Some((a, b)),
         _ => None,
     };
     // Every channel, the pair's first (or the log's first) leading: it sets the clock.
@@ -265,12 +268,14 @@ pub fn inspect(
             path.display()
         )));
     }
-    let mut warnings = reader.warnings(&path);
-    warnings.extend(reader.notes());
+    let warnings = reader.inspect_warnings(&path);
     let suggestions = calib_core::purpose::suggestions(&result);
     let json = serde_json::json!({
         "schema_version": calib_core::report::SCHEMA_VERSION,
         "log": path.display().to_string(),
+        "point_list": point_list,
+        "points": point_list.then_some(result.samples),
+        "stated_directions": reader.stated_directions(),
         "topics": reader.topics(),
         "alignment": reader.alignment(),
         "inspection": result,

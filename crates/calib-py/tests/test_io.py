@@ -209,3 +209,47 @@ def test_a_table_from_a_result_exports_for_moteus():
     res = calib.csrr_log(TESTDATA / "examples" / "quick.mcap")
     text = calib.export(res.channels["a"], "moteus")
     assert text.count("conf set") > 10
+
+
+def _cli_inspect(path):
+    binary = calib_binary()
+    if binary is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must set CALIB_BIN (or build target/*/calib) for this test")
+        pytest.skip("no calib command line built to compare with (set CALIB_BIN)")
+    done = subprocess.run(
+        [binary, "inspect", "--json", str(path)], check=True, capture_output=True, text=True
+    )
+    return json.loads(done.stdout)
+
+
+def test_inspect_says_a_file_is_a_point_list(tmp_path):
+    """A CSV without a time column is a list of stationary points (issue 25): read as the CLI
+    reads it, with the points and the directions its `direction` column states."""
+    path = tmp_path / "list.csv"
+    path.write_text("dut;ref;direction\n10;9.999;+\n10;10.0;-\n20;19.998;+\n20;19.999;\n")
+    got = calib.inspect(path)
+    assert got["point_list"] is True
+    assert got["points"] == 4
+    assert got["stated_directions"] == 3
+    assert got == _cli_inspect(path)
+    timed = calib.inspect(TESTDATA / "examples" / "quick.mcap")
+    assert timed["point_list"] is False and timed["points"] is None
+
+
+def test_inspect_warns_of_a_time_column_in_the_wrong_unit(tmp_path):
+    """Seconds under a `time_ms` header, 200 Hz turning at 60 r/min: 200 kHz at 60,000 r/min
+    as read. calib.inspect warns as `calib inspect` does, the same words (issue 33)."""
+    path = tmp_path / "reversed.csv"
+    rows = ["time_ms,a,b"]
+    for k in range(2000):
+        angle = (k * 1.8) % 360.0
+        rows.append(f"{k * 0.005:.3f},{angle:.4f},{(angle + 30.0) % 360.0:.4f}")
+    path.write_text("\n".join(rows) + "\n")
+    got = calib.inspect(path)
+    hints = [w for w in got["warnings"] if "--time-unit" in w]
+    assert len(hints) == 1, got["warnings"]
+    assert "faster than the 30000 r/min" in hints[0]
+    assert "if it is in seconds, they turn at 60 r/min (200 samples per second)" in hints[0]
+    assert "say `--time-unit s`" in hints[0]
+    assert got == _cli_inspect(path)

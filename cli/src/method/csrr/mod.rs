@@ -266,11 +266,11 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             CsrrError::NeverMoves { sensor } => {
                 let name = if *sensor == 'A' { &args.a } else { &args.b };
                 (
-                    with_time_hint(e, &reader),
+                    with_time_hint(e, &reader, Some(args.min_speed.to_radians())),
                     format!("{pair}: channel `{name}`"),
                 )
             }
-            _ => (anyhow::Error::new(e), pair),
+            _ => (with_time_hint(e, &reader, None), pair),
         };
         in_log(e.context(context), &reader, log)
     })?;

@@ -14,7 +14,7 @@ use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
     Latency, ReferenceCal, ReferenceError, ReferenceKind, ReferenceOptions, TableMap, Targets,
 };
-use calib_core::reference_points::{PointOptions, calibrate_points};
+use calib_core::reference_points::{Approach, PointOptions, calibrate_points_with_directions};
 use calib_io::{LogReader, ReadOptions};
 use std::path::{Path, PathBuf};
 use summary::render_summary;
@@ -45,7 +45,10 @@ use summary::render_summary;
 /// shaft in the order measured (a protractor table, a rotary table stepped through ISO 230-2
 /// targets, the MagAlpha tool's input): each row's DUT − reference is one measurement; rows whose
 /// DUT readings lie within --target-tol are one target measured again (a cycle), approached in
-/// the direction of the step that led there. The map joins the targets' means by straight lines;
+/// the direction of the step that led there — or as a `direction` column (also `dir`) says:
+/// `+`/`-` (1/-1, up/down, increasing/decreasing, forward/backward) for increasing or decreasing
+/// DUT readings, an empty cell for the step's direction; give it where a target was reached by
+/// overshooting it and coming back. The map joins the targets' means by straight lines;
 /// the ISO 230-2 figures are taken at the targets (--targets and the options of motion do not
 /// apply). A whole turn if the targets go round evenly, else a range table. When the reference
 /// readings are in a file of their own, one per row in the same order, name it with --ref-file.
@@ -283,9 +286,22 @@ fn open(args: &Args, log: &Path, names: &[&str]) -> anyhow::Result<LogReader> {
 
 /// Every sample's values of a point list.
 fn read_points(log: &Path, reader: LogReader) -> anyhow::Result<(Vec<Vec<f64>>, LogReader)> {
-    let mut values = Vec::new();
-    let reader = for_each_sample(log, reader, |s| values.push(s.values.to_vec()))?;
+    let (values, _, reader) = read_points_with_rows(log, reader)?;
     Ok((values, reader))
+}
+
+/// Every sample's values of a point list, and its row (a point's time is its row's index).
+fn read_points_with_rows(
+    log: &Path,
+    reader: LogReader,
+) -> anyhow::Result<(Vec<Vec<f64>>, Vec<usize>, LogReader)> {
+    let mut values = Vec::new();
+    let mut rows = Vec::new();
+    let reader = for_each_sample(log, reader, |s| {
+        values.push(s.values.to_vec());
+        rows.push(s.t.round() as usize);
+    })?;
+    Ok((values, rows, reader))
 }
 
 /// The reference's readings of a point list from `--ref-file`, paired by row with `dut`'s
@@ -343,7 +359,12 @@ fn calibrate(
         )
     };
     let (cal, reader, points) = if reader.is_point_list() {
-        let (values, reader) = read_points(log, reader)?;
+        let (values, rows, reader) = read_points_with_rows(log, reader)?;
+        // The directions the list states, point by point (none without a `direction` column).
+        let directions: Vec<Option<Approach>> =
+            reader.point_directions().map_or_else(Vec::new, |d| {
+                rows.iter().map(|&r| d.get(r).copied().flatten()).collect()
+            });
         let reference: Vec<f64> = match &args.ref_file {
             Some(file) => reference_file(args, log, file, values.len())?,
             None => values.iter().map(|v| v[1]).collect(),
@@ -360,7 +381,7 @@ fn calibrate(
             max_gap: args.bridge_gap.to_radians(),
             target_tol: args.target_tol.map(f64::to_radians),
         };
-        let cal = calibrate_points(&points, &opts)
+        let cal = calibrate_points_with_directions(&points, &directions, &opts)
             .with_context(context)
             .map_err(|e| in_log(e, &reader, log))?;
         (cal, reader, Some(points.len()))
@@ -393,9 +414,9 @@ fn calibrate(
             .finish()
             .map_err(|e| match e {
                 ReferenceError::TooLittleMotion { .. } | ReferenceError::NotCovered { .. } => {
-                    with_time_hint(e, &reader)
+                    with_time_hint(e, &reader, Some(args.min_speed.to_radians()))
                 }
-                e => anyhow::Error::new(e),
+                e => with_time_hint(e, &reader, None),
             })
             .with_context(context)
             .map_err(|e| in_log(e, &reader, log))?;

@@ -319,13 +319,21 @@ pub fn sniff(head: &[u8]) -> Dialect {
     best.map(|(_, d)| d).unwrap_or_default()
 }
 
-/// Whether the data rows `data` of a header `width` wide are sparse: a time and at least two
-/// channels (`width ≥ 3`), some row with an empty cell, and every column filled in some row.
-fn sparse(data: &[Fields], width: usize) -> bool {
+/// Whether the data rows `data` under `header` are sparse: a time and at least two channels
+/// (`width ≥ 3`), some row with an empty cell, and every column filled in some row. A point
+/// list's `direction` column ([`super::direction`]), whose empty cells mean "from the order of
+/// the points", does not count.
+fn sparse(data: &[Fields], header: &Fields) -> bool {
+    let width = header.len();
     let rows = || data.iter().filter(|d| d.len() == width);
     let empty = |f: &Vec<u8>| f.trim_ascii().is_empty();
+    let counted: Vec<usize> = (0..width)
+        .filter(|&c| {
+            !std::str::from_utf8(&header[c]).is_ok_and(super::direction::is_direction_column)
+        })
+        .collect();
     width >= 3
-        && rows().any(|d| d.iter().any(empty))
+        && rows().any(|d| counted.iter().any(|&c| empty(&d[c])))
         && (0..width).all(|c| rows().any(|d| !empty(&d[c])))
 }
 
@@ -387,7 +395,7 @@ fn header_row(records: &[Fields], separator: u8) -> Option<Dialect> {
             separator,
             skip: i,
             decimal_comma: comma && has_comma_numbers(&records[first_data..]),
-            sparse: sparse(&records[first_data..], r.len()),
+            sparse: sparse(&records[first_data..], r),
             header: Header::Row { units },
         });
     }

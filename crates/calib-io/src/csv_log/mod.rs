@@ -27,6 +27,7 @@
 //! as [`ReadOptions::time_column`](crate::ReadOptions::time_column)) in s, ms, us or ns.
 
 pub mod dialect;
+pub mod direction;
 mod fields;
 mod reader;
 pub mod time_step;

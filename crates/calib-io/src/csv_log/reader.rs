@@ -6,6 +6,7 @@ use super::time_step::{TimeStep, UnitFrom};
 use crate::limits::LineLimit;
 use crate::progress::ReadProgress;
 use crate::{Error, ReadDiagnostics, ReadOptions};
+use calib_core::reference_points::Approach;
 use calib_core::{AngleUnit, Channel, Sample};
 use csv::ByteRecord;
 use std::fs::File;
@@ -63,6 +64,11 @@ pub struct CsvReader {
     sparse: bool,
     /// The file has no time column: a list of stationary points, in row order.
     point_list: bool,
+    /// A point list's `direction` column ([`super::direction`]).
+    direction_col: Option<usize>,
+    /// The direction of approach each row of a point list states, in row order (empty without
+    /// a `direction` column).
+    directions: Vec<Option<Approach>>,
     dialect: Dialect,
     session_col: Option<usize>,
     /// Bytes of the file read so far, of its size.
@@ -321,10 +327,13 @@ impl CsvReader {
         };
         let unit = opts.unit.or(row_unit).unwrap_or(AngleUnit::Deg);
         let mut session_col = None;
+        let direction_col = names
+            .iter()
+            .position(|n| point_list && super::direction::is_direction_column(n));
         let mut channels = Vec::new();
         let mut value_cols = Vec::new();
         for (i, name) in names.iter().enumerate() {
-            if Some(i) == t_col {
+            if Some(i) == t_col || Some(i) == direction_col {
                 continue;
             }
             if name == "session" {
@@ -379,6 +388,8 @@ impl CsvReader {
             decimal_comma: dialect.decimal_comma,
             sparse: dialect.sparse,
             point_list,
+            direction_col,
+            directions: Vec::new(),
             dialect,
             session_col,
             value_cols,
@@ -395,6 +406,13 @@ impl CsvReader {
     /// (0, 1, 2, … s).
     pub fn is_point_list(&self) -> bool {
         self.point_list
+    }
+
+    /// The direction of approach each row of a point list states (`None` where its cell is
+    /// empty), in row order, read so far; `None` for a file without a `direction` column
+    /// ([`super::direction`]).
+    pub fn directions(&self) -> Option<&[Option<Approach>]> {
+        self.direction_col.map(|_| self.directions.as_slice())
     }
 
     /// Whether rows leave a channel's cell empty where it has no sample: its samples then hold
@@ -554,6 +572,19 @@ impl CsvReader {
             values.push(rad);
         }
 
+        let direction = match self.direction_col {
+            None => None,
+            Some(c) => super::direction::parse(field(c)).map_err(|_| {
+                self.error(
+                    Some(c),
+                    format!(
+                        "`{}` is not a direction of approach; {}",
+                        fields::show(field(c)),
+                        super::direction::EXPECTED
+                    ),
+                )
+            })?,
+        };
         let session = match self.session_col {
             None => None,
             Some(c) => {
@@ -588,8 +619,11 @@ impl CsvReader {
             }
         };
         self.rows += 1;
+        if self.direction_col.is_some() {
+            self.directions.push(direction);
+        }
         if let Some(steps) = &mut self.time_step {
-            steps.push(t);
+            steps.push(t, &values);
         }
         // The header and the rows always have positions; the default only satisfies the type.
         self.prev = Some((
