@@ -448,6 +448,7 @@ pub fn calibrate_points(
         latency: None,
         ends: None,
         ripple: None,
+        quantization: None,
         warnings,
     })
 }
