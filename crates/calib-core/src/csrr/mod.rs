@@ -863,13 +863,48 @@ fn finish_paper(
             .collect::<Vec<_>>(),
         n,
     )?;
-    let uncertainty = paper::uncertainty(&points, &stats, n);
+    let budget = paper::uncertainty(&points, &stats, n);
     let resolvable = points.len() / 2;
     warnings.push(format!(
         "the paper method resolves orders below {resolvable} only (half the {} sessions); use the joint method for higher orders",
         points.len()
     ));
     let deltas: Vec<f64> = points.iter().map(|p| p.delta).collect();
+    // The points hold only noise where no order the session grid resolves stands above it.
+    let (a, b) = if budget.resolved {
+        (a, b)
+    } else {
+        (ErrorMap::new(vec![0.0; n]), ErrorMap::new(vec![0.0; n]))
+    };
+    if !budget.resolved {
+        warnings.push(detection::empty_map_warning(
+            budget.a.max().max(budget.b.max()),
+            &format!("1–{}", budget.orders),
+            budget.detection_limit,
+        ));
+    }
+    if let Some(repeat) = segmentation.repeatability {
+        let misfit = paper::profile_misfit(&stats, &deltas, &a.series(), &b.series());
+        match detection::residual_verdict(misfit, repeat, budget.resolved) {
+            Verdict::Explained => {}
+            Verdict::Above(ratio) => warnings.push(detection::residual_warning(
+                misfit,
+                repeat,
+                ratio,
+                "the sessions repeat from one revolution to the next to",
+                "the maps (the sessions' points interpolated) do",
+                "orders above half the number of sessions, orders every relative rotation sees alike, or a drift within \
+                 sessions; the RMS is of the sessions' mean profiles",
+            )),
+            Verdict::Unexplained(_) => {
+                return Err(CsrrError::Unexplained {
+                    residual_arcsec: misfit * ARCSEC_PER_RAD,
+                    noise_arcsec: repeat * ARCSEC_PER_RAD,
+                });
+            }
+        }
+    }
+    let uncertainty = (budget.a, budget.b);
     let sessions: Vec<SessionSummary> = points
         .iter()
         .enumerate()
