@@ -326,7 +326,13 @@ fn moteus_dump_is_calibrated_within_its_tolerance() {
     let report = read_json(&out.join("report.json"));
     let q = &report["details"]["quantization"];
     let quantum = 360.0 * 3600.0 / 65536.0;
-    assert!((q["quantum_arcsec"].as_f64().unwrap() - quantum).abs() < 1e-6, "{q}");
-    assert!((q["u_arcsec"].as_f64().unwrap() - quantum / 12f64.sqrt()).abs() < 1e-6, "{q}");
+    assert!(
+        (q["quantum_arcsec"].as_f64().unwrap() - quantum).abs() < 1e-6,
+        "{q}"
+    );
+    assert!(
+        (q["u_arcsec"].as_f64().unwrap() - quantum / 12f64.sqrt()).abs() < 1e-6,
+        "{q}"
+    );
     assert!(q["noise_arcsec"].is_null(), "{q}");
 }

@@ -487,8 +487,7 @@ impl Multihead {
         let map = ErrorMap::from_series(&orders.series, points);
         let u_fit = screen.variances.iter().sum::<f64>().max(0.0).sqrt();
         let floor = detection::detection_floor(screen.detection_limit);
-        let uncertainty =
-            map_uncertainty(self.opts.method, u_fit, floor, &orders.series, points);
+        let uncertainty = map_uncertainty(self.opts.method, u_fit, floor, &orders.series, points);
         if screen.kept == 0 {
             warnings.push(detection::empty_map_warning(
                 uncertainty.max(),

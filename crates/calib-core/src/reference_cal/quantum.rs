@@ -90,7 +90,8 @@ impl QuantumTracker {
 
     /// The quantum, radians, if the readings are quantized (at most a quarter turn).
     pub(super) fn quantum(&self) -> Option<f64> {
-        self.divisor.filter(|&g| !self.unquantized && g <= TAU / 4.0)
+        self.divisor
+            .filter(|&g| !self.unquantized && g <= TAU / 4.0)
     }
 }
 
@@ -152,10 +153,8 @@ mod tests {
     #[test]
     fn the_quantum_of_counts_is_their_unit() {
         let q = TAU / 65536.0;
-        let found = tracked(
-            (0..5000).map(|k| ((62 * k + (k * k) % 3) % 65536) as f64 * q),
-        )
-        .unwrap();
+        let found =
+            tracked((0..5000).map(|k| ((62 * k + (k * k) % 3) % 65536) as f64 * q)).unwrap();
         assert!((found / q - 1.0).abs() < 1e-9, "{found}");
         // Degrees printed with four decimals: the printing's 0.0001°.
         let found = tracked((0..5000).map(|k| {

@@ -160,6 +160,9 @@ fn the_paper_method_refuses_an_error_all_in_blind_orders() {
             assert!(residual_arcsec > 5.0, "{residual_arcsec}");
         }
         Err(e) => panic!("expected the unexplained-residual error, got {e}"),
-        Ok(cal) => panic!("expected the unexplained-residual error, got warnings {:?}", cal.warnings),
+        Ok(cal) => panic!(
+            "expected the unexplained-residual error, got warnings {:?}",
+            cal.warnings
+        ),
     }
 }

@@ -112,7 +112,10 @@ fn a_spin_down_that_is_not_free_is_warned_about_with_both_figures() {
         cal.residual_rms * ARCSEC_PER_RAD,
         cal.noise_rms * ARCSEC_PER_RAD,
     );
-    println!("residual {residual:.3}″, noise {noise:.4}″, orders {:?}", cal.orders);
+    println!(
+        "residual {residual:.3}″, noise {noise:.4}″, orders {:?}",
+        cal.orders
+    );
     assert!((noise - 0.5).abs() < 0.05, "{noise}");
     assert!(residual > 3.0 * noise, "{residual}");
     let w = cal
@@ -120,7 +123,10 @@ fn a_spin_down_that_is_not_free_is_warned_about_with_both_figures() {
         .iter()
         .find(|w| w.contains("RMS per sample where the readings' noise"))
         .unwrap_or_else(|| panic!("no residual warning in {:?}", cal.warnings));
-    assert!(w.contains(&format!("{residual:.4}″")) && w.contains(&format!("{noise:.4}″")), "{w}");
+    assert!(
+        w.contains(&format!("{residual:.4}″")) && w.contains(&format!("{noise:.4}″")),
+        "{w}"
+    );
 }
 
 /// The same 2.5-order component beside a 10″ order-3 error the map holds: the map is kept, and
