@@ -26,10 +26,12 @@
 //! # Finding the quantum
 //! Every step between two readings of a quantized sensor is a whole number of codes, so the
 //! quantum is the greatest common divisor of the steps ([`QuantumTracker`], Euclid's algorithm
-//! on the steps with a remainder below [`RELATIVE_TOLERANCE`] of the divisor counted as none).
-//! Unquantized readings (noise in floating point) have no such divisor: the running divisor
-//! falls below [`MIN_QUANTUM`] and the readings count as unquantized. Readings printed with a
-//! few decimals are quantized by the printing, and that quantum is what is found.
+//! on the steps with a remainder below [`RELATIVE_TOLERANCE`] of the divisor counted as none). Unquantized readings (noise in floating point) have no
+//! such divisor: the running divisor falls below [`MIN_QUANTUM`] and the readings count as
+//! unquantized. Readings printed with a few decimals are quantized by the printing, and that
+//! quantum is what is found. Steps that are all the same multiple of the divisor (a noise-free
+//! sweep at a constant step) do not show a quantum: one is taken only where the steps differ by
+//! at least one of it.
 
 use std::f64::consts::{PI, TAU};
 
@@ -50,6 +52,8 @@ pub(super) struct QuantumTracker {
     unquantized: bool,
     /// The previous reading, radians.
     last: Option<f64>,
+    /// The smallest and largest nonzero step, radians.
+    steps: (f64, f64),
 }
 
 impl QuantumTracker {
@@ -69,6 +73,11 @@ impl QuantumTracker {
         if step == 0.0 {
             return;
         }
+        self.steps = if self.divisor.is_none() {
+            (step, step)
+        } else {
+            (self.steps.0.min(step), self.steps.1.max(step))
+        };
         let g = match self.divisor {
             None => step,
             Some(g) => {
@@ -88,10 +97,12 @@ impl QuantumTracker {
         }
     }
 
-    /// The quantum, radians, if the readings are quantized (at most a quarter turn).
+    /// The quantum, radians, if the readings are quantized: the steps differ by at least one
+    /// of it, and it is at most a quarter turn.
     pub(super) fn quantum(&self) -> Option<f64> {
-        self.divisor
-            .filter(|&g| !self.unquantized && g <= TAU / 4.0)
+        self.divisor.filter(|&g| {
+            !self.unquantized && g <= TAU / 4.0 && self.steps.1 - self.steps.0 >= 0.5 * g
+        })
     }
 }
 
@@ -163,6 +174,18 @@ mod tests {
         }))
         .unwrap();
         assert!((found / 1e-4f64.to_radians() - 1.0).abs() < 1e-6, "{found}");
+    }
+
+    /// A sweep sampled every 0.9° whose steps differ only by the DUT's smooth error (0.05″ from
+    /// step to step), and a noise-free sweep of equal steps: neither is quantized.
+    #[test]
+    fn equal_or_nearly_equal_steps_are_no_quantum() {
+        let deg = |k: f64| k * 0.9 + 50.0 / 3600.0 * (2.0 * (k * 0.9).to_radians()).sin();
+        assert_eq!(tracked((0..800).map(|k| deg(k as f64).to_radians())), None);
+        assert_eq!(
+            tracked((0..800).map(|k| (k as f64 * 0.9).to_radians())),
+            None
+        );
     }
 
     #[test]
