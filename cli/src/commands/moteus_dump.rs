@@ -196,6 +196,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ),
         ("motor ripple", format!("taken out of the map: {ripple}")),
         (
+            "quantization",
+            crate::method::reference::summary::quantization_text(&cal)
+                .unwrap_or_else(|| "none found in the encoder's readings".to_string()),
+        ),
+        (
             "moteus table",
             moteus.fit.map_or_else(
                 || "written".to_string(),

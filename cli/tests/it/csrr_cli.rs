@@ -712,3 +712,46 @@ fn a_lag_between_the_channels_is_found_and_removed() {
     ]);
     expect_exit(&o, 2);
 }
+
+/// Issue 30: a planned run whose every relative rotation is a multiple of 4° (0°, 8°, 28°, 52°,
+/// 124°), sensor a erring only at order 90 (30″) — the order those rotations make blind. Both
+/// solvers refuse it (exit 1) with the residual and the sessions' repeatability named, and
+/// write nothing: a zero map with u = 0 would look certain. (The joint method measured 20.9″
+/// against 0.21″, `calib_core`'s `csrr_outcomes`.)
+#[test]
+fn error_all_in_blind_orders_is_refused_by_both_solvers() {
+    let dir = tempfile::tempdir().unwrap();
+    let sensor = |name: &str, harmonics: &str| {
+        format!(
+            "[[sensor]]\nname = \"{name}\"\nmount = \"{name}\"\nharmonics = [{harmonics}]\n\
+             quantization_arcsec = 0.09\nnoise_arcsec = 0.05\n"
+        )
+    };
+    let scenario = format!(
+        "seed = 30\nrate_hz = 1000.0\nspeed_rpm = 60.0\n{}{}[procedure]\n\
+         relative_deg = [0.0, 8.0, 28.0, 52.0, 124.0]\nrevolutions = 2.0\nramp_s = 0.25\n\
+         pause_s = 0.2\nturn_s = 0.5\n",
+        sensor(
+            "a",
+            "{ order = 90, amplitude_arcsec = 30.0, phase_deg = 10.0 }"
+        ),
+        sensor("b", "")
+    );
+    let scenario = write(dir.path(), "blind4.toml", &scenario);
+    let log = simulate(&scenario, dir.path(), "blind4.csv");
+    for method in ["joint", "paper"] {
+        let out = dir.path().join(method);
+        let o = calib(&["csrr", s(&log), "--method", method, "-o", s(&out)]);
+        let err = expect_exit(&o, 1);
+        println!("{method}: {err}");
+        assert_mentions(
+            &err,
+            &[
+                "RMS per sample",
+                "more than 10× the noise",
+                "cannot explain",
+            ],
+        );
+        assert_no_output(&out);
+    }
+}

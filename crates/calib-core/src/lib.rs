@@ -77,6 +77,7 @@ pub mod compare;
 pub mod compose;
 pub mod correction;
 pub mod csrr;
+pub mod detection;
 pub mod error_map;
 pub mod harmonics;
 pub mod inspect;

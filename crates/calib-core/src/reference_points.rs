@@ -487,6 +487,7 @@ pub fn calibrate_points_with_directions(
         latency: None,
         ends: None,
         ripple: None,
+        quantization: None,
         warnings,
     })
 }

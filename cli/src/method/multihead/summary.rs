@@ -108,6 +108,12 @@ pub(super) fn render_summary(
         .take(4)
         .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
         .collect();
+    // A map with no order above the noise lists none (its warning gives u).
+    let top = if top.is_empty() {
+        vec!["none above the noise".to_string()]
+    } else {
+        top
+    };
     let _ = writeln!(
         o,
         "\nmap of the scale as `{first}` reads it (error = reading − true angle, zero mean)"

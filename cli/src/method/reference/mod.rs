@@ -1,7 +1,7 @@
 //! `calib reference`: cross-calibration of an encoder against a better reference encoder.
 
 pub(crate) mod document;
-mod summary;
+pub(crate) mod summary;
 
 use crate::batch::Outcome;
 use crate::exit::Usage;

@@ -101,6 +101,9 @@ pub(super) fn render_summary(
             ),
         )]);
     }
+    if let Some(q) = quantization_text(cal) {
+        o += &key_values(&[("quantization", q)]);
+    }
     if let Some(r) = &cal.ripple {
         let mut terms: Vec<_> = r.terms.iter().collect();
         terms.sort_by(|a, b| b.amplitude.total_cmp(&a.amplitude));
@@ -217,4 +220,22 @@ pub(super) fn latency_text(cal: &ReferenceCalibration) -> String {
         _ => "the run cannot estimate it (too few points crossed twice, or time stamps out of order); not removed"
             .to_string(),
     }
+}
+
+/// The summary's `quantization` line: the DUT's quantum and what of it is in every u, where
+/// that is at least 0.001″ (`None` otherwise).
+pub(crate) fn quantization_text(cal: &ReferenceCalibration) -> Option<String> {
+    let q = cal.quantization?;
+    let u = q.u * ARCSEC_PER_RAD;
+    (u >= 0.001).then(|| {
+        let noise = match q.noise {
+            Some(s) => format!("noise of {:.3}″ in front of it", s * ARCSEC_PER_RAD),
+            None => "no point crossed twice in a direction, so no noise is known to dither it".to_string(),
+        };
+        format!(
+            "the DUT reads in steps of {:.3}″ ({noise}): {u:.3}″ in every point's u_arcsec, the part of the \
+             quantum no averaging of passes takes out",
+            q.quantum * ARCSEC_PER_RAD
+        )
+    })
 }

@@ -28,10 +28,12 @@ pub(super) fn render_summary(
     );
     let _ = writeln!(
         o,
-        "motion: Chebyshev series of degree {} in time; residual rms {:.4}″ over {} samples",
+        "motion: Chebyshev series of degree {} in time; residual rms {:.4}″ over {} samples (the readings' noise, \
+         from their third differences: {:.4}″)",
         m.degree,
         cal.residual_rms * ARCSEC_PER_RAD,
-        cal.samples_used
+        cal.samples_used,
+        cal.noise_rms * ARCSEC_PER_RAD
     );
     let ch = &report.channels[&args.channel];
     let top: Vec<String> = ch
@@ -40,6 +42,12 @@ pub(super) fn render_summary(
         .take(4)
         .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
         .collect();
+    // A map with no order above the noise lists none (its warning gives u).
+    let top = if top.is_empty() {
+        vec!["none above the noise".to_string()]
+    } else {
+        top
+    };
     let _ = writeln!(
         o,
         "\nmap (error = reading − true angle, zero mean): p-p {:.3}″  rms {:.3}″  largest orders {}  → {}",

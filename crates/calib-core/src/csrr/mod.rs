@@ -29,10 +29,12 @@ mod reference;
 #[doc(hidden)]
 pub mod stages;
 
+pub use crate::detection::{DETECTION_FLOOR, detection_floor};
 pub use observability::{coefficient_variance, observability};
 pub use reference::{EffectiveRange, EpsHarmonic, ReferenceCheck};
 
 use crate::angle::ARCSEC_PER_RAD;
+use crate::detection::{self, Verdict};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
 use crate::segment::{SegmentOptions, Segmentation, Segmenter, SessionSink};
@@ -588,22 +590,22 @@ fn finish_joint(
     let maps = joint_maps(&sol, &screen, opts.points);
     if screen.kept.is_empty() {
         let u = maps.uncertainty.0.max().max(maps.uncertainty.1.max());
-        warnings.push(format!(
-            "no order above the noise: the map is zero within u = {:.4}″ (orders 1–{max_order} tested, none kept; \
-             the detection limit is {:.4}″ of amplitude)",
-            u * ARCSEC_PER_RAD,
-            screen.detection_limit * ARCSEC_PER_RAD
+        warnings.push(detection::empty_map_warning(
+            u,
+            &format!("1–{max_order}"),
+            screen.detection_limit,
         ));
     }
     if let Some(repeat) = segmentation.repeatability {
-        match residual_verdict(sol.residual_rms, repeat, !screen.kept.is_empty()) {
+        match detection::residual_verdict(sol.residual_rms, repeat, !screen.kept.is_empty()) {
             Verdict::Explained => {}
-            Verdict::Above(ratio) => warnings.push(format!(
-                "the fit leaves {:.4}″ RMS per sample where the sessions repeat to {:.4}″ from one revolution to the next \
-                 ({ratio:.1}× the noise): the maps do not explain all of the data (errors in orders the sessions cannot see, \
-                 a drift within sessions, or a lag between the channels)",
-                sol.residual_rms * ARCSEC_PER_RAD,
-                repeat * ARCSEC_PER_RAD
+            Verdict::Above(ratio) => warnings.push(detection::residual_warning(
+                sol.residual_rms,
+                repeat,
+                ratio,
+                "the sessions repeat from one revolution to the next to",
+                "the maps do",
+                "errors in orders the sessions cannot see, a drift within sessions, or a lag between the channels",
             )),
             Verdict::Unexplained(_) => {
                 return Err(CsrrError::Unexplained {
@@ -635,50 +637,6 @@ fn finish_joint(
         uncertainty: Some(maps.uncertainty),
         warnings,
     })
-}
-
-/// How far the fit's residual is from the readings' noise.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Verdict {
-    /// Within [`RESIDUAL_WARN_RATIO`] of the noise, or below [`RESIDUAL_FLOOR_ARCSEC`].
-    Explained,
-    /// Above it by this ratio: a warning.
-    Above(f64),
-    /// Above [`RESIDUAL_FAIL_RATIO`] times the noise with no order kept: the maps cannot
-    /// explain the data.
-    Unexplained(f64),
-}
-
-/// A fit residual above this many times the sessions' repeatability is warned about. The
-/// repeatability (`Segmentation::repeatability`) measures the readings' noise without any model
-/// and a little above it (it includes the curvature of `d` between samples), and the residual of
-/// a fit that explains the data is that noise: ≈ 1×. Three times is structure the maps lack that
-/// is larger than the noise itself.
-pub const RESIDUAL_WARN_RATIO: f64 = 3.0;
-
-/// A fit residual above this many times the sessions' repeatability, with no order kept, is an
-/// error (exit 1): the maps (zero) explain none of what the data hold beyond the noise — e.g.
-/// every session at a multiple of the same angle with the error all in the orders that this
-/// makes blind. Where some orders are kept the maps hold those and the excess is a warning
-/// (with the blind orders named and the advice that reveals them).
-pub const RESIDUAL_FAIL_RATIO: f64 = 10.0;
-
-/// A residual below this, arcsec per sample, explains the data whatever the ratio (noise-free
-/// simulations, where the repeatability is only rounding).
-pub const RESIDUAL_FLOOR_ARCSEC: f64 = 0.01;
-
-fn residual_verdict(residual: f64, repeatability: f64, kept: bool) -> Verdict {
-    if residual * ARCSEC_PER_RAD < RESIDUAL_FLOOR_ARCSEC {
-        return Verdict::Explained;
-    }
-    let ratio = residual / repeatability.max(f64::MIN_POSITIVE);
-    if ratio > RESIDUAL_FAIL_RATIO && !kept {
-        Verdict::Unexplained(ratio)
-    } else if ratio > RESIDUAL_WARN_RATIO {
-        Verdict::Above(ratio)
-    } else {
-        Verdict::Explained
-    }
 }
 
 /// The joint fit of the orders that stand above the noise: every observable order up to the
@@ -839,11 +797,7 @@ fn screen_orders(fit: &joint::JointSolution, weights: &[f64]) -> Screen {
         kept,
         kept_variance,
         dropped: (rms(power[0]), rms(power[1])),
-        detection_limit: if v_min.is_finite() {
-            (threshold * v_min).sqrt()
-        } else {
-            0.0
-        },
+        detection_limit: detection::detection_limit(threshold, v_min),
     }
 }
 
@@ -946,29 +900,7 @@ pub fn map_uncertainty(
         evaluation: Evaluation::TypeB,
         u: vec![interpolation_uncertainty(&series.harmonics(), points)],
     });
-    let mut combined = MapUncertainty::combine(points, components);
-    if floor > 0.0 {
-        combined.u.iter_mut().for_each(|u| *u = u.max(floor));
-        combined.components.push(MapComponent {
-            name: DETECTION_FLOOR.into(),
-            evaluation: Evaluation::TypeB,
-            u: vec![floor],
-        });
-    }
-    combined
-}
-
-/// The name of the floor of a self-calibration's `u` in its budget ([`detection_floor`]).
-pub const DETECTION_FLOOR: &str =
-    "floor: detection limit of the orders tested (u is never below it)";
-
-/// The floor of a CSRR map's `u` for what the significance rule tested and did not find: one
-/// harmonic below the detection limit `A_det` of the best-determined order
-/// ([`screen_orders`]: `A_det = sqrt(2·ln(2M/α)·v_h)`), its amplitude anywhere in `[0, A_det]`
-/// (rectangular) and its phase unknown, has the standard uncertainty `A_det/√6` over the circle
-/// (`E[a²]/2 = A_det²/6`). Issue 30: a map with no kept order is not "zero with u = 0".
-pub fn detection_floor(detection_limit: f64) -> f64 {
-    detection_limit / 6f64.sqrt()
+    detection::apply_floor(MapUncertainty::combine(points, components), floor)
 }
 
 fn finish_paper(
@@ -999,13 +931,48 @@ fn finish_paper(
             .collect::<Vec<_>>(),
         n,
     )?;
-    let uncertainty = paper::uncertainty(&points, &stats, n);
+    let budget = paper::uncertainty(&points, &stats, n);
     let resolvable = points.len() / 2;
     warnings.push(format!(
         "the paper method resolves orders below {resolvable} only (half the {} sessions); use the joint method for higher orders",
         points.len()
     ));
     let deltas: Vec<f64> = points.iter().map(|p| p.delta).collect();
+    // The points hold only noise where no order the session grid resolves stands above it.
+    let (a, b) = if budget.resolved {
+        (a, b)
+    } else {
+        (ErrorMap::new(vec![0.0; n]), ErrorMap::new(vec![0.0; n]))
+    };
+    if !budget.resolved {
+        warnings.push(detection::empty_map_warning(
+            budget.a.max().max(budget.b.max()),
+            &format!("1–{}", budget.orders),
+            budget.detection_limit,
+        ));
+    }
+    if let Some(repeat) = segmentation.repeatability {
+        let misfit = paper::profile_misfit(&stats, &deltas, &a.series(), &b.series());
+        match detection::residual_verdict(misfit, repeat, budget.resolved) {
+            Verdict::Explained => {}
+            Verdict::Above(ratio) => warnings.push(detection::residual_warning(
+                misfit,
+                repeat,
+                ratio,
+                "the sessions repeat from one revolution to the next to",
+                "the maps (the sessions' points interpolated) do",
+                "orders above half the number of sessions, orders every relative rotation sees alike, or a drift within \
+                 sessions; the RMS is of the sessions' mean profiles",
+            )),
+            Verdict::Unexplained(_) => {
+                return Err(CsrrError::Unexplained {
+                    residual_arcsec: misfit * ARCSEC_PER_RAD,
+                    noise_arcsec: repeat * ARCSEC_PER_RAD,
+                });
+            }
+        }
+    }
+    let uncertainty = (budget.a, budget.b);
     let sessions: Vec<SessionSummary> = points
         .iter()
         .enumerate()

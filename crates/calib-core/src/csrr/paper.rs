@@ -415,11 +415,14 @@ enum Sensor {
 ///   (`/√3`, GUM 4.3.7), so `2u` covers the bias itself.
 ///
 /// [`interpolation_uncertainty`]: crate::uncertainty::interpolation_uncertainty
+///
+/// `u` is never below the detection limit of the orders the sessions' profiles test
+/// ([`harmonic_content`]; [`crate::detection`]): the floor is in each budget by name.
 pub(crate) fn uncertainty(
     pts: &[PaperPoint],
     stats: &[SessionStats],
     points: usize,
-) -> (MapUncertainty, MapUncertainty) {
+) -> PaperUncertainty {
     let pooled = |spread: fn(&SessionStats) -> (f64, f64)| {
         stats
             .iter()
@@ -434,8 +437,10 @@ pub(crate) fn uncertainty(
     let s2_b = if dof_b > 0.0 { ss_b / dof_b } else { s2_a };
     let sigma2 = 1.5 * (ss_a + ss_b) / (dof_a + dof_b).max(1.0);
     let deltas: Vec<f64> = pts.iter().map(|p| p.delta).collect();
-    let (content_a, content_b) = harmonic_content(stats, &deltas);
+    let content = harmonic_content(stats, &deltas);
+    let (content_a, content_b) = (content.a, content.b);
     let nyquist = pts.len().div_ceil(2);
+    let floor = crate::detection::detection_floor(content.detection_limit);
     let map = |sensor: Sensor| {
         let (angles, var, bias, content) = match sensor {
             Sensor::A => (
@@ -532,9 +537,71 @@ pub(crate) fn uncertainty(
             .into_iter()
             .filter(|c| c.evaluation == Evaluation::TypeA || c.u.iter().any(|&u| u > 0.0))
             .collect();
-        MapUncertainty::combine(segs.len(), components)
+        crate::detection::apply_floor(MapUncertainty::combine(segs.len(), components), floor)
     };
-    (map(Sensor::A), map(Sensor::B))
+    let resolved = |c: &Content| c.iter().any(|&(h, _)| h < nyquist);
+    PaperUncertainty {
+        a: map(Sensor::A),
+        b: map(Sensor::B),
+        detection_limit: content.detection_limit,
+        orders: content.orders,
+        resolved: resolved(&content_a) || resolved(&content_b),
+    }
+}
+
+/// The paper method's budgets and what its significance rule found.
+pub(crate) struct PaperUncertainty {
+    /// A's and B's budgets.
+    pub a: MapUncertainty,
+    pub b: MapUncertainty,
+    /// The detection limit of the orders the profiles test, an amplitude, rad.
+    pub detection_limit: f64,
+    /// Orders the profiles test (`1..=orders`).
+    pub orders: usize,
+    /// Whether any order the session grid resolves (below half the sessions) stands above the
+    /// noise in A's or B's content: the points hold more than noise.
+    pub resolved: bool,
+}
+
+/// What the maps leave of the sessions' relative-angle profiles, RMS over the circle and the
+/// sessions, rad: at order `h` session `k`'s profile is `G_k = a_h − b_h·e^{−ihΔ_k}`
+/// ([`harmonic_content`]), `a_h`, `b_h` the maps' complex amplitudes (`cos − i·sin`
+/// coefficients), and by Parseval the misfit's mean square over the circle is
+/// `Σ_h |G_k − a_h + b_h e^{−ihΔ_k}|²/2`. What the maps cannot hold (orders above the session
+/// grid's Nyquist limit, orders every `hΔ_k` sees alike) stays in it; noise adds only
+/// `σ·sqrt(H/N_k)`, far below the per-sample noise it is judged against.
+pub(crate) fn profile_misfit(
+    stats: &[SessionStats],
+    deltas: &[f64],
+    a: &crate::harmonics::FourierSeries,
+    b: &crate::harmonics::FourierSeries,
+) -> f64 {
+    let amplitude = |s: &crate::harmonics::FourierSeries, h: usize| {
+        if h <= s.max_order() {
+            Complex::new(s.cos[h - 1], -s.sin[h - 1])
+        } else {
+            Complex::new(0.0, 0.0)
+        }
+    };
+    let per_session: Vec<f64> = stats
+        .iter()
+        .zip(deltas)
+        .map(|(st, &d)| {
+            st.profile
+                .iter()
+                .enumerate()
+                .map(|(i, g)| {
+                    let h = i + 1;
+                    let z = Complex::from_polar(1.0, -(h as f64) * d);
+                    (g - amplitude(a, h) + amplitude(b, h) * z).norm_sqr() / 2.0
+                })
+                .sum::<f64>()
+        })
+        .collect();
+    if per_session.is_empty() {
+        return 0.0;
+    }
+    (per_session.iter().sum::<f64>() / per_session.len() as f64).sqrt()
 }
 
 /// A sensor's harmonic content: `(order, amplitude)` pairs, amplitude in rad.
@@ -553,7 +620,7 @@ type Content = Vec<(usize, f64)>;
 /// Where the sessions cannot separate the two sensors (`K² − |S|² < 1 %` of `K²`: every `hΔ_k`
 /// nearly equal), only `a_h − b_h·z` is seen: its mean amplitude is given to both sensors when
 /// it stands above its noise `v/K`.
-fn harmonic_content(stats: &[SessionStats], deltas: &[f64]) -> (Content, Content) {
+fn harmonic_content(stats: &[SessionStats], deltas: &[f64]) -> HarmonicContent {
     let orders = stats.iter().map(|s| s.profile.len()).min().unwrap_or(0);
     let k = stats.len() as f64;
     struct Fit {
@@ -607,14 +674,30 @@ fn harmonic_content(stats: &[SessionStats], deltas: &[f64]) -> (Content, Content
         .unwrap_or(0.0);
     let threshold = crate::tdr::significance_threshold(2 * orders);
     let (mut a, mut b) = (Vec::new(), Vec::new());
+    let mut v_min = f64::INFINITY;
     for f in fits {
         let var = f.gain.map_or(v / k, |g| v * g);
+        v_min = v_min.min(var);
         if f.a.norm_sqr().max(f.b.norm_sqr()) > threshold * var {
             a.push((f.h, f.a.norm()));
             b.push((f.h, f.b.norm()));
         }
     }
-    (a, b)
+    HarmonicContent {
+        a,
+        b,
+        detection_limit: crate::detection::detection_limit(threshold, v_min),
+        orders,
+    }
+}
+
+/// A's and B's content ([`harmonic_content`]), with the detection limit of its rule (an
+/// amplitude, rad) and the orders it tested.
+struct HarmonicContent {
+    a: Content,
+    b: Content,
+    detection_limit: f64,
+    orders: usize,
 }
 
 #[cfg(test)]

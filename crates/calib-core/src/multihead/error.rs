@@ -127,6 +127,20 @@ pub enum MultiheadError {
         /// The tolerance, degrees.
         tol_deg: f64,
     },
+    /// The fit's residual is far above the heads' noise and no order stands above it: the map
+    /// (zero) explains none of the data.
+    #[error(
+        "the fit leaves {residual_arcsec:.4}″ RMS per sample where the differences to the first head scatter by \
+         {noise_arcsec:.4}″ within the bins (more than 10× the noise), and no order of the map stands above the noise: \
+         the map cannot explain the data. Most likely the scale's error lies above the highest order fitted (raise the \
+         `max_order` option) or a head is not where the `heads` option says"
+    )]
+    Unexplained {
+        /// RMS of the fit's residual per sample, arcsec.
+        residual_arcsec: f64,
+        /// The differences' scatter within the bins, arcsec per sample.
+        noise_arcsec: f64,
+    },
     /// Every order is blind or ill-conditioned.
     #[error(
         "no order up to {max_order} is observable with these head angles (all heads at multiples of 360°/h for every h); \

@@ -129,6 +129,7 @@ pub use joint::joint_weights;
 pub use uncertainty::order_variance;
 
 use crate::angle::{wrap_2pi, wrap_pi};
+use crate::detection::{self, Verdict};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
 use crate::uncertainty::MapUncertainty;
@@ -137,7 +138,7 @@ use bins::largest_gap;
 use eda::{check_set, eda, eda_weights, infer_sets};
 use joint::{JointFit, Residual, joint, series_of};
 use std::f64::consts::{PI, TAU};
-use uncertainty::{fit_noise, map_uncertainty};
+use uncertainty::{map_uncertainty, order_variances};
 
 /// One read head: its channel name and nominal angle.
 #[derive(Debug, Clone, PartialEq)]
@@ -473,15 +474,47 @@ impl Multihead {
         let fit = joint(&data, &self.rel[1..], max_order, &self.opts)?;
 
         let mut warnings = self.fit_warnings(&fit, &readings);
-        let orders = self.orders(&data, &fit, max_order);
+        let mut orders = self.orders(&data, &fit, max_order);
+        let screen = self.screen(&fit, &orders, max_order);
+        if screen.kept == 0 {
+            // Nothing stands above the noise: the map is zero, within its floor.
+            orders.series = FourierSeries::zeros(max_order);
+        }
         let points = self
             .opts
             .points
             .unwrap_or_else(|| crate::csrr::table_points(&orders.series));
         let map = ErrorMap::from_series(&orders.series, points);
-        let uncertainty = self.uncertainty(&fit, &orders, max_order, points);
+        let u_fit = screen.variances.iter().sum::<f64>().max(0.0).sqrt();
+        let floor = detection::detection_floor(screen.detection_limit);
+        let uncertainty = map_uncertainty(self.opts.method, u_fit, floor, &orders.series, points);
+        if screen.kept == 0 {
+            warnings.push(detection::empty_map_warning(
+                uncertainty.max(),
+                &format!("1–{max_order}"),
+                screen.detection_limit,
+            ));
+        }
         let heads = self.head_estimates(&fit, &readings);
         warnings.extend(misfits(&heads, &fit.residuals, bins));
+        let (residual, noise) = self.residual_and_noise(&fit);
+        match detection::residual_verdict(residual, noise, screen.kept > 0) {
+            Verdict::Explained => {}
+            Verdict::Above(ratio) => warnings.push(detection::residual_warning(
+                residual,
+                noise,
+                ratio,
+                "the differences to the first head scatter within the bins by",
+                "the map and the head angles do",
+                "the scale's error above the highest order fitted, or a head not where the `heads` option says",
+            )),
+            Verdict::Unexplained(_) => {
+                return Err(MultiheadError::Unexplained {
+                    residual_arcsec: residual * crate::angle::ARCSEC_PER_RAD,
+                    noise_arcsec: noise * crate::angle::ARCSEC_PER_RAD,
+                });
+            }
+        }
         Ok(MultiheadCalibration {
             method: self.opts.method,
             map,
@@ -653,14 +686,11 @@ impl Multihead {
         }
     }
 
-    /// The map's uncertainty over the orders fitted, with the heads' estimated angles.
-    fn uncertainty(
-        &self,
-        fit: &JointFit,
-        orders: &Orders,
-        max_order: usize,
-        points: usize,
-    ) -> MapUncertainty {
+    /// The significance screening of the map's orders: the variance each fitted order adds to
+    /// the map (with the heads' estimated angles, [`order_variances`]), how many stand above
+    /// the noise by the rule of [`crate::detection`] (`(a_h² + b_h²)/v_h > 2·ln(M/α)`, `M` the
+    /// orders fitted, [`crate::tdr::significance_threshold`]), and the detection limit.
+    fn screen(&self, fit: &JointFit, orders: &Orders, max_order: usize) -> Screen {
         let others = self.heads.len() - 1;
         let excluded: Vec<usize> = orders
             .blind
@@ -679,8 +709,47 @@ impl Multihead {
             Method::Eda => eda_weights(h, &self.sets, others),
         };
         let unknowns = 2 * fitted.len() + others;
-        let u_fit = fit_noise(&fit.bin_residuals, unknowns, &fitted, weights);
-        map_uncertainty(self.opts.method, u_fit, &orders.series, points)
+        let variances = order_variances(&fit.bin_residuals, unknowns, &fitted, weights);
+        let threshold = crate::tdr::significance_threshold(fitted.len());
+        let s = &orders.series;
+        let kept = fitted
+            .iter()
+            .zip(&variances)
+            .filter(|&(&h, &v)| {
+                let x = s.cos[h - 1].powi(2) + s.sin[h - 1].powi(2);
+                // v = 0 (noise-free data): every order stands above the noise.
+                v <= 0.0 || x > threshold * v
+            })
+            .count();
+        let v_min = variances
+            .iter()
+            .copied()
+            .filter(|&v| v > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        Screen {
+            variances,
+            kept,
+            detection_limit: detection::detection_limit(threshold, v_min),
+        }
+    }
+
+    /// The joint fit's residual RMS per sample over all differences, and the noise figure it
+    /// is judged against: the differences' scatter within the bins (net of the model's slope,
+    /// pooled over the heads), radians per sample.
+    fn residual_and_noise(&self, fit: &JointFit) -> (f64, f64) {
+        let others = self.heads.len() - 1;
+        let sum: f64 = fit.residuals.iter().map(|r| r.between + r.within).sum();
+        let residual = (sum / (self.samples as f64 * others as f64)).sqrt();
+        let (within, dof) = fit
+            .residuals
+            .iter()
+            .fold((0.0, 0.0), |(w, d), r| (w + r.within, d + r.dof));
+        let noise = if dof > 0.0 {
+            (within / dof).sqrt()
+        } else {
+            residual
+        };
+        (residual, noise)
     }
 
     /// Every head with its estimated angle error, reading convention, residual and noise.
@@ -705,6 +774,16 @@ impl Multihead {
             })
             .collect()
     }
+}
+
+/// The significance screening of a fit's orders (see [`Multihead::screen`]).
+struct Screen {
+    /// The variance each fitted order adds to the map, rad².
+    variances: Vec<f64>,
+    /// Orders standing above the noise.
+    kept: usize,
+    /// The detection limit of the orders tested, an amplitude, rad.
+    detection_limit: f64,
 }
 
 /// The map's series and what was left out of it, by method (see [`Multihead::finish`]).

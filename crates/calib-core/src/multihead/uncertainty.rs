@@ -22,19 +22,21 @@ use realfft::num_complex::Complex;
 ///
 /// `u_fit² = Σ_h 2 Σ_jk Re(w_j w̄_k) Ĝ_jk`
 ///
-/// over the fitted orders: left-out (blind) orders are warnings, not uncertainty.
-pub(super) fn fit_noise(
+/// over the fitted orders: left-out (blind) orders are warnings, not uncertainty. Returned is
+/// each order's term `2 Σ_jk Re(w_j w̄_k) Ĝ_jk`, also the variance of each of the order's cosine
+/// and sine coefficients (zeros where the bins leave no degrees of freedom).
+pub(super) fn order_variances(
     residuals: &[Vec<f64>],
     unknowns: usize,
     orders: &[usize],
     weights: impl Fn(usize) -> Vec<Complex<f64>>,
-) -> f64 {
+) -> Vec<f64> {
     let others = residuals.len();
     let b = residuals.first().map_or(0, Vec::len);
     let data = (others * b) as f64;
     let dof = data - unknowns as f64;
     if b == 0 || dof <= 0.0 {
-        return 0.0;
+        return vec![0.0; orders.len()];
     }
     let scale = data / dof / (b as f64 * b as f64);
     let g: Vec<Vec<f64>> = residuals
@@ -46,16 +48,15 @@ pub(super) fn fit_noise(
                 .collect()
         })
         .collect();
-    let var: f64 = orders
+    orders
         .iter()
         .map(|&h| order_variance(&g, &weights(h)))
-        .sum();
-    var.max(0.0).sqrt()
+        .collect()
 }
 
 /// The variance one order adds to the map at every angle, `2 Σ_jk Re(w_j w̄_k) G_jk`, from the
 /// order's weights `w` on the other heads' coefficients and their noise covariance `G` (see
-/// [`fit_noise`]; [`crate::plan::multihead`] calls it with a planned `G`).
+/// [`order_variances`]; [`crate::plan::multihead`] calls it with a planned `G`).
 pub fn order_variance(g: &[Vec<f64>], w: &[Complex<f64>]) -> f64 {
     let mut v = 0.0;
     for (j, gj) in g.iter().enumerate() {
@@ -66,12 +67,14 @@ pub fn order_variance(g: &[Vec<f64>], w: &[Complex<f64>]) -> f64 {
     2.0 * v
 }
 
-/// The budget of the map of `points` points: the fit's noise `u_fit` ([`fit_noise`], Type A)
-/// and the linear interpolation of the table between its points
-/// ([`interpolation_uncertainty`], Type B).
+/// The budget of the map of `points` points: the fit's noise `u_fit = sqrt(Σ_h v_h)` ([`order_variances`], Type A),
+/// the linear interpolation of the table between its points ([`interpolation_uncertainty`],
+/// Type B), and `u` never below `floor`, the detection limit of the orders tested
+/// ([`crate::detection`]).
 pub(super) fn map_uncertainty(
     method: Method,
     u_fit: f64,
+    floor: f64,
     series: &FourierSeries,
     points: usize,
 ) -> MapUncertainty {
@@ -79,7 +82,7 @@ pub(super) fn map_uncertainty(
         Method::Joint => "the joint fit",
         Method::Eda => "the equal-division average",
     };
-    MapUncertainty::combine(
+    let combined = MapUncertainty::combine(
         points,
         vec![
             MapComponent {
@@ -93,5 +96,6 @@ pub(super) fn map_uncertainty(
                 u: vec![interpolation_uncertainty(&series.harmonics(), points)],
             },
         ],
-    )
+    );
+    crate::detection::apply_floor(combined, floor)
 }

@@ -90,9 +90,11 @@
 //! (`ē↑ − ē↓`).
 //!
 //! # Uncertainty
-//! `u_i = sqrt(u_mean,i² + u_ref²)`: the standard error of the point's mean (for the bidirectional
-//! mean `sqrt(s↑²/n↑ + s↓²/n↓)/2`; a direction with `n < 2` uses the pooled `s` of its direction)
-//! combined with the reference's stated standard uncertainty.
+//! `u_i = sqrt(u_mean,i² + u_q² + u_ref²)`: the standard error of the point's mean (for the
+//! bidirectional mean `sqrt(s↑²/n↑ + s↓²/n↓)/2`; a direction with `n < 2` uses the pooled `s` of
+//! its direction), the part of the DUT's quantization that passes do not average ([`Quantization`],
+//! module `quantum`: `(Δ/√12)·exp(−2π²σ²/Δ²)`, the whole `Δ/√12` of a quantum `Δ` no noise
+//! dithers), and the reference's stated standard uncertainty.
 //!
 //! # What it cannot see
 //! The reference's own error: the map is `e_DUT − e_ref` (why the reference must be much better
@@ -105,16 +107,19 @@
 
 mod ends;
 mod latency;
+mod quantum;
 mod ripple;
 
 pub use ends::EndCorrection;
 pub use latency::{LatencyFit, MIN_SPEED_SPREAD};
+pub use quantum::Quantization;
 pub use ripple::{Ripple, RippleTerm};
 
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper, wrap_2pi};
 use crate::error_map::ErrorMap;
 use crate::range_map::RangeMap;
 use latency::Crossing;
+use quantum::QuantumTracker;
 use std::f64::consts::{PI, TAU};
 
 /// Settings of a reference calibration.
@@ -474,6 +479,9 @@ pub struct ReferenceCalibration {
     pub ends: Option<EndCorrection>,
     /// The motor's ripple taken out of the map (a commanded reference).
     pub ripple: Option<Ripple>,
+    /// The DUT's quantum and the part of it no averaging takes out, in every point's u
+    /// (`None`: the readings are not quantized).
+    pub quantization: Option<Quantization>,
     /// What the user should know about the result.
     pub warnings: Vec<String>,
 }
@@ -538,6 +546,8 @@ pub struct ReferenceCal {
     steps: usize,
     /// Sum of the reference's speed over each grid point's crossings, rad/s.
     speed_sum: Vec<f64>,
+    /// The DUT's quantum, from the steps between its readings.
+    quantum: QuantumTracker,
 }
 
 /// A step between two consecutive moving samples: DUT readings `u` (unwrapped) and differences
@@ -585,6 +595,7 @@ impl ReferenceCal {
             crossings: (opts.latency == Latency::Auto).then(Vec::new),
             steps: 0,
             speed_sum: vec![0.0; n],
+            quantum: QuantumTracker::default(),
             opts,
             dut: Unwrapper::new(),
             reference: Unwrapper::new(),
@@ -606,7 +617,9 @@ impl ReferenceCal {
     /// Adds a sample: time (s), the DUT's and the reference's readings (radians). Samples with a
     /// non-finite value are skipped (and break the interpolation between neighbours).
     pub fn push(&mut self, t: f64, dut: f64, reference: f64) {
-        if !(t.is_finite() && dut.is_finite() && reference.is_finite()) {
+        let finite = t.is_finite() && dut.is_finite() && reference.is_finite();
+        self.quantum.add(if finite { dut } else { f64::NAN });
+        if !finite {
             if self.keep_samples && t.is_finite() {
                 self.keep(t, f64::NAN, f64::NAN);
             }
@@ -890,6 +903,10 @@ impl ReferenceCal {
         };
         let mut raw: Vec<f64> = bins.iter().map(|&i| measured(i).unwrap_or(0.0)).collect();
         let (pool_up, pool_down) = (pooled(&self.up), pooled(&self.down));
+        let quantization = self
+            .quantum
+            .quantum()
+            .map(|q| Quantization::new(q, pooled(self.up.iter().chain(&self.down))));
         // A direction never crossed twice at a point has no repeatability: a pass's noise is
         // then taken from the scatter of the reversal between neighbouring points.
         // Neighbouring points between the same two samples share their noise, which the
@@ -1050,7 +1067,12 @@ impl ReferenceCal {
                     no_repeatability = true;
                     0.0
                 });
-                Some(point_uncertainty(var, *extra, self.opts.reference_u))
+                let u_q = quantization.map_or(0.0, |q| q.u);
+                Some(point_uncertainty(
+                    var,
+                    *extra + u_q * u_q,
+                    self.opts.reference_u,
+                ))
             })
             .collect();
         if let Some(g) = gap {
@@ -1163,6 +1185,7 @@ impl ReferenceCal {
             latency,
             ends: end_correction,
             ripple,
+            quantization,
             warnings,
         })
     }
@@ -1268,7 +1291,8 @@ pub fn mean_variance(up: Option<f64>, down: Option<f64>) -> f64 {
 }
 
 /// A point's `u = √(u_mean² + extra + u_ref²)`: the variance of its mean ([`mean_variance`]),
-/// any further variance (`extra`: the lag's) and the reference's standard uncertainty `u_ref`.
+/// any further variance (`extra`: the lag's and the DUT's undithered quantum's) and the
+/// reference's standard uncertainty `u_ref`.
 pub fn point_uncertainty(mean_variance: f64, extra: f64, reference_u: f64) -> f64 {
     (mean_variance + extra + reference_u.powi(2)).sqrt()
 }
@@ -1356,9 +1380,9 @@ fn reversal_scatter(up: &[Welford], down: &[Welford], bins: &[usize]) -> Option<
 }
 
 /// The pooled standard deviation of a direction's points with `n ≥ 2`.
-fn pooled(w: &[Welford]) -> Option<f64> {
+fn pooled<'a>(w: impl IntoIterator<Item = &'a Welford>) -> Option<f64> {
     let (m2, dof) = w
-        .iter()
+        .into_iter()
         .filter(|w| w.n >= 2)
         .fold((0.0, 0.0), |(m2, dof), w| {
             (m2 + w.m2.max(0.0), dof + f64::from(w.n - 1))

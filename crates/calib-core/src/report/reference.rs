@@ -60,6 +60,24 @@ pub struct ReferenceDetails {
     /// The motor's ripple taken out of the map of a commanded reference.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ripple: Option<Box<RippleReport>>,
+    /// The DUT's quantum found from its readings and the part of it that averaging passes does
+    /// not take out, in every point's u (absent where the readings are not quantized).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quantization: Option<QuantizationReport>,
+}
+
+/// The DUT's quantization in a reference calibration's u.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct QuantizationReport {
+    /// The quantum found from the readings (the greatest common divisor of their steps), arcsec.
+    pub quantum_arcsec: f64,
+    /// The noise in front of the quantizer, arcsec, from the repeatability of points crossed
+    /// more than once in a direction (`null`: none was, taken as 0).
+    pub noise_arcsec: Option<f64>,
+    /// The term in every point's u, `(Δ/√12)·exp(−2π²σ²/Δ²)`: the quantization no averaging
+    /// of passes takes out (all of `Δ/√12` where no noise dithers the readings), arcsec.
+    pub u_arcsec: f64,
 }
 
 /// The lag between the channels.
@@ -374,6 +392,11 @@ impl ReferenceCalibration {
                     max_correction_arcsec: arcsec(e.max_correction),
                     max_u_arcsec: arcsec(e.max_u),
                 })
+            }),
+            quantization: self.quantization.map(|q| QuantizationReport {
+                quantum_arcsec: arcsec(q.quantum),
+                noise_arcsec: q.noise.map(arcsec),
+                u_arcsec: arcsec(q.u),
             }),
             ripple: self.ripple.as_ref().map(|r| {
                 Box::new(RippleReport {

@@ -25,6 +25,10 @@ pub struct TdrDetails {
     pub orders: OrdersReport,
     /// RMS of the fit's residual, arcsec.
     pub residual_rms_arcsec: f64,
+    /// The readings' noise per sample from their third differences in time (no model), what
+    /// the residual is judged against, arcsec.
+    #[serde(default)]
+    pub noise_rms_arcsec: f64,
     /// The standard uncertainty of the map, by channel.
     pub uncertainty: BTreeMap<String, UncertaintyReport>,
     /// Angle-dependent drag: separated from the map, or what could not be.
@@ -207,6 +211,7 @@ impl TdrCalibration {
                 residual_structure: self.unresolved.iter().map(|h| h.to_report()).collect(),
             },
             residual_rms_arcsec: arcsec(self.residual_rms),
+            noise_rms_arcsec: arcsec(self.noise_rms),
             uncertainty: BTreeMap::from([(
                 channel.to_string(),
                 UncertaintyReport::of(&self.uncertainty),

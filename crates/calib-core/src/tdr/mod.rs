@@ -104,6 +104,7 @@
 //! order, so the results are the same bits on any number of threads.
 
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper};
+use crate::detection::{self, Verdict};
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
 use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation_uncertainty};
@@ -226,6 +227,20 @@ pub enum TdrError {
         revolutions: f64,
         /// [`TdrOptions::min_revolutions`].
         needed: f64,
+    },
+    /// The fit's residual is far above the readings' noise and no order stands above it: the
+    /// map (zero) explains none of the data.
+    #[error(
+        "the fit leaves {residual_arcsec:.4}″ RMS per sample where the readings' noise (from their third differences in \
+         time) is {noise_arcsec:.4}″ (more than 10× the noise), and no order of the encoder's error stands above the noise: \
+         the map cannot explain the data. Most likely the shaft is not coasting freely (a drive or a load acting on it, a \
+         speed that jumps) or the readings jump; record a free coast-down of the shaft alone"
+    )]
+    Unexplained {
+        /// RMS of the fit's residual per sample, arcsec.
+        residual_arcsec: f64,
+        /// The readings' noise per sample, arcsec.
+        noise_arcsec: f64,
     },
     /// The least-squares problem is singular.
     #[error(
@@ -352,6 +367,12 @@ pub struct TdrCalibration {
     /// RMS of the fit's residuals, radians (noise and resolution; more means an unmodelled
     /// effect).
     pub residual_rms: f64,
+    /// The readings' noise per sample measured without the model, from their second
+    /// differences in time ([`readings_noise`]), radians: what `residual_rms` is judged against.
+    pub noise_rms: f64,
+    /// The detection limit of the orders tested, an amplitude in radians: an order below it
+    /// cannot pass the significance rule ([`crate::detection`]).
+    pub detection_limit: f64,
     /// Samples of the coast used.
     pub samples_used: usize,
     /// Revolutions of the coast used.
@@ -537,8 +558,37 @@ impl Tdr {
         let coast_bins = coast_trace(samples, &basis, &fit, COAST_BINS);
         warnings.extend(unresolved_warning(&unresolved, h));
 
-        let uncertainty =
-            map_uncertainty(&basis, &fit, &series, &unresolved, screen.dropped, points);
+        let floor = detection::detection_floor(screen.detection_limit);
+        let uncertainty = detection::apply_floor(
+            map_uncertainty(&basis, &fit, &series, &unresolved, screen.dropped, points),
+            floor,
+        );
+        if orders.is_empty() {
+            warnings.push(detection::empty_map_warning(
+                uncertainty.max(),
+                &format!("1–{h}"),
+                screen.detection_limit,
+            ));
+        }
+        let noise_rms = readings_noise(t, r);
+        match detection::residual_verdict(residual_rms, noise_rms, !orders.is_empty()) {
+            Verdict::Explained => {}
+            Verdict::Above(ratio) => warnings.push(detection::residual_warning(
+                residual_rms,
+                noise_rms,
+                ratio,
+                "the readings' noise (from their third differences in time) is",
+                "the map and the motion do",
+                "something acts on the coasting shaft that is not periodic in its angle, the readings jump, or the error \
+                 holds orders that are not whole",
+            )),
+            Verdict::Unexplained(_) => {
+                return Err(TdrError::Unexplained {
+                    residual_arcsec: residual_rms * ARCSEC_PER_RAD,
+                    noise_arcsec: noise_rms * ARCSEC_PER_RAD,
+                });
+            }
+        }
         let seen = union(
             &orders,
             &unresolved.iter().map(|u| u.order).collect::<Vec<_>>(),
@@ -556,6 +606,8 @@ impl Tdr {
             motion,
             coast: coast_bins,
             residual_rms,
+            noise_rms,
+            detection_limit: screen.detection_limit,
             samples_used: t.len(),
             revolutions: coast.revolutions,
             samples_per_revolution_densest: densest,
@@ -614,8 +666,10 @@ impl Tdr {
         if !orders.is_empty() {
             let drag = Some(weights(orders.clone()));
             if let Some(again) = screen_orders(c.moments, c.span, c.max_degree, c.h, drag) {
-                screen.kept = again.kept;
-                screen.dropped = again.dropped;
+                *screen = Screen {
+                    motion: std::mem::take(&mut screen.motion),
+                    ..again
+                };
             }
         }
         DragStep {
@@ -1300,6 +1354,41 @@ fn noise_through_fit(basis: &Basis, l_inv: &DMatrix<f64>, sigma: f64, points: us
         .collect()
 }
 
+/// The readings' noise per sample without any model: the third divided difference of four
+/// consecutive readings, `e_n = Σ_i w_i·r_i`, `w_i = 1/Π_{j≠i}(t_i − t_j)` (`i, j` over
+/// `n … n+3`), is zero for any quadratic in time — a coast's steady deceleration leaves nothing
+/// in it — and of white noise `σ` has the variance `σ²·Σ w_i²`. So `σ̂² = mean_n e_n²/Σ w_i²`,
+/// a little above the noise where the motion's jerk or the encoder's error curves within a few
+/// samples (a high order at the fast start of a coast): a residual judged against it is never
+/// taken for structure too early.
+pub fn readings_noise(t: &[f64], r: &[f64]) -> f64 {
+    let (mut sum, mut count) = (0.0, 0usize);
+    for n in 0..t.len().saturating_sub(3) {
+        let (ts, rs) = (&t[n..n + 4], &r[n..n + 4]);
+        if ts.windows(2).any(|w| w[1] <= w[0]) {
+            continue;
+        }
+        let (mut e, mut w2) = (0.0, 0.0);
+        for i in 0..4 {
+            let w = 1.0
+                / (0..4)
+                    .filter(|&j| j != i)
+                    .map(|j| ts[i] - ts[j])
+                    .product::<f64>();
+            // The weights sum to zero: readings relative to the first keep the precision.
+            e += w * (rs[i] - rs[0]);
+            w2 += w * w;
+        }
+        sum += e * e / w2;
+        count += 1;
+    }
+    if count == 0 {
+        0.0
+    } else {
+        (sum / count as f64).sqrt()
+    }
+}
+
 /// The ascending union of two ascending order lists.
 fn union(a: &[usize], b: &[usize]) -> Vec<usize> {
     let mut u: Vec<usize> = a.iter().chain(b).copied().collect();
@@ -1322,6 +1411,9 @@ struct Screen {
     /// alone is as noisy as it is large when many orders hold little; one standard deviation
     /// above it makes it a one-sided 84 % bound that does not vanish with the noise.
     dropped: f64,
+    /// The detection limit of the orders tested, rad: `sqrt(T·v_min)`, `v_min` the variance of
+    /// each coefficient at the best-determined order ([`detection::detection_limit`]).
+    detection_limit: f64,
 }
 
 fn screen_orders(
@@ -1343,8 +1435,10 @@ fn screen_orders(
     let f = degree + 1;
     let mut kept = Vec::new();
     let (mut power, mut power_var) = (0.0, 0.0);
+    let mut v_min = f64::INFINITY;
     for k in 1..=h {
         let (c, s) = (f + 2 * (k - 1), f + 2 * k - 1);
+        v_min = v_min.min(0.5 * fit.sigma.powi(2) * (fit.covariance(c, c) + fit.covariance(s, s)));
         if fit.chi_square(c, s) > threshold {
             kept.push(k);
         } else {
@@ -1360,6 +1454,7 @@ fn screen_orders(
         kept,
         motion: fit.beta[..=degree].to_vec(),
         dropped: ((power + power_var.sqrt()).max(0.0) / 2.0).sqrt(),
+        detection_limit: detection::detection_limit(threshold, v_min),
     })
 }
 

@@ -3,7 +3,7 @@
 //! session is blind to is refused, not returned as a zero map.
 
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::csrr::{Csrr, CsrrError, CsrrOptions, DETECTION_FLOOR};
+use calib_core::csrr::{Csrr, CsrrError, CsrrOptions, DETECTION_FLOOR, Method};
 use calib_core::simulate::Scenario;
 
 /// A 1 kHz run at 60 r/min, sessions of 2 revolutions at `deltas`, sensor a with `harmonics`
@@ -102,5 +102,67 @@ fn a_clean_run_raises_no_residual_warning() {
             !w.contains("RMS per sample where the sessions repeat"),
             "{w}"
         );
+    }
+}
+
+fn run_paper(sc: &Scenario) -> Result<calib_core::csrr::Calibration, CsrrError> {
+    let mut csrr = Csrr::new(CsrrOptions {
+        method: Method::Paper,
+        ..CsrrOptions::default()
+    });
+    for s in sc.samples().expect("valid scenario") {
+        csrr.push(s.t, s.values[0], s.values[1], None);
+    }
+    csrr.finish()
+}
+
+/// The published method on sensors without error: its points hold only noise, so the maps are
+/// zero, the warning says so, and u keeps the floor of what the sessions' profiles tested.
+#[test]
+fn the_paper_method_with_no_order_above_the_noise_says_so() {
+    let cal = run_paper(&scenario("0.0, 76.0, 87.0, 141.0, 179.0", "")).expect("calibrates");
+    let warning = cal
+        .warnings
+        .iter()
+        .find(|w| w.starts_with("no order above the noise: the map is zero within u = "))
+        .unwrap_or_else(|| panic!("no empty-map warning in {:?}", cal.warnings));
+    println!("{warning}");
+    let (ua, ub) = cal.uncertainty.as_ref().expect("u");
+    for u in [ua, ub] {
+        let floor = u
+            .components
+            .iter()
+            .find(|c| c.name == DETECTION_FLOOR)
+            .expect("the floor is in the budget by name");
+        let min = u.u.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(min >= floor.u[0] - 1e-15 && floor.u[0] > 0.0);
+    }
+    assert!(cal.a.max_abs_arcsec() == 0.0 && cal.b.max_abs_arcsec() == 0.0);
+}
+
+/// The blind-4° run by the published method: every relative rotation a multiple of 4°, the
+/// 30″ of sensor a at order 90 the same in every session's point, and nothing the five
+/// sessions resolve (orders 1–2) above the noise. The sessions' profiles keep ~21″ RMS that the
+/// maps cannot hold, against a repeatability of ~0.2″: refused, naming both figures.
+#[test]
+fn the_paper_method_refuses_an_error_all_in_blind_orders() {
+    let sc = scenario(
+        "0.0, 8.0, 28.0, 52.0, 124.0",
+        "{ order = 90, amplitude_arcsec = 30.0, phase_deg = 10.0 }",
+    );
+    match run_paper(&sc) {
+        Err(CsrrError::Unexplained {
+            residual_arcsec,
+            noise_arcsec,
+        }) => {
+            println!("residual {residual_arcsec:.3}″, repeatability {noise_arcsec:.4}″");
+            assert!(residual_arcsec > 10.0 * noise_arcsec);
+            assert!(residual_arcsec > 5.0, "{residual_arcsec}");
+        }
+        Err(e) => panic!("expected the unexplained-residual error, got {e}"),
+        Ok(cal) => panic!(
+            "expected the unexplained-residual error, got warnings {:?}",
+            cal.warnings
+        ),
     }
 }

@@ -9,6 +9,7 @@ mod csrr_outcomes;
 mod multihead;
 mod nufft2d;
 mod numerical_guards;
+mod outcomes;
 mod properties;
 mod reference_cal;
 mod reference_setups;
