@@ -678,6 +678,20 @@ fn render_csrr_procedure(plan: &CsrrPlan, rig: &CsrrRig, max_order: usize) -> St
     out
 }
 
+/// The planner that `calib plan WORDS…` names (the tests' parser of each planner's options).
+#[cfg(test)]
+pub(super) fn parse(words: &[&str]) -> Method {
+    #[derive(clap::Parser)]
+    struct P {
+        #[command(subcommand)]
+        m: Method,
+    }
+    use clap::Parser;
+    P::try_parse_from(std::iter::once(&"plan").chain(words))
+        .unwrap()
+        .m
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -685,16 +699,7 @@ mod tests {
     fn args(extra: &[&str]) -> CsrrArgs {
         let mut v = vec!["csrr", "--max-order", "90"];
         v.extend_from_slice(extra);
-        #[derive(clap::Parser)]
-        struct P {
-            #[command(subcommand)]
-            m: Method,
-        }
-        use clap::Parser;
-        match P::try_parse_from(std::iter::once("plan").chain(v))
-            .unwrap()
-            .m
-        {
+        match parse(&v) {
             Method::Csrr(a) => a,
             _ => unreachable!("parsed csrr"),
         }

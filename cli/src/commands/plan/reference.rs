@@ -276,14 +276,8 @@ mod tests {
     use super::*;
 
     fn args(extra: &[&str]) -> ReferenceArgs {
-        #[derive(clap::Parser)]
-        struct P {
-            #[command(subcommand)]
-            m: super::super::Method,
-        }
-        use clap::Parser;
-        let base = ["plan", "reference"];
-        match P::try_parse_from(base.iter().chain(extra)).unwrap().m {
+        let words: Vec<&str> = ["reference"].iter().chain(extra).copied().collect();
+        match super::super::parse(&words) {
             super::super::Method::Reference(a) => a,
             _ => unreachable!("parsed reference"),
         }

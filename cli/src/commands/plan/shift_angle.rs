@@ -286,14 +286,8 @@ mod tests {
     use super::*;
 
     fn args(extra: &[&str]) -> ShiftAngleArgs {
-        #[derive(clap::Parser)]
-        struct P {
-            #[command(subcommand)]
-            m: super::super::Method,
-        }
-        use clap::Parser;
-        let base = ["plan", "shift-angle"];
-        match P::try_parse_from(base.iter().chain(extra)).unwrap().m {
+        let words: Vec<&str> = ["shift-angle"].iter().chain(extra).copied().collect();
+        match super::super::parse(&words) {
             super::super::Method::ShiftAngle(a) => a,
             _ => unreachable!("parsed shift-angle"),
         }

@@ -289,22 +289,14 @@ mod tests {
     use super::*;
 
     fn args(extra: &[&str]) -> TdrArgs {
-        #[derive(clap::Parser)]
-        struct P {
-            #[command(subcommand)]
-            m: super::super::Method,
-        }
-        use clap::Parser;
-        let base = ["plan", "tdr", "--max-order", "16", "--start-rpm", "600"];
+        let base = ["tdr", "--max-order", "16", "--start-rpm", "600"];
         let decel = if extra.contains(&"--decel") {
             &[][..]
         } else {
             &["--decel", "10"][..]
         };
-        match P::try_parse_from(base.iter().chain(decel).chain(extra))
-            .unwrap()
-            .m
-        {
+        let words: Vec<&str> = base.iter().chain(decel).chain(extra).copied().collect();
+        match super::super::parse(&words) {
             super::super::Method::Tdr(a) => a,
             _ => unreachable!("parsed tdr"),
         }
