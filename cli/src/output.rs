@@ -210,7 +210,7 @@ pub fn turn_table(
     map: &ErrorMap,
     u: Option<&[f64]>,
 ) -> anyhow::Result<(String, Vec<u8>)> {
-    let text = calib_io::table::render_table(map, u)
+    let text = calib_io::table::render_table(&map.clone().into(), u)
         .with_context(|| format!("the table of channel `{name}`"))?;
     Ok((table_name(name), text.into_bytes()))
 }

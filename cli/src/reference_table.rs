@@ -3,6 +3,7 @@
 
 use crate::exit::Usage;
 use anyhow::Context;
+use calib_core::TableMap;
 use std::path::Path;
 
 /// The reference's calibrated table (`--ref-table`): its map, and the largest u of its points.
@@ -24,21 +25,18 @@ impl ReferenceTable {
             ))
             .into());
         }
-        let table = match calib_io::table::read_any_table(path)
-            .with_context(|| format!("cannot read the reference's table {}", path.display()))?
-        {
-            calib_io::table::AnyTable::Turn(t) => t,
-            calib_io::table::AnyTable::Range(_) => {
-                return Err(Usage(format!(
-                    "--ref-table {}: a range table; the reference's table must cover a whole turn",
-                    path.display()
-                ))
-                .into());
-            }
+        let table = calib_io::table::read_table(path)
+            .with_context(|| format!("cannot read the reference's table {}", path.display()))?;
+        let TableMap::Turn(map) = table.map else {
+            return Err(Usage(format!(
+                "--ref-table {}: a range table; the reference's table must cover a whole turn",
+                path.display()
+            ))
+            .into());
         };
         Ok(ReferenceTable {
             u_max: table.u.map(|u| u.iter().fold(0.0f64, |m, v| m.max(*v))),
-            map: table.map,
+            map,
         })
     }
 }

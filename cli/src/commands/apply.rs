@@ -9,8 +9,8 @@ use calib_core::AngleUnit;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::correction::Wrapping;
 use calib_io::LogFormat;
-use calib_io::apply::{Applied, ApplyOptions, MapRef, apply_scanned, scan};
-use calib_io::table::AnyTable;
+use calib_io::apply::{Applied, ApplyOptions, apply_scanned, scan};
+use calib_io::table::Table;
 use std::fmt::Write;
 use std::path::PathBuf;
 
@@ -93,7 +93,7 @@ pub struct Args {
 /// Runs `calib apply`: checks the arguments, corrects the log, says what was done.
 pub fn run(args: &Args) -> anyhow::Result<String> {
     let (name, format) = validate(args)?;
-    let table = calib_io::table::read_any_table(&args.table)
+    let table = calib_io::table::read_table(&args.table)
         .with_context(|| format!("cannot read the table {}", args.table.display()))?;
     let reader = open_log(&args.log, args.unit, args.skip_damaged)?;
     channel(&reader, &args.log, &name).with_context(|| {
@@ -121,10 +121,6 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         skip_damaged: args.skip_damaged,
         keep: args.keep,
     };
-    let map = match &table {
-        AnyTable::Turn(t) => MapRef::Turn(&t.map),
-        AnyTable::Range(t) => MapRef::Range(&t.map),
-    };
     let cannot = || format!("cannot correct {}", args.log.display());
     let readings = scan(&args.log, &opts).with_context(cannot)?;
     // The unit checked against the readings as the methods check it, before anything is written.
@@ -136,8 +132,8 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         readings.whole,
     )
     .finish(&args.log)?;
-    let done =
-        apply_scanned(&args.log, &args.output, map, &opts, &readings).with_context(cannot)?;
+    let done = apply_scanned(&args.log, &args.output, &table.map, &opts, &readings)
+        .with_context(cannot)?;
     if args.json {
         return render_json(args, &name, &table, &done, &notes);
     }
@@ -195,19 +191,12 @@ fn render_summary(
     args: &Args,
     name: &str,
     format: LogFormat,
-    table: &AnyTable,
+    table: &Table,
     done: &Applied,
     notes: &[String],
 ) -> String {
     let mut o = String::new();
-    let (points, pp, span) = match table {
-        AnyTable::Turn(t) => (t.map.len(), t.map.peak_to_peak(), None),
-        AnyTable::Range(t) => (
-            t.map.len(),
-            t.map.peak_to_peak(),
-            Some((t.map.start().to_degrees(), t.map.end().to_degrees())),
-        ),
-    };
+    let (points, pp, span) = (table.map.len(), table.map.peak_to_peak(), range_deg(table));
     let _ = writeln!(
         o,
         "corrected {} readings of `{name}` in {} with {} ({points} points{}, error peak-to-peak \
@@ -316,14 +305,11 @@ fn warnings(args: &Args, name: &str, done: &Applied, span: Option<(f64, f64)>) -
 fn render_json(
     args: &Args,
     name: &str,
-    table: &AnyTable,
+    table: &Table,
     done: &Applied,
     notes: &[String],
 ) -> anyhow::Result<String> {
-    let span = match table {
-        AnyTable::Turn(_) => None,
-        AnyTable::Range(t) => Some((t.map.start().to_degrees(), t.map.end().to_degrees())),
-    };
+    let span = range_deg(table);
     crate::json::render(&ApplyJson {
         schema_version: calib_core::report::SCHEMA_VERSION,
         log: args.log.display().to_string(),
@@ -350,4 +336,13 @@ fn render_json(
 /// `x` with at most 6 decimals, trailing zeros dropped (`360`, `6.283185`, `-0.5`).
 fn short(x: f64) -> String {
     calib_core::report::trimmed(x, 6)
+}
+
+/// A range table's range in degrees, from its first grid angle (in `[0°, 360°)`) to its last
+/// (above 360° across the reading 0); `None` for a whole turn.
+fn range_deg(table: &Table) -> Option<(f64, f64)> {
+    table
+        .map
+        .range()
+        .map(|(start, end)| (start.to_degrees(), end.to_degrees()))
 }

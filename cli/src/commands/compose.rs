@@ -5,8 +5,9 @@ use crate::json::ComposeJson;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::compose::{CHECK_POINTS_PER_STEP, compose, compose_uncertainty};
-use calib_io::export::{Span, require_whole_revolution};
-use calib_io::table::{AnyTable, CorrectionTable, read_any_table};
+use calib_core::{ErrorMap, TableMap};
+use calib_io::export::require_whole_revolution;
+use calib_io::table::{Table, read_table};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
@@ -84,11 +85,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             "u_arcsec: dropped — only one of the tables has it, and the other's is unknown",
         ),
     };
-    calib_io::table::write_table(&args.output, &done.map, u.as_deref())
+    calib_io::table::write_table(&args.output, &done.map.clone().into(), u.as_deref())
         .with_context(|| format!("cannot write {}", args.output.display()))?;
 
     let arcsec = |x: f64| x * ARCSEC_PER_RAD;
-    let describe = |t: &CorrectionTable, path: &Path| {
+    let describe = |t: &Table<ErrorMap>, path: &Path| {
         format!(
             "{} ({} points, {:.3}″ peak to peak)",
             path.display(),
@@ -156,19 +157,16 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 }
 
 /// Reads a table for composition, which needs it over one whole revolution.
-fn load(path: &Path) -> anyhow::Result<CorrectionTable> {
+fn load(path: &Path) -> anyhow::Result<Table<ErrorMap>> {
     if !path.exists() {
         return Err(Usage(format!("{}: no such table; check the path", path.display())).into());
     }
-    match read_any_table(path).with_context(|| format!("cannot read {}", path.display()))? {
-        AnyTable::Turn(table) => Ok(table),
+    let table = read_table(path).with_context(|| format!("cannot read {}", path.display()))?;
+    match table.map {
+        TableMap::Turn(map) => Ok(Table { map, u: table.u }),
         // A range table cannot be composed periodically.
-        AnyTable::Range(range) => {
-            let span = Span {
-                start_deg: range.map.start().to_degrees(),
-                end_deg: range.map.end().to_degrees(),
-            };
-            let why = require_whole_revolution("calib compose", span)
+        range => {
+            let why = require_whole_revolution("calib compose", &range)
                 .err()
                 .map_or_else(|| "not a whole-turn table".to_string(), |e| e.to_string());
             Err(Usage(format!("{}: {why}", path.display())).into())

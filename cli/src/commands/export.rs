@@ -4,9 +4,7 @@
 use crate::exit::Usage;
 use crate::json::{ExportJson, FitJson};
 use anyhow::Context;
-use calib_core::ErrorMap;
-use calib_io::export::{self, ExportError, ExportOptions, Keep, Span};
-use calib_io::table::AnyTable;
+use calib_io::export::{self, ExportError, ExportOptions, Keep};
 use std::path::PathBuf;
 
 /// The output form, and where it is loaded.
@@ -205,18 +203,8 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ))
         .into());
     }
-    let table = calib_io::table::read_any_table(&args.table)
+    let table = calib_io::table::read_table(&args.table)
         .with_context(|| format!("cannot read {}", args.table.display()))?;
-    let (map, span) = match table {
-        AnyTable::Turn(t) => (t.map, Span::WHOLE),
-        AnyTable::Range(t) => (
-            ErrorMap::new(t.map.values().to_vec()),
-            Span {
-                start_deg: t.map.start().to_degrees(),
-                end_deg: t.map.end().to_degrees(),
-            },
-        ),
-    };
     let mut opts = ExportOptions::new(
         args.format.to_io(),
         format!(
@@ -235,8 +223,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     opts.min_amplitude_arcsec = args.min_amplitude;
     opts.moteus_source = args.source;
     // A range table is refused by every format that needs a whole turn.
-    opts.span = span;
-    let out = export::export(&map, &opts)
+    let out = export::export(&table.map, &opts)
         .map_err(classify)
         .with_context(|| format!("{}", args.table.display()))?;
     // moteus's `conf set` lines cannot carry comments: their header goes to the terminal.

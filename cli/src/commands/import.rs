@@ -119,7 +119,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     opts.scale_arcsec = args.scale;
     let table = import::import(&args.file, &opts)
         .with_context(|| format!("cannot read {}", args.file.display()))?;
-    calib_io::table::write_table(&args.output, &table.map, None)?;
+    calib_io::table::write_table(&args.output, &table.map.clone().into(), None)?;
     let map = &table.map;
     if args.json {
         return crate::json::render(&crate::json::ImportJson {

@@ -5,7 +5,7 @@ use crate::summary::key_values;
 use anyhow::Context;
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{Latency, ReferenceCal, ReferenceKind, ReferenceOptions, TableMap};
+use calib_core::reference_cal::{Latency, ReferenceCal, ReferenceKind, ReferenceOptions};
 use calib_io::export::{self, ExportOptions};
 use calib_io::moteus_dump::{SETTLING_SAMPLES, read_cal_dump};
 use std::fmt::Write;
@@ -95,13 +95,13 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             args.dump.display()
         )
     })?;
-    let TableMap::Turn(map) = &cal.map else {
+    if cal.map.turn().is_none() {
         anyhow::bail!(
             "{}: the encoder covered only part of a turn; moteus' table needs a whole turn (record the calibration \
              again: moteus_tool turns the rotor a whole turn each way)",
             args.dump.display()
         );
-    };
+    }
     let mut warnings = Vec::new();
     if dump.encoder_reversed {
         warnings.push(
@@ -118,8 +118,8 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     );
     let json = calib_io::report::render_json(&report)?;
     let doc = crate::method::reference::document::document(dut, reference, &cal, &report);
-    let table =
-        calib_io::table::render_table(map, Some(&cal.u)).context("the table of the encoder")?;
+    let table = calib_io::table::render_table(&cal.map, Some(&cal.u))
+        .context("the table of the encoder")?;
     let mut opts = ExportOptions::new(
         export::Format::Moteus,
         format!(
@@ -133,7 +133,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     // electrical period leaves, and all a 256-entry table holds without aliasing the rotor's
     // motion between the samples into it.
     opts.keep = export::Keep::Orders((1..pole_pairs.max(2) as usize).collect());
-    let moteus = export::export(map, &opts).context("the moteus table")?;
+    let moteus = export::export(&cal.map, &opts).context("the moteus table")?;
     write_outputs(
         &args.output,
         &[

@@ -182,13 +182,13 @@ fn run_scenario(args: &Args, scenario_path: &Path, output: &Path) -> anyhow::Res
         let path = dir.join(table_name(name));
         match ranges.as_ref().and_then(|r| r[k].1.as_ref()) {
             Some(range) => {
-                let text = calib_io::table::render_range_table(range, None)
+                let text = calib_io::table::render_table(&range.clone().into(), None)
                     .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
                 calib_io::atomic::write_atomic(&path, text.as_bytes())?;
                 peaks.push((range.peak_to_peak(), " (range table)"));
             }
             None => {
-                calib_io::table::write_table(&path, map, None)?;
+                calib_io::table::write_table(&path, &map.clone().into(), None)?;
                 peaks.push((map.peak_to_peak(), ""));
             }
         }

@@ -115,7 +115,7 @@ fn csrr_error(log: &Path, sc: &Scenario, out: &Path) -> (f64, f64, Value) {
     expect_exit(&o, 0);
     eprintln!("{}", stdout(&o));
     let read = |file: &str| {
-        calib_io::table::read_table(&out.join(file))
+        calib_io::table::read_turn_table(&out.join(file))
             .unwrap_or_else(|e| panic!("{e}"))
             .map
     };

@@ -93,7 +93,7 @@ fn check_simulate_outputs(log: &Path, samples: usize, points: usize) {
         log.file_stem().unwrap().to_string_lossy()
     ));
     for table in final_files(&truth) {
-        let t = calib_io::table::read_table(&table)
+        let t = calib_io::table::read_turn_table(&table)
             .unwrap_or_else(|e| panic!("a partial table at a final name: {e}"));
         assert_eq!(t.map.len(), points, "{}", table.display());
     }
@@ -184,7 +184,7 @@ fn a_killed_calibration_leaves_only_complete_files() {
         }
         for f in files {
             if f.extension().is_some_and(|e| e == "csv") {
-                calib_io::table::read_table(&f).unwrap();
+                calib_io::table::read_turn_table(&f).unwrap();
             } else if f.extension().is_some_and(|e| e == "html") {
                 let html = std::fs::read_to_string(&f).unwrap();
                 assert!(

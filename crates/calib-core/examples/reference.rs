@@ -50,7 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The map is DUT − reference: the truth is the difference of the two sensors' maps.
     let truth = scenario.truth(cal.map.len())?;
     let expected = truth[0].1.minus(&truth[1].1);
-    let calib_core::reference_cal::TableMap::Turn(map) = &cal.map else {
+    let calib_core::TableMap::Turn(map) = &cal.map else {
         return Err("five whole revolutions give a whole-turn map".into());
     };
     let error = expected.minus(map).max_abs_arcsec();

@@ -7,7 +7,7 @@
 //!
 //! # Interpolation
 //! Between grid points the map is interpolated **linearly and periodically**
-//! ([`ErrorMap::eval_linear`]), as a controller loading `calib export`'s look-up table does, so
+//! ([`ErrorMap::eval_linear`](crate::ErrorMap::eval_linear)), as a controller loading `calib export`'s look-up table does, so
 //! corrected logs match what the corrected machine will read. The table's own resolution decides
 //! the accuracy: for a harmonic of order `h` and amplitude `A` on a grid of step `Δ = 2π/N`,
 //! linear interpolation errs by at most `A·(hΔ)²/8` between points (0.05″ for 24″ at order 72 on
@@ -15,7 +15,7 @@
 //! interpolation, is the cure for a coarse one: `calib csrr --points N`.
 //!
 //! # Range maps
-//! A [`RangeMap`] (a joint that never turns a whole revolution) corrects only the readings inside
+//! A [`RangeMap`](crate::RangeMap) (a joint that never turns a whole revolution) corrects only the readings inside
 //! its range, interpolated linearly there; a reading outside it is returned unchanged, bit for
 //! bit, and counted ([`Correction::outside`]) so the caller can say how many were left alone.
 //! Nothing is extrapolated.
@@ -28,8 +28,8 @@
 //! across it (359.9999° + 0.5″ → 0.0001°), and the corrected value is wrapped back into the
 //! channel's range; accumulated readings are never wrapped.
 
+use crate::TableMap;
 use crate::angle::AngleUnit;
-use crate::{ErrorMap, RangeMap};
 use std::cell::Cell;
 
 /// How a channel's readings are wrapped, in revolutions of its unit (360 for degrees, 2π for
@@ -101,7 +101,7 @@ fn revolution(unit: AngleUnit) -> f64 {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct Correction {
-    map: Lookup,
+    map: TableMap,
     /// Readings outside a range map's range, left unchanged.
     outside: Cell<u64>,
     unit: AngleUnit,
@@ -110,23 +110,21 @@ pub struct Correction {
     wrapping: Wrapping,
 }
 
-/// The map a [`Correction`] looks the error up in.
-#[derive(Debug, Clone, PartialEq)]
-enum Lookup {
-    Turn(ErrorMap),
-    Range(RangeMap),
-}
-
 impl Correction {
     /// The unit of the readings corrected.
     pub fn unit(&self) -> AngleUnit {
         self.unit
     }
 
-    /// Corrects readings in `unit`, wrapped as `wrapping` says, with `map`.
-    pub fn new(map: ErrorMap, unit: AngleUnit, wrapping: Wrapping) -> Self {
+    /// Corrects readings in `unit`, wrapped as `wrapping` says, with `map` (an [`ErrorMap`] or a
+    /// [`RangeMap`], or a [`TableMap`] of either): every reading for a whole-turn map, the
+    /// readings inside its range for a range map (see [Range maps](self#range-maps)).
+    ///
+    /// [`ErrorMap`]: crate::ErrorMap
+    /// [`RangeMap`]: crate::RangeMap
+    pub fn new(map: impl Into<TableMap>, unit: AngleUnit, wrapping: Wrapping) -> Self {
         Correction {
-            map: Lookup::Turn(map),
+            map: map.into(),
             outside: Cell::new(0),
             unit,
             rev: revolution(unit),
@@ -134,28 +132,13 @@ impl Correction {
         }
     }
 
-    /// Corrects readings in `unit` inside the range of `map`, leaving the others unchanged (see
-    /// [Range maps](self#range-maps)).
-    pub fn with_range(map: RangeMap, unit: AngleUnit, wrapping: Wrapping) -> Self {
-        Correction {
-            map: Lookup::Range(map),
-            ..Correction::new(ErrorMap::new(vec![0.0]), unit, wrapping)
-        }
-    }
-
     /// The corrected reading `x − e(x)` (see the [module docs](self)), in the reading's unit,
     /// wrapped as the channel is; a reading outside a range map's range comes back unchanged.
     pub fn apply(&self, x: f64) -> f64 {
         let theta = self.unit.to_rad(x);
-        let e = match &self.map {
-            Lookup::Turn(m) => m.eval_linear(theta),
-            Lookup::Range(m) => match m.eval_linear(theta) {
-                Some(e) => e,
-                None => {
-                    self.outside.set(self.outside.get() + 1);
-                    return x;
-                }
-            },
+        let Some(e) = self.map.eval_linear(theta) else {
+            self.outside.set(self.outside.get() + 1);
+            return x;
         };
         self.wrapping.wrap(x - self.unit.from_rad(e), self.rev)
     }
@@ -171,7 +154,7 @@ impl Correction {
 mod tests {
     use super::*;
     use crate::angle::ARCSEC_PER_RAD;
-    use crate::{FourierSeries, Harmonic};
+    use crate::{ErrorMap, FourierSeries, Harmonic, RangeMap};
     use std::f64::consts::{PI, TAU};
 
     #[test]
@@ -271,7 +254,7 @@ mod tests {
             vec![10.0 / ARCSEC_PER_RAD, -10.0 / ARCSEC_PER_RAD],
         )
         .unwrap();
-        let fix = Correction::with_range(map, AngleUnit::Deg, Wrapping::Positive);
+        let fix = Correction::new(map, AngleUnit::Deg, Wrapping::Positive);
         assert!(((fix.apply(90.0) - 90.0) * 3600.0 + 10.0).abs() < 1e-9);
         assert!(((fix.apply(135.0) - 135.0) * 3600.0).abs() < 1e-9);
         assert_eq!(fix.outside(), 0);

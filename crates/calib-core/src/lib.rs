@@ -7,7 +7,8 @@
 //! - [`angle`]: radians inside, [`AngleUnit`] conversions at the edges, [`Unwrapper`].
 //! - [`sample`]: [`Sample`]s of named [`Channel`]s.
 //! - [`ErrorMap`]: a sensor's error over one revolution of its own reading; [`FourierSeries`] and
-//!   [`Harmonic`]s in the convention `amplitude·cos(h·θ + phase)`.
+//!   [`Harmonic`]s in the convention `amplitude·cos(h·θ + phase)`; [`RangeMap`] over part of a
+//!   revolution; [`TableMap`], either of them: what a correction table holds.
 //! - [`Report`]: what `report.json` holds, assembled by [`Report::new`] from a method result's
 //!   `report_section` ([`report`], one module per method).
 //! - [`shift_angle`]: cross-calibration of an encoder with a polygon and an autocollimator at
@@ -94,6 +95,7 @@ pub mod sample;
 pub mod segment;
 pub mod shift_angle;
 pub mod simulate;
+pub mod table_map;
 pub mod tdr;
 pub mod uncertainty;
 
@@ -103,3 +105,4 @@ pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
 pub use range_map::RangeMap;
 pub use report::{ChannelReport, Report, SessionReport};
 pub use sample::{Channel, Sample, SampleBatch, SampleRef};
+pub use table_map::TableMap;

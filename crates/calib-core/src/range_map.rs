@@ -151,6 +151,34 @@ impl RangeMap {
         Some(self.values[i] * (1.0 - f) + self.values[i + 1] * f)
     }
 
+    /// This map on `points ≥ 2` grid points over the same range by linear interpolation, both
+    /// ends kept and nothing wrapped (the two ends of a range are different readings); the mean
+    /// of the new values is removed, as [`RangeMap::new`] does. `points < 2` is taken as 2.
+    pub fn resample_linear(&self, points: usize) -> RangeMap {
+        let n = points.max(2);
+        if n == self.values.len() {
+            return self.clone();
+        }
+        let v = &self.values;
+        let last = v.len() - 1;
+        let values = (0..n)
+            .map(|i| {
+                let x = i as f64 * last as f64 / (n - 1) as f64;
+                let j = (x.floor() as usize).min(last - 1);
+                let f = x - j as f64;
+                v[j] + f * (v[j + 1] - v[j])
+            })
+            .collect();
+        let mut map = RangeMap {
+            start: self.start,
+            step: self.span() / (n - 1) as f64,
+            values,
+        };
+        let mean = map.values.iter().sum::<f64>() / n as f64;
+        map.values.iter_mut().for_each(|v| *v -= mean);
+        map
+    }
+
     /// Peak-to-peak value, radians.
     pub fn peak_to_peak(&self) -> f64 {
         let max = self

@@ -44,11 +44,12 @@
 //! period shorter than about twice their spacing (MagAlpha's 200 points see orders up to ~50),
 //! and the reference's own error, as with any reference calibration.
 
+use crate::TableMap;
 use crate::angle::{wrap_2pi, wrap_pi};
 use crate::error_map::ErrorMap;
 use crate::range_map::RangeMap;
 use crate::reference_cal::{
-    PointStats, ReferenceCalibration, ReferenceError, TableMap, TargetStats, iso_230_2,
+    PointStats, ReferenceCalibration, ReferenceError, TargetStats, iso_230_2,
 };
 use std::f64::consts::TAU;
 

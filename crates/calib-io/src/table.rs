@@ -36,7 +36,7 @@
 //! 15.000000,…
 //! ```
 //!
-//! The `# range_deg:` line is what makes a table a range table ([`read_any_table`]); a table
+//! The `# range_deg:` line is what makes a table a range table ([`read_table`]); a table
 //! without it is a whole-turn table and must follow the whole-turn grid above, so a whole-turn
 //! table with rows missing is still an error, never mistaken for a range. A range across the
 //! reading 0 is written from a negative `lo` (−30° to 30° for a joint swept from −30° to +30°,
@@ -55,7 +55,7 @@ use crate::csv_log::{
 use crate::error::csv_error;
 use crate::limits::MAX_TABLE_POINTS;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::{ErrorMap, RangeMap};
+use calib_core::{ErrorMap, RangeMap, TableMap};
 use csv::ByteRecord;
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -76,30 +76,13 @@ pub const RANGE_GRID_TOLERANCE_DEG: f64 = 2.0 * GRID_TOLERANCE_DEG;
 /// The marker line of a range table, before its numbers.
 const RANGE_MARKER: &str = "# range_deg:";
 
-/// A range table read back ([`read_any_table`]).
+/// A correction table read back: its map and, where the table has them, the standard
+/// uncertainties of its points. [`read_table`] gives either kind (`M` a [`TableMap`]);
+/// [`read_turn_table`] a whole turn (`M` an [`ErrorMap`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct RangeTable {
-    /// The error map over the range (radians, zero mean over the range).
-    pub map: RangeMap,
-    /// One standard uncertainty per grid point (radians), if the table has a `u_arcsec` column.
-    pub u: Option<Vec<f64>>,
-}
-
-/// A correction table of either kind.
-#[derive(Debug, Clone, PartialEq)]
-pub enum AnyTable {
-    /// A whole revolution.
-    Turn(CorrectionTable),
-    /// Part of a revolution.
-    Range(RangeTable),
-}
-
-/// A correction table read back: the error map and, where the table has them, the standard
-/// uncertainties of its points.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CorrectionTable {
-    /// The error map (radians, zero mean) on the table's grid.
-    pub map: ErrorMap,
+pub struct Table<M = TableMap> {
+    /// The error map (radians, zero mean over its turn or range) on the table's grid.
+    pub map: M,
     /// One standard uncertainty per grid point (radians), if the table has a `u_arcsec` column.
     pub u: Option<Vec<f64>>,
 }
@@ -167,15 +150,17 @@ fn check_values(values: &[f64], what: &'static str, non_negative: bool) -> Resul
     Ok(())
 }
 
-/// Renders a correction table (see the [module docs](self) for the format and precision).
+/// Renders a correction table (see the [module docs](self) for the format and precision): a
+/// whole-turn table, or a range table (see [Range tables](self#range-tables)) with its
+/// `# range_deg:` line.
 ///
 /// `u`, if given, holds one standard uncertainty per grid point in radians. Pure: the same input
 /// always gives the same text.
 ///
 /// ```
-/// use calib_core::{ErrorMap, angle::ARCSEC_PER_RAD};
+/// use calib_core::{ErrorMap, TableMap, angle::ARCSEC_PER_RAD};
 /// let map = ErrorMap::new(vec![1.5 / ARCSEC_PER_RAD, -1.5 / ARCSEC_PER_RAD]);
-/// let text = calib_io::table::render_table(&map, None)?;
+/// let text = calib_io::table::render_table(&TableMap::from(map), None)?;
 /// assert_eq!(
 ///     text,
 ///     "angle_deg,error_arcsec,correction_arcsec\n\
@@ -184,10 +169,18 @@ fn check_values(values: &[f64], what: &'static str, non_negative: bool) -> Resul
 /// );
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-pub fn render_table(map: &ErrorMap, u: Option<&[f64]>) -> Result<String, RenderError> {
+pub fn render_table(map: &TableMap, u: Option<&[f64]>) -> Result<String, RenderError> {
     let n = map.len();
-    let mut out = String::with_capacity(48 * (n + 1));
-    push_rows(&mut out, map.values(), u, |i| grid_deg(i, n))?;
+    let mut out = String::with_capacity(48 * (n + 2));
+    if let Some((lo, hi)) = map.range_deg() {
+        out.push_str(RANGE_MARKER);
+        out.push(' ');
+        push_fixed(&mut out, lo);
+        out.push_str(" to ");
+        push_fixed(&mut out, hi);
+        out.push_str(" (a range table: it holds the error between these readings only)\n");
+    }
+    push_rows(&mut out, map.values(), u, |i| map.grid_deg(i, n))?;
     Ok(out)
 }
 
@@ -232,29 +225,11 @@ fn push_rows(
     Ok(())
 }
 
-/// Renders a range table (see [Range tables](self#range-tables)): the `# range_deg:` line, then
-/// the rows of `map`'s grid as [`render_table`] writes them.
-pub fn render_range_table(map: &RangeMap, u: Option<&[f64]>) -> Result<String, RenderError> {
-    let n = map.len();
-    let (lo, hi) = map.ends_deg();
-    let mut out = String::with_capacity(48 * (n + 2));
-    out.push_str(RANGE_MARKER);
-    out.push(' ');
-    push_fixed(&mut out, lo);
-    out.push_str(" to ");
-    push_fixed(&mut out, hi);
-    out.push_str(" (a range table: it holds the error between these readings only)\n");
-    push_rows(&mut out, map.values(), u, |i| {
-        lo + (hi - lo) * i as f64 / (n - 1) as f64
-    })?;
-    Ok(out)
-}
-
 /// Writes a correction table atomically: the file appears complete or not at all.
 ///
 /// `u` as for [`render_table`]; a map or `u` it refuses is reported as [`Error::Write`] naming
 /// `path`, and nothing is written.
-pub fn write_table(path: &Path, map: &ErrorMap, u: Option<&[f64]>) -> Result<(), Error> {
+pub fn write_table(path: &Path, map: &TableMap, u: Option<&[f64]>) -> Result<(), Error> {
     let text = render_table(map, u).map_err(|e| Error::Write {
         path: path.to_path_buf(),
         message: e.to_string(),
@@ -268,7 +243,8 @@ pub fn write_table(path: &Path, map: &ErrorMap, u: Option<&[f64]>) -> Result<(),
     file.commit()
 }
 
-/// Reads and validates a correction table.
+/// Reads and validates a whole-turn correction table: [`read_table`], with a range table an
+/// error saying that this use needs a whole turn.
 ///
 /// Checks, with an error naming the file, line and column for each: the header (the three
 /// columns, optionally `u_arcsec`, in any order, nothing else), numbers in every field, finite
@@ -276,18 +252,19 @@ pub fn write_table(path: &Path, map: &ErrorMap, u: Option<&[f64]>) -> Result<(),
 /// the two fields as written, at least 2 rows, and angles on the uniform grid `i·360/N` starting
 /// at 0 (within [`GRID_TOLERANCE_DEG`]). A grid that is off says how: not starting at 0°, 360°
 /// repeating 0°, uneven steps, or an even step that does not make up one revolution.
-pub fn read_table(path: &Path) -> Result<CorrectionTable, Error> {
-    match read_any_table(path)? {
-        AnyTable::Turn(t) => Ok(t),
-        AnyTable::Range(t) => Err(Error::Csv {
+pub fn read_turn_table(path: &Path) -> Result<Table<ErrorMap>, Error> {
+    let table = read_table(path)?;
+    match table.map {
+        TableMap::Turn(map) => Ok(Table { map, u: table.u }),
+        TableMap::Range(m) => Err(Error::Csv {
             path: path.to_path_buf(),
             line: 1,
             channel: None,
             message: format!(
                 "this is a range table ({:.6}° to {:.6}°, from a joint that never turned a whole revolution); this \
                  use needs a whole-turn table: calibrate over whole revolutions",
-                t.map.start().to_degrees(),
-                t.map.end().to_degrees()
+                m.start().to_degrees(),
+                m.end().to_degrees()
             ),
         }),
     }
@@ -351,9 +328,9 @@ fn range_marker(path: &Path) -> Result<Option<(f64, f64, u64)>, Error> {
 
 /// Reads and validates a correction table of either kind: a range table if it has the
 /// `# range_deg:` line (see [Range tables](self#range-tables)), else a whole-turn table, checked
-/// as [`read_table`] says. A range table's rows must be its grid from `lo` to `hi` (both
+/// as [`read_turn_table`] says. A range table's rows must be its grid from `lo` to `hi` (both
 /// included, within [`RANGE_GRID_TOLERANCE_DEG`]); the other checks are the same.
-pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
+pub fn read_table(path: &Path) -> Result<Table, Error> {
     let marker = range_marker(path)?;
     let file = std::fs::File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
@@ -371,10 +348,8 @@ pub fn read_any_table(path: &Path) -> Result<AnyTable, Error> {
     let columns = read_columns(path, &mut reader)?;
     let rows = read_rows(path, &mut reader, &columns)?;
     match marker {
-        Some((lo, hi, marker_line)) => {
-            range_grid(path, rows, (lo, hi), marker_line).map(AnyTable::Range)
-        }
-        None => turn_grid(path, rows).map(AnyTable::Turn),
+        Some((lo, hi, marker_line)) => range_grid(path, rows, (lo, hi), marker_line),
+        None => turn_grid(path, rows),
     }
 }
 
@@ -593,7 +568,7 @@ fn range_grid(
     rows: Rows,
     (lo, hi): (f64, f64),
     marker_line: u64,
-) -> Result<RangeTable, Error> {
+) -> Result<Table, Error> {
     let angles = &rows.angles;
     let n = angles.len();
     let at = |i: usize| lo + (hi - lo) * i as f64 / (n - 1) as f64;
@@ -626,11 +601,14 @@ fn range_grid(
     let step = (hi - lo) / (n - 1) as f64;
     let map = RangeMap::new(lo.to_radians(), step.to_radians(), rows.errors)
         .map_err(|e| csv_error(path, marker_line, None, e.to_string()))?;
-    Ok(RangeTable { map, u: rows.u })
+    Ok(Table {
+        map: TableMap::Range(map),
+        u: rows.u,
+    })
 }
 
 /// A whole-turn table from its rows, which must lie on the grid `i·360/N` from 0.
-fn turn_grid(path: &Path, rows: Rows) -> Result<CorrectionTable, Error> {
+fn turn_grid(path: &Path, rows: Rows) -> Result<Table, Error> {
     let angles = &rows.angles;
     let n = angles.len();
     if let Some(i) = (0..n).find(|&i| (angles[i] - grid_deg(i, n)).abs() > GRID_TOLERANCE_DEG) {
@@ -642,8 +620,8 @@ fn turn_grid(path: &Path, rows: Rows) -> Result<CorrectionTable, Error> {
             message,
         ));
     }
-    Ok(CorrectionTable {
-        map: ErrorMap::new(rows.errors),
+    Ok(Table {
+        map: TableMap::Turn(ErrorMap::new(rows.errors)),
         u: rows.u,
     })
 }
@@ -734,7 +712,7 @@ fn grid_deg(i: usize, n: usize) -> f64 {
 
 /// Appends `x` with 6 decimals, never as `-0.000000`: a value that rounds to zero is written the
 /// same whatever its sign, so a map and its negation render symmetrically.
-fn push_fixed(out: &mut String, x: f64) {
+pub(crate) fn push_fixed(out: &mut String, x: f64) {
     let start = out.len();
     // Writing into a String cannot fail.
     let _ = write!(out, "{x:.6}");
@@ -783,7 +761,7 @@ mod tests {
             let _ = writeln!(text, "{:.6},0,0", grid_deg(i, n));
         }
         std::fs::write(&path, text).unwrap();
-        let err = read_any_table(&path).unwrap_err().to_string();
+        let err = read_table(&path).unwrap_err().to_string();
         assert!(
             err.contains(&format!("line {}", n + 1)) && err.contains("resample it"),
             "{err}"

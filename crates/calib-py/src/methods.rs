@@ -7,11 +7,10 @@
 use crate::errors::{check_non_negative, check_points, check_range, data, usage};
 use crate::logs::{LogOptions, alignment, for_each_sample, open, reopen};
 use calib_core::Report;
+use calib_core::TableMap;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::csrr::{Csrr, CsrrError, CsrrOptions, Method};
-use calib_core::reference_cal::{
-    Latency, ReferenceCal, ReferenceKind, ReferenceOptions, TableMap, Targets,
-};
+use calib_core::reference_cal::{Latency, ReferenceCal, ReferenceKind, ReferenceOptions, Targets};
 use calib_core::report::ReportSection;
 use calib_core::segment::SegmentOptions;
 use numpy::{PyArray1, PyReadonlyArray1};

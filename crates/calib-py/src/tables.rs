@@ -3,14 +3,13 @@
 //! A table crosses into Python as its errors in arcseconds on a uniform grid, its standard
 //! uncertainties where known, and its range: none for a whole turn (the grid `i·360°/N`), or the
 //! first and last grid readings in degrees (`lo + (hi − lo)·i/(N − 1)`, signed across the
-//! reading 0 as the CSV table writes them). Inside, an [`ErrorMap`] or a [`RangeMap`] in radians.
+//! reading 0 as the CSV table writes them). Inside, a [`TableMap`] in radians.
 
 use crate::errors::{check_points, data, usage};
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::range_map::RangeMap;
-use calib_core::{ErrorMap, compose::compose_uncertainty};
-use calib_io::export::{ExportOptions, Format, Keep, Span};
-use calib_io::table::AnyTable;
+use calib_core::{ErrorMap, TableMap, compose::compose_uncertainty};
+use calib_io::export::{ExportOptions, Format, Keep};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -51,36 +50,21 @@ fn map_of(errors_arcsec: &[f64]) -> PyResult<ErrorMap> {
 }
 
 /// A table's map: a whole turn, or the range `(lo, hi)` (degrees, both ends grid points).
-enum AnyMap {
-    Turn(ErrorMap),
-    Range(RangeMap),
-}
-
-impl AnyMap {
-    fn of(errors_arcsec: &[f64], range_deg: Option<(f64, f64)>) -> PyResult<Self> {
-        let values = radians_of(errors_arcsec)?;
-        let Some((lo, hi)) = range_deg else {
-            return Ok(Self::Turn(ErrorMap::new(values)));
-        };
-        if !(lo.is_finite() && hi.is_finite() && hi > lo) {
-            return Err(usage(format!(
-                "range_deg=({lo}, {hi}) is not a range: give (first, last) grid readings in \
+fn table_map(errors_arcsec: &[f64], range_deg: Option<(f64, f64)>) -> PyResult<TableMap> {
+    let values = radians_of(errors_arcsec)?;
+    let Some((lo, hi)) = range_deg else {
+        return Ok(TableMap::Turn(ErrorMap::new(values)));
+    };
+    if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+        return Err(usage(format!(
+            "range_deg=({lo}, {hi}) is not a range: give (first, last) grid readings in \
                  degrees, first < last"
-            )));
-        }
-        let step = (hi - lo).to_radians() / (values.len() - 1) as f64;
-        RangeMap::new(lo.to_radians(), step, values)
-            .map(Self::Range)
-            .map_err(|e| usage(format!("range_deg=({lo}, {hi}): {e}")))
+        )));
     }
-
-    /// `r − e(r)`; a range map leaves readings outside its range unchanged, as `calib apply`.
-    fn correct(&self, r: f64) -> f64 {
-        match self {
-            Self::Turn(m) => r - m.eval_linear(r),
-            Self::Range(m) => m.eval_linear(r).map_or(r, |e| r - e),
-        }
-    }
+    let step = (hi - lo).to_radians() / (values.len() - 1) as f64;
+    RangeMap::new(lo.to_radians(), step, values)
+        .map(TableMap::Range)
+        .map_err(|e| usage(format!("range_deg=({lo}, {hi}): {e}")))
 }
 
 /// Arcseconds of radians.
@@ -106,15 +90,11 @@ pub fn read_table(py: Python<'_>, path: PathBuf) -> PyResult<Columns<'_>> {
             path.display()
         )));
     }
-    let table = calib_io::table::read_any_table(&path).map_err(|e| data(e.to_string()))?;
-    let (values, u, range) = match &table {
-        AnyTable::Turn(t) => (t.map.values(), &t.u, None),
-        AnyTable::Range(t) => (t.map.values(), &t.u, Some(t.map.ends_deg())),
-    };
+    let table = calib_io::table::read_table(&path).map_err(|e| data(e.to_string()))?;
     Ok((
-        PyArray1::from_vec(py, arcsec(values)),
-        u.as_ref().map(|u| PyArray1::from_vec(py, arcsec(u))),
-        range,
+        PyArray1::from_vec(py, arcsec(table.map.values())),
+        table.u.as_ref().map(|u| PyArray1::from_vec(py, arcsec(u))),
+        table.map.range_deg(),
     ))
 }
 
@@ -128,18 +108,15 @@ pub fn write_table(
     u_arcsec: Option<PyReadonlyArray1<'_, f64>>,
     range_deg: Option<(f64, f64)>,
 ) -> PyResult<()> {
-    let map = AnyMap::of(error_arcsec.as_slice()?, range_deg)?;
+    let map = table_map(error_arcsec.as_slice()?, range_deg)?;
     let u: Option<Vec<f64>> = u_arcsec
         .map(|u| {
             u.as_slice()
                 .map(|u| u.iter().map(|v| v / ARCSEC_PER_RAD).collect())
         })
         .transpose()?;
-    let text = match &map {
-        AnyMap::Turn(m) => calib_io::table::render_table(m, u.as_deref()),
-        AnyMap::Range(m) => calib_io::table::render_range_table(m, u.as_deref()),
-    }
-    .map_err(|e| usage(format!("{}: {e}", path.display())))?;
+    let text = calib_io::table::render_table(&map, u.as_deref())
+        .map_err(|e| usage(format!("{}: {e}", path.display())))?;
     calib_io::atomic::write_atomic(&path, text.as_bytes())
         .map_err(|e| data(format!("cannot write {}: {e}", path.display())))
 }
@@ -155,9 +132,14 @@ pub fn correct<'py>(
     readings: PyReadonlyArray1<'py, f64>,
     range_deg: Option<(f64, f64)>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let map = AnyMap::of(error_arcsec.as_slice()?, range_deg)?;
+    let map = table_map(error_arcsec.as_slice()?, range_deg)?;
     let r = readings.as_slice()?;
-    let out: Vec<f64> = py.detach(|| r.iter().map(|&x| map.correct(x)).collect());
+    // `r − e(r)`; a range map leaves readings outside its range unchanged, as `calib apply`.
+    let out: Vec<f64> = py.detach(|| {
+        r.iter()
+            .map(|&x| map.eval_linear(x).map_or(x, |e| x - e))
+            .collect()
+    });
     Ok(PyArray1::from_vec(py, out))
 }
 
@@ -177,18 +159,8 @@ pub fn export(
     moteus_source: u8,
     title: String,
 ) -> PyResult<(String, Vec<String>)> {
-    // As `calib export`: the values on their grid, and the span that every format needing a
-    // whole turn refuses.
-    let (map, span) = match AnyMap::of(error_arcsec.as_slice()?, range_deg)? {
-        AnyMap::Turn(m) => (m, Span::WHOLE),
-        AnyMap::Range(m) => {
-            let (start_deg, end_deg) = (m.start().to_degrees(), m.end().to_degrees());
-            (
-                ErrorMap::new(m.values().to_vec()),
-                Span { start_deg, end_deg },
-            )
-        }
-    };
+    // As `calib export`: every format that needs a whole turn refuses a range.
+    let map = table_map(error_arcsec.as_slice()?, range_deg)?;
     let Some(&format) = FORMATS.iter().find(|f| f.name() == format) else {
         let names: Vec<&str> = FORMATS.iter().map(|f| f.name()).collect();
         return Err(usage(format!(
@@ -214,7 +186,6 @@ pub fn export(
         keep,
         min_amplitude_arcsec: min_amplitude,
         moteus_source,
-        span,
         ..ExportOptions::new(format, title)
     };
     let out = calib_io::export::export(&map, &opts).map_err(|e| usage(e.to_string()))?;

@@ -314,7 +314,7 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
 fn read_truth(dir: &Path, args: &Args) -> anyhow::Result<(ErrorMap, ErrorMap)> {
     let read = |name: &str| {
         let path = dir.join(table_name(name));
-        calib_io::table::read_table(&path)
+        calib_io::table::read_turn_table(&path)
             .map(|t| t.map)
             .with_context(|| format!("--truth: cannot read the truth of `{name}`"))
     };

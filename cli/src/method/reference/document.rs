@@ -2,8 +2,9 @@
 
 use crate::document::{arcsec, harmonics_table, num, provenance};
 use calib_core::Report;
+use calib_core::TableMap;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{PointStats, ReferenceCalibration, Ripple, TableMap};
+use calib_core::reference_cal::{PointStats, ReferenceCalibration, Ripple};
 use calib_report::iso230::{self, Direction, Target};
 use calib_report::plots::{self, MapLayers, OrderMarks};
 use calib_report::{Axis, Chart, Colour, Document, Figure, Mark, Section, Series, Table};

@@ -12,7 +12,7 @@ use crate::reference_table::ReferenceTable;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
-    Latency, ReferenceCal, ReferenceError, ReferenceKind, ReferenceOptions, TableMap, Targets,
+    Latency, ReferenceCal, ReferenceError, ReferenceKind, ReferenceOptions, Targets,
 };
 use calib_core::reference_points::{Approach, PointOptions, calibrate_points_with_directions};
 use calib_io::{LogReader, ReadOptions};
@@ -422,11 +422,8 @@ fn calibrate(
             .map_err(|e| in_log(e, &reader, log))?;
         (cal, reader, None)
     };
-    let table = match &cal.map {
-        TableMap::Turn(m) => calib_io::table::render_table(m, Some(&cal.u)),
-        TableMap::Range(m) => calib_io::table::render_range_table(m, Some(&cal.u)),
-    }
-    .with_context(|| format!("the table of channel `{}`", args.dut))?;
+    let table = calib_io::table::render_table(&cal.map, Some(&cal.u))
+        .with_context(|| format!("the table of channel `{}`", args.dut))?;
     let results = Results {
         section: cal.report_section(
             &args.dut,

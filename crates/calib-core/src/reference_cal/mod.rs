@@ -118,6 +118,7 @@ pub use ripple::{Ripple, RippleTerm};
 use crate::angle::{ARCSEC_PER_RAD, Unwrapper, wrap_2pi};
 use crate::error_map::ErrorMap;
 use crate::range_map::RangeMap;
+use crate::table_map::TableMap;
 use latency::Crossing;
 use quantum::QuantumTracker;
 use std::f64::consts::{PI, TAU};
@@ -362,61 +363,6 @@ impl Iso230_2 {
             ("accuracy_down", a(self.accuracy_down)),
             ("accuracy", a(self.accuracy)),
         ]
-    }
-}
-
-/// A calibrated map: over a whole turn, or over the range of readings the run covered.
-#[derive(Debug, Clone, PartialEq)]
-pub enum TableMap {
-    /// A whole revolution (possibly with a small gap bridged, see [`Gap`]).
-    Turn(ErrorMap),
-    /// Part of a revolution: the DUT never covered a whole turn.
-    Range(RangeMap),
-}
-
-impl TableMap {
-    /// The values on the grid, radians.
-    pub fn values(&self) -> &[f64] {
-        match self {
-            TableMap::Turn(m) => m.values(),
-            TableMap::Range(m) => m.values(),
-        }
-    }
-    /// Number of grid points.
-    pub fn len(&self) -> usize {
-        self.values().len()
-    }
-    /// Always false: a map has at least one point.
-    pub fn is_empty(&self) -> bool {
-        false
-    }
-    /// Grid angle of point `i`, radians.
-    pub fn grid_angle(&self, i: usize) -> f64 {
-        match self {
-            TableMap::Turn(m) => m.grid_angle(i),
-            TableMap::Range(m) => m.grid_angle(i),
-        }
-    }
-    /// Peak-to-peak value, radians.
-    pub fn peak_to_peak(&self) -> f64 {
-        match self {
-            TableMap::Turn(m) => m.peak_to_peak(),
-            TableMap::Range(m) => m.peak_to_peak(),
-        }
-    }
-    /// Root mean square, radians.
-    pub fn rms(&self) -> f64 {
-        match self {
-            TableMap::Turn(m) => m.rms(),
-            TableMap::Range(m) => m.rms(),
-        }
-    }
-    /// The range `(start, end)`, radians, of a range map; `None` for a whole turn.
-    pub fn range(&self) -> Option<(f64, f64)> {
-        match self {
-            TableMap::Turn(_) => None,
-            TableMap::Range(m) => Some((m.start(), m.end())),
-        }
     }
 }
 

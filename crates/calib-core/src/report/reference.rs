@@ -1,7 +1,8 @@
 //! The report section of a calibration against a reference encoder ([`crate::reference_cal`]).
 
 use super::{AfterCorrection, ChannelReport, Details, ReportSection, arcsec, table_name};
-use crate::reference_cal::{LatencySource, PointStats, ReferenceCalibration, TableMap};
+use crate::TableMap;
+use crate::reference_cal::{LatencySource, PointStats, ReferenceCalibration};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

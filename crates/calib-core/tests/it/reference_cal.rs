@@ -1,10 +1,9 @@
 //! Reference calibration against synthetic runs with a known truth (fixed seed): the map, the
 //! ISO 230-2 figures, the uncertainty, and the refusals.
 
+use calib_core::TableMap;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{
-    ReferenceCal, ReferenceError, ReferenceOptions, TableMap, Targets,
-};
+use calib_core::reference_cal::{ReferenceCal, ReferenceError, ReferenceOptions, Targets};
 use calib_core::{FourierSeries, Harmonic};
 use std::f64::consts::TAU;
 

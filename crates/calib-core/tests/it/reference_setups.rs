@@ -2,9 +2,10 @@
 //! scenarios under `testdata/scenarios/`: a lag between the channels, backlash at the ends of a
 //! swept range, and an open-loop (commanded) reference with the motor's ripple.
 
+use calib_core::TableMap;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
-    LatencySource, ReferenceCal, ReferenceCalibration, ReferenceKind, ReferenceOptions, TableMap,
+    LatencySource, ReferenceCal, ReferenceCalibration, ReferenceKind, ReferenceOptions,
 };
 use calib_core::simulate::Scenario;
 

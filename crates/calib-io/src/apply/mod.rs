@@ -41,7 +41,7 @@ use crate::log::LogFormat;
 use crate::mcap_log::read::PARALLEL_CHUNKS;
 use crate::{DamagedChunk, Error, Truncation};
 use calib_core::correction::{Correction, Wrapping};
-use calib_core::{AngleUnit, ErrorMap, RangeMap};
+use calib_core::{AngleUnit, TableMap};
 use std::path::Path;
 
 /// What to correct and how.
@@ -106,15 +106,6 @@ pub struct Applied {
     pub beside: Vec<String>,
 }
 
-/// The map [`apply_map`] corrects with.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum MapRef<'a> {
-    /// A whole-turn map: every reading is corrected.
-    Turn(&'a ErrorMap),
-    /// A range map: readings inside its range are corrected, the others copied unchanged.
-    Range(&'a RangeMap),
-}
-
 /// The readings of the channel a first pass over a log finds ([`scan`]): what decides their
 /// wrapping, and what a caller checks their unit against before anything is written.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -152,7 +143,8 @@ impl Readings {
 }
 
 /// Writes `output`: the log at `input` with channel `opts.channel` corrected by `map` (see the
-/// [module docs](self)).
+/// [module docs](self)): a whole-turn map corrects every reading; a range map the readings inside
+/// its range, the others copied unchanged and counted in [`Applied::outside`].
 ///
 /// `output` must have the input's format (`.csv` or `.mcap`) and must not be `input` itself,
 /// which the caller checks (the rename would replace the log being read). Errors name the file,
@@ -162,10 +154,12 @@ impl Readings {
 pub fn apply(
     input: &Path,
     output: &Path,
-    map: &ErrorMap,
+    map: &TableMap,
     opts: &ApplyOptions,
 ) -> Result<Applied, Error> {
-    apply_map(input, output, MapRef::Turn(map), opts)
+    formats(input, output)?;
+    let range = scan(input, opts)?;
+    apply_scanned(input, output, map, opts, &range)
 }
 
 /// The error of `apply` on a rosbag2 bag, which calib reads but does not write.
@@ -199,20 +193,7 @@ fn formats(input: &Path, output: &Path) -> Result<LogFormat, Error> {
     Ok(format)
 }
 
-/// [`apply`] with a whole-turn or a range map; with a range map the readings outside its range
-/// are copied unchanged and counted in [`Applied::outside`].
-pub fn apply_map(
-    input: &Path,
-    output: &Path,
-    map: MapRef<'_>,
-    opts: &ApplyOptions,
-) -> Result<Applied, Error> {
-    formats(input, output)?;
-    let range = scan(input, opts)?;
-    apply_scanned(input, output, map, opts, &range)
-}
-
-/// The first pass of [`apply_map`] over `input`: the readings of `opts.channel`. An error if the
+/// The first pass of [`apply`] over `input`: the readings of `opts.channel`. An error if the
 /// log is a bag, or holds no readings of the channel.
 pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
     let format = LogFormat::detect(input)?;
@@ -257,12 +238,12 @@ pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
     Ok(range)
 }
 
-/// The second pass of [`apply_map`]: writes `output` from `input` with the readings `range`
+/// The second pass of [`apply`]: writes `output` from `input` with the readings `range`
 /// found by [`scan`] (checked by the caller in between).
 pub fn apply_scanned(
     input: &Path,
     output: &Path,
-    map: MapRef<'_>,
+    map: &TableMap,
     opts: &ApplyOptions,
     range: &Readings,
 ) -> Result<Applied, Error> {
@@ -271,10 +252,7 @@ pub fn apply_scanned(
     let wrapping = opts
         .wrapping
         .unwrap_or_else(|| Wrapping::detect(range.min, range.max, range.unit));
-    let fix = |unit| match map {
-        MapRef::Turn(m) => Correction::new(m.clone(), unit, wrapping),
-        MapRef::Range(m) => Correction::with_range(m.clone(), unit, wrapping),
-    };
+    let fix = |unit| Correction::new(map.clone(), unit, wrapping);
     let mut beside = Vec::new();
     let (readings, copied, truncated, outside, damaged_chunks) = match format {
         LogFormat::Csv => {

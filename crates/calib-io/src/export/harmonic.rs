@@ -320,6 +320,7 @@ mod tests {
     use super::*;
     use crate::export::{Format, export};
     use calib_core::Harmonic;
+    use calib_core::TableMap;
 
     /// 10″ at order 3, 2″ at 7, 0.05″ at 40, on 720 points.
     fn table() -> ErrorMap {
@@ -377,7 +378,7 @@ mod tests {
         let mut opts = ExportOptions::new(Format::Csv, "t");
         opts.points = Some(64);
         opts.keep = Keep::Orders(vec![3, 7]);
-        let out = export(&map, &opts).unwrap();
+        let out = export(&TableMap::from(map.clone()), &opts).unwrap();
         let kept = FourierSeries::from_harmonics(
             &[
                 Harmonic::from_arcsec_deg(3, 10.0, 20.0),

@@ -7,15 +7,21 @@
 //! code: `correction = code × scale` (`lut-u16`: `(code − 32768) × scale`), the scale the one
 //! given or the smallest that holds the table, never one that saturates.
 
-use super::{ExportError, ExportOptions, Format, Rendered, corrections, quantize};
-use calib_core::ErrorMap;
+use super::{ExportError, ExportOptions, Format, Rendered, quantize};
+use crate::table::push_fixed;
+use calib_core::TableMap;
 use calib_core::angle::ARCSEC_PER_RAD;
 use std::fmt::Write as _;
 
-/// Renders `target` (errors on the output grid) in one of the generic formats.
-pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered, ExportError> {
+/// Renders `target` (errors in radians, one per entry of the output grid spread over `source`'s
+/// whole turn or range, [`TableMap::grid_deg`]) in one of the generic formats.
+pub(super) fn render(
+    source: &TableMap,
+    target: &[f64],
+    opts: &ExportOptions,
+) -> Result<Rendered, ExportError> {
     let n = target.len();
-    let c = corrections(target);
+    let c: Vec<f64> = target.iter().map(|e| -e * ARCSEC_PER_RAD).collect();
     let mut lines = Vec::new();
     let mut body = String::new();
     // The corrections as the consumer will read them, arcseconds. Writing into a String cannot
@@ -56,19 +62,11 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
             let _ = writeln!(
                 body,
                 "#define CALIB_CORRECTION_STEP_DEG {:e}",
-                opts.span.step(n)
+                source.step_deg(n)
             );
-            if !opts.span.is_whole() {
-                let _ = writeln!(
-                    body,
-                    "#define CALIB_CORRECTION_START_DEG {:e}",
-                    opts.span.start_deg
-                );
-                let _ = writeln!(
-                    body,
-                    "#define CALIB_CORRECTION_END_DEG {:e}",
-                    opts.span.end_deg
-                );
+            if let Some((lo, hi)) = source.range_deg() {
+                let _ = writeln!(body, "#define CALIB_CORRECTION_START_DEG {lo:e}");
+                let _ = writeln!(body, "#define CALIB_CORRECTION_END_DEG {hi:e}");
             }
             let _ = writeln!(
                 body,
@@ -90,7 +88,10 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
             let _ = writeln!(body, "angle_deg,correction_arcsec");
             let written: Vec<String> = c.iter().map(|v| format!("{v:.6}")).collect();
             for (i, v) in written.iter().enumerate() {
-                let _ = writeln!(body, "{:.6},{v}", opts.span.angle(i, n));
+                // As the correction table writes its angles: a grid point at the reading 0 of a
+                // range across it is `0.000000`, never `-0.000000`.
+                push_fixed(&mut body, source.grid_deg(i, n));
+                let _ = writeln!(body, ",{v}");
             }
             written
                 .iter()
@@ -108,8 +109,9 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
 #[cfg(test)]
 mod tests {
     use crate::export::{ExportOptions, Format, export};
+    use calib_core::TableMap;
     use calib_core::angle::ARCSEC_PER_RAD;
-    use calib_core::{ErrorMap, FourierSeries, Harmonic};
+    use calib_core::{ErrorMap, FourierSeries, Harmonic, RangeMap};
 
     /// 10″ at order 3, 2″ at 7 on 360 points: |correction| ≤ 12″.
     fn table() -> ErrorMap {
@@ -129,6 +131,37 @@ mod tests {
     }
 
     #[test]
+    fn a_range_across_zero_is_exported_on_its_tables_signed_grid() {
+        let d = f64::to_radians;
+        // −30°…30° as a range table reads it (330° + 60 steps of 1°), resampled to 31 entries.
+        let values = (0..61).map(|i| f64::from(i) / ARCSEC_PER_RAD).collect();
+        let range = RangeMap::new(d(330.0), d(1.0), values).unwrap();
+        let mut opts = ExportOptions::new(Format::Csv, "t");
+        opts.points = Some(31);
+        let out = export(&TableMap::from(range), &opts).unwrap();
+        let angles: Vec<&str> = out
+            .text
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.starts_with("angle"))
+            .map(|l| l.split(',').next().unwrap())
+            .collect();
+        assert_eq!(angles.len(), 31);
+        assert_eq!(
+            (angles[0], angles[15], angles[30]),
+            ("-30.000000", "0.000000", "30.000000")
+        );
+        assert!(
+            out.header
+                .iter()
+                .any(|l| l.starts_with("range: -30.000000 to 30.000000 deg"))
+        );
+        // Every second point of the 1° grid, mean removed: the line 2i − 30″ (zero mean).
+        for (i, c) in numbers(&out.text).iter().enumerate() {
+            assert!((c + (2.0 * i as f64 - 30.0)).abs() < 1e-6, "entry {i}: {c}");
+        }
+    }
+
+    #[test]
     fn every_generic_table_reads_back_within_its_quantum() {
         let map = table();
         let want: Vec<f64> = map.values().iter().map(|e| -e * ARCSEC_PER_RAD).collect();
@@ -139,7 +172,11 @@ mod tests {
             (Format::LutF32Rad, 0.0),
             (Format::Csv, 0.0),
         ] {
-            let out = export(&map, &ExportOptions::new(format, "t")).unwrap();
+            let out = export(
+                &TableMap::from(map.clone()),
+                &ExportOptions::new(format, "t"),
+            )
+            .unwrap();
             let scale = out
                 .header
                 .iter()

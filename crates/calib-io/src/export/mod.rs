@@ -46,9 +46,9 @@ pub mod lut;
 pub mod moteus;
 pub mod simplefoc;
 
-use calib_core::ErrorMap;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::error_map::interpolate_periodic;
+use calib_core::{ErrorMap, TableMap};
 use std::fmt::Write as _;
 
 pub use harmonic::Keep;
@@ -105,9 +105,11 @@ impl Format {
     /// requires; for SimpleFOC the larger of the driver's default (200) and the smallest size
     /// that holds the map's orders to the firmware's quantum ([`simplefoc::default_points`]);
     /// else the table's own size.
-    pub fn default_points(self, map: &ErrorMap) -> usize {
-        match self {
-            Format::Simplefoc | Format::SimplefocFloat => simplefoc::default_points(map),
+    pub fn default_points(self, map: &TableMap) -> usize {
+        match (self, map) {
+            (Format::Simplefoc | Format::SimplefocFloat, TableMap::Turn(m)) => {
+                simplefoc::default_points(m)
+            }
             _ => self.required_points().unwrap_or(map.len()),
         }
     }
@@ -169,8 +171,6 @@ pub struct ExportOptions {
     /// The first header line, saying what wrote the file from what (e.g. `calib 0.1.0 export
     /// of a.csv`).
     pub title: String,
-    /// The part of a turn the table covers ([`Span::WHOLE`] unless it is a range table).
-    pub span: Span,
 }
 
 impl ExportOptions {
@@ -184,7 +184,6 @@ impl ExportOptions {
             min_amplitude_arcsec: 0.01,
             moteus_source: 0,
             title: title.into(),
-            span: Span::WHOLE,
         }
     }
 }
@@ -348,9 +347,11 @@ pub enum ExportError {
     /// The table does not cover one whole revolution but its consumer interpolates over one.
     #[error(
         "{what} needs a table over one whole turn (it is interpolated periodically over \
-         0–360°), but this is a range table over {start_deg}° to {end_deg}° of the reading (a \
-         joint that never turned a whole revolution); export it as a look-up table (--format \
-         csv, lut-f32-rad, c-array, …) without choosing orders, or calibrate over whole turns"
+         0–360°), but this is a range table over {}° to {}° of the reading (a joint that never \
+         turned a whole revolution); export it as a look-up table (--format csv, lut-f32-rad, \
+         c-array, …) without choosing orders, or calibrate over whole turns",
+        trimmed(*.start_deg),
+        trimmed(*.end_deg)
     )]
     PartialTurn {
         /// What needs it (a format or command).
@@ -362,73 +363,27 @@ pub enum ExportError {
     },
 }
 
-/// The part of a revolution a table covers, in degrees of the reading. Tables read by
-/// [`crate::table::read_table`] cover [`Span::WHOLE`]; a table over part of a turn passes its
-/// own span to [`require_whole_revolution`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Span {
-    /// The first grid point, degrees.
-    pub start_deg: f64,
-    /// Where the grid ends (the last point plus a step, for a periodic grid; the last point, for
-    /// a range), degrees.
-    pub end_deg: f64,
-}
-
-impl Span {
-    /// One whole revolution, `[0°, 360°)`.
-    pub const WHOLE: Span = Span {
-        start_deg: 0.0,
-        end_deg: 360.0,
-    };
-
-    /// Whether this is one whole revolution from reading 0.
-    pub fn is_whole(self) -> bool {
-        // Spans come from 6-decimal table angles: a millionth of a degree is rounding.
-        self.start_deg.abs() < 1e-6 && (self.end_deg - self.start_deg - 360.0).abs() < 1e-6
-    }
-
-    /// Reading of entry `i` of `n`, degrees: `i·360/n` over a whole turn; over a range
-    /// `start + i·(end − start)/(n − 1)`, both ends included.
-    pub fn angle(self, i: usize, n: usize) -> f64 {
-        if self.is_whole() {
-            360.0 * i as f64 / n as f64
-        } else {
-            self.start_deg + (self.end_deg - self.start_deg) * i as f64 / (n - 1).max(1) as f64
-        }
-    }
-
-    /// Spacing of `n` entries, degrees.
-    pub fn step(self, n: usize) -> f64 {
-        if self.is_whole() {
-            360.0 / n as f64
-        } else {
-            (self.end_deg - self.start_deg) / (n - 1).max(1) as f64
-        }
-    }
-}
-
-/// Refuses a table over less (or more) than one whole revolution for `what` (a format or a
-/// command such as `compose`) that interpolates it periodically: the one place where such
-/// tables are turned away, with an error saying what to do.
-pub fn require_whole_revolution(what: &str, span: Span) -> Result<(), ExportError> {
-    if span.is_whole() {
-        Ok(())
-    } else {
-        Err(ExportError::PartialTurn {
+/// Refuses a table over part of a turn for `what` (a format or a use, named as the library
+/// names it) that interpolates it periodically: the one place where range tables are turned
+/// away, with an error saying what to do.
+pub fn require_whole_revolution(what: &str, map: &TableMap) -> Result<(), ExportError> {
+    match map.range_deg() {
+        None => Ok(()),
+        Some((start_deg, end_deg)) => Err(ExportError::PartialTurn {
             what: what.to_string(),
-            start_deg: span.start_deg,
-            end_deg: span.end_deg,
-        })
+            start_deg,
+            end_deg,
+        }),
     }
 }
 
 /// Refuses a table that `opts` cannot be written from: formats interpolated periodically, and
 /// resynthesis from chosen orders (a Fourier series is periodic), need a whole revolution.
-pub fn check_span(opts: &ExportOptions, span: Span) -> Result<(), ExportError> {
+pub fn check_range(opts: &ExportOptions, map: &TableMap) -> Result<(), ExportError> {
     if opts.format.periodic() {
-        require_whole_revolution(&format!("--format {}", opts.format.name()), span)
+        require_whole_revolution(&format!("--format {}", opts.format.name()), map)
     } else if opts.keep != Keep::All {
-        require_whole_revolution("choosing orders (--harmonics, --orders)", span)
+        require_whole_revolution("choosing orders (--harmonics, --orders)", map)
     } else {
         Ok(())
     }
@@ -507,22 +462,23 @@ struct Rendered {
     decoded: Vec<f64>,
 }
 
-/// Exports `map` (the source table's errors) as `opts` asks; the pure core of `calib export`.
+/// Exports `table` (the source table's errors, over a whole turn or a range) as `opts` asks;
+/// the pure core of `calib export`. A range table takes only the generic formats with every
+/// order ([`check_range`]).
 ///
 /// ```
 /// use calib_core::{ErrorMap, angle::ARCSEC_PER_RAD};
 /// use calib_io::export::{ExportOptions, Format, export};
 ///
 /// let map = ErrorMap::new((0..720).map(|i| (i as f64).to_radians().sin() / ARCSEC_PER_RAD).collect());
-/// let out = export(&map, &ExportOptions::new(Format::Moteus, "example"))?;
+/// let out = export(&map.into(), &ExportOptions::new(Format::Moteus, "example"))?;
 /// assert!(out.text.starts_with("conf set motor_position.sources.0.compensation_scale 0\n"));
 /// assert_eq!(out.text.lines().count(), 256 + 3);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportError> {
-    check_span(opts, opts.span)?;
+pub fn export(table: &TableMap, opts: &ExportOptions) -> Result<Export, ExportError> {
+    check_range(opts, table)?;
     let format = opts.format;
-    let span = opts.span;
     let points = match (format.required_points(), opts.points) {
         (Some(required), Some(given)) if given != required => {
             return Err(ExportError::Points {
@@ -533,17 +489,7 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
             });
         }
         (_, Some(given)) => given,
-        (_, None) if span.is_whole() => format.default_points(map),
-        (_, None) => map.len(),
-    };
-    let resampled = || {
-        if points == map.len() {
-            map.clone()
-        } else if span.is_whole() {
-            map.resample_linear(points)
-        } else {
-            resample_range(map, points)
-        }
+        (_, None) => format.default_points(table),
     };
     let mut header = vec![
         opts.title.clone(),
@@ -551,30 +497,42 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
          correction(reading)"
             .to_string(),
     ];
-    if span.is_whole() {
-        header.push(format!(
-            "grid: entry i at reading i*360/{points} deg (i = 0..{}), 0 at reading 0, step {} deg, \
-             periodic; interpolate linearly",
-            points - 1,
-            360.0 / points as f64
-        ));
-    } else {
-        header.push(format!(
-            "range: {:.6} to {:.6} deg of the reading (a range table: a joint that never turns a \
-             whole revolution)",
-            span.start_deg, span.end_deg
-        ));
-        header.push(format!(
-            "grid: entry i at reading {:.6} + i*{}/{} deg (i = 0..{}), both ends included, step {} \
-             deg, not periodic; interpolate linearly inside the range, leave readings outside it \
-             uncorrected",
-            span.start_deg,
-            trimmed(span.end_deg - span.start_deg),
-            points - 1,
-            points - 1,
-            trimmed(span.step(points))
-        ));
-    }
+    let map = match table {
+        TableMap::Turn(turn) => turn,
+        TableMap::Range(range) => {
+            // Only the generic formats with every order get here (check_range).
+            let (lo, hi) = range.ends_deg();
+            header.push(format!(
+                "range: {lo:.6} to {hi:.6} deg of the reading (a range table: a joint that never \
+                 turns a whole revolution)"
+            ));
+            header.push(format!(
+                "grid: entry i at reading {lo:.6} + i*{}/{} deg (i = 0..{}), both ends included, \
+                 step {} deg, not periodic; interpolate linearly inside the range, leave readings \
+                 outside it uncorrected",
+                trimmed(hi - lo),
+                points - 1,
+                points - 1,
+                trimmed(table.step_deg(points))
+            ));
+            let rendered = lut::render(table, table.resample(points).values(), opts)?;
+            header.extend(rendered.lines);
+            return Ok(assemble(format, header, &rendered.body, None, Vec::new()));
+        }
+    };
+    let resampled = || {
+        if points == map.len() {
+            map.clone()
+        } else {
+            map.resample_linear(points)
+        }
+    };
+    header.push(format!(
+        "grid: entry i at reading i*360/{points} deg (i = 0..{}), 0 at reading 0, step {} deg, \
+         periodic; interpolate linearly",
+        points - 1,
+        360.0 / points as f64
+    ));
     if format == Format::Harmonic {
         let (lines, body) = harmonic::listing(&resampled(), opts)?;
         header.extend(lines);
@@ -582,7 +540,7 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
     }
     // A whole-turn table on a smaller grid keeps the orders the grid holds instead of folding
     // the others onto them.
-    let chosen = if opts.keep == Keep::All && span.is_whole() && points < map.len() {
+    let chosen = if opts.keep == Keep::All && points < map.len() {
         harmonic::choose_held(map, points)
     } else {
         harmonic::choose(map, &opts.keep, points)?
@@ -594,7 +552,7 @@ pub fn export(map: &ErrorMap, opts: &ExportOptions) -> Result<Export, ExportErro
     let rendered = match format {
         Format::Moteus | Format::MoteusConfig => moteus::render(&target, opts)?,
         Format::Simplefoc | Format::SimplefocFloat => simplefoc::render(&target, opts)?,
-        _ => lut::render(&target, opts)?,
+        _ => lut::render(table, target.values(), opts)?,
     };
     header.extend(rendered.lines);
     let fit =
@@ -660,26 +618,6 @@ fn judge(
             100.0 * WARN_LEFT_FRACTION
         )
     }))
-}
-
-/// A range table's values resampled to `points` entries by linear interpolation over the range,
-/// both ends kept (no wrap: the two ends of a range are different readings).
-fn resample_range(map: &ErrorMap, points: usize) -> ErrorMap {
-    let v = map.values();
-    let last = v.len() - 1;
-    let values = (0..points)
-        .map(|i| {
-            let x = i as f64 * last as f64 / (points - 1).max(1) as f64;
-            let j = (x.floor() as usize).min(last.saturating_sub(1));
-            let f = x - j as f64;
-            if last == 0 {
-                v[0]
-            } else {
-                v[j] + f * (v[j + 1] - v[j])
-            }
-        })
-        .collect();
-    ErrorMap::new(values)
 }
 
 /// `x` with at most 9 decimals, trailing zeros dropped (`117.3`, `0.1`).
@@ -769,23 +707,24 @@ mod tests {
 
     #[test]
     fn partial_turns_are_refused_where_the_format_is_periodic() {
-        assert!(require_whole_revolution("x", Span::WHOLE).is_ok());
-        let range = Span {
-            start_deg: 30.0,
-            end_deg: 90.0,
-        };
-        let err = require_whole_revolution("--format moteus", range).unwrap_err();
+        let turn = TableMap::from(ErrorMap::new(vec![0.0; 4]));
+        assert!(require_whole_revolution("x", &turn).is_ok());
+        let d = f64::to_radians;
+        let range = TableMap::from(
+            calib_core::RangeMap::new(d(30.0), d(20.0), vec![1.0, 0.0, -1.0, 0.0]).unwrap(),
+        );
+        let err = require_whole_revolution("--format moteus", &range).unwrap_err();
         let text = err.to_string();
         assert!(
             text.contains("--format moteus") && text.contains("30° to 90°"),
             "{text}"
         );
         let mut opts = ExportOptions::new(Format::Csv, "t");
-        assert!(check_span(&opts, range).is_ok());
+        assert!(check_range(&opts, &range).is_ok());
         opts.keep = Keep::Largest(2);
-        assert!(check_span(&opts, range).is_err());
+        assert!(check_range(&opts, &range).is_err());
         for format in [Format::Harmonic, Format::Simplefoc, Format::MoteusConfig] {
-            assert!(check_span(&ExportOptions::new(format, "t"), range).is_err());
+            assert!(check_range(&ExportOptions::new(format, "t"), &range).is_err());
         }
     }
 

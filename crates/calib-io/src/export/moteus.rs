@@ -136,6 +136,7 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
 mod tests {
     use super::*;
     use crate::export::{Keep, export};
+    use calib_core::TableMap;
     use calib_core::angle::ARCSEC_PER_RAD;
     use calib_core::{FourierSeries, Harmonic};
 
@@ -189,7 +190,7 @@ mod tests {
         for format in [Format::Moteus, Format::MoteusConfig] {
             let mut opts = ExportOptions::new(format, "t");
             opts.moteus_source = 2;
-            let out = export(&map, &opts).unwrap();
+            let out = export(&TableMap::from(map.clone()), &opts).unwrap();
             let (table, scale) = load(&out.text, 2);
             let largest = table.iter().map(|k| k.unsigned_abs()).max().unwrap();
             assert_eq!(largest, 127, "the scale uses the whole int8 range");
@@ -218,7 +219,11 @@ mod tests {
 
     #[test]
     fn conf_set_lines_have_no_comments_and_end_with_conf_write() {
-        let out = export(&source(), &ExportOptions::new(Format::Moteus, "t")).unwrap();
+        let out = export(
+            &TableMap::from(source()),
+            &ExportOptions::new(Format::Moteus, "t"),
+        )
+        .unwrap();
         let lines: Vec<&str> = out.text.lines().collect();
         assert_eq!(lines.len(), 256 + 3);
         assert_eq!(
@@ -237,7 +242,11 @@ mod tests {
         }
         // The header is returned for the caller to show, not written.
         assert!(out.header.iter().any(|l| l.contains("--write-config")));
-        let config = export(&source(), &ExportOptions::new(Format::MoteusConfig, "t")).unwrap();
+        let config = export(
+            &TableMap::from(source()),
+            &ExportOptions::new(Format::MoteusConfig, "t"),
+        )
+        .unwrap();
         assert!(config.text.starts_with("# t\n"));
         let settings: Vec<&str> = config
             .text
@@ -254,7 +263,7 @@ mod tests {
         let mut opts = ExportOptions::new(Format::Moteus, "t");
         opts.points = Some(512);
         assert!(matches!(
-            export(&map, &opts),
+            export(&TableMap::from(map.clone()), &opts),
             Err(ExportError::Points {
                 required: 256,
                 given: 512,
@@ -265,17 +274,20 @@ mod tests {
         opts.points = None;
         opts.scale_arcsec = Some(1.0);
         assert!(matches!(
-            export(&map, &opts),
+            export(&TableMap::from(map.clone()), &opts),
             Err(ExportError::Saturated { max_code: 127, .. })
         ));
         opts.scale_arcsec = Some(3.0);
-        let (table, scale) = load(&export(&map, &opts).unwrap().text, 0);
+        let (table, scale) = load(
+            &export(&TableMap::from(map.clone()), &opts).unwrap().text,
+            0,
+        );
         assert!((f64::from(scale) * ARCSEC_PER_REV - 381.0).abs() < 1e-3);
         assert!(table.iter().all(|&k| k.abs() < 127));
         // Keeping orders 1 and 5 leaves out the 3″ of order 30: the fit reports it.
         opts.scale_arcsec = None;
         opts.keep = Keep::Orders(vec![1, 5]);
-        let out = export(&map, &opts).unwrap();
+        let out = export(&TableMap::from(map.clone()), &opts).unwrap();
         let fit = out.fit.unwrap().max * ARCSEC_PER_RAD;
         // Within half a code (343″/127/2 = 1.35″) and the interpolation of orders 1 and 5 on 256
         // points (0.1″) of the 3″ left out.
@@ -283,7 +295,7 @@ mod tests {
         opts.keep = Keep::All;
         opts.moteus_source = 3;
         assert_eq!(
-            export(&map, &opts).unwrap_err(),
+            export(&TableMap::from(map.clone()), &opts).unwrap_err(),
             ExportError::MoteusSource { given: 3 }
         );
     }

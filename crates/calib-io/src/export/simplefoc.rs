@@ -227,6 +227,7 @@ pub(super) fn render(target: &ErrorMap, opts: &ExportOptions) -> Result<Rendered
 mod tests {
     use super::*;
     use crate::export::{Keep, export};
+    use calib_core::TableMap;
     use calib_core::{FourierSeries, Harmonic};
     use std::f64::consts::TAU;
 
@@ -289,7 +290,7 @@ mod tests {
         ] {
             let mut opts = ExportOptions::new(format, "t");
             opts.points = Some(points);
-            let out = export(&map, &opts).unwrap();
+            let out = export(&TableMap::from(map.clone()), &opts).unwrap();
             assert!(out.text.starts_with("// t\n"));
             let lut = load(&out.text);
             assert_eq!(lut.len(), points);
@@ -327,7 +328,7 @@ mod tests {
         let map = ErrorMap::new(vec![1e-3, 0.0, -1e-3, 0.0]);
         let mut opts = ExportOptions::new(Format::Simplefoc, "t");
         opts.points = Some(4);
-        let out = export(&map, &opts).unwrap();
+        let out = export(&TableMap::from(map.clone()), &opts).unwrap();
         let body: Vec<&str> = out.text.lines().filter(|l| !l.starts_with("//")).collect();
         // 1e-3 rad is 10.43 codes: 32777 and 32757.
         assert_eq!(
@@ -340,7 +341,7 @@ mod tests {
         );
         opts.scale_arcsec = Some(1.0);
         assert!(matches!(
-            export(&map, &opts),
+            export(&TableMap::from(map.clone()), &opts),
             Err(ExportError::FixedScale { .. })
         ));
     }
@@ -371,7 +372,7 @@ mod tests {
         assert_eq!(n, 896);
         let mut opts = ExportOptions::new(Format::Simplefoc, "t");
         opts.keep = Keep::All;
-        let out = export(&poles, &opts).unwrap();
+        let out = export(&TableMap::from(poles.clone()), &opts).unwrap();
         assert!(out.text.contains(&format!("calibrationLut[{n}]")), "{n}");
         let fit = out.fit.unwrap();
         // Interpolation held to a quarter code, plus the rounding of each entry to half a code

@@ -3,7 +3,7 @@
 use super::*;
 use crate::export::{self, ExportOptions};
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::{FourierSeries, Harmonic};
+use calib_core::{FourierSeries, Harmonic, TableMap};
 
 /// 300″ at order 1, 40″ at 5, 3″ at 30 on `points` points: |error| ≤ 343″.
 fn source(points: usize) -> ErrorMap {
@@ -67,7 +67,7 @@ fn every_format_round_trips_within_half_a_code() {
         let map = source(points);
         let mut opts = ExportOptions::new(format, "t");
         opts.points = Some(points);
-        let out = export::export(&map, &opts).unwrap();
+        let out = export::export(&TableMap::from(map.clone()), &opts).unwrap();
         // moteus's `conf set` lines carry no header; the others carry it.
         let got = read(&out.text, &ImportOptions::new(format)).unwrap();
         assert_eq!(got.values.len(), points, "{format:?}");

@@ -100,7 +100,7 @@ fn messages(path: &Path) -> Vec<(u16, u32, u64, u64, Vec<u8>)> {
 fn joint_state_channel_is_corrected_and_every_other_record_kept() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.mcap");
-    let done = apply(&fixture(), &out, &map(), &opts("a")).unwrap();
+    let done = apply(&fixture(), &out, &map().into(), &opts("a")).unwrap();
     assert_eq!(done.format, LogFormat::Mcap);
     assert_eq!(done.readings, 300);
     // 300 JSON messages on /reference less 5 missing plus 2 stray, and 10 on /status.
@@ -153,7 +153,7 @@ fn joint_state_channel_is_corrected_and_every_other_record_kept() {
 fn json_field_is_rewritten_in_its_unit_and_the_rest_of_the_text_kept() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.mcap");
-    let done = apply(&fixture(), &out, &map(), &opts("ref")).unwrap();
+    let done = apply(&fixture(), &out, &map().into(), &opts("ref")).unwrap();
     // 295 joined messages plus 2 stray ones; ref from −1° to 74.75°: taken as [−180°, 180°).
     assert_eq!(done.readings, 297);
     assert_eq!(done.wrapping, Wrapping::Signed);
@@ -260,7 +260,7 @@ fn ids_metadata_attachments_private_records_and_compression_survive() {
     let log = dir.path().join("rich.mcap");
     rich_log(&log);
     let out = dir.path().join("out.mcap");
-    let done = apply(&log, &out, &map(), &opts("enc")).unwrap();
+    let done = apply(&log, &out, &map().into(), &opts("enc")).unwrap();
     assert_eq!((done.readings, done.copied), (500, 10));
     assert_eq!(done.wrapping, Wrapping::Unwrapped);
     let records = other_records(&out);
@@ -296,7 +296,7 @@ fn truncated_log_gives_a_complete_output_of_what_was_read() {
     let cut = dir.path().join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
     let out = dir.path().join("out.mcap");
-    let done = apply(&cut, &out, &map(), &opts("enc")).unwrap();
+    let done = apply(&cut, &out, &map().into(), &opts("enc")).unwrap();
     let t = done.truncated.clone().expect("truncated");
     assert!(done.readings > 100 && done.readings < 500, "{done:?}");
     assert!(t.messages_read >= done.readings);
@@ -316,7 +316,7 @@ fn csv_rewrites_the_channel_field_only() {
                 0.003,180,\"x\"\"y\",-1";
     std::fs::write(&log, text).unwrap();
     let out = dir.path().join("out.csv");
-    let done = apply(&log, &out, &map(), &opts("a")).unwrap();
+    let done = apply(&log, &out, &map().into(), &opts("a")).unwrap();
     assert_eq!((done.readings, done.wrapping), (4, Wrapping::Positive));
     let got = std::fs::read_to_string(&out).unwrap();
     let want_deg = |deg: f64| (deg - error_at(deg.to_radians()).to_degrees()).rem_euclid(360.0);
@@ -357,7 +357,7 @@ fn csv_units_are_kept_and_accumulated_readings_stay_unwrapped() {
         unit: Some(calib_core::AngleUnit::Counts(4096)),
         ..opts("enc")
     };
-    let done = apply(&log, &out, &map(), &o).unwrap();
+    let done = apply(&log, &out, &map().into(), &o).unwrap();
     assert_eq!(done.wrapping, Wrapping::Unwrapped);
     let got = std::fs::read_to_string(&out).unwrap();
     let per_rad = 4096.0 / TAU;
@@ -372,7 +372,7 @@ fn csv_units_are_kept_and_accumulated_readings_stay_unwrapped() {
         wrapping: Some(Wrapping::Positive),
         ..o
     };
-    apply(&log, &out, &map(), &o).unwrap();
+    apply(&log, &out, &map().into(), &o).unwrap();
     let got = std::fs::read_to_string(&out).unwrap();
     assert!(got.lines().skip(1).all(|l| {
         let v: f64 = l.split(',').nth(1).unwrap().parse().unwrap();
@@ -385,7 +385,7 @@ fn csv_error(text: &str, channel: &str) -> (u64, Option<String>, String) {
     let log = dir.path().join("bad.csv");
     std::fs::write(&log, text).unwrap();
     let out = dir.path().join("out.csv");
-    let err = apply(&log, &out, &map(), &opts(channel)).unwrap_err();
+    let err = apply(&log, &out, &map().into(), &opts(channel)).unwrap_err();
     assert!(!out.exists());
     assert_eq!(
         std::fs::read_dir(dir.path()).unwrap().count(),
@@ -426,16 +426,16 @@ fn bad_csv_logs_are_errors_naming_line_and_channel() {
 fn formats_must_match_and_a_channel_without_readings_is_an_error() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.csv");
-    let err = apply(&fixture(), &out, &map(), &opts("a")).unwrap_err();
+    let err = apply(&fixture(), &out, &map().into(), &opts("a")).unwrap_err();
     assert!(err.to_string().contains("same format"), "{err}");
     let out = dir.path().join("out.mcap");
-    let err = apply(&fixture(), &out, &map(), &opts("zz")).unwrap_err();
+    let err = apply(&fixture(), &out, &map().into(), &opts("zz")).unwrap_err();
     assert!(
         err.to_string().contains("no readings of channel `zz`"),
         "{err}"
     );
     // A JSON field of that name that is not a number.
-    let err = apply(&fixture(), &out, &map(), &opts("status")).unwrap_err();
+    let err = apply(&fixture(), &out, &map().into(), &opts("status")).unwrap_err();
     assert!(
         err.to_string()
             .contains("message 1: channel `/reference`: field `status` is `\"ok\"`, not a number"),
@@ -461,7 +461,7 @@ fn keep_adds_the_corrected_csv_column_beside_the_channel() {
         keep: true,
         ..opts("a")
     };
-    let done = apply(&log, &out, &map(), &o).unwrap();
+    let done = apply(&log, &out, &map().into(), &o).unwrap();
     assert_eq!(done.readings, 4);
     assert_eq!(done.beside, ["a_corrected"]);
     let got = std::fs::read_to_string(&out).unwrap();
@@ -486,7 +486,9 @@ fn keep_adds_the_corrected_csv_column_beside_the_channel() {
     // A header that has the column already is an error naming it; nothing is written.
     std::fs::write(&log, "t,a,a_corrected\n0,1,1\n").unwrap();
     let out2 = dir.path().join("out2.csv");
-    let err = apply(&log, &out2, &map(), &o).unwrap_err().to_string();
+    let err = apply(&log, &out2, &map().into(), &o)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("`a_corrected` already"), "{err}");
     assert!(!out2.exists());
 }
@@ -502,7 +504,7 @@ fn keep_copies_the_corrected_messages_onto_their_own_topic() {
         keep: true,
         ..opts("a")
     };
-    let done = apply(&fixture(), &out, &map(), &o).unwrap();
+    let done = apply(&fixture(), &out, &map().into(), &o).unwrap();
     assert_eq!(done.readings, 300);
     assert_eq!(done.beside, ["/joint_states/corrected"]);
     let (before, after) = (messages(&fixture()), messages(&out));

@@ -122,12 +122,16 @@ fn moteus_keeps_what_256_entries_hold_and_folds_nothing() {
     let uncorrected = residual(16384, |_| 0.0);
     // Before: the table resampled to 256 entries by interpolation, as calib did.
     let folded = export(
-        &map.resample_linear(256),
+        &map.resample_linear(256).into(),
         &ExportOptions::new(Format::Moteus, "before"),
     )
     .unwrap();
     let before = moteus_residual(&folded.text);
-    let out = export(&map, &ExportOptions::new(Format::Moteus, "after")).unwrap();
+    let out = export(
+        &map.clone().into(),
+        &ExportOptions::new(Format::Moteus, "after"),
+    )
+    .unwrap();
     let after = moteus_residual(&out.text);
     println!(
         "moteus 256: uncorrected {:.2}″ p-p; folded {:.2}″ p-p (order 40 {:.2}″); now {:.2}″ p-p \
@@ -179,16 +183,20 @@ fn simplefoc_gets_a_size_that_holds_the_orders_and_never_folds() {
             f64::from(simplefoc_offset(&codes, raw))
         })
     };
-    let out = export(&map, &ExportOptions::new(Format::Simplefoc, "t")).unwrap();
+    let out = export(
+        &map.clone().into(),
+        &ExportOptions::new(Format::Simplefoc, "t"),
+    )
+    .unwrap();
     let n = simplefoc_codes(&out.text).len();
     let sized = simplefoc_residual(&out.text);
     let mut opts = ExportOptions::new(Format::Simplefoc, "t");
     opts.points = Some(200);
-    let small = export(&map, &opts).unwrap();
+    let small = export(&map.clone().into(), &opts).unwrap();
     let at_200 = simplefoc_residual(&small.text);
     let folded = simplefoc_residual(
         &export(
-            &map.resample_linear(200),
+            &map.resample_linear(200).into(),
             &ExportOptions::new(Format::Simplefoc, "t"),
         )
         .unwrap()

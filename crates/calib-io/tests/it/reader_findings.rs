@@ -972,7 +972,7 @@ fn apply_on_a_field_path_says_field_paths_are_not_rewritten() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("fields.mcap");
     field_log(&path);
-    let map = calib_core::ErrorMap::new(vec![0.0; 360]);
+    let map = calib_core::ErrorMap::new(vec![0.0; 360]).into();
     let opts = calib_io::apply::ApplyOptions {
         channel: "/motor.a".into(),
         unit: None,

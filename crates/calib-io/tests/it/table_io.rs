@@ -1,9 +1,10 @@
 //! Correction tables: rendering, write → read round trips, and the reader's validation.
 
 use calib_core::ErrorMap;
+use calib_core::TableMap;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_io::Error;
-use calib_io::table::{RenderError, read_table, render_table, write_table};
+use calib_io::table::{RenderError, read_table, read_turn_table, render_table, write_table};
 use std::path::{Path, PathBuf};
 
 fn arcsec(values: &[f64]) -> Vec<f64> {
@@ -29,7 +30,7 @@ fn random_map(n: usize, seed: u64) -> ErrorMap {
 fn render_is_fixed_precision_and_symmetric() {
     let map = ErrorMap::new(arcsec(&[1.25, -0.5, 0.0, -0.75]));
     let u = arcsec(&[0.05, 0.05, 0.1, 1e-9]);
-    let text = render_table(&map, Some(&u)).unwrap();
+    let text = render_table(&map.clone().into(), Some(&u)).unwrap();
     assert_eq!(
         text,
         "angle_deg,error_arcsec,correction_arcsec,u_arcsec\n\
@@ -40,9 +41,12 @@ fn render_is_fixed_precision_and_symmetric() {
     );
     // Deterministic: the same input, the same bytes.
     let m = random_map(4096, 1);
-    assert_eq!(render_table(&m, None), render_table(&m.clone(), None));
+    assert_eq!(
+        render_table(&m.clone().into(), None),
+        render_table(&m.clone().into(), None)
+    );
     // Angles of a grid that 6 decimals cannot show exactly are rounded labels.
-    let t = render_table(&m, None).unwrap();
+    let t = render_table(&m.clone().into(), None).unwrap();
     assert!(t.lines().nth(2).unwrap().starts_with("0.087891,"), "{t}");
 }
 
@@ -50,25 +54,25 @@ fn render_is_fixed_precision_and_symmetric() {
 fn render_refuses_what_it_cannot_write() {
     let map = ErrorMap::new(arcsec(&[1.0, -1.0]));
     assert_eq!(
-        render_table(&map, Some(&[0.1])),
+        render_table(&map.clone().into(), Some(&[0.1])),
         Err(RenderError::UncertaintyCount {
             points: 2,
             given: 1
         })
     );
     assert!(matches!(
-        render_table(&map, Some(&[0.1, -0.1])),
+        render_table(&map.clone().into(), Some(&[0.1, -0.1])),
         Err(RenderError::BadValue { index: 1, .. })
     ));
     let nan = ErrorMap::new(vec![0.0, f64::NAN]);
     assert!(matches!(
-        render_table(&nan, None),
+        render_table(&nan.clone().into(), None),
         Err(RenderError::BadValue { what: "error", .. })
     ));
 
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("a.csv");
-    let err = write_table(&path, &nan, None).unwrap_err();
+    let err = write_table(&path, &nan.clone().into(), None).unwrap_err();
     assert!(matches!(err, Error::Write { .. }), "{err:?}");
     assert!(err.to_string().contains("a.csv"), "{err}");
     assert!(!path.exists());
@@ -84,8 +88,8 @@ fn write_read_round_trip() {
         let u: Vec<f64> = (0..n)
             .map(|i| (0.01 + i as f64 * 1e-4) / ARCSEC_PER_RAD)
             .collect();
-        write_table(&path, &map, Some(&u)).unwrap();
-        let back = read_table(&path).unwrap();
+        write_table(&path, &map.clone().into(), Some(&u)).unwrap();
+        let back = read_turn_table(&path).unwrap();
         assert_eq!(back.map.len(), n);
         // 6-decimal rounding: at most 5e-7″ per value, plus the re-removed mean of the roundings.
         let diff = map.minus(&back.map).max_abs_arcsec();
@@ -96,13 +100,13 @@ fn write_read_round_trip() {
         }
         // Writing what was read gives back the same bytes: the format is a fixed point.
         let first = std::fs::read(&path).unwrap();
-        write_table(&path, &back.map, back.u.as_deref()).unwrap();
+        write_table(&path, &back.map.clone().into(), back.u.as_deref()).unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), first, "n={n}");
     }
     // Values representable at 6 decimals survive exactly, without `u`.
     let map = ErrorMap::new(arcsec(&[0.5, -0.25, 0.125, -0.375]));
-    write_table(&path, &map, None).unwrap();
-    let back = read_table(&path).unwrap();
+    write_table(&path, &map.clone().into(), None).unwrap();
+    let back = read_turn_table(&path).unwrap();
     assert!(back.u.is_none());
     assert!(map.minus(&back.map).max_abs_arcsec() < 1e-12);
 }
@@ -125,7 +129,7 @@ fn hand_written_tables_are_accepted() {
          2, 120.0000001, -2\n\
          3.0, 240, -3.0\n",
     );
-    let t = read_table(&path).unwrap();
+    let t = read_turn_table(&path).unwrap();
     let v: Vec<f64> = t.map.values().iter().map(|v| v * ARCSEC_PER_RAD).collect();
     for (got, want) in v.iter().zip([1.2345 - 6.2345 / 3.0, 2.0 - 6.2345 / 3.0]) {
         assert!((got - want).abs() < 1e-9, "{v:?}");
@@ -137,7 +141,7 @@ fn hand_written_tables_are_accepted() {
 fn error_of(content: &str, line: u64, column: Option<&str>) -> String {
     let dir = tempfile::tempdir().unwrap();
     let path = write_tmp(&dir, content);
-    let err = read_table(&path).unwrap_err();
+    let err = read_turn_table(&path).unwrap_err();
     let text = err.to_string();
     let Error::Csv {
         path: p,
@@ -259,7 +263,7 @@ fn the_grid_must_be_uniform_from_zero_over_one_revolution() {
     // Within the tolerance is fine, beyond it is not.
     let dir = tempfile::tempdir().unwrap();
     let ok = write_tmp(&dir, &format!("{H}0,1,-1\n180.0000009,-1,1\n"));
-    assert!(read_table(&ok).is_ok());
+    assert!(read_turn_table(&ok).is_ok());
     error_of(
         &format!("{H}0,1,-1\n180.0000011,-1,1\n"),
         3,
@@ -269,7 +273,7 @@ fn the_grid_must_be_uniform_from_zero_over_one_revolution() {
 
 #[test]
 fn missing_table_names_the_file() {
-    let err = read_table(Path::new("/no/such/table.csv")).unwrap_err();
+    let err = read_turn_table(Path::new("/no/such/table.csv")).unwrap_err();
     assert!(matches!(err, Error::Io { .. }));
     assert!(err.to_string().contains("/no/such/table.csv"), "{err}");
 }
@@ -279,9 +283,9 @@ fn absurd_values_are_refused_in_both_directions() {
     use calib_io::table::MAX_TABLE_ARCSEC;
     // Half a revolution passes; beyond it no sensor errs.
     let edge = ErrorMap::new(arcsec(&[MAX_TABLE_ARCSEC, -MAX_TABLE_ARCSEC]));
-    assert!(render_table(&edge, None).is_ok());
+    assert!(render_table(&edge.clone().into(), None).is_ok());
     let huge = ErrorMap::new(arcsec(&[0.0, 0.0, 3e6, -3e6]));
-    let err = render_table(&huge, None).unwrap_err();
+    let err = render_table(&huge.clone().into(), None).unwrap_err();
     assert!(
         matches!(
             err,
@@ -296,7 +300,7 @@ fn absurd_values_are_refused_in_both_directions() {
     assert!(err.to_string().contains("no table was written"), "{err}");
     let small = ErrorMap::new(arcsec(&[1.0, -1.0]));
     assert!(matches!(
-        render_table(&small, Some(&arcsec(&[0.1, 1e9]))),
+        render_table(&small.clone().into(), Some(&arcsec(&[0.1, 1e9]))),
         Err(RenderError::Absurd {
             index: 1,
             what: "uncertainty",
@@ -305,7 +309,7 @@ fn absurd_values_are_refused_in_both_directions() {
     ));
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("a.csv");
-    assert!(write_table(&path, &huge, None).is_err());
+    assert!(write_table(&path, &huge.clone().into(), None).is_err());
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 
     // Reading: a table of such values was damaged or written in another unit.
@@ -325,31 +329,29 @@ fn absurd_values_are_refused_in_both_directions() {
 
 #[test]
 fn range_tables_round_trip_and_are_checked() {
-    use calib_io::table::{AnyTable, read_any_table, render_range_table};
     let dir = tempfile::tempdir().unwrap();
     // 330°…390° (across 0), 61 points 1° apart: written signed, −30° to 30°, never above 360°.
     let values: Vec<f64> = (0..61).map(|i| f64::from(i) / ARCSEC_PER_RAD).collect();
     let map = calib_core::RangeMap::new((-30f64).to_radians(), 1f64.to_radians(), values).unwrap();
-    let text = render_range_table(&map, None).unwrap();
+    let text = render_table(&map.clone().into(), None).unwrap();
     assert!(
         text.starts_with("# range_deg: -30.000000 to 30.000000 "),
         "{text}"
     );
     let path = write_tmp(&dir, &text);
-    let AnyTable::Range(back) = read_any_table(&path).unwrap() else {
+    let TableMap::Range(back) = read_table(&path).unwrap().map else {
         panic!("not read as a range table")
     };
-    assert_eq!(back.map.len(), 61);
-    assert!((back.map.start() - map.start()).abs() < 1e-9);
+    assert_eq!(back.len(), 61);
+    assert!((back.start() - map.start()).abs() < 1e-9);
     assert!(
-        back.map
-            .values()
+        back.values()
             .iter()
             .zip(map.values())
             .all(|(a, b)| (a - b).abs() * ARCSEC_PER_RAD < 1e-6)
     );
     // Whole-turn readers refuse it, saying what it is.
-    let err = read_table(&path).unwrap_err().to_string();
+    let err = read_turn_table(&path).unwrap_err().to_string();
     assert!(
         err.contains("range table") && err.contains("whole-turn"),
         "{err}"
