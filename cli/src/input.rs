@@ -213,39 +213,15 @@ pub fn check_non_negative(option: &str, value: f64, unit: &str) -> Result<(), Us
     )))
 }
 
-/// Checks that `path` can be a log before it is opened: it exists (exit 2 if not, naming it)
-/// and is not a folder other than a rosbag2 bag directory (exit 2). The one place that decides what a log path may be, so that
-/// folder formats (a rosbag2 bag directory) are accepted here.
+/// Checks that `path` can be a log before it is opened ([`calib_io::log::NotALog::check`]:
+/// missing, a folder that is no rosbag2 bag directory, a ROS 1 bag), each a usage error (exit 2)
+/// naming the path; what the file holds is for the reader to judge.
 pub fn check_log_path(path: &Path) -> Result<(), Usage> {
     let shown = crate::ui::shown(path);
-    match std::fs::metadata(path) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            Err(Usage(format!("{shown}: no such file; check the path")))
-        }
-        Ok(meta) if meta.is_dir() && !calib_io::rosbag::is_bag_dir(path) => Err(Usage(format!(
-            "{shown}: this is a folder, not a log nor a rosbag2 bag directory (which holds \
-             metadata.yaml or .db3 files); name the .csv or .mcap file inside it, or the bag \
-             directory"
-        ))),
-        Ok(meta) if meta.is_file() && is_ros1_bag(path) => Err(Usage(format!(
-            "{shown}: this is a ROS 1 bag, which calib does not read directly; convert it to \
-             MCAP with the mcap CLI (`mcap convert {shown} run.mcap`) and give calib the .mcap \
-             file: its JointState topics (ros1 encoding) are read as they are"
-        ))),
-        _ => Ok(()),
+    match calib_io::log::NotALog::check(path, &shown) {
+        Some(not) => Err(Usage(format!("{shown}: {not}"))),
+        None => Ok(()),
     }
-}
-
-/// Whether the file at `path` starts as a ROS 1 bag does (`#ROSBAG V2.0`). calib does not read
-/// them: the one Rust reader (the `rosbag` crate: two releases since 2022, ~150 downloads a
-/// month, ROS 1 itself at end of life) is not one to depend on, and `mcap convert` turns a bag
-/// into an MCAP file calib reads.
-fn is_ros1_bag(path: &Path) -> bool {
-    use std::io::Read;
-    let mut head = [0u8; 7];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok_and(|()| &head == b"#ROSBAG")
 }
 
 /// Opens a log for reading, a damaged MCAP chunk an error unless `skip_damaged`.

@@ -25,6 +25,58 @@ pub enum LogFormat {
 
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
+/// The first bytes of a ROS 1 bag (`#ROSBAG V2.0`). calib does not read them: the one Rust
+/// reader (the `rosbag` crate: two releases since 2022, ~150 downloads a month, ROS 1 itself at
+/// end of life) is not one to depend on, and `mcap convert` turns a bag into an MCAP file calib
+/// reads.
+const ROS1_MAGIC: &[u8] = b"#ROSBAG";
+
+/// A path that names no log calib can open, found before anything is read: the mistakes of
+/// naming a path (the command line calls them usage errors), said with what to do.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum NotALog {
+    /// Nothing is there.
+    #[error("no such file; check the path")]
+    Missing,
+    /// A folder that is not a rosbag2 bag directory.
+    #[error(
+        "this is a folder, not a log nor a rosbag2 bag directory (which holds metadata.yaml or \
+         .db3 files); name the .csv or .mcap file inside it, or the bag directory"
+    )]
+    Folder,
+    /// A ROS 1 bag, with the path as the message shows it (for the command to run).
+    #[error(
+        "this is a ROS 1 bag, which calib does not read directly; convert it to MCAP with the mcap \
+         CLI (`mcap convert {0} run.mcap`) and give calib the .mcap file: its JointState topics \
+         (ros1 encoding) are read as they are"
+    )]
+    Ros1Bag(String),
+}
+
+impl NotALog {
+    /// Why `path` cannot be a log, if it cannot: missing, a folder other than a rosbag2 bag
+    /// directory, or a ROS 1 bag. Other files are for [`LogFormat::detect`] to judge by their
+    /// content. `shown` is the path as messages show it.
+    pub fn check(path: &Path, shown: &str) -> Option<NotALog> {
+        match std::fs::metadata(path) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some(NotALog::Missing),
+            Ok(meta) if meta.is_dir() && !rosbag::is_bag_dir(path) => Some(NotALog::Folder),
+            Ok(meta) if meta.is_file() && starts_with(path, ROS1_MAGIC) => {
+                Some(NotALog::Ros1Bag(shown.to_string()))
+            }
+            _ => None,
+        }
+    }
+}
+
+/// Whether the file at `path` starts with `magic`.
+fn starts_with(path: &Path, magic: &[u8]) -> bool {
+    let mut head = vec![0u8; magic.len()];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| head == magic)
+}
+
 impl LogFormat {
     /// The format's usual file extension: `csv` or `mcap`.
     pub fn name(self) -> &'static str {
@@ -64,17 +116,19 @@ impl LogFormat {
         if meta.is_dir() && rosbag::is_bag_dir(path) {
             return Ok(LogFormat::Rosbag);
         }
+        if let Some(not) =
+            NotALog::check(path, &path.display().to_string()).filter(|not| *not != NotALog::Missing)
+        {
+            return Err(Error::Data {
+                path: path.to_path_buf(),
+                message: not.to_string(),
+            });
+        }
         if !meta.is_file() && !is_fifo(&meta) {
             return Err(Error::Data {
                 path: path.to_path_buf(),
-                message: if meta.is_dir() {
-                    "this is a folder, not a log file nor a rosbag2 bag directory (which holds \
-                     metadata.yaml or .db3 files); name the .csv or .mcap file, or the bag \
-                     directory"
-                        .into()
-                } else {
-                    "this is a device or socket, not a log file; name a .csv or .mcap file".into()
-                },
+                message: "this is a device or socket, not a log file; name a .csv or .mcap file"
+                    .into(),
             });
         }
         if is_fifo(&meta) {
@@ -148,11 +202,6 @@ fn foreign_kind(head: &[u8]) -> Option<(&'static str, &'static str)> {
             b"PK\x03\x04",
             "a ZIP archive (or a spreadsheet)",
             "extract the log, or export the sheet as CSV",
-        ),
-        (
-            b"#ROSBAG",
-            "a ROS 1 bag",
-            "convert it to MCAP (`mcap convert`)",
         ),
         (b"\x89PNG", "a PNG image", "name the log file"),
         (b"%PDF", "a PDF document", "name the log file"),

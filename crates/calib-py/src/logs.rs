@@ -60,20 +60,13 @@ impl LogOptions {
     }
 }
 
-/// Checks that `path` can be a log (it exists; a folder only if it is a rosbag2 bag), as the
-/// CLI does before opening it.
+/// Checks that `path` can be a log, as the CLI does before opening it
+/// ([`calib_io::log::NotALog::check`]): a `UsageError` naming the path if not.
 fn check_log_path(path: &Path) -> PyResult<()> {
-    let shown = path.display();
-    match std::fs::metadata(path) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            Err(usage(format!("{shown}: no such file; check the path")))
-        }
-        Ok(meta) if meta.is_dir() && !calib_io::rosbag::is_bag_dir(path) => Err(usage(format!(
-            "{shown}: this is a folder, not a log nor a rosbag2 bag directory (which holds \
-             metadata.yaml or .db3 files); name the .csv or .mcap file inside it, or the bag \
-             directory"
-        ))),
-        _ => Ok(()),
+    let shown = path.display().to_string();
+    match calib_io::log::NotALog::check(path, &shown) {
+        Some(not) => Err(usage(format!("{shown}: {not}"))),
+        None => Ok(()),
     }
 }
 
