@@ -103,8 +103,8 @@ pub fn code_of(err: &anyhow::Error) -> u8 {
     let usage = err.chain().any(|e| {
         e.is::<Usage>()
             || e.is::<calib_core::angle::UnknownUnit>()
-            || e.is::<calib_core::sample::UnknownChannel>()
-            || e.is::<calib_io::naming::ChannelLookup>()
+            || e.is::<calib_core::UnknownChannel>()
+            || e.is::<calib_io::ChannelLookup>()
     });
     if usage { USAGE } else { DATA }
 }

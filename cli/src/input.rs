@@ -3,7 +3,8 @@
 use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::AngleUnit;
-use calib_io::align::{AlignOptions, Alignment};
+use calib_core::report::Alignment;
+use calib_io::AlignOptions;
 use calib_io::csv_log::dialect::TimeUnit;
 use calib_io::limits::MAX_TABLE_POINTS;
 use calib_io::{LogReader, ReadOptions, TimeSource};

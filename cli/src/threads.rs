@@ -8,7 +8,7 @@
 //! own thread. Results are the same whatever the number of threads.
 
 use calib_io::LogReader;
-use calib_io::prefetch::Prefetch;
+use calib_io::Prefetch;
 use std::sync::OnceLock;
 
 use crate::exit::Usage;

@@ -4,7 +4,7 @@
 //! The option is set once, from `main`, before the command runs; the bars read it, so no
 //! command passes it around.
 
-use calib_io::progress::{ProgressUnit, ReadProgress};
+use calib_io::{ProgressUnit, ReadProgress};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::Path;
 use std::sync::OnceLock;

@@ -244,7 +244,7 @@ fn render_topics(topics: &[TopicInfo]) -> String {
             rate,
             if !t.channels.is_empty() {
                 ""
-            } else if calib_io::bookkeeping::is_bookkeeping(&t.topic) {
+            } else if calib_io::is_bookkeeping(&t.topic) {
                 "  (not read: ROS bookkeeping)"
             } else {
                 "  (not read)"

@@ -629,7 +629,7 @@ fn numeric_fields_are_read_by_path_through_the_schema() {
 fn channel_readings(log: &Path, name: &str) -> Vec<(f64, f64)> {
     let mut reader = calib_io::LogReader::open(log, &calib_io::ReadOptions::default()).unwrap();
     let i = reader.resolve(name).unwrap();
-    reader.select(&[i], calib_io::align::AlignOptions::default());
+    reader.select(&[i], calib_io::AlignOptions::default());
     reader
         .map(|s| {
             let s = s.unwrap();

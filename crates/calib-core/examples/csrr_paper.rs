@@ -4,8 +4,8 @@
 //! `cargo run -p calib-core --example csrr_paper`
 
 use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::channel_index;
 use calib_core::csrr::{Csrr, CsrrOptions, Method};
-use calib_core::sample::channel_index;
 use calib_core::simulate::Scenario;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

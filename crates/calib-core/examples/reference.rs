@@ -4,8 +4,8 @@
 //! `cargo run -p calib-core --example reference`
 
 use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::channel_index;
 use calib_core::reference_cal::{ReferenceCal, ReferenceOptions};
-use calib_core::sample::channel_index;
 use calib_core::simulate::Scenario;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -1,20 +1,4 @@
 //! Error maps over one revolution of a sensor's own reading.
-//!
-//! # Grid
-//! An [`ErrorMap`] holds `N` values `e(θ_i)` at `θ_i = i·2π/N`, `i = 0..N−1`: the origin is the
-//! sensor's reading 0, the grid is uniform and periodic (θ_N ≡ θ_0). Values are radians.
-//!
-//! # Sign
-//! `e = reading − true angle`; the correction is `−e`, applied as `reading + correction(reading)`.
-//!
-//! # Mean
-//! Maps are zero-mean: [`ErrorMap::new`] removes the mean, because no self-calibration observes an
-//! absolute offset.
-//!
-//! # FFT normalization
-//! [`ErrorMap::series`] returns coefficients normalized so that a map sampled from
-//! `a cos hθ + b sin hθ` gives back `a` and `b` (i.e. `2/N` times the forward real FFT, for
-//! `0 < h < N/2`).
 
 use crate::angle::{ARCSEC_PER_RAD, wrap_2pi};
 use crate::harmonics::FourierSeries;
@@ -22,6 +6,22 @@ use realfft::RealFftPlanner;
 use std::f64::consts::TAU;
 
 /// A sensor's error as a periodic function of its own reading, on a uniform grid.
+///
+/// # Grid
+/// An [`ErrorMap`] holds `N` values `e(θ_i)` at `θ_i = i·2π/N`, `i = 0..N−1`: the origin is the
+/// sensor's reading 0, the grid is uniform and periodic (θ_N ≡ θ_0). Values are radians.
+///
+/// # Sign
+/// `e = reading − true angle`; the correction is `−e`, applied as `reading + correction(reading)`.
+///
+/// # Mean
+/// Maps are zero-mean: [`ErrorMap::new`] removes the mean, because no self-calibration observes an
+/// absolute offset.
+///
+/// # FFT normalization
+/// [`ErrorMap::series`] returns coefficients normalized so that a map sampled from
+/// `a cos hθ + b sin hθ` gives back `a` and `b` (i.e. `2/N` times the forward real FFT, for
+/// `0 < h < N/2`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ErrorMap {
     values: Vec<f64>,

@@ -1,11 +1,4 @@
 //! Fourier series of periodic errors and their harmonics.
-//!
-//! # Convention
-//! A harmonic of order `h` (cycles per revolution) is the component `A·cos(h·θ + φ)` of a map,
-//! θ the sensor's own reading. In coefficient form `A·cos(hθ + φ) = a·cos hθ + b·sin hθ` with
-//! `a = A cos φ`, `b = −A sin φ`. Amplitudes are radians inside, arcseconds at the edges; phases
-//! are radians inside, degrees at the edges. Order 0 (a constant) is never part of a map: errors
-//! are zero-mean over the circle.
 
 use crate::angle::{ARCSEC_PER_RAD, DEG_PER_RAD};
 
@@ -72,6 +65,13 @@ pub struct HarmonicReport {
 }
 
 /// A zero-mean Fourier series `e(θ) = Σ_{h=1..H} a_h cos hθ + b_h sin hθ` (radians).
+///
+/// # Convention
+/// A harmonic of order `h` (cycles per revolution) is the component `A·cos(h·θ + φ)` of a map,
+/// θ the sensor's own reading. In coefficient form `A·cos(hθ + φ) = a·cos hθ + b·sin hθ` with
+/// `a = A cos φ`, `b = −A sin φ`. Amplitudes are radians inside, arcseconds at the edges; phases
+/// are radians inside, degrees at the edges. Order 0 (a constant) is never part of a map: errors
+/// are zero-mean over the circle.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FourierSeries {
     /// `a_h` at index `h − 1`.

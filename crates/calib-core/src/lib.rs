@@ -5,7 +5,7 @@
 //! caller's own acquisition code) and returns typed results:
 //!
 //! - [`angle`]: radians inside, [`AngleUnit`] conversions at the edges, [`Unwrapper`].
-//! - [`sample`]: [`Sample`]s of named [`Channel`]s.
+//! - [`Sample`]s of named [`Channel`]s, or a [`SampleBatch`] of them: what the methods take.
 //! - [`ErrorMap`]: a sensor's error over one revolution of its own reading; [`FourierSeries`] and
 //!   [`Harmonic`]s in the convention `amplitude·cos(h·θ + phase)`; [`RangeMap`] over part of a
 //!   revolution; [`TableMap`], either of them: what a correction table holds.
@@ -79,30 +79,30 @@ pub mod compose;
 pub mod correction;
 pub mod csrr;
 pub mod detection;
-pub mod error_map;
-pub mod harmonics;
+mod error_map;
+mod harmonics;
 pub mod inspect;
 pub mod multihead;
 pub(crate) mod nufft;
 pub mod nufft2d;
 pub mod plan;
 pub mod purpose;
-pub mod range_map;
+mod range_map;
 pub mod reference_cal;
 pub mod reference_points;
 pub mod report;
-pub mod sample;
+mod sample;
 pub mod segment;
 pub mod shift_angle;
 pub mod simulate;
-pub mod table_map;
+mod table_map;
 pub mod tdr;
 pub mod uncertainty;
 
 pub use angle::{AngleUnit, Unwrapper};
-pub use error_map::ErrorMap;
+pub use error_map::{ErrorMap, interpolate_periodic};
 pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
-pub use range_map::RangeMap;
+pub use range_map::{RangeMap, RangeMapError};
 pub use report::{ChannelReport, Report, SessionReport};
-pub use sample::{Channel, Sample, SampleBatch, SampleRef};
+pub use sample::{Channel, Sample, SampleBatch, SampleRef, UnknownChannel, channel_index};
 pub use table_map::TableMap;

@@ -1,27 +1,27 @@
 //! Error maps over part of a revolution: the maps of joints that never turn a whole revolution.
-//!
-//! # Grid
-//! A [`RangeMap`] holds `N ≥ 2` values `e(θ_i)` at `θ_i = start + i·step`, `i = 0..N−1`: both
-//! ends of the range `[start, end]`, `end = start + (N−1)·step`, are grid points, and the range
-//! is shorter than a revolution (`end − start < 2π`). `start` lies in `[0, 2π)`; `end` may pass
-//! 2π when the range crosses the reading 0 (a joint swept from −30° to +30° has the range
-//! 330°…390°). Values are radians.
-//!
-//! # Mean
-//! Like an [`ErrorMap`](crate::ErrorMap), a range map is zero-mean — but over its range, not over
-//! the circle: [`RangeMap::new`] removes the mean of the grid values. Two range maps of the same
-//! sensor over different ranges therefore differ by a constant; compare them over their common
-//! range with that constant removed.
-//!
-//! # Outside the range
-//! A range map says nothing about readings outside its range: [`RangeMap::eval_linear`] returns
-//! `None` there and never extrapolates.
 
 use crate::angle::{ARCSEC_PER_RAD, wrap_2pi};
 use std::f64::consts::TAU;
 
 /// A sensor's error as a function of its own reading over a range shorter than a revolution, on
 /// a uniform grid that includes both ends.
+///
+/// # Grid
+/// A [`RangeMap`] holds `N ≥ 2` values `e(θ_i)` at `θ_i = start + i·step`, `i = 0..N−1`: both
+/// ends of the range `[start, end]`, `end = start + (N−1)·step`, are grid points, and the range
+/// is shorter than a revolution (`end − start < 2π`). `start` lies in `[0, 2π)`; `end` may pass
+/// 2π when the range crosses the reading 0 (a joint swept from −30° to +30° has the range
+/// 330°…390°). Values are radians.
+///
+/// # Mean
+/// Like an [`ErrorMap`](crate::ErrorMap), a range map is zero-mean — but over its range, not over
+/// the circle: [`RangeMap::new`] removes the mean of the grid values. Two range maps of the same
+/// sensor over different ranges therefore differ by a constant; compare them over their common
+/// range with that constant removed.
+///
+/// # Outside the range
+/// A range map says nothing about readings outside its range: [`RangeMap::eval_linear`] returns
+/// `None` there and never extrapolates.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RangeMap {
     start: f64,

@@ -1,8 +1,4 @@
 //! Synchronized samples: a time stamp and one reading per channel.
-//!
-//! Readers (in `calib-io` or a caller's own DAQ code) turn logs into [`Sample`]s whose readings
-//! are already in radians; the core never sees file formats or units. Channels are identified by
-//! their index into the stream's [`Channel`] list, which is fixed for the whole stream.
 
 use crate::angle::AngleUnit;
 
@@ -16,6 +12,10 @@ pub struct Channel {
 }
 
 /// One synchronized sample.
+///
+/// Readers (in `calib-io` or a caller's own DAQ code) turn logs into [`Sample`]s whose readings
+/// are already in radians; the core never sees file formats or units. Channels are identified by
+/// their index into the stream's [`Channel`] list, which is fixed for the whole stream.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sample {
     /// Time stamp, seconds.

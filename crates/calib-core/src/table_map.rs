@@ -1,20 +1,21 @@
 //! A map over a whole turn or over a range: what a correction table holds, whatever the method
-//! that made it.
-//!
-//! Most calibrations give an [`ErrorMap`] over a whole revolution; a joint that never turns a
-//! whole revolution gives a [`RangeMap`] over the readings it covered. [`TableMap`] is either,
-//! and is the one type that tables, `calib apply`, `calib export`, `calib compose` and the
-//! reports take, so each of them handles both kinds in one place.
-//!
-//! # Degrees of the grid
-//! Tables are written in degrees, and a table read back must give the same grid: a whole turn's
-//! point `i` of `N` is at `i·360/N`, a range's at `LO + i·(HI − LO)/(N − 1)` with `LO…HI` its
-//! ends in the sensor's reading convention ([`RangeMap::ends_deg`]). [`TableMap::grid_deg`]
-//! computes them so, not by converting radians, so the same map always prints the same angles.
 
 use crate::{ErrorMap, RangeMap};
 
 /// A calibrated map: over a whole turn, or over the range of readings the run covered.
+///
+/// that made it.
+///
+/// Most calibrations give an [`ErrorMap`] over a whole revolution; a joint that never turns a
+/// whole revolution gives a [`RangeMap`] over the readings it covered. [`TableMap`] is either,
+/// and is the one type that tables, `calib apply`, `calib export`, `calib compose` and the
+/// reports take, so each of them handles both kinds in one place.
+///
+/// # Degrees of the grid
+/// Tables are written in degrees, and a table read back must give the same grid: a whole turn's
+/// point `i` of `N` is at `i·360/N`, a range's at `LO + i·(HI − LO)/(N − 1)` with `LO…HI` its
+/// ends in the sensor's reading convention ([`RangeMap::ends_deg`]). [`TableMap::grid_deg`]
+/// computes them so, not by converting radians, so the same map always prints the same angles.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TableMap {
     /// A whole revolution.
@@ -59,7 +60,7 @@ impl TableMap {
         }
     }
     /// Grid angle of point `i` of `n` spread over this map's turn or range, degrees (see
-    /// [Degrees of the grid](self#degrees-of-the-grid)); `n = len()` gives the map's own grid.
+    /// [Degrees of the grid](TableMap#degrees-of-the-grid)); `n = len()` gives the map's own grid.
     pub fn grid_deg(&self, i: usize, n: usize) -> f64 {
         match self {
             TableMap::Turn(_) => 360.0 * i as f64 / n as f64,

@@ -20,8 +20,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
+use calib_io::Prefetch;
 use calib_io::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter};
-use calib_io::prefetch::{BATCH, Prefetch};
 use calib_io::{LogReader, ReadOptions};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
@@ -90,11 +90,14 @@ fn ingest(c: &mut Criterion) {
     group.bench_function("log_reader_batches", |b| {
         b.iter(|| {
             let mut reader = LogReader::open(&path, &ReadOptions::default()).expect("open");
-            let mut batch = SampleBatch::with_capacity(reader.channels().len(), BATCH);
+            let mut batch =
+                SampleBatch::with_capacity(reader.channels().len(), Prefetch::<LogReader>::BATCH);
             let mut sum = 0.0;
             loop {
                 batch.clear();
-                reader.fill(&mut batch, BATCH).expect("batch");
+                reader
+                    .fill(&mut batch, Prefetch::<LogReader>::BATCH)
+                    .expect("batch");
                 if batch.is_empty() {
                     break;
                 }

@@ -1,7 +1,7 @@
 //! Channels on different clocks brought onto one: the first channel's.
 //!
 //! A recording in which every sensor publishes on its own topic has no two readings at the same
-//! instant; a method needs one reading of every channel per sample. The [`Aligner`] makes the
+//! instant; a method needs one reading of every channel per sample. The `Aligner` makes the
 //! first selected channel the **clock**: every sample of it becomes a sample of the output, and
 //! every other channel is interpolated at the clock's stamp from its own samples.
 //!
@@ -75,7 +75,7 @@ const OFFSET_WINDOW: usize = 1 << 16;
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct AlignOptions {
     /// The longest interval between two samples of a channel that is interpolated across,
-    /// seconds; `None`: [`DEFAULT_GAP_INTERVALS`] of each channel's median interval.
+    /// seconds; `None`: `DEFAULT_GAP_INTERVALS` (2.5) of each channel's median interval.
     pub max_gap_s: Option<f64>,
 }
 

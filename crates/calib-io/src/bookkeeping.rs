@@ -18,7 +18,8 @@ pub const BOOKKEEPING_TOPICS: [&str; 7] = [
 /// The prefix of event topics (`/events/write_split`, …), skipped without a warning.
 pub const EVENTS: &str = "/events/";
 
-/// Whether `topic` is one of the [`BOOKKEEPING_TOPICS`] or an event topic.
+/// Whether `topic` is one of ROS's bookkeeping topics (`/rosout`, `/parameter_events`, `/tf`,
+/// `/tf_static`, `/diagnostics`, `/clock`, `/robot_description`) or an event topic (`/events/…`).
 pub fn is_bookkeeping(topic: &str) -> bool {
     BOOKKEEPING_TOPICS.contains(&topic) || topic.starts_with(EVENTS)
 }

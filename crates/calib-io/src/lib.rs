@@ -14,6 +14,8 @@
 //! - [`atomic`]: output files that appear only when complete.
 //! - [`apply`]: a log rewritten with one channel corrected by an error map.
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
+//! - [`Prefetch`]: a reader on a second thread, filling batches of samples ahead of the caller;
+//!   [`ReadProgress`]: how far it has got, for a progress line.
 //! - [`report`]: `report.json` and other JSON outputs.
 //! - [`readings`]: shift-angle readings (`shift_deg,start_face,step,reading_arcsec`).
 //! - [`shift_angle`]: the shift-angle method's `encoder.csv` and `polygon.csv`.
@@ -45,11 +47,11 @@
 pub mod align;
 pub mod apply;
 pub mod atomic;
-pub mod bookkeeping;
+mod bookkeeping;
 pub mod budget;
 pub mod compare;
 pub mod csv_log;
-pub mod error;
+mod error;
 pub mod export;
 pub mod import;
 pub mod limits;
@@ -58,8 +60,8 @@ pub mod mcap_log;
 pub mod moteus_dump;
 pub mod naming;
 pub mod points;
-pub mod prefetch;
-pub mod progress;
+mod prefetch;
+mod progress;
 pub mod readings;
 pub mod report;
 mod ros2;
@@ -69,8 +71,13 @@ pub mod shift_angle;
 mod stamps;
 pub mod table;
 
+pub use align::AlignOptions;
+pub use bookkeeping::is_bookkeeping;
 pub use error::Error;
 pub use log::{LogFormat, LogReader, LogWriter};
+pub use naming::{ChannelLookup, ChannelName};
+pub use prefetch::{BatchSource, Prefetch};
+pub use progress::{ProgressUnit, ReadProgress};
 
 use calib_core::AngleUnit;
 

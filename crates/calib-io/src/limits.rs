@@ -8,6 +8,7 @@
 //!   [`MAX_CSV_LINE_BYTES`]): checked before any work starts, so that a mistyped option fails at
 //!   once instead of running for minutes into gigabytes of memory or disk.
 
+pub use crate::align::ALIGN_QUEUE;
 use std::f64::consts::TAU;
 use std::io::{self, Read};
 

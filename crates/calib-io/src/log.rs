@@ -444,7 +444,7 @@ impl LogReader {
 
     /// Notes for the user about parts of the log that were not read (topics of other schemas),
     /// but for the ROS 2 bookkeeping topics every recording carries
-    /// ([`crate::bookkeeping`]: `/rosout`, `/tf`, …), which are expected.
+    /// ([`is_bookkeeping`](crate::is_bookkeeping): `/rosout`, `/tf`, …), which are expected.
     pub fn notes(&self) -> Vec<String> {
         let Inner::Ros2(r) = &self.inner else {
             return Vec::new();

@@ -1,17 +1,4 @@
 //! Reading a log on a second thread while the caller computes on the first.
-//!
-//! Every method streams a log once: decompressing and decoding a sample costs about as much as
-//! segmenting and binning it, and on one thread the two add up. [`Prefetch`] moves the reader to
-//! a worker thread that fills [`SampleBatch`]es ahead of the caller, handed over through a
-//! bounded channel and handed back empty to be filled again: wall time approaches the slower of
-//! the two threads instead of their sum, and nothing is allocated per sample once the first
-//! batches exist. Memory stays bounded: at most [`DEPTH`] batches of [`BATCH`] samples wait at
-//! any time.
-//!
-//! The reader comes back with [`Prefetch::finish`], its diagnostics (truncation, alignment)
-//! complete. The samples and the first error are exactly the reader's: the worker stops after
-//! the first error, as every caller does. Where no thread can be started (or one is asked for,
-//! [`Prefetch::inline`]) the reader runs on the caller's thread, unchanged.
 
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
@@ -27,7 +14,7 @@ pub const BATCH: usize = 4096;
 pub const DEPTH: usize = 4;
 
 /// What fills batches of samples: a [`LogReader`], or a test's stand-in.
-pub trait Source: Send + 'static {
+pub trait BatchSource: Send + 'static {
     /// Why reading stopped early.
     type Error: Send + 'static;
     /// Readings per sample.
@@ -37,7 +24,7 @@ pub trait Source: Send + 'static {
     fn fill(&mut self, batch: &mut SampleBatch, max: usize) -> Result<(), Self::Error>;
 }
 
-impl Source for LogReader {
+impl BatchSource for LogReader {
     type Error = Error;
 
     fn width(&self) -> usize {
@@ -53,11 +40,11 @@ impl Source for LogReader {
 ///
 /// ```
 /// use calib_core::SampleBatch;
-/// use calib_io::prefetch::{Prefetch, Source};
+/// use calib_io::{BatchSource, Prefetch};
 ///
 /// /// The numbers below `end`, one reading per sample.
 /// struct Count { next: u32, end: u32 }
-/// impl Source for Count {
+/// impl BatchSource for Count {
 ///     type Error = String;
 ///     fn width(&self) -> usize { 1 }
 ///     fn fill(&mut self, batch: &mut SampleBatch, max: usize) -> Result<(), String> {
@@ -77,7 +64,20 @@ impl Source for LogReader {
 /// assert_eq!(sum, 49_995_000.0);
 /// assert_eq!(ahead.finish().next, 10_000);
 /// ```
-pub struct Prefetch<R: Source> {
+///
+/// Every method streams a log once: decompressing and decoding a sample costs about as much as
+/// segmenting and binning it, and on one thread the two add up. [`Prefetch`] moves the reader to
+/// a worker thread that fills [`SampleBatch`]es ahead of the caller, handed over through a
+/// bounded channel and handed back empty to be filled again: wall time approaches the slower of
+/// the two threads instead of their sum, and nothing is allocated per sample once the first
+/// batches exist. Memory stays bounded: at most 4 batches (`DEPTH`) of 4096 samples (`BATCH`) wait at
+/// any time.
+///
+/// The reader comes back with [`Prefetch::finish`], its diagnostics (truncation, alignment)
+/// complete. The samples and the first error are exactly the reader's: the worker stops after
+/// the first error, as every caller does. Where no thread can be started (or one is asked for,
+/// [`Prefetch::inline`]) the reader runs on the caller's thread, unchanged.
+pub struct Prefetch<R: BatchSource> {
     inner: Inner<R>,
     /// The batch last handed to the caller.
     current: SampleBatch,
@@ -90,7 +90,7 @@ pub struct Prefetch<R: Source> {
 /// A batch filled on the worker, and the error that ended the log after its samples.
 type Filled<E> = (SampleBatch, Option<E>);
 
-enum Inner<R: Source> {
+enum Inner<R: BatchSource> {
     Ahead {
         full: Receiver<Filled<R::Error>>,
         /// Batches handed back to be filled again.
@@ -101,7 +101,11 @@ enum Inner<R: Source> {
     Inline(R),
 }
 
-impl<R: Source> Prefetch<R> {
+impl<R: BatchSource> Prefetch<R> {
+    /// Samples per batch: large enough that the hand-over costs nothing per sample, small
+    /// enough that the first batch of a small log arrives at once.
+    pub const BATCH: usize = BATCH;
+
     /// Starts reading `reader` on a worker thread.
     pub fn new(reader: R) -> Self {
         let width = reader.width();
@@ -228,7 +232,7 @@ mod tests {
         fail_at: Option<usize>,
     }
 
-    impl Source for Counting {
+    impl BatchSource for Counting {
         type Error = String;
 
         fn width(&self) -> usize {

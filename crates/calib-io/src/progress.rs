@@ -1,11 +1,4 @@
 //! How far a reader has got through its log, for a progress line with a total and an ETA.
-//!
-//! A reader counts the bytes of its file it has read into a [`ReadProgress`]; a clone of it
-//! reads the count from another thread (the reader runs on its own, [`crate::prefetch`]). The
-//! total is the file's size, known before the first sample: a CSV log's rows, an MCAP log's
-//! records and chunks all lie between its first and last byte. A rosbag2 SQLite bag, whose rows
-//! are not read in the file's order, counts its messages instead, of the number its `messages`
-//! table holds for the topics read.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -20,6 +13,13 @@ pub enum ProgressUnit {
 }
 
 /// Bytes (or messages) of a log read so far, of its size.
+///
+/// A reader counts the bytes of its file it has read into a [`ReadProgress`]; a clone of it
+/// reads the count from another thread (the reader runs on its own, [`Prefetch`](crate::Prefetch)). The
+/// total is the file's size, known before the first sample: a CSV log's rows, an MCAP log's
+/// records and chunks all lie between its first and last byte. A rosbag2 SQLite bag, whose rows
+/// are not read in the file's order, counts its messages instead, of the number its `messages`
+/// table holds for the topics read.
 #[derive(Debug, Clone)]
 pub struct ReadProgress {
     read: Arc<AtomicU64>,

@@ -1008,7 +1008,7 @@ fn decompress_payload(data: &[u8]) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
-/// Reads a rosbag2 bag with SQLite storage as a stream of [`Sample`]s (see the
+/// Reads a rosbag2 bag with SQLite storage as a stream of [`Sample`](calib_core::Sample)s (see the
 /// [module docs](self)).
 ///
 /// The iterator ends after the first error it yields.

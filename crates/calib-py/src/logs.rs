@@ -2,8 +2,8 @@
 
 use crate::errors::{data, usage};
 use calib_core::{AngleUnit, SampleRef};
-use calib_io::align::AlignOptions;
-use calib_io::prefetch::Prefetch;
+use calib_io::AlignOptions;
+use calib_io::Prefetch;
 use calib_io::{LogReader, ReadOptions, TimeSource};
 use numpy::PyArray1;
 use pyo3::prelude::*;

@@ -6,8 +6,8 @@
 //! reading 0 as the CSV table writes them). Inside, a [`TableMap`] in radians.
 
 use crate::errors::{check_points, data, usage};
+use calib_core::RangeMap;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::range_map::RangeMap;
 use calib_core::{ErrorMap, TableMap, compose::compose_uncertainty};
 use calib_io::export::{ExportOptions, Format, Keep};
 use numpy::{PyArray1, PyReadonlyArray1};

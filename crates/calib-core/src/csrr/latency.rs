@@ -12,7 +12,7 @@
 //!
 //! # Removal
 //! B's readings are moved to A's instants: the sample stamped `t` takes B's reading interpolated
-//! in time at `t + τ` by a cubic through the two readings on each side ([`TimeShift`]), which
+//! in time at `t + τ` by a cubic through the two readings on each side (`TimeShift`), which
 //! holds the second-order terms the first-order model leaves (`½τ²·α` at an acceleration `α`).
 //! A straight line between two readings would not do: it errs by `α·h²/8` for a step `h`, 16″
 //! at 200 Hz in a ramp of 25 rad/s²; the cubic is exact for a constant acceleration. With the lag unknown

@@ -862,7 +862,7 @@ fn joint_maps(sol: &joint::JointSolution, screen: &Screen, points: Option<usize>
 ///   so `u_fit² = Σ_kept v_h` (Type A). Poorly observable orders (small `1 − |S_h|/W`) weigh
 ///   more; excluded (blind) orders are not in the maps and not in the sum — they are warnings,
 ///   not uncertainty;
-/// - what the orders below the significance threshold hold (Type A, see [`screen_orders`]);
+/// - what the orders below the significance threshold hold (Type A, see `screen_orders`);
 /// - periodic structure the residual holds above the fitted orders, of amplitude `A` at each
 ///   such order: RMS `A/√2` (Type A);
 /// - the linear interpolation of the table between its points ([`interpolation_uncertainty`],

@@ -17,9 +17,9 @@
 //! (Nyquist over the Δ grid), which is why the method needs many sessions densely covering
 //! 0…360°.
 //!
-//! The maps' standard uncertainty ([`uncertainty`]) is built from what the same pass collects:
+//! The maps' standard uncertainty (`uncertainty`) is built from what the same pass collects:
 //! the spread of each session's crossings (the points' noise), each session's relative-angle
-//! profile projected on orders up to [`PROFILE_ORDERS`] (what lies between the points, and
+//! profile projected on orders up to `PROFILE_ORDERS` (what lies between the points, and
 //! above the session grid's Nyquist limit), and the bias of `Δ̂_k` against the profile's mean
 //! over the angle (ε_θ). See `docs/uncertainty.md`.
 
@@ -119,7 +119,7 @@ impl Profile {
     }
 
     /// The profile's mean over the circle (`d_ref` added back) and its complex amplitudes `c_h`
-    /// at orders `1 … orders` (`f_ab ≈ c₀ + Re Σ c_h e^{ihx}`, `orders` ≤ [`PROFILE_ORDERS`]):
+    /// at orders `1 … orders` (`f_ab ≈ c₀ + Re Σ c_h e^{ihx}`, `orders` ≤ `PROFILE_ORDERS`):
     /// the trapezoidal rule over the samples' own readings, `c_h = 2·Σ ω_n d_n e^{−ihx_n} / Σ ω_n`
     /// over whole revolutions.
     fn finish(&self, d_ref: f64, orders: usize) -> Option<(f64, Vec<Complex<f64>>)> {
@@ -174,7 +174,7 @@ struct Open {
 }
 
 /// What one session tells of its point's noise and of the content between the points, for the
-/// paper method's uncertainty ([`uncertainty`]).
+/// paper method's uncertainty (`uncertainty`).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct SessionStats {
     /// `Σ (d − d̄)²` over A's benchmark crossings, and its degrees of freedom (crossings − 1).

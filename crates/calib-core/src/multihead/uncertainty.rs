@@ -56,7 +56,7 @@ pub(super) fn order_variances(
 
 /// The variance one order adds to the map at every angle, `2 Σ_jk Re(w_j w̄_k) G_jk`, from the
 /// order's weights `w` on the other heads' coefficients and their noise covariance `G` (see
-/// [`order_variances`]; [`crate::plan::multihead`] calls it with a planned `G`).
+/// `order_variances`; [`crate::plan::multihead`] calls it with a planned `G`).
 pub fn order_variance(g: &[Vec<f64>], w: &[Complex<f64>]) -> f64 {
     let mut v = 0.0;
     for (j, gj) in g.iter().enumerate() {

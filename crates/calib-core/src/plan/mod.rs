@@ -9,7 +9,7 @@
 //! - [`multihead`]: the head positions (shift-angle paper, eqs. 8–9; SelfA's head sets).
 //! - [`shift_angle`]: the shifts and readings, and the Table 3 budget (shift-angle paper).
 //! - [`tdr`]: the coast-down, its duration and sample rate (the TDR method's own rules).
-//! - [`reference`]: ISO 230-2 targets, passes and the approach for a backlash.
+//! - [`reference`](mod@reference): ISO 230-2 targets, passes and the approach for a backlash.
 pub mod csrr;
 pub mod multihead;
 pub mod reference;

@@ -2,7 +2,7 @@
 //!
 //! Each method's result provides its own part of the report — channels, sessions, warnings and
 //! its `details` — through a `report_section` method (one module here per method:
-//! [`csrr`], [`multihead`], [`tdr`], [`reference`], [`shift_angle`]), and [`Report::new`]
+//! [`csrr`], [`multihead`], [`tdr`], [`reference`](mod@reference), [`shift_angle`]), and [`Report::new`]
 //! assembles the report from it. A program using the crates writes the same `report.json` as the
 //! command line by serializing the [`Report`].
 //!

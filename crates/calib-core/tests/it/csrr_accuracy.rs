@@ -10,8 +10,8 @@
 
 use calib_core::ErrorMap;
 use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::channel_index;
 use calib_core::csrr::{Csrr, CsrrOptions, Method};
-use calib_core::sample::channel_index;
 use calib_core::simulate::Scenario;
 use calib_core::uncertainty::MapUncertainty;
 use std::f64::consts::PI;

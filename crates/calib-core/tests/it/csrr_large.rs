@@ -9,8 +9,8 @@
 
 use calib_core::ErrorMap;
 use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::channel_index;
 use calib_core::csrr::{Calibration, Csrr, CsrrOptions};
-use calib_core::sample::channel_index;
 use calib_core::segment::SegmentOptions;
 use calib_core::simulate::Scenario;
 use calib_core::uncertainty::MapUncertainty;

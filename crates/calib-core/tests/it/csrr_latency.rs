@@ -11,9 +11,9 @@
 
 use calib_core::ErrorMap;
 use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::channel_index;
 use calib_core::csrr::latency::{self, Latency};
 use calib_core::csrr::{Calibration, Csrr, CsrrError, CsrrOptions};
-use calib_core::sample::channel_index;
 use calib_core::simulate::Scenario;
 
 fn load(name: &str) -> Scenario {

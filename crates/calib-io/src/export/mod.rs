@@ -47,7 +47,7 @@ pub mod moteus;
 pub mod simplefoc;
 
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::error_map::interpolate_periodic;
+use calib_core::interpolate_periodic;
 use calib_core::{ErrorMap, TableMap};
 use std::fmt::Write as _;
 

@@ -27,9 +27,9 @@
 //! the 256-entry int8 table with its scale exists since firmware ABI 0x0109 (`FirmwareUpgrade`
 //! converts older firmware's 32 `float` entries, which had no scale); calib writes the 256-entry
 //! form only. Loading: `--write-config FILE` sends every line as a command, comments included, so
-//! [`Format::Moteus`](super::Format::Moteus) has none; `--restore-config FILE` drops what follows a
+//! [`Format::Moteus`] has none; `--restore-config FILE` drops what follows a
 //! `#`, sends `conf set` and the line, and ends with `conf write`, which
-//! [`Format::MoteusConfig`](super::Format::MoteusConfig) is written for.
+//! [`Format::MoteusConfig`] is written for.
 //!
 //! # Scale, codes and order of the lines
 //! `compensation_scale` is the largest |correction| in revolutions (or 127 codes of `--scale`),
@@ -38,7 +38,7 @@
 //! decimals (the firmware's parser is not documented to take exponents), and the codes are
 //! checked against it as the firmware will read it (`f32`). The first line sets the scale to 0,
 //! which turns compensation off while the entries change one by one; the last sets the real
-//! scale. [`Format::Moteus`](super::Format::Moteus) ends with `conf write`, which keeps the table
+//! scale. [`Format::Moteus`] ends with `conf write`, which keeps the table
 //! across power cycles.
 //!
 //! Not established from the source: whether the firmware's configuration parser takes numbers

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use byteorder::{BigEndian, LittleEndian};
 use calib_core::{AngleUnit, Sample};
-use calib_io::align::ALIGN_QUEUE;
+use calib_io::limits::ALIGN_QUEUE;
 use calib_io::mcap_log::{IgnoredTopic, JOINT_STATE_MSGDEF, McapReader, PEEK_WINDOW};
 use calib_io::{Error, ReadOptions};
 use mcap::records::MessageHeader;

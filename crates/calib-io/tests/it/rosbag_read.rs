@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use byteorder::LittleEndian;
 use calib_core::{AngleUnit, Sample};
-use calib_io::align::AlignOptions;
+use calib_io::AlignOptions;
 use calib_io::{Error, LogReader, ReadOptions, TimeSource};
 use rusqlite::{Connection, params};
 use serde::Serialize;
