@@ -277,58 +277,19 @@ pub fn command_line() -> String {
         .join(" ")
 }
 
-/// The travel of a channel's continuous (unwrapped) reading, to say when a method that needs
-/// whole turns was given a joint that never turned one.
-#[derive(Debug, Clone)]
-pub struct Travel {
-    unwrapper: calib_core::Unwrapper,
-    lo: f64,
-    hi: f64,
-}
-
-impl Default for Travel {
-    fn default() -> Self {
-        Travel {
-            unwrapper: calib_core::Unwrapper::new(),
-            lo: f64::INFINITY,
-            hi: f64::NEG_INFINITY,
-        }
-    }
-}
-
-impl Travel {
-    /// Adds a reading (radians); non-finite ones are skipped.
-    pub fn push(&mut self, reading: f64) {
-        if reading.is_finite() {
-            let u = self.unwrapper.unwrap(reading);
-            self.lo = self.lo.min(u);
-            self.hi = self.hi.max(u);
-        }
-    }
-
-    /// Largest minus smallest continuous reading, degrees (0 without readings).
-    pub fn span_deg(&self) -> f64 {
-        if self.hi >= self.lo {
-            (self.hi - self.lo).to_degrees()
-        } else {
-            0.0
-        }
-    }
-
-    /// If the channel moved (more than 1°) but never turned a whole revolution, what to say
-    /// before the method's own error: that `method` needs whole turns, and what to do for a joint
-    /// instead. `None` if it turned one, or stood still (the method's own error says that).
-    pub fn no_whole_turn(&self, log: &Path, channel: &str, method: &str) -> Option<String> {
-        let span = self.span_deg();
-        (span > 1.0 && span < 360.0).then(|| {
-            format!(
-                "{}: channel `{channel}` never turned a whole revolution (its readings span {span:.3}°): {method}; \
-                 to map a joint that never turns a whole revolution, calibrate it against a reference encoder on its \
-                 shaft with `calib reference`, which writes a range table",
-                log.display()
-            )
-        })
-    }
+/// A method's error `cause` under what it says first (`turn`): that `who` (a channel, named as
+/// the surrounding message does not already name it; empty if it does) never turned the whole
+/// revolution the method needs.
+pub fn no_whole_turn<E>(cause: E, who: &str, turn: &calib_core::PartialTurn) -> anyhow::Error
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    let said = if who.is_empty() {
+        turn.to_string()
+    } else {
+        format!("{who} {turn}")
+    };
+    anyhow::Error::new(cause).context(said)
 }
 
 /// `--latency`: `auto` or a lag in seconds (`0.02`, `-0.005`), within ±10 s.

@@ -139,9 +139,93 @@ impl Unwrapper {
     }
 }
 
+/// The extent of a channel's continuous (unwrapped) reading: what a method that needs whole
+/// turns checks before blaming anything else when it fails.
+#[derive(Debug, Clone, Default)]
+pub struct Travel {
+    unwrapper: Unwrapper,
+    range: Option<(f64, f64)>,
+}
+
+impl Travel {
+    /// The travel of no reading yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a reading (radians); non-finite ones are skipped.
+    pub fn push(&mut self, reading: f64) {
+        if reading.is_finite() {
+            let u = self.unwrapper.unwrap(reading);
+            let (lo, hi) = self.range.unwrap_or((u, u));
+            self.range = Some((lo.min(u), hi.max(u)));
+        }
+    }
+
+    /// Largest minus smallest continuous reading, radians (0 without readings).
+    pub fn span(&self) -> f64 {
+        self.range.map_or(0.0, |(lo, hi)| hi - lo)
+    }
+
+    /// The span in degrees if the channel moved (more than 1°) but never turned a whole
+    /// revolution; `None` if it turned one, or stood still (which a method says in its own
+    /// words).
+    pub fn partial_turn_deg(&self) -> Option<f64> {
+        self.partial_turn("").map(|turn| turn.span_deg)
+    }
+
+    /// [`PartialTurn`] for a method that `needs` whole turns, if the channel moved but never
+    /// turned one.
+    pub fn partial_turn(&self, needs: &'static str) -> Option<PartialTurn> {
+        PartialTurn::of(self.span().to_degrees(), needs)
+    }
+}
+
+/// A channel that moved but never turned a whole revolution, given to a method that needs whole
+/// turns: what the method says first when it fails, since it is the likely reason.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error(
+    "never turned a whole revolution (its readings span {span_deg:.3}°): {needs}; to map a joint that \
+     never turns a whole revolution, calibrate it against a reference encoder on its shaft with the \
+     reference method (`calib reference`), which writes a range table"
+)]
+pub struct PartialTurn {
+    /// Largest minus smallest continuous reading, degrees.
+    pub span_deg: f64,
+    /// Why the method needs whole turns.
+    pub needs: &'static str,
+}
+
+impl PartialTurn {
+    /// A travel of `span_deg` (largest minus smallest continuous reading) as a partial turn: if
+    /// it moved (more than 1°) but less than a revolution.
+    pub fn of(span_deg: f64, needs: &'static str) -> Option<PartialTurn> {
+        (span_deg > 1.0 && span_deg < 360.0).then_some(PartialTurn { span_deg, needs })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn travel_tells_a_partial_turn_from_a_whole_one_across_the_wrap() {
+        let mut t = Travel::new();
+        assert_eq!(t.partial_turn_deg(), None);
+        // 350° → 10° → 80°: 90° of travel across the wrap; NaN skipped.
+        for deg in [350.0f64, 0.0, 10.0, f64::NAN, 80.0] {
+            t.push(deg.to_radians());
+        }
+        assert!((t.partial_turn_deg().unwrap() - 90.0).abs() < 1e-9);
+        for deg in [170.0f64, 260.0, 350.0, 80.0] {
+            t.push(deg.to_radians());
+        }
+        assert_eq!(t.partial_turn_deg(), None, "{}", t.span().to_degrees());
+        let mut still = Travel::new();
+        still.push(0.3);
+        still.push(0.3001);
+        assert_eq!(still.partial_turn_deg(), None);
+    }
 
     #[test]
     fn conversions_round_trip() {

@@ -99,7 +99,7 @@ mod table_map;
 pub mod tdr;
 pub mod uncertainty;
 
-pub use angle::{AngleUnit, Unwrapper};
+pub use angle::{AngleUnit, PartialTurn, Travel, Unwrapper};
 pub use error_map::{ErrorMap, interpolate_periodic};
 pub use harmonics::{FourierSeries, Harmonic, HarmonicReport};
 pub use range_map::{RangeMap, RangeMapError};

@@ -218,10 +218,6 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         .map(ReferenceTable::read)
         .transpose()?;
     let mut trace = TraceRecorder::new(&args.a, &args.b);
-    let (mut travel_a, mut travel_b) = (
-        crate::input::Travel::default(),
-        crate::input::Travel::default(),
-    );
     let (mut first, mut last) = (Some(reader), None);
     let mut solving: Option<indicatif::ProgressBar> = None;
     // One reading of the log per pass: `auto` reads it again with the lag it found removed.
@@ -234,13 +230,10 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
             None => args.common.open(log, &names)?,
         };
         trace = TraceRecorder::new(&args.a, &args.b);
-        (travel_a, travel_b) = Default::default();
         // The sample's values are the channels in the order opened: A, B, then the reference.
         last = Some(for_each_sample(log, reader, |s| {
             let (a, b) = (s.values[0], s.values[1]);
             trace.push(s.t, a, b);
-            travel_a.push(a);
-            travel_b.push(b);
             match s.values.get(2) {
                 Some(&r) => csrr.push_with_reference(s.t, a, b, r, s.session),
                 None => csrr.push(s.t, a, b, s.session),
@@ -254,12 +247,15 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
     }
     let reader = last.expect("the log is read at least once");
     let cal = cal.map_err(|e| {
-        let needs = "CSRR's self-calibration needs sessions of whole turns";
-        if let Some(hint) = travel_a
-            .no_whole_turn(log, &args.a, needs)
-            .or_else(|| travel_b.no_whole_turn(log, &args.b, needs))
+        if let CsrrError::NoWholeTurn {
+            sensor,
+            turn,
+            cause,
+        } = e
         {
-            return anyhow::Error::new(e).context(hint);
+            let name = if sensor == 'A' { &args.a } else { &args.b };
+            let who = format!("{}: channel `{name}`", log.display());
+            return crate::input::no_whole_turn(*cause, &who, &turn);
         }
         let pair = format!("{}: channels `{}` and `{}`", log.display(), args.a, args.b);
         let (e, context) = match &e {

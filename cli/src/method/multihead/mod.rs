@@ -9,7 +9,7 @@ use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
 use crate::output::turn_table;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::multihead::{Head, Method, Multihead, MultiheadOptions};
+use calib_core::multihead::{Head, Method, Multihead, MultiheadError, MultiheadOptions};
 use std::path::Path;
 use summary::render_summary;
 
@@ -218,22 +218,15 @@ fn calibrate(
     let mut mh = Multihead::new(heads.to_vec(), opts.clone()).map_err(|e| Usage(e.to_string()))?;
     let names: Vec<&str> = heads.iter().map(|h| h.name.as_str()).collect();
     let reader = args.common.open(log, &names)?;
-    let mut travel = crate::input::Travel::default();
     // The sample's values are the heads' readings, in the heads' order.
     let reader = for_each_sample(log, reader, |s| {
-        travel.push(s.values[0]);
         mh.push(s.values);
     })?;
-    let cal = mh.finish().map_err(|e| {
-        let hint = travel.no_whole_turn(
-            log,
-            &heads[0].name,
-            "multi-head self-calibration needs the scale to turn whole revolutions past the heads",
-        );
-        match hint {
-            Some(hint) => anyhow::Error::new(e).context(hint),
-            None => anyhow::Error::new(e),
+    let cal = mh.finish().map_err(|e| match e {
+        MultiheadError::NoWholeTurn { turn, cause } => {
+            crate::input::no_whole_turn(*cause, &format!("head `{}`", heads[0].name), &turn)
         }
+        e => anyhow::Error::new(e),
     });
     let cal = cal
         .with_context(|| {

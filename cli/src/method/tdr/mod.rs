@@ -9,7 +9,7 @@ use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
 use crate::output::turn_table;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::tdr::{Tdr, TdrOptions};
+use calib_core::tdr::{Tdr, TdrError, TdrOptions};
 use std::path::Path;
 use summary::render_summary;
 
@@ -145,26 +145,17 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         min_revolutions: args.min_revolutions,
         ..TdrOptions::default()
     });
-    let mut travel = crate::input::Travel::default();
     // The sample's values are the channels in the order opened: the encoder, then the reference.
-    let reader = for_each_sample(log, reader, |s| {
-        travel.push(s.values[0]);
-        match s.values.get(1) {
-            Some(&r) => tdr.push_with_reference(s.t, s.values[0], r),
-            None => tdr.push(s.t, s.values[0]),
-        }
+    let reader = for_each_sample(log, reader, |s| match s.values.get(1) {
+        Some(&r) => tdr.push_with_reference(s.t, s.values[0], r),
+        None => tdr.push(s.t, s.values[0]),
     })?;
-    let cal = tdr.finish().map_err(|e| {
-        let hint = travel.no_whole_turn(
-            log,
-            &args.channel,
-            "TDR needs a free coast of at least one whole turn (better many) to tell the encoder's error, periodic in \
-             angle, from the motion; a coast over part of a turn cannot separate them",
-        );
-        match hint {
-            Some(hint) => anyhow::Error::new(e).context(hint),
-            None => anyhow::Error::new(e),
+    let cal = tdr.finish().map_err(|e| match e {
+        TdrError::NoWholeTurn { turn, cause } => {
+            // The context below names the log and the channel.
+            crate::input::no_whole_turn(*cause, "", &turn)
         }
+        e => anyhow::Error::new(e),
     });
     let cal = cal
         .with_context(|| format!("{}: channel `{}`", log.display(), args.channel))

@@ -33,7 +33,7 @@ pub use crate::detection::{DETECTION_FLOOR, detection_floor};
 pub use observability::{coefficient_variance, observability};
 pub use reference::{EffectiveRange, EpsHarmonic, ReferenceCheck};
 
-use crate::angle::ARCSEC_PER_RAD;
+use crate::angle::{ARCSEC_PER_RAD, PartialTurn, Travel};
 use crate::detection::{self, Verdict};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
@@ -88,6 +88,18 @@ pub enum CsrrError {
          (or check that the right channels were chosen)"
     )]
     OppositeDirections,
+    /// A sensor moved but never turned a whole revolution: the likely reason the solve failed
+    /// (`cause`).
+    #[error("sensor {sensor} {turn}")]
+    NoWholeTurn {
+        /// `A` or `B`.
+        sensor: char,
+        /// Its travel.
+        turn: PartialTurn,
+        /// The error the solve gave.
+        #[source]
+        cause: Box<CsrrError>,
+    },
     /// One sensor's readings never change faster than the speed threshold.
     #[error(
         "sensor {sensor} never moves: its readings stay (nearly) constant over the whole log, so no session can be found; \
@@ -340,7 +352,12 @@ pub struct Csrr {
     segmenter: Segmenter,
     sinks: Sinks,
     shift: Option<latency::TimeShift>,
+    /// A's and B's travel, for [`CsrrError::NoWholeTurn`].
+    travel: (Travel, Travel),
 }
+
+/// Why CSRR needs whole turns, for [`CsrrError::NoWholeTurn`].
+const NEEDS_WHOLE_TURNS: &str = "CSRR's self-calibration needs sessions of whole turns";
 
 impl Csrr {
     /// A new calibration.
@@ -356,6 +373,7 @@ impl Csrr {
             shift: (opts.latency_s != 0.0).then(|| latency::TimeShift::new(opts.latency_s)),
             opts,
             sinks,
+            travel: Default::default(),
         }
     }
 
@@ -371,6 +389,8 @@ impl Csrr {
     }
 
     fn push_extra(&mut self, t: f64, x: f64, y: f64, mark: Option<u32>, extra: &[f64]) {
+        self.travel.0.push(x);
+        self.travel.1.push(y);
         let (segmenter, sinks) = (&mut self.segmenter, &mut self.sinks);
         match &mut self.shift {
             None => segmenter.push(t, x, y, mark, extra, sinks),
@@ -396,7 +416,24 @@ impl Csrr {
     ) {
         let segmenter = std::mem::replace(&mut self.segmenter, Segmenter::new(self.opts.segments));
         let segmentation = segmenter.finish(&mut self.sinks);
-        (segmentation.latency, self.solve(segmentation))
+        let latency = segmentation.latency;
+        let (a, b) = std::mem::take(&mut self.travel);
+        let result = self.solve(segmentation).map_err(|e| {
+            let partial = |sensor, travel: &Travel| {
+                travel
+                    .partial_turn(NEEDS_WHOLE_TURNS)
+                    .map(|turn| (sensor, turn))
+            };
+            match partial('A', &a).or_else(|| partial('B', &b)) {
+                Some((sensor, turn)) => CsrrError::NoWholeTurn {
+                    sensor,
+                    turn,
+                    cause: Box::new(e),
+                },
+                None => e,
+            }
+        });
+        (latency, result)
     }
 
     fn solve(mut self, segmentation: Segmentation) -> Result<Calibration, CsrrError> {

@@ -3,6 +3,16 @@
 /// Why a multi-head calibration cannot be made.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MultiheadError {
+    /// The first head moved but never turned a whole revolution: the likely reason the solve
+    /// failed (`cause`).
+    #[error("the first head {turn}")]
+    NoWholeTurn {
+        /// Its travel.
+        turn: crate::PartialTurn,
+        /// The error the solve gave.
+        #[source]
+        cause: Box<MultiheadError>,
+    },
     /// Fewer than two heads.
     #[error("{found} head(s) given; a multi-head calibration needs at least 2 heads on the scale")]
     TooFewHeads {

@@ -128,7 +128,7 @@ pub use error::MultiheadError;
 pub use joint::joint_weights;
 pub use uncertainty::order_variance;
 
-use crate::angle::{wrap_2pi, wrap_pi};
+use crate::angle::{Travel, wrap_2pi, wrap_pi};
 use crate::detection::{self, Verdict};
 use crate::error_map::ErrorMap;
 use crate::harmonics::FourierSeries;
@@ -310,6 +310,8 @@ pub struct Multihead {
     d_max: Vec<f64>,
     last_x: Option<f64>,
     travel: f64,
+    /// The first head's extent, for [`MultiheadError::NoWholeTurn`].
+    first: Travel,
     samples: u64,
     skipped: u64,
 }
@@ -401,6 +403,7 @@ impl Multihead {
             d_max: vec![f64::NEG_INFINITY; others],
             last_x: None,
             travel: 0.0,
+            first: Travel::new(),
             samples: 0,
             skipped: 0,
             heads,
@@ -439,6 +442,7 @@ impl Multihead {
             self.travel += wrap_pi_near(r1 - last).abs();
         }
         self.last_x = Some(r1);
+        self.first.push(r1);
         let f = self.count.len();
         let width = TAU / f as f64;
         let x = if (0.0..TAU).contains(&r1) {
@@ -465,8 +469,22 @@ impl Multihead {
 
     /// Solves, once every sample is in: checks that the heads follow the first, recognizes each
     /// head's reading convention, chooses the grid and the orders, fits, and describes the
-    /// result (each a step below).
+    /// result (each a step below). If that fails for a first head that moved but never turned
+    /// a whole revolution, the error is [`MultiheadError::NoWholeTurn`].
     pub fn finish(self) -> Result<MultiheadCalibration, MultiheadError> {
+        let turn = self.first.partial_turn(
+            "multi-head self-calibration needs the scale to turn whole revolutions past the heads",
+        );
+        self.solve().map_err(|e| match turn {
+            Some(turn) => MultiheadError::NoWholeTurn {
+                turn,
+                cause: Box::new(e),
+            },
+            None => e,
+        })
+    }
+
+    fn solve(self) -> Result<MultiheadCalibration, MultiheadError> {
         self.check_following()?;
         let (readings, base) = self.conventions()?;
         let (bins, max_order) = self.grid()?;

@@ -103,7 +103,7 @@
 //! and a Cholesky factor. Both passes use two threads where rayon has them and sum in a fixed
 //! order, so the results are the same bits on any number of threads.
 
-use crate::angle::{ARCSEC_PER_RAD, Unwrapper};
+use crate::angle::{ARCSEC_PER_RAD, PartialTurn, Unwrapper};
 use crate::detection::{self, Verdict};
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
@@ -192,6 +192,16 @@ pub fn significance_threshold(tested: usize) -> f64 {
 /// Why a log gives no spin-down calibration. Each says what to record instead.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum TdrError {
+    /// The encoder moved but never turned a whole revolution: the likely reason the fit failed
+    /// (`cause`).
+    #[error("the encoder {turn}")]
+    NoWholeTurn {
+        /// Its travel.
+        turn: PartialTurn,
+        /// The error the fit gave.
+        #[source]
+        cause: Box<TdrError>,
+    },
     /// Too few usable samples to look for a coast.
     #[error(
         "no spin-down: only {count} usable samples (at least 128 needed); record the shaft coasting freely: spin it up, release the drive, and log many revolutions while the speed falls"
@@ -463,8 +473,32 @@ impl Tdr {
     }
 
     /// Finds the coast, chooses the orders, separates drag where the speed range allows, fits
-    /// motion and map, and checks them.
+    /// motion and map, and checks them. If that fails for a reading that moved but never turned
+    /// a whole revolution, the error is [`TdrError::NoWholeTurn`].
     pub fn finish(self) -> Result<TdrCalibration, TdrError> {
+        // The readings are unwrapped as they come: their extent is the travel.
+        let (lo, hi) = self
+            .r
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &r| {
+                (lo.min(r), hi.max(r))
+            });
+        let turn = PartialTurn::of(
+            (hi - lo).to_degrees(),
+            "TDR needs a free coast of at least one whole turn (better many) to tell the encoder's \
+             error, periodic in angle, from the motion; a coast over part of a turn cannot separate \
+             them",
+        );
+        self.fit().map_err(|e| match turn {
+            Some(turn) => TdrError::NoWholeTurn {
+                turn,
+                cause: Box::new(e),
+            },
+            None => e,
+        })
+    }
+
+    fn fit(self) -> Result<TdrCalibration, TdrError> {
         let coast = find_coast(&self.t, &self.r, &self.opts)?;
         let (i0, i1) = (coast.first, coast.end);
         let t = &self.t[i0..i1];

@@ -18,3 +18,4 @@ mod simulate;
 #[path = "support/spin_down.rs"]
 mod support;
 mod tdr;
+mod whole_turns;
