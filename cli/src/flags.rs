@@ -1,6 +1,7 @@
-//! The library names an option by its name in the library (`the `max_order` option`), as a Rust
-//! or Python caller passes it; the command line says its flag (`--max-order`). Every error and
-//! report warning the CLI prints or writes goes through [`in_cli_words`].
+//! The library names an option by its name in the library (`the `max_order` option`), and a
+//! setting as `` `time_unit = ms` ``, as a Rust or Python caller passes it; the command line says
+//! its flag (`--max-order`, `` `--time-unit ms` ``). Every error, report warning and summary the
+//! CLI prints or writes goes through [`in_cli_words`].
 
 /// The library's option names and the flags that set them.
 const FLAGS: &[(&str, &str)] = &[
@@ -16,19 +17,27 @@ const FLAGS: &[(&str, &str)] = &[
     ("ref_table", "--ref-table"),
     ("budget", "--budget"),
     ("ref", "--ref"),
+    ("time_unit", "--time-unit"),
+    ("time_column", "--time-column"),
+    ("time", "--time"),
+    ("skip_damaged", "--skip-damaged"),
+    ("keep", "--keep"),
 ];
 
 /// `text` with each option the library names (`the `max_order` option`, `a lower `max_order`
-/// option`) said as its flag (`--max-order`, `a lower --max-order`).
+/// option`) said as its flag (`--max-order`, `a lower --max-order`), and each setting
+/// (`` `time_unit = ms` ``) as the flag and its value (`` `--time-unit ms` ``).
 pub fn in_cli_words(text: &str) -> String {
-    if !text.contains("` option") {
+    if !text.contains("` option") && !text.contains(" = ") {
         return text.to_string();
     }
     FLAGS.iter().fold(text.to_string(), |t, (name, flag)| {
-        t.replace(&format!("the `{name}` option"), flag).replace(
-            &format!("a lower `{name}` option"),
-            &format!("a lower {flag}"),
-        )
+        t.replace(&format!("the `{name}` option"), flag)
+            .replace(
+                &format!("a lower `{name}` option"),
+                &format!("a lower {flag}"),
+            )
+            .replace(&format!("`{name} = "), &format!("`{flag} "))
     })
 }
 
@@ -48,5 +57,13 @@ mod tests {
         );
         // A channel that happens to share an option's name is left alone.
         assert_eq!(in_cli_words("channel `latency`"), "channel `latency`");
+        assert_eq!(
+            in_cli_words("say `time_unit = ms`, or read them with `time = log`"),
+            "say `--time-unit ms`, or read them with `--time log`"
+        );
+        assert_eq!(
+            in_cli_words("run with the `skip_damaged` option (the `time_column` option)"),
+            "run with --skip-damaged (--time-column)"
+        );
     }
 }

@@ -106,7 +106,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             "choose the channel with --channel".to_string()
         }
     })?;
-    let notes = reader.notes();
+    let notes: Vec<String> = reader
+        .notes()
+        .iter()
+        .map(|n| crate::flags::in_cli_words(n))
+        .collect();
     drop(reader);
 
     let opts = ApplyOptions {

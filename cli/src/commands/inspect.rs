@@ -114,7 +114,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         anyhow::bail!("{}: the log holds no samples", args.log.display());
     }
     let suggestions = calib_core::purpose::suggestions(&result);
-    let warnings = reader.inspect_warnings(&args.log);
+    let warnings: Vec<String> = reader
+        .inspect_warnings(&args.log)
+        .iter()
+        .map(|w| crate::flags::in_cli_words(w))
+        .collect();
     let topics = reader.topics();
     let alignment = reader.alignment();
     let stated = reader.stated_directions();

@@ -265,6 +265,10 @@ pub fn finish(
     for w in &mut results.section.warnings {
         *w = crate::flags::in_cli_words(w);
     }
+    let warnings = warnings
+        .iter()
+        .map(|w| crate::flags::in_cli_words(w))
+        .collect();
     let report = Report::new(results.section, inputs, Some(command_line()), warnings);
     let report_json = calib_io::report::render_json(&report)?;
     let document = (results.document)(&report);

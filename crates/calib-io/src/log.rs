@@ -492,7 +492,7 @@ impl LogReader {
         if !d.damaged_chunks.is_empty() {
             let list: Vec<String> = d.damaged_chunks.iter().map(|c| c.to_string()).collect();
             w.push(format!(
-                "{}: skipped {} damaged chunk(s) and their messages (--skip-damaged): {}",
+                "{}: skipped {} damaged chunk(s) and their messages (the `skip_damaged` option): {}",
                 path.display(),
                 d.damaged_chunks.len(),
                 list.join("; ")

@@ -167,7 +167,7 @@ pub fn read_cal_dump(path: &Path, pole_pairs: Option<u32>) -> Result<CalDump, Er
                     1,
                     format!(
                         "the phase travelled {:.3} times the encoder's travel, not a whole number of pole pairs: give \
-                         --pole-pairs (a 42-pole motor has 21)",
+                         the `pole_pairs` option (a 42-pole motor has 21)",
                         ratio.abs()
                     ),
                 ));

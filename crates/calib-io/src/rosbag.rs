@@ -575,7 +575,7 @@ fn merge_mcap(
                             "the split is damaged here ({e}); {}recover it with `mcap \
                              recover`, or remove it from {METADATA} to read the other splits",
                             if matches!(e, records::StreamError::Damaged(_)) {
-                                "run with --skip-damaged to leave the damaged chunk out, "
+                                "run with the `skip_damaged` option to leave the damaged chunk out, "
                             } else {
                                 ""
                             }
@@ -619,7 +619,7 @@ fn merge_mcap(
         if !stream.damaged().is_empty() {
             let list: Vec<String> = stream.damaged().iter().map(|c| c.to_string()).collect();
             warnings.push(format!(
-                "{}: skipped {} damaged chunk(s) and their messages (--skip-damaged): {}",
+                "{}: skipped {} damaged chunk(s) and their messages (the `skip_damaged` option): {}",
                 name.display(),
                 list.len(),
                 list.join("; ")

@@ -66,7 +66,7 @@ impl Backward {
         let (source, remedy) = match time {
             TimeSource::Header => (
                 "header stamp",
-                "; if the recorder's receive times increase, read them with --time log",
+                "; if the recorder's receive times increase, read them with `time = log`",
             ),
             TimeSource::Log => ("log time", ""),
         };
@@ -96,11 +96,11 @@ mod tests {
         let text = repeat.describe("a", "message", TimeSource::Header);
         assert!(text.contains("repeats the previous one"), "{text}");
         assert!(text.contains("(message 1)"), "{text}");
-        assert!(text.contains("--time log"), "{text}");
+        assert!(text.contains("`time = log`"), "{text}");
         let back = order.check(1_500, 3).unwrap_err();
         let text = back.describe("a", "message id", TimeSource::Log);
         assert!(text.contains("goes back before"), "{text}");
-        assert!(!text.contains("--time log"), "{text}");
+        assert!(!text.contains("`time = log`"), "{text}");
         // A refused stamp does not move the clock: the next increasing one passes.
         order.check(3_000, 4).unwrap();
     }

@@ -261,10 +261,17 @@ fn bad_data_are_errors_not_panics() {
             .err(),
         Some(MultiheadError::NoSamples { skipped: 0 })
     ));
+    // Half a turn: the travel is said first, over the solve's own error.
     let half = run(deg, deg, 2400, 0.5, MultiheadOptions::default());
     match half {
-        Some(MultiheadError::NotCovered { gap_deg, .. }) => {
-            assert!((gap_deg - 180.0).abs() < 0.5, "{gap_deg}")
+        Some(MultiheadError::NoWholeTurn { turn, cause }) => {
+            assert!((turn.span_deg - 180.0).abs() < 0.5, "{}", turn.span_deg);
+            match *cause {
+                MultiheadError::NotCovered { gap_deg, .. } => {
+                    assert!((gap_deg - 180.0).abs() < 0.5, "{gap_deg}")
+                }
+                other => panic!("{other:?}"),
+            }
         }
         other => panic!("{other:?}"),
     }

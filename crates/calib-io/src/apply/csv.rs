@@ -342,8 +342,8 @@ pub(super) fn rewrite(
                     return Err(records.error(
                         Some(name),
                         format!(
-                            "the header has a column `{name}` already, where --keep would add \
-                             the corrected `{channel}`; rename that column or leave out --keep"
+                            "the header has a column `{name}` already, where the `keep` option \
+                             would add the corrected `{channel}`; rename that column or leave out the `keep` option"
                         ),
                     ));
                 }

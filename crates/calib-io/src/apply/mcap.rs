@@ -249,8 +249,8 @@ impl Walk<'_> {
                 Some(messages),
                 None,
                 format!(
-                    "{e}; nothing was written: run with --skip-damaged to leave the damaged \
-                     chunk's messages out of the output, or repair the file"
+                    "{e}; nothing was written: run with the `skip_damaged` option to leave the \
+                     damaged chunk's messages out of the output, or repair the file"
                 ),
             ),
             e => mcap_error(
@@ -837,9 +837,9 @@ pub(super) fn rewrite(
                     input,
                     Some(index),
                     None,
-                    "--keep needs a channel for the corrected copies and the log uses every \
-                     channel ID, or its message comes before its channel record; correct it \
-                     without --keep"
+                    "the `keep` option needs a channel for the corrected copies and the log uses \
+                     every channel ID, or its message comes before its channel record; correct it \
+                     without the `keep` option"
                         .into(),
                 )
             })?;
@@ -1125,7 +1125,7 @@ mod tests {
                     );
                 } else {
                     assert!(
-                        streaming.0.contains("--skip-damaged"),
+                        streaming.0.contains("the `skip_damaged` option"),
                         "{name}: {}",
                         streaming.0
                     );

@@ -292,14 +292,14 @@ impl CsvReader {
                     None,
                     match &opts.time_column {
                         Some(wanted) => format!(
-                            "the header has no column `{wanted}` (it has: {}); give --time-column \
-                             one of those names",
+                            "the header has no column `{wanted}` (it has: {}); give the `time_column` \
+                             option one of those names",
                             names.join(", ")
                         ),
                         None => format!(
                             "the {} has no time column (it has: {}); name it `t` (seconds), \
                              `time` or `timestamp` (with a unit such as ` [ms]`), or name it with \
-                             --time-column. A file without time is a list of stationary points, \
+                             the `time_column` option. A file without time is a list of stationary points, \
                              which `calib reference` and `calib inspect` read",
                             if header_line == 0 { "file" } else { "header" },
                             names.join(", ")

@@ -44,7 +44,7 @@ pub const MAX_SPEED_RAD_S: f64 = 30_000.0 * std::f64::consts::TAU / 60.0;
 /// Where the unit of the time column came from, for the hint's wording.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum UnitFrom {
-    /// `--time-unit`.
+    /// the `time_unit` option.
     Option,
     /// The column's name (`time_ms`, `t [s]`).
     Name,
@@ -166,7 +166,7 @@ impl TimeStep {
     /// ([`PLAUSIBLE_STEP_S`]) and its readings' speed one a shaft turns at ([`MAX_SPEED_RAD_S`])
     /// when they are not in the unit read, and what to say: "the time column `t` steps by 1
     /// (median of its first rows), read as seconds (the default …): 1 sample per 1 s, outside …;
-    /// if it is in milliseconds, say `--time-unit ms`". `None` when both are plausible or no
+    /// if it is in milliseconds, say `time_unit = ms`". `None` when both are plausible or no
     /// other unit makes them so.
     pub fn unit_hint(&self) -> Option<String> {
         let step_s = self.median_s()?;
@@ -193,7 +193,7 @@ impl TimeStep {
         Some(match speed {
             Some(v) if PLAUSIBLE_STEP_S.contains(&step_s) => format!(
                 "{head}, and the readings turn at {} on average, faster than the {} encoders are \
-                 rated for; if it is in {}, they turn at {} ({}): say `--time-unit {}`",
+                 rated for; if it is in {}, they turn at {} ({}): say `time_unit = {}`",
                 rpm(v),
                 rpm(MAX_SPEED_RAD_S),
                 name(other),
@@ -203,7 +203,7 @@ impl TimeStep {
             ),
             _ => format!(
                 "{head}, outside the 2 Hz to 500 kHz encoders are logged at; if it is in {}, say \
-                 `--time-unit {}`",
+                 `time_unit = {}`",
                 name(other),
                 suffix(other),
             ),
@@ -232,7 +232,7 @@ impl TimeStep {
         let k = self.factor(other);
         Some(format!(
             "the readings turn at {} on average by the time column `{}` read as {} ({}), {}; if \
-             it is in {}, they turn at {} ({}): say `--time-unit {}`",
+             it is in {}, they turn at {} ({}): say `time_unit = {}`",
             deg_per_s(speed),
             self.column,
             name(self.unit),
@@ -263,7 +263,7 @@ impl TimeStep {
     /// Where the unit read came from, in words.
     fn from(&self) -> &'static str {
         match self.from {
-            UnitFrom::Option => "as --time-unit says",
+            UnitFrom::Option => "as the `time_unit` option says",
             UnitFrom::Name => "as its name says",
             UnitFrom::UnitsRow => "as the units row says",
             UnitFrom::Default => "the default for a column without a unit",
@@ -314,7 +314,7 @@ fn name(unit: TimeUnit) -> &'static str {
     }
 }
 
-/// The unit as `--time-unit` takes it.
+/// The unit as the `time_unit` option takes it.
 fn suffix(unit: TimeUnit) -> &'static str {
     match unit {
         TimeUnit::S => "s",
@@ -343,7 +343,7 @@ mod tests {
             .unit_hint()
             .unwrap();
         assert!(hint.contains("steps by 1 "), "{hint}");
-        assert!(hint.contains("say `--time-unit ms`"), "{hint}");
+        assert!(hint.contains("say `time_unit = ms`"), "{hint}");
         assert!(hint.contains("1 sample per 1 s"), "{hint}");
     }
 
@@ -353,7 +353,7 @@ mod tests {
         let hint = stepped(TimeUnit::S, UnitFrom::Default, 1000.0)
             .unit_hint()
             .unwrap();
-        assert!(hint.contains("say `--time-unit us`"), "{hint}");
+        assert!(hint.contains("say `time_unit = us`"), "{hint}");
     }
 
     #[test]
@@ -365,7 +365,7 @@ mod tests {
             hint.contains("read as milliseconds (as its name says)"),
             "{hint}"
         );
-        assert!(hint.contains("say `--time-unit s`"), "{hint}");
+        assert!(hint.contains("say `time_unit = s`"), "{hint}");
     }
 
     #[test]
@@ -420,7 +420,7 @@ mod tests {
             assert!(
                 hint.contains(&format!(
                     "if it is in seconds, they turn at 60 r/min ({hz} samples per second): say \
-                     `--time-unit s`"
+                     `time_unit = s`"
                 )),
                 "{hint}"
             );
@@ -464,7 +464,7 @@ mod tests {
                 "the readings turn at 0.36°/s on average by the time column `time` read as seconds (as its \
                  name says), 10 samples per second; if it is in \
                  milliseconds, they turn at 360°/s (10000 samples per second): say \
-                 `--time-unit ms`"
+                 `time_unit = ms`"
             ),
             "{hint}"
         );

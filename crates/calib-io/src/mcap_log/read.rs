@@ -668,7 +668,7 @@ fn no_topic_error(path: &Path, len: u64, peek: Peek, registry: &Registry) -> Err
             None,
             format!(
                 "no JointState or JSON message is left once the damaged chunks are \
-                 skipped (--skip-damaged): {}; repair the file or record again",
+                 skipped (the `skip_damaged` option): {}; repair the file or record again",
                 list.join("; ")
             ),
         );
@@ -733,7 +733,7 @@ fn no_topic_error(path: &Path, len: u64, peek: Peek, registry: &Registry) -> Err
 fn damaged_error(path: &Path, index: u64, e: &StreamError) -> Error {
     let what = match e {
         StreamError::Damaged(_) => {
-            "none of its messages were used: run with --skip-damaged to calibrate without them \
+            "none of its messages were used: run with the `skip_damaged` option to calibrate without them \
              (they are then listed in the report), or repair the file"
         }
         _ => "calib cannot tell which readings it changed: repair the file or record again",

@@ -163,7 +163,7 @@ fn empty_files_and_bad_headers() {
     assert!(m.contains("no data rows"), "{m}");
     let m = error_of("clock,a\n0,1\n", 1, None);
     assert!(m.contains("no time column (it has: clock, a)"), "{m}");
-    assert!(m.contains("--time-column"), "{m}");
+    assert!(m.contains("the `time_column` option"), "{m}");
     let m = error_of("t,session\n0,1\n", 1, None);
     assert!(m.contains("no channel columns"), "{m}");
     let m = error_of("t,a,b,a\n0,1,2,3\n", 1, Some("a"));

@@ -170,7 +170,7 @@ fn mcap_header_stamps_against_log_times_are_refused_with_the_remedy() {
     mcap_log(&path, &messages, None);
     let err = read(&path, &methods()).unwrap_err().to_string();
     assert!(
-        err.contains("message 1: ") && err.contains("--time log"),
+        err.contains("message 1: ") && err.contains("`time = log`"),
         "{err}"
     );
     let log = ReadOptions {
@@ -240,7 +240,7 @@ fn bag_receive_times_against_header_stamps_are_refused_or_read_by_log_time() {
     assert!(
         message.contains("goes back before")
             && message.contains("(message id 1)")
-            && message.contains("--time log"),
+            && message.contains("`time = log`"),
         "{err}"
     );
     assert_eq!(read(&path, &inspect()).unwrap().len(), 400);
@@ -917,7 +917,7 @@ fn a_split_mcap_bag_recovers_a_cut_last_split_and_skips_damaged_chunks() {
     std::fs::write(bag.join("bag_1.mcap"), &second).unwrap();
     let err = read(&bag, &methods()).unwrap_err().to_string();
     assert!(
-        err.contains("bag_0.mcap") && err.contains("--skip-damaged"),
+        err.contains("bag_0.mcap") && err.contains("the `skip_damaged` option"),
         "{err}"
     );
     let skip = ReadOptions {
