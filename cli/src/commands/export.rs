@@ -7,52 +7,29 @@ use anyhow::Context;
 use calib_io::export::{self, ExportError, ExportOptions, Keep};
 use std::path::PathBuf;
 
-/// The output form, and where it is loaded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Format {
-    /// Own firmware: one f32 per line, the correction in radians.
-    LutF32Rad,
-    /// Own firmware: one int16 code per line, correction = code × scale.
-    LutI16,
-    /// Own firmware: one uint16 code per line, correction = (code − 32768) × scale.
-    LutU16,
-    /// Own firmware: one int8 code per line, correction = code × scale.
-    LutI8,
-    /// Own firmware: a C header, a float array of the correction in arcseconds.
-    CArray,
-    /// Spreadsheets and scripts: `angle_deg,correction_arcsec` rows.
-    Csv,
-    /// Own firmware summing harmonics: `order,amplitude_arcsec,phase_deg` rows of the correction.
-    Harmonic,
-    /// mjbots moteus (firmware ≥ 0x0109): `conf set` lines for `moteus_tool -t ID --write-config
-    /// FILE` or its `--console`, ending with `conf write` (no comments: the header goes to the
-    /// terminal).
-    Moteus,
-    /// mjbots moteus: the same settings as `key value` lines with a `#` header, for `moteus_tool
-    /// -t ID --restore-config FILE`.
-    MoteusConfig,
-    /// SimpleFOC (Arduino-FOC-drivers since PR #75): `uint16_t calibrationLut[N]`, as printLUT()
-    /// prints it, for `CalibratedSensor(sensor, N, calibrationLut)` in the sketch.
-    Simplefoc,
-    /// SimpleFOC releases before PR #75: `float calib_lut[N]` for their `float*` constructor.
-    SimplefocFloat,
-}
+/// The output form, and where it is loaded: one of `calib_io::export::Format::ALL`, each named
+/// and described there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Format(export::Format);
 
-impl Format {
-    fn to_io(self) -> export::Format {
-        match self {
-            Format::LutF32Rad => export::Format::LutF32Rad,
-            Format::LutI16 => export::Format::LutI16,
-            Format::LutU16 => export::Format::LutU16,
-            Format::LutI8 => export::Format::LutI8,
-            Format::CArray => export::Format::CArray,
-            Format::Csv => export::Format::Csv,
-            Format::Harmonic => export::Format::Harmonic,
-            Format::Moteus => export::Format::Moteus,
-            Format::MoteusConfig => export::Format::MoteusConfig,
-            Format::Simplefoc => export::Format::Simplefoc,
-            Format::SimplefocFloat => export::Format::SimplefocFloat,
-        }
+/// Every format, for clap's list of values.
+const FORMATS: [Format; 11] = {
+    let mut all = [Format(export::Format::Csv); 11];
+    let mut i = 0;
+    while i < all.len() {
+        all[i] = Format(export::Format::ALL[i]);
+        i += 1;
+    }
+    all
+};
+
+impl clap::ValueEnum for Format {
+    fn value_variants<'a>() -> &'a [Self] {
+        &FORMATS
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.0.name()).help(self.0.about()))
     }
 }
 
@@ -206,7 +183,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let table = calib_io::table::read_table(&args.table)
         .with_context(|| format!("cannot read {}", args.table.display()))?;
     let mut opts = ExportOptions::new(
-        args.format.to_io(),
+        args.format.0,
         format!(
             "calib {} export of {}",
             env!("CARGO_PKG_VERSION"),

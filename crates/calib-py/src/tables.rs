@@ -15,21 +15,6 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::{Path, PathBuf};
 
-/// Every export format, by the name `calib export --format` takes.
-const FORMATS: [Format; 11] = [
-    Format::LutF32Rad,
-    Format::LutI16,
-    Format::LutU16,
-    Format::LutI8,
-    Format::CArray,
-    Format::Csv,
-    Format::Harmonic,
-    Format::Moteus,
-    Format::MoteusConfig,
-    Format::Simplefoc,
-    Format::SimplefocFloat,
-];
-
 /// The errors given in arcseconds as radians, checked as a table's would be.
 fn radians_of(errors_arcsec: &[f64]) -> PyResult<Vec<f64>> {
     if errors_arcsec.len() < 2 {
@@ -161,8 +146,8 @@ pub fn export(
 ) -> PyResult<(String, Vec<String>)> {
     // As `calib export`: every format that needs a whole turn refuses a range.
     let map = table_map(error_arcsec.as_slice()?, range_deg)?;
-    let Some(&format) = FORMATS.iter().find(|f| f.name() == format) else {
-        let names: Vec<&str> = FORMATS.iter().map(|f| f.name()).collect();
+    let Some(format) = Format::from_name(format) else {
+        let names: Vec<&str> = Format::ALL.iter().map(|f| f.name()).collect();
         return Err(usage(format!(
             "format=`{format}` is not a format calib exports; give one of {}",
             names.join(", ")

@@ -101,6 +101,65 @@ impl Format {
         }
     }
 
+    /// Every format, in the order `calib export --help` lists them.
+    pub const ALL: [Format; 11] = [
+        Format::LutF32Rad,
+        Format::LutI16,
+        Format::LutU16,
+        Format::LutI8,
+        Format::CArray,
+        Format::Csv,
+        Format::Harmonic,
+        Format::Moteus,
+        Format::MoteusConfig,
+        Format::Simplefoc,
+        Format::SimplefocFloat,
+    ];
+
+    /// The format named `name` ([`Format::name`]), if there is one.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Format::ALL.into_iter().find(|f| f.name() == name)
+    }
+
+    /// What the format holds and where it is loaded, in one line (the `--help` of `calib
+    /// export` lists it beside the name).
+    pub fn about(self) -> &'static str {
+        match self {
+            Format::LutF32Rad => "Own firmware: one f32 per line, the correction in radians",
+            Format::LutI16 => "Own firmware: one int16 code per line, correction = code × scale",
+            Format::LutU16 => {
+                "Own firmware: one uint16 code per line, correction = (code − 32768) × scale"
+            }
+            Format::LutI8 => "Own firmware: one int8 code per line, correction = code × scale",
+            Format::CArray => {
+                "Own firmware: a C header, a float array of the correction in arcseconds"
+            }
+            Format::Csv => "Spreadsheets and scripts: `angle_deg,correction_arcsec` rows",
+            Format::Harmonic => {
+                "Own firmware summing harmonics: `order,amplitude_arcsec,phase_deg` rows of the \
+                 correction"
+            }
+            Format::Moteus => {
+                "mjbots moteus (firmware ≥ 0x0109): `conf set` lines for `moteus_tool -t ID \
+                 --write-config FILE` or its `--console`, ending with `conf write` (no comments: \
+                 the header goes to the terminal)"
+            }
+            Format::MoteusConfig => {
+                "mjbots moteus: the same settings as `key value` lines with a `#` header, for \
+                 `moteus_tool -t ID --restore-config FILE`"
+            }
+            Format::Simplefoc => {
+                "SimpleFOC (Arduino-FOC-drivers since PR #75): `uint16_t calibrationLut[N]`, as \
+                 printLUT() prints it, for `CalibratedSensor(sensor, N, calibrationLut)` in the \
+                 sketch"
+            }
+            Format::SimplefocFloat => {
+                "SimpleFOC releases before PR #75: `float calib_lut[N]` for their `float*` \
+                 constructor"
+            }
+        }
+    }
+
     /// The number of points written when `--points` is not given, for `map`: the size the format
     /// requires; for SimpleFOC the larger of the driver's default (200) and the smallest size
     /// that holds the map's orders to the firmware's quantum ([`simplefoc::default_points`]);

@@ -77,6 +77,47 @@ pub fn readable(format: Format) -> bool {
     format != Format::Harmonic
 }
 
+/// The formats `calib import` reads, in the order its `--help` lists them; `moteus` also reads
+/// `moteus-config` files (the same settings as `key value` lines).
+pub const FORMATS: [Format; 9] = [
+    Format::Moteus,
+    Format::Simplefoc,
+    Format::SimplefocFloat,
+    Format::LutF32Rad,
+    Format::LutI16,
+    Format::LutU16,
+    Format::LutI8,
+    Format::CArray,
+    Format::Csv,
+];
+
+/// What a file in `format` holds, as read back, in one line (the `--help` of `calib import`
+/// lists it beside the name); empty for a format not read back ([`readable`]).
+pub fn about(format: Format) -> &'static str {
+    match format {
+        Format::Moteus | Format::MoteusConfig => {
+            "mjbots moteus: `conf set KEY VALUE` lines (calib's `moteus`, a --write-config file, a \
+             console transcript), `KEY VALUE` lines (`moteus-config`, `moteus_tool \
+             --dump-config`) or `conf get KEY` answered by its value; other keys are skipped"
+        }
+        Format::Simplefoc => {
+            "SimpleFOC (since PR #75): `uint16_t calibrationLut[N] = {…};` as printLUT() prints \
+             it, or calib's `simplefoc` output"
+        }
+        Format::SimplefocFloat => {
+            "SimpleFOC releases before PR #75: a `float NAME[N] = {…};` table (calib's \
+             `simplefoc-float`)"
+        }
+        Format::LutF32Rad => "calib's `lut-f32-rad`: one f32 per line, the correction in radians",
+        Format::LutI16 => "calib's `lut-i16` (scale from its header, or --scale)",
+        Format::LutU16 => "calib's `lut-u16` (scale from its header, or --scale)",
+        Format::LutI8 => "calib's `lut-i8` (scale from its header, or --scale)",
+        Format::CArray => "calib's `c-array`: a float array of the correction in arcseconds",
+        Format::Csv => "calib's `csv`: `angle_deg,correction_arcsec` rows",
+        Format::Harmonic => "",
+    }
+}
+
 /// Reads the table `path` holds in `opts.format`.
 ///
 /// Errors name the file and, where one is concerned, the line; a file beyond
