@@ -144,6 +144,18 @@ pub enum CsrrError {
         /// The sessions' repeatability from one revolution to the next, arcsec per sample.
         noise_arcsec: f64,
     },
+    /// The fit's residual is beyond half a revolution: the solve diverged rather than fit.
+    #[error(
+        "the solve diverged: its residual grew beyond half a revolution RMS per sample, where the sessions repeat to \
+         {noise_arcsec:.4}″; the data are not what CSRR models (two sensors on one shaft pair \
+         sampled at the same instants): check the channels and their unit, and a lag between them (the `latency` option)"
+    )]
+    Diverged {
+        /// RMS of the fit's residual per sample, degrees (any number; not a measure of anything).
+        residual_deg: f64,
+        /// The sessions' repeatability from one revolution to the next, arcsec per sample.
+        noise_arcsec: f64,
+    },
     /// The solve produced non-finite numbers (degenerate data).
     #[error(
         "the solve produced non-finite values: the data are degenerate (check that both channels carry real readings)"
@@ -354,6 +366,23 @@ pub struct Csrr {
     shift: Option<latency::TimeShift>,
     /// A's and B's travel, for [`CsrrError::NoWholeTurn`].
     travel: (Travel, Travel),
+}
+
+/// The error for a fit whose residual (`residual`, radians RMS) is far above the sessions'
+/// repeatability (`repeat`): [`CsrrError::Unexplained`], or [`CsrrError::Diverged`] beyond half a
+/// revolution, where the number is no residual of a fit any more.
+fn unexplained(residual: f64, repeat: f64) -> CsrrError {
+    if residual > std::f64::consts::PI {
+        CsrrError::Diverged {
+            residual_deg: residual.to_degrees(),
+            noise_arcsec: repeat * ARCSEC_PER_RAD,
+        }
+    } else {
+        CsrrError::Unexplained {
+            residual_arcsec: residual * ARCSEC_PER_RAD,
+            noise_arcsec: repeat * ARCSEC_PER_RAD,
+        }
+    }
 }
 
 /// Why CSRR needs whole turns, for [`CsrrError::NoWholeTurn`].
@@ -644,12 +673,7 @@ fn finish_joint(
                 "the maps do",
                 "errors in orders the sessions cannot see, a drift within sessions, or a lag between the channels",
             )),
-            Verdict::Unexplained(_) => {
-                return Err(CsrrError::Unexplained {
-                    residual_arcsec: sol.residual_rms * ARCSEC_PER_RAD,
-                    noise_arcsec: repeat * ARCSEC_PER_RAD,
-                });
-            }
+            Verdict::Unexplained(_) => return Err(unexplained(sol.residual_rms, repeat)),
         }
     }
     Ok(Calibration {
@@ -1001,12 +1025,7 @@ fn finish_paper(
                 "orders above half the number of sessions, orders every relative rotation sees alike, or a drift within \
                  sessions; the RMS is of the sessions' mean profiles",
             )),
-            Verdict::Unexplained(_) => {
-                return Err(CsrrError::Unexplained {
-                    residual_arcsec: misfit * ARCSEC_PER_RAD,
-                    noise_arcsec: repeat * ARCSEC_PER_RAD,
-                });
-            }
+            Verdict::Unexplained(_) => return Err(unexplained(misfit, repeat)),
         }
     }
     let uncertainty = (budget.a, budget.b);
