@@ -22,6 +22,13 @@ const FLAGS: &[(&str, &str)] = &[
     ("time", "--time"),
     ("skip_damaged", "--skip-damaged"),
     ("keep", "--keep"),
+    ("scale_arcsec", "--scale"),
+    ("points", "--points"),
+    ("moteus_source", "--source"),
+    ("format", "--format"),
+    ("unit", "--unit"),
+    ("faces", "--faces"),
+    ("max_gap", "--max-gap"),
 ];
 
 /// `text` with each option the library names (`the `max_order` option`, `a lower `max_order`
@@ -38,6 +45,7 @@ pub fn in_cli_words(text: &str) -> String {
                 &format!("a lower {flag}"),
             )
             .replace(&format!("`{name} = "), &format!("`{flag} "))
+            .replace(&format!("`{name}` option"), flag)
     })
 }
 
@@ -64,6 +72,10 @@ mod tests {
         assert_eq!(
             in_cli_words("run with the `skip_damaged` option (the `time_column` option)"),
             "run with --skip-damaged (--time-column)"
+        );
+        assert_eq!(
+            in_cli_words("takes no `scale_arcsec` option; use `scale_arcsec = 1e-2`"),
+            "takes no --scale; use `--scale 1e-2`"
         );
     }
 }

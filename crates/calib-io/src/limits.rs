@@ -221,7 +221,7 @@ pub(crate) fn reading_problem(
     }
     Some(format!(
         "reading {shown} is {rev:.3e} revolutions from zero, beyond the {MAX_READING_REV:e} an \
-         angle can be held to 0.002″; check the channel's unit (--unit), or subtract a whole \
+         angle can be held to 0.002″; check the channel's unit (the `unit` option), or subtract a whole \
          number of revolutions from the readings"
     ))
 }

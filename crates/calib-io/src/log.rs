@@ -502,7 +502,7 @@ impl LogReader {
             for c in &a.channels {
                 if c.dropped > 0 {
                     w.push(format!(
-                        "{}: {} of {} sample(s) of the clock `{}` were dropped because channel `{}` could not be aligned there (no sample of it within --max-gap {:.6} s on both sides, or before its first or after its last sample)",
+                        "{}: {} of {} sample(s) of the clock `{}` were dropped because channel `{}` could not be aligned there (no sample of it within `max_gap = {:.6}` s on both sides, or before its first or after its last sample)",
                         path.display(),
                         c.dropped,
                         a.clock_samples,

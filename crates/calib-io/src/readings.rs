@@ -134,7 +134,7 @@ pub fn parse_readings(
     let n = match faces {
         Some(f) if f != max_step => {
             return Err(data_err(format!(
-                "the polygon has {f} faces (--faces) but the largest step in the readings is {max_step}; every start face needs steps 1..{f}"
+                "the polygon has {f} faces (the `faces` option) but the largest step in the readings is {max_step}; every start face needs steps 1..{f}"
             )));
         }
         Some(f) => f,

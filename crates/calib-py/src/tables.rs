@@ -173,7 +173,14 @@ pub fn export(
         moteus_source,
         ..ExportOptions::new(format, title)
     };
-    let out = calib_io::export::export(&map, &opts).map_err(|e| usage(e.to_string()))?;
+    // The library names the scale by its field, `scale_arcsec`; here it is `scale`.
+    let out = calib_io::export::export(&map, &opts).map_err(|e| {
+        usage(
+            e.to_string()
+                .replace("`scale_arcsec = ", "`scale = ")
+                .replace("`scale_arcsec` option", "`scale` option"),
+        )
+    })?;
     Ok((out.text, out.header))
 }
 

@@ -273,8 +273,8 @@ pub const WARN_LEFT_FRACTION: f64 = 0.25;
 pub enum ExportError {
     /// An integer code would leave its range at the given scale.
     #[error(
-        "the largest |correction| is {largest_arcsec:.6}″, which at --scale {scale_arcsec} ″/LSB \
-         needs code {code:.0}, beyond ±{max_code}; use --scale {fits:.6e} or larger"
+        "the largest |correction| is {largest_arcsec:.6}″, which at `scale_arcsec = {scale_arcsec}` \
+         ″/LSB needs code {code:.0}, beyond ±{max_code}; use `scale_arcsec = {fits:.6e}` or larger"
     )]
     Saturated {
         /// The largest magnitude to encode, arcseconds.
@@ -288,12 +288,12 @@ pub enum ExportError {
         /// The smallest scale that holds the table, arcseconds per LSB.
         fits: f64,
     },
-    /// A `--scale` so coarse that every code rounds to zero: the table would correct nothing.
+    /// A scale so coarse that every code rounds to zero: the table would correct nothing.
     #[error(
-        "the largest |correction| is {largest_arcsec:.6}″, less than half a code at --scale \
-         {scale_arcsec} ″/LSB, so every code would be 0 and the table would correct nothing; use \
-         --scale {fits:.6e} (the finest that holds the table) or any scale up to \
-         {coarsest:.6e}, or leave --scale out"
+        "the largest |correction| is {largest_arcsec:.6}″, less than half a code at \
+         `scale_arcsec = {scale_arcsec}` ″/LSB, so every code would be 0 and the table would \
+         correct nothing; use `scale_arcsec = {fits:.6e}` (the finest that holds the table) or any \
+         scale up to {coarsest:.6e}, or leave the `scale_arcsec` option out"
     )]
     ScaleAboveTable {
         /// The largest magnitude to encode, arcseconds.
@@ -307,8 +307,8 @@ pub enum ExportError {
     },
     /// The format's quantum is fixed by its consumer.
     #[error(
-        "--format {format} takes no --scale: {why}; leave --scale out (or use --format \
-         lut-u16, whose scale is free)"
+        "`format = {format}` takes no `scale_arcsec` option: {why}; leave the `scale_arcsec` option \
+         out (or use `format = lut-u16`, whose scale is free)"
     )]
     FixedScale {
         /// The format's name.
@@ -319,7 +319,7 @@ pub enum ExportError {
     /// A value beyond what the format can encode.
     #[error(
         "the error at reading {angle_deg:.6}° is {arcsec:.3}″, beyond the ±{limit_arcsec:.0}″ \
-         --format {format} can encode ({why}); no sensor errs by that much: check the table"
+         `format = {format}` can encode ({why}); no sensor errs by that much: check the table"
     )]
     OutOfRange {
         /// The format's name.
@@ -335,7 +335,7 @@ pub enum ExportError {
     },
     /// The table as the controller would use it leaves as much error as it corrects, or more.
     #[error(
-        "as --format {format} loads it ({points} entries), this table would leave {left_rms:.3}″ \
+        "as `format = {format}` loads it ({points} entries), this table would leave {left_rms:.3}″ \
          RMS ({left_pp:.3}″ p-p) of the table's {source_rms:.3}″ RMS ({source_pp:.3}″ p-p): it \
          would make the sensor no better or worse, so it was not written. {advice}"
     )]
@@ -356,7 +356,7 @@ pub enum ExportError {
         advice: String,
     },
     /// The consumer takes a table of one size only.
-    #[error("--format {format} takes exactly {required} points ({why}); not {given}")]
+    #[error("`format = {format}` takes exactly {required} points ({why}); not {given}")]
     Points {
         /// The format's name.
         format: &'static str,
@@ -370,8 +370,8 @@ pub enum ExportError {
     /// A chosen order is at or above the output grid's Nyquist order: it would alias.
     #[error(
         "order {order} cannot be held by a table of {points} points, which holds orders below \
-         {points}/2 (at most {max}); leave it out of --orders (or export more --points, where \
-         the format allows)"
+         {points}/2 (at most {max}); leave it out of the orders chosen (or export more points, the \
+         `points` option, where the format allows)"
     )]
     AboveNyquist {
         /// The order.
@@ -384,7 +384,7 @@ pub enum ExportError {
     /// A chosen order is not in the source table.
     #[error(
         "order {order} is not in the table: a table of {points} points holds orders 1 to \
-         {max}; choose --orders among them"
+         {max}; choose the orders among them"
     )]
     NoSuchOrder {
         /// The order.
@@ -407,8 +407,8 @@ pub enum ExportError {
     #[error(
         "{what} needs a table over one whole turn (it is interpolated periodically over \
          0–360°), but this is a range table over {}° to {}° of the reading (a joint that never \
-         turned a whole revolution); export it as a look-up table (--format csv, lut-f32-rad, \
-         c-array, …) without choosing orders, or calibrate over whole turns",
+         turned a whole revolution); export it as a look-up table (format `csv`, `lut-f32-rad`, \
+         `c-array`, …) without choosing orders, or calibrate over whole turns",
         trimmed(*.start_deg),
         trimmed(*.end_deg)
     )]
@@ -440,9 +440,9 @@ pub fn require_whole_revolution(what: &str, map: &TableMap) -> Result<(), Export
 /// resynthesis from chosen orders (a Fourier series is periodic), need a whole revolution.
 pub fn check_range(opts: &ExportOptions, map: &TableMap) -> Result<(), ExportError> {
     if opts.format.periodic() {
-        require_whole_revolution(&format!("--format {}", opts.format.name()), map)
+        require_whole_revolution(&format!("`format = {}`", opts.format.name()), map)
     } else if opts.keep != Keep::All {
-        require_whole_revolution("choosing orders (--harmonics, --orders)", map)
+        require_whole_revolution("choosing orders", map)
     } else {
         Ok(())
     }
@@ -772,10 +772,10 @@ mod tests {
         let range = TableMap::from(
             calib_core::RangeMap::new(d(30.0), d(20.0), vec![1.0, 0.0, -1.0, 0.0]).unwrap(),
         );
-        let err = require_whole_revolution("--format moteus", &range).unwrap_err();
+        let err = require_whole_revolution("`format = moteus`", &range).unwrap_err();
         let text = err.to_string();
         assert!(
-            text.contains("--format moteus") && text.contains("30° to 90°"),
+            text.contains("`format = moteus`") && text.contains("30° to 90°"),
             "{text}"
         );
         let mut opts = ExportOptions::new(Format::Csv, "t");

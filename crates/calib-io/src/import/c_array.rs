@@ -31,7 +31,7 @@ pub(super) fn parse(
         return Err(data(
             path,
             format!(
-                "no array initialiser (`TYPE NAME[N] = {{ … }};`) found; --format {} reads {}",
+                "no array initialiser (`TYPE NAME[N] = {{ … }};`) found; `format = {}` reads {}",
                 format.name(),
                 expected(format)
             ),
@@ -47,9 +47,9 @@ pub(super) fn parse(
     };
     if !right {
         let hint = if is_float && format == Format::Simplefoc {
-            " — a float table is SimpleFOC's before PR #75: --format simplefoc-float"
+            " — a float table is SimpleFOC's before PR #75: `format = simplefoc-float`"
         } else if is_u16 {
-            " — a uint16_t table is current SimpleFOC's: --format simplefoc"
+            " — a uint16_t table is current SimpleFOC's: `format = simplefoc`"
         } else {
             ""
         };
@@ -57,7 +57,7 @@ pub(super) fn parse(
             path,
             line,
             format!(
-                "`{}` is not the array --format {} reads ({}){hint}",
+                "`{}` is not the array `format = {}` reads ({}){hint}",
                 array.declaration.trim(),
                 format.name(),
                 expected(format)

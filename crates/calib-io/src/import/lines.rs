@@ -121,8 +121,8 @@ pub(super) fn parse(
                         path,
                         line,
                         format!(
-                            "the header says {s} arcsec a code but --scale says {given}; leave \
-                             --scale out (the header is the exporter's own)"
+                            "the header says {s} arcsec a code but the `scale_arcsec` option says {given}; \
+                             leave the `scale_arcsec` option out (the header is the exporter's own)"
                         ),
                     ));
                 }
@@ -132,7 +132,7 @@ pub(super) fn parse(
                     return Err(data(
                         path,
                         "the file has no `# scale:` header line, so its codes have no unit; give \
-                         the arcseconds a code stands for with --scale (the exporter's scale; \
+                         the arcseconds a code stands for with the `scale_arcsec` option (the exporter's scale; \
                          calib writes it in the header)"
                             .to_string(),
                     ));

@@ -158,8 +158,8 @@ pub fn parse(text: &str, path: &Path, opts: &ImportOptions) -> Result<Imported, 
         Format::Harmonic => {
             return Err(data(
                 path,
-                "calib import does not read --format harmonic (a listing of orders, not a \
-                 table); read the table it was exported from instead"
+                "`format = harmonic` is not read back (a listing of orders, not a table); read \
+                 the table it was exported from instead"
                     .into(),
             ));
         }

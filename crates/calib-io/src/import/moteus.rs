@@ -96,7 +96,7 @@ pub(super) fn parse(
             return Err(data(
                 path,
                 format!(
-                    "moteus has sources 0 to {} (--source); not {n}",
+                    "moteus has sources 0 to {} (the `moteus_source` option); not {n}",
                     SOURCES - 1
                 ),
             ));
@@ -108,7 +108,7 @@ pub(super) fn parse(
                 path,
                 format!(
                     "the file holds no compensation settings of source {n}, only of source{} {}; \
-                     choose one with --source",
+                     choose one with the `moteus_source` option",
                     if present.len() == 1 { "" } else { "s" },
                     list(&present)
                 ),
@@ -122,7 +122,7 @@ pub(super) fn parse(
                     path,
                     format!(
                         "the file holds compensation tables of sources {}; choose one with \
-                         --source",
+                         the `moteus_source` option",
                         list(&present)
                     ),
                 ));
@@ -261,8 +261,8 @@ fn set(
 fn none_found(wanted: Option<u8>) -> String {
     let which = wanted.map_or("N".to_string(), |n| n.to_string());
     format!(
-        "no motor_position.sources.{which}.compensation_table lines found; calib import --format \
-         moteus reads `conf set KEY VALUE` lines, `KEY VALUE` lines (--dump-config, \
+        "no motor_position.sources.{which}.compensation_table lines found; \
+         `format = moteus` reads `conf set KEY VALUE` lines, `KEY VALUE` lines (--dump-config, \
          --restore-config files) and `conf get KEY` answered by its value"
     )
 }

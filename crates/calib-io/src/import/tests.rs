@@ -123,7 +123,7 @@ fn print_lut_output_is_read_with_its_settings_as_notes() {
     )
     .unwrap_err()
     .to_string();
-    assert!(err.contains("--format simplefoc-float"), "{err}");
+    assert!(err.contains("`format = simplefoc-float`"), "{err}");
     // A table cut short.
     let err = read(
         "uint16_t calibrationLut[5] = {1, 2, 3, 4};",
@@ -189,7 +189,7 @@ fn integer_tables_need_their_scale() {
     let err = read("1\n-1\n", &ImportOptions::new(Format::LutI16))
         .unwrap_err()
         .to_string();
-    assert!(err.contains("--scale"), "{err}");
+    assert!(err.contains("the `scale_arcsec` option"), "{err}");
     let mut opts = ImportOptions::new(Format::LutI16);
     opts.scale_arcsec = Some(0.5);
     let got = read("2\n-2\n", &opts).unwrap();
@@ -201,7 +201,7 @@ fn integer_tables_need_their_scale() {
     let err = read("# scale: correction_arcsec = code * 1e0\n1\n2\n", &opts)
         .unwrap_err()
         .to_string();
-    assert!(err.contains("--scale says 0.5"), "{err}");
+    assert!(err.contains("the `scale_arcsec` option says 0.5"), "{err}");
 }
 
 /// A table beyond the point limit is refused as it is counted.
