@@ -5,6 +5,22 @@ use crate::{commands, method};
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
+/// The limits calib-io checks before any work ([`calib_io::limits`]), as `--help` lists them.
+fn limits_help() -> String {
+    use calib_io::limits::*;
+    format!(
+        "Limits (checked before any work): --points at most {MAX_TABLE_POINTS} for every table; \
+         calib simulate writes at most {MAX_SIMULATED_SAMPLES} samples unless --force; CSV lines \
+         at most {MAX_CSV_LINE_BYTES} bytes and {MAX_CSV_COLUMNS} columns; readings within \
+         ±{MAX_READING_REV:e} revolutions and time stamps within ±{MAX_TIME_S:e} s; MCAP files and \
+         bags at most {MAX_TOPICS} topics, {MAX_JOINTS} joints per JointState message, \
+         {MAX_JSON_FIELDS} fields per JSON message and {MAX_MESSAGE_TYPES} types per message \
+         definition; MCAP records inside chunks at most {MAX_MCAP_RECORD_BYTES} bytes (or the \
+         file's length); bag payloads at most {MAX_PAYLOAD_BYTES} bytes decompressed, bag splits \
+         at most {MAX_DECOMPRESSION_RATIO}× their compressed size."
+    )
+}
+
 /// Calibrate angular encoders and angle sensors from recorded runs.
 ///
 /// calib reads a log of synchronized sensor samples (CSV, MCAP with ROS 2 JointState or JSON
@@ -16,7 +32,7 @@ use std::path::{Path, PathBuf};
 /// 3 a gate failed (--max-pp, --max-residual, --fail-on-warning, En > 1 in compare; the outputs
 /// are written all the same).
 #[derive(Debug, Parser, PartialEq)]
-#[command(name = "calib", version, after_help = calib_io::limits::help_text())]
+#[command(name = "calib", version, after_help = limits_help())]
 pub struct Cli {
     /// Options of every command.
     #[command(flatten)]

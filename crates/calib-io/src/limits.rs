@@ -107,21 +107,6 @@ pub(crate) fn listed(names: &[impl AsRef<str>]) -> String {
     text
 }
 
-/// The limits as the command line's `--help` lists them.
-pub fn help_text() -> String {
-    format!(
-        "Limits (checked before any work): --points at most {MAX_TABLE_POINTS} for every table; \
-         calib simulate writes at most {MAX_SIMULATED_SAMPLES} samples unless --force; CSV lines \
-         at most {MAX_CSV_LINE_BYTES} bytes and {MAX_CSV_COLUMNS} columns; readings within \
-         ±{MAX_READING_REV:e} revolutions and time stamps within ±{MAX_TIME_S:e} s; MCAP files and \
-         bags at most {MAX_TOPICS} topics, {MAX_JOINTS} joints per JointState message, \
-         {MAX_JSON_FIELDS} fields per JSON message and {MAX_MESSAGE_TYPES} types per message \
-         definition; MCAP records inside chunks at most {MAX_MCAP_RECORD_BYTES} bytes (or the \
-         file's length); bag payloads at most {MAX_PAYLOAD_BYTES} bytes decompressed, bag splits \
-         at most {MAX_DECOMPRESSION_RATIO}× their compressed size."
-    )
-}
-
 /// A CSV line longer than [`MAX_CSV_LINE_BYTES`], found by [`LineLimit`].
 #[derive(Debug)]
 pub(crate) struct LineTooLong {
