@@ -27,6 +27,7 @@
 use super::Readings;
 use crate::atomic::AtomicFile;
 use crate::mcap_log::cdr::{JointFormat, JointState};
+use crate::mcap_log::chunk_write::ChunkWriter;
 use crate::mcap_log::chunks::{self, Chunked, Fallback};
 use crate::mcap_log::json::field_spans;
 use crate::mcap_log::read::read_summary;
@@ -35,9 +36,9 @@ use crate::ros2::encoding::Encoding;
 use crate::{DamagedChunk, Error, Truncation};
 use calib_core::AngleUnit;
 use calib_core::correction::Correction;
-use mcap::records::{Header, MessageHeader, Record, op};
+use mcap::records::{Channel, Header, MessageHeader, Metadata, Record, SchemaHeader, op};
 use mcap::sans_io::LinearReaderOptions;
-use mcap::{Compression, McapError, WriteOptions, Writer};
+use mcap::{Compression, McapError, McapResult, WriteOptions, Writer};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fs::File;
@@ -491,15 +492,20 @@ impl Companions {
     }
 }
 
-/// The writer's options for a copy of the log at `path`: its header's profile and library, and
-/// the compression of its chunks as its summary lists them (zstd if it has no summary). Also
-/// whether the summary lists `parallel_chunks` chunks or more (then the log is read in parallel
-/// and written on a thread of its own).
-fn write_options(
-    path: &Path,
-    header: &Header,
-    parallel_chunks: usize,
-) -> Result<(WriteOptions, bool), Error> {
+/// How the copy is written.
+enum Plan {
+    /// Chunks compressed with zstd (or not compressed, `zstd` false) by [`ChunkWriter`], on
+    /// worker threads for a log read in parallel.
+    Chunks { zstd: bool },
+    /// lz4 chunks, or no chunks: the `mcap` crate's writer with these options.
+    Crate(WriteOptions),
+}
+
+/// How to write a copy of the log at `path`: its chunks' compression as its summary lists them
+/// (zstd if it has no summary), with its header's profile and library. Also whether the summary
+/// lists `parallel_chunks` chunks or more (then the log is read in parallel, and written on a
+/// thread of its own with its chunks compressed on worker threads).
+fn plan(path: &Path, parallel_chunks: usize) -> Result<(Plan, bool), Error> {
     let mut file = File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -511,30 +517,137 @@ fn write_options(
             source,
         })?
         .len();
-    let options = WriteOptions::new()
-        .profile(header.profile.clone())
-        .library(header.library.clone())
-        // zstd on the writer's own thread (for a large log, not the reading thread): a zstd
-        // worker thread on top was slower on a shared 2-core machine (10e6 messages, load 6:
-        // 13.2–14.7 s wall and 9.4–10.1 s CPU against 11.4–12.2 s and 8.9–9.3 s).
-        .compression_threads(0);
     let summary = read_summary(&mut file, len);
     let parallel = summary
         .as_ref()
         .is_some_and(|s| s.chunk_indexes.len() >= parallel_chunks);
-    let options = match summary {
+    let zstd = Plan::Chunks { zstd: true };
+    let plan = match summary {
         Some(summary) => match summary.chunk_indexes.first() {
-            Some(chunk) => options.compression(match chunk.compression.as_str() {
-                "lz4" => Some(Compression::Lz4),
-                "" => None,
-                _ => Some(Compression::Zstd),
-            }),
-            None if summary.stats.is_some_and(|s| s.message_count > 0) => options.use_chunks(false),
-            None => options.compression(Some(Compression::Zstd)),
+            Some(chunk) => match chunk.compression.as_str() {
+                "lz4" => Plan::Crate(WriteOptions::new().compression(Some(Compression::Lz4))),
+                "" => Plan::Chunks { zstd: false },
+                _ => zstd,
+            },
+            None if summary.stats.is_some_and(|s| s.message_count > 0) => {
+                Plan::Crate(WriteOptions::new().use_chunks(false))
+            }
+            None => zstd,
         },
-        None => options.compression(Some(Compression::Zstd)),
+        None => zstd,
     };
-    Ok((options, parallel))
+    Ok((plan, parallel))
+}
+
+/// The writer of the copy for `plan`, its file started with `header` (the input's profile and
+/// library).
+fn sink(
+    plan: Plan,
+    header: &Header,
+    file: AtomicFile,
+    threaded: bool,
+) -> Result<Box<dyn Sink>, McapError> {
+    Ok(match plan {
+        Plan::Chunks { zstd } => Box::new(ChunkWriter::new(
+            file,
+            header,
+            zstd,
+            WriteOptions::DEFAULT_CHUNK_SIZE,
+            if threaded { chunks::workers() } else { 0 },
+        )?),
+        Plan::Crate(options) => Box::new(
+            options
+                .profile(header.profile.clone())
+                .library(header.library.clone())
+                // zstd (never used here) on the calling thread.
+                .compression_threads(0)
+                .create(file)?,
+        ),
+    })
+}
+
+/// The calls the copy makes of its writer: [`ChunkWriter`] or the `mcap` crate's, which take
+/// the same calls and write the same bytes.
+trait Sink: Send {
+    fn schema(&mut self, header: &SchemaHeader, data: &[u8]) -> McapResult<()>;
+    fn channel(&mut self, c: &Channel) -> McapResult<()>;
+    fn message(&mut self, header: &MessageHeader, data: &[u8]) -> McapResult<()>;
+    fn metadata(&mut self, m: &Metadata) -> McapResult<()>;
+    fn attach(&mut self, a: &mcap::Attachment) -> McapResult<()>;
+    fn private(&mut self, opcode: u8, data: &[u8]) -> McapResult<()>;
+    /// Writes the summary and footer.
+    fn finish(&mut self) -> McapResult<()>;
+    fn into_file(self: Box<Self>) -> AtomicFile;
+}
+
+impl Sink for ChunkWriter<AtomicFile> {
+    fn schema(&mut self, header: &SchemaHeader, data: &[u8]) -> McapResult<()> {
+        self.add_schema_with_id(header.id, &header.name, &header.encoding, data)
+            .map(drop)
+    }
+    fn channel(&mut self, c: &Channel) -> McapResult<()> {
+        self.add_channel_with_id(
+            c.id,
+            c.schema_id,
+            &c.topic,
+            &c.message_encoding,
+            &c.metadata,
+        )
+        .map(drop)
+    }
+    fn message(&mut self, header: &MessageHeader, data: &[u8]) -> McapResult<()> {
+        self.write_to_known_channel(header, data)
+    }
+    fn metadata(&mut self, m: &Metadata) -> McapResult<()> {
+        self.write_metadata(m)
+    }
+    fn attach(&mut self, a: &mcap::Attachment) -> McapResult<()> {
+        ChunkWriter::attach(self, a)
+    }
+    fn private(&mut self, opcode: u8, data: &[u8]) -> McapResult<()> {
+        self.write_private_record(opcode, data)
+    }
+    fn finish(&mut self) -> McapResult<()> {
+        ChunkWriter::finish(self)
+    }
+    fn into_file(self: Box<Self>) -> AtomicFile {
+        self.into_inner()
+    }
+}
+
+impl Sink for Writer<AtomicFile> {
+    fn schema(&mut self, header: &SchemaHeader, data: &[u8]) -> McapResult<()> {
+        self.add_schema_with_id(header.id, &header.name, &header.encoding, data)
+            .map(drop)
+    }
+    fn channel(&mut self, c: &Channel) -> McapResult<()> {
+        self.add_channel_with_id(
+            c.id,
+            c.schema_id,
+            &c.topic,
+            &c.message_encoding,
+            &c.metadata,
+        )
+        .map(drop)
+    }
+    fn message(&mut self, header: &MessageHeader, data: &[u8]) -> McapResult<()> {
+        self.write_to_known_channel(header, data)
+    }
+    fn metadata(&mut self, m: &Metadata) -> McapResult<()> {
+        self.write_metadata(m)
+    }
+    fn attach(&mut self, a: &mcap::Attachment) -> McapResult<()> {
+        Writer::attach(self, a)
+    }
+    fn private(&mut self, opcode: u8, data: &[u8]) -> McapResult<()> {
+        self.write_private_record(opcode, data, Default::default())
+    }
+    fn finish(&mut self) -> McapResult<()> {
+        Writer::finish(self).map(drop)
+    }
+    fn into_file(self: Box<Self>) -> AtomicFile {
+        self.into_inner()
+    }
 }
 
 /// Messages for the writer, gathered so that it is handed them in bulk: their headers, and their
@@ -592,13 +705,13 @@ fn copied(record: &Record) -> Option<Record<'static>> {
 /// A write that failed: the index of the message, if it was one, and the error.
 type Failed = (Option<u64>, McapError);
 
-/// Writes `out`: the calls the copy makes of the `mcap` crate's writer, in order.
-fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
+/// Writes `out`: the calls the copy makes of its writer, in order.
+fn write(w: &mut dyn Sink, out: &Out) -> Result<(), Failed> {
     let record = match out {
         Out::Messages(batch) => {
             let mut from = 0;
             for (i, (header, end)) in batch.headers.iter().enumerate() {
-                w.write_to_known_channel(header, &batch.data[from..*end])
+                w.message(header, &batch.data[from..*end])
                     .map_err(|e| (Some(batch.first + i as u64), e))?;
                 from = *end;
             }
@@ -607,19 +720,9 @@ fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
         Out::Record(record) => record,
     };
     let result = match record {
-        Record::Schema { header, data } => w
-            .add_schema_with_id(header.id, &header.name, &header.encoding, data)
-            .map(drop),
-        Record::Channel(c) => w
-            .add_channel_with_id(
-                c.id,
-                c.schema_id,
-                &c.topic,
-                &c.message_encoding,
-                &c.metadata,
-            )
-            .map(drop),
-        Record::Metadata(m) => w.write_metadata(m),
+        Record::Schema { header, data } => w.schema(header, data),
+        Record::Channel(c) => w.channel(c),
+        Record::Metadata(m) => w.metadata(m),
         Record::Attachment { header, data, .. } => w.attach(&mcap::Attachment {
             log_time: header.log_time,
             create_time: header.create_time,
@@ -627,9 +730,7 @@ fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
             media_type: header.media_type.clone(),
             data: Cow::Borrowed(data),
         }),
-        Record::Unknown { opcode, data } => {
-            w.write_private_record(*opcode, data, Default::default())
-        }
+        Record::Unknown { opcode, data } => w.private(*opcode, data),
         // Not handed here (see `copied`).
         _ => Ok(()),
     };
@@ -637,7 +738,7 @@ fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
 }
 
 /// What the writer's thread gives back: the writer, and its first error.
-type Written = (Writer<AtomicFile>, Result<(), Failed>);
+type Written = (Box<dyn Sink>, Result<(), Failed>);
 
 /// Records handed to the writer's thread and not yet written.
 const QUEUE: usize = 4;
@@ -648,7 +749,7 @@ const QUEUE: usize = 4;
 /// the output's bytes, are the same either way.
 struct Output {
     /// Called in turn.
-    inline: Option<Box<Writer<AtomicFile>>>,
+    inline: Option<Box<dyn Sink>>,
     /// To the thread.
     queue: Option<SyncSender<Out>>,
     /// Batches written, back from the thread for reuse.
@@ -668,7 +769,7 @@ fn thread_failed() -> Failed {
 
 impl Output {
     /// Writes with `writer`: on a thread of its own with `threaded`, if it can be started.
-    fn new(writer: Writer<AtomicFile>, threaded: bool) -> io::Result<Self> {
+    fn new(writer: Box<dyn Sink>, threaded: bool) -> io::Result<Self> {
         let mut output = Output {
             inline: None,
             queue: None,
@@ -677,7 +778,7 @@ impl Output {
             spare: None,
         };
         if !threaded {
-            output.inline = Some(Box::new(writer));
+            output.inline = Some(writer);
             return Ok(output);
         }
         let (queue, todo) = sync_channel::<Out>(QUEUE);
@@ -687,7 +788,7 @@ impl Output {
             .spawn(move || {
                 let mut writer = writer;
                 while let Ok(out) = todo.recv() {
-                    if let Err(e) = write(&mut writer, &out) {
+                    if let Err(e) = write(writer.as_mut(), &out) {
                         return (writer, Err(e));
                     }
                     if let Out::Messages(batch) = out {
@@ -719,7 +820,7 @@ impl Output {
     /// Writes `out` (or hands it to the thread).
     fn put(&mut self, out: Out) -> Result<(), Failed> {
         if let Some(w) = self.inline.as_mut() {
-            write(w, &out)?;
+            write(w.as_mut(), &out)?;
             if let Out::Messages(batch) = out {
                 self.spare = Some(batch);
             }
@@ -734,9 +835,9 @@ impl Output {
     }
 
     /// The writer, once everything handed on is written; the first error of the thread.
-    fn join(&mut self) -> Result<Writer<AtomicFile>, Failed> {
+    fn join(&mut self) -> Result<Box<dyn Sink>, Failed> {
         if let Some(w) = self.inline.take() {
-            return Ok(*w);
+            return Ok(w);
         }
         self.queue = None;
         let (writer, result) = self
@@ -796,9 +897,8 @@ pub(super) fn rewrite(
     let each = |record: &Record, index: u64, hit: Option<Hit>| {
         let w = match (record, out.as_mut()) {
             (Record::Header(header), None) => {
-                let (options, threaded) = write_options(input, header, parallel_chunks)?;
-                let writer = options
-                    .create(AtomicFile::create(output)?)
+                let (plan, threaded) = plan(input, parallel_chunks)?;
+                let writer = sink(plan, header, AtomicFile::create(output)?, threaded)
                     .map_err(|e| fail((None, e)))?;
                 out = Some(Output::new(writer, threaded).map_err(|e| fail((None, e.into())))?);
                 return Ok(());
@@ -909,7 +1009,7 @@ pub(super) fn rewrite(
     }
     let mut writer = out.join().map_err(fail)?;
     writer.finish().map_err(|e| fail((None, e)))?;
-    writer.into_inner().commit()?;
+    writer.into_file().commit()?;
     Ok(done)
 }
 
