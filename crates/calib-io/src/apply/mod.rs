@@ -63,6 +63,10 @@ pub struct ApplyOptions {
     /// [`corrected_name`]`(channel)` right after the channel's, an MCAP log a copy of every
     /// message carrying the channel, corrected, on the topic [`corrected_topic`]`(topic)`.
     pub keep: bool,
+    /// MCAP: read, correct and write on the calling thread only (no threads decompressing the
+    /// log's chunks or compressing the output's, none writing). The output is the same either
+    /// way.
+    pub one_thread: bool,
 }
 
 /// The CSV column `--keep` adds beside channel `channel`: `a` → `a_corrected`.
@@ -212,6 +216,16 @@ pub fn apply_map(
     apply_scanned(input, output, map, opts, &range)
 }
 
+/// The chunks an MCAP log needs for them to be read in parallel and the output written on
+/// threads of its own: none with [`ApplyOptions::one_thread`].
+fn parallel_chunks(opts: &ApplyOptions) -> usize {
+    if opts.one_thread {
+        usize::MAX
+    } else {
+        PARALLEL_CHUNKS
+    }
+}
+
 /// The first pass of [`apply_map`] over `input`: the readings of `opts.channel`. An error if the
 /// log is a bag, or holds no readings of the channel.
 pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
@@ -224,7 +238,7 @@ pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
             &opts.channel,
             unit,
             opts.skip_damaged,
-            PARALLEL_CHUNKS,
+            parallel_chunks(opts),
         )?,
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
     };
@@ -294,7 +308,7 @@ pub fn apply_scanned(
                 (&joint, &json),
                 opts.skip_damaged,
                 opts.keep,
-                PARALLEL_CHUNKS,
+                parallel_chunks(opts),
             )?;
             beside.extend(done.beside);
             (
