@@ -26,7 +26,7 @@
 
 use super::Readings;
 use crate::atomic::AtomicFile;
-use crate::mcap_log::cdr::{JointFormat, JointState};
+use crate::mcap_log::cdr::{JointFormat, JointState, Place};
 use crate::mcap_log::chunk_write::ChunkWriter;
 use crate::mcap_log::chunks::{self, Chunked, Fallback};
 use crate::mcap_log::json::field_spans;
@@ -51,13 +51,9 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
 /// Where a message holds the channel's readings, and their values.
-enum Hit<'d> {
-    /// Position `index` of a JointState message, radians.
-    Joint {
-        message: JointState<'d>,
-        index: usize,
-        value: f64,
-    },
+enum Hit {
+    /// A position of a JointState message, radians, and where it lies in the message.
+    Joint { place: Place, value: f64 },
     /// The spans of the field's numbers in a JSON message (a key may repeat), in the JSON unit.
     Json { fields: Vec<(Span<usize>, f64)> },
 }
@@ -116,6 +112,36 @@ struct Walk<'a> {
     carrier: Option<String>,
     /// Messages met so far.
     messages: u64,
+    /// The last CDR JointState message that held the channel (see [`Layout`]).
+    layout: Option<Layout>,
+}
+
+/// A CDR JointState message holding the channel, on channel ID `channel_id`. Another message of
+/// that channel of the same length whose bytes equal this one's but in the header's stamp and
+/// the `position` elements parses the same — the same names, counts and offsets; no field
+/// checked by the parse but the positions differs, and the stamp is not checked — so its reading
+/// is at the same place, found without parsing it.
+struct Layout {
+    channel_id: u16,
+    message: Vec<u8>,
+    /// The `position` elements' span.
+    positions: Span<usize>,
+    place: Place,
+}
+
+/// Bytes 4–12 of a CDR JointState: the header's stamp, after the encapsulation header.
+const STAMP: Span<usize> = 4..12;
+
+impl Layout {
+    /// Whether `data`, a message of channel `channel_id`, has this layout.
+    fn fits(&self, channel_id: u16, data: &[u8]) -> bool {
+        let m = &self.message;
+        channel_id == self.channel_id
+            && data.len() == m.len()
+            && data[..STAMP.start] == m[..STAMP.start]
+            && data[STAMP.end..self.positions.start] == m[STAMP.end..self.positions.start]
+            && data[self.positions.end..] == m[self.positions.end..]
+    }
 }
 
 impl Walk<'_> {
@@ -160,6 +186,7 @@ impl Walk<'_> {
                 self.schemas.insert(header.id, header.name.clone());
             }
             Record::Channel(c) => {
+                self.layout = None;
                 let schema = self.schemas.get(&c.schema_id).map_or("", String::as_str);
                 let id = usize::from(c.id);
                 if self.topics.len() <= id {
@@ -200,8 +227,28 @@ impl Walk<'_> {
                     .strip_prefix(topic.name.as_str())
                     .and_then(|rest| rest.strip_prefix('/'))
                     .unwrap_or(channel);
-                hit = find(topic.encoding, data, member)
-                    .map_err(|m| mcap_error(path, Some(messages), Some(&topic.name), m))?;
+                let error = |m| mcap_error(path, Some(messages), Some(&topic.name), m);
+                hit = match &self.layout {
+                    Some(layout) if layout.fits(header.channel_id, data) => {
+                        let value = layout.place.read(data);
+                        Some(Hit::Joint {
+                            place: layout.place,
+                            value: finite(value, member).map_err(error)?,
+                        })
+                    }
+                    _ => {
+                        let (hit, layout) = find(topic.encoding, data, member).map_err(error)?;
+                        if let Some((positions, place)) = layout {
+                            self.layout = Some(Layout {
+                                channel_id: header.channel_id,
+                                message: data.to_vec(),
+                                positions,
+                                place,
+                            });
+                        }
+                        hit
+                    }
+                };
                 if hit.is_some() {
                     match &self.carrier {
                         Some(other) if *other != topic.name => {
@@ -316,6 +363,7 @@ fn walk(
         topics: Vec::new(),
         carrier: None,
         messages: 0,
+        layout: None,
     };
     // Records handed on from the chunks read in parallel, which the streaming reader skips if
     // it takes over; where the streaming reader started.
@@ -351,19 +399,34 @@ fn walk(
     }
 }
 
-/// Where `data` (a message of this encoding) holds `channel`'s readings, if it does.
-fn find<'d>(
+/// `value`, the position of joint `channel`, if it is finite.
+fn finite(value: f64, channel: &str) -> Result<f64, String> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(format!(
+            "the position of joint `{channel}` is {value}, not a finite number; cut the damaged \
+             part out of the recording"
+        ))
+    }
+}
+
+/// Where `data` (a message of this encoding) holds `channel`'s readings, if it does; for a CDR
+/// JointState holding it, also the span of its `position` elements and the reading's place
+/// (a [`Layout`]).
+#[allow(clippy::type_complexity)]
+fn find(
     encoding: Option<Encoding>,
-    data: &'d [u8],
+    data: &[u8],
     channel: &str,
-) -> Result<Option<Hit<'d>>, String> {
+) -> Result<(Option<Hit>, Option<(Span<usize>, Place)>), String> {
     match encoding {
         // A scalar topic's channel is the topic itself, refused by the caller.
-        None | Some(Encoding::Scalar(_) | Encoding::Field) => Ok(None),
+        None | Some(Encoding::Scalar(_) | Encoding::Field) => Ok((None, None)),
         Some(Encoding::JointState(format)) => {
             let message = JointState::parse_as(data, format).map_err(|e| e.to_string())?;
             let Some(index) = message.joint(channel) else {
-                return Ok(None);
+                return Ok((None, None));
             };
             if format == JointFormat::Dynamic {
                 return Err(format!(
@@ -371,7 +434,7 @@ fn find<'d>(
                      apply does not rewrite; correct a JointState or JSON channel"
                 ));
             }
-            let value = message.positions().nth(index).ok_or_else(|| {
+            let place = message.place(index).ok_or_else(|| {
                 format!(
                     "the JointState message names {} joints but has {} positions, none for \
                      joint `{channel}`; the publisher must give a position for every joint",
@@ -379,22 +442,14 @@ fn find<'d>(
                     message.position_count()
                 )
             })?;
-            if !value.is_finite() {
-                return Err(format!(
-                    "the position of joint `{channel}` is {value}, not a finite number; cut the \
-                     damaged part out of the recording"
-                ));
-            }
-            Ok(Some(Hit::Joint {
-                message,
-                index,
-                value,
-            }))
+            let value = finite(place.read(data), channel)?;
+            let layout = (format == JointFormat::Cdr).then(|| (message.positions_span(), place));
+            Ok((Some(Hit::Joint { place, value }), layout))
         }
         Some(Encoding::Json) => {
             let spans = field_spans(data, channel)?;
             if spans.is_empty() {
-                return Ok(None);
+                return Ok((None, None));
             }
             let mut fields = Vec::with_capacity(spans.len());
             for span in spans {
@@ -407,7 +462,7 @@ fn find<'d>(
                 })?;
                 fields.push((span, value));
             }
-            Ok(Some(Hit::Json { fields }))
+            Ok((Some(Hit::Json { fields }), None))
         }
     }
 }
@@ -968,13 +1023,9 @@ pub(super) fn rewrite(
                 batch.data.extend_from_slice(data);
                 done.copied += 1;
             }
-            Some(Hit::Joint {
-                message,
-                index: joint,
-                value,
-            }) => {
+            Some(Hit::Joint { place, value }) => {
                 batch.data.extend_from_slice(data);
-                message.set_position(&mut batch.data[start..], joint, joint_fix.apply(value));
+                place.write(&mut batch.data[start..], joint_fix.apply(value));
                 done.readings += 1;
             }
             Some(Hit::Json { fields }) => {
@@ -1095,6 +1146,139 @@ mod tests {
             }
         }
         w.finish().unwrap();
+    }
+
+    /// A little-endian CDR JointState of joints `names` with `positions` and `velocity`.
+    fn joint_state_of(i: u32, names: &[&str], positions: &[f64], velocity: &[f64]) -> Vec<u8> {
+        // Pads to a multiple of `n` from the CDR origin, after the 4-byte encapsulation.
+        let align = |m: &mut Vec<u8>, n: usize| {
+            while (m.len() - 4) % n != 0 {
+                m.push(0);
+            }
+        };
+        let mut m = vec![0u8, 1, 0, 0];
+        m.extend(i.to_le_bytes());
+        m.extend((i * 7).to_le_bytes());
+        m.extend(1u32.to_le_bytes());
+        m.push(0);
+        align(&mut m, 4);
+        m.extend((names.len() as u32).to_le_bytes());
+        for name in names {
+            m.extend((name.len() as u32 + 1).to_le_bytes());
+            m.extend(name.as_bytes());
+            m.push(0);
+            align(&mut m, 4);
+        }
+        for values in [positions, velocity, &[]] {
+            m.extend((values.len() as u32).to_le_bytes());
+            if !values.is_empty() {
+                align(&mut m, 8);
+            }
+            for v in values {
+                m.extend(v.to_le_bytes());
+            }
+        }
+        m
+    }
+
+    /// Joint `a` of a log whose messages change layout — the joints' order, a velocity that
+    /// differs from message to message, a name that changes length — is corrected in every
+    /// message, wherever it lies, and every other byte copied; a position that is not finite,
+    /// after a thousand messages of the same layout, is an error naming its message.
+    #[test]
+    fn a_joint_is_found_in_every_message_whatever_its_layout() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("layouts.mcap");
+        let a = |i: u32| 0.001 * f64::from(i);
+        let message = |i: u32, nan_at: Option<u32>| {
+            let x = if Some(i) == nan_at { f64::NAN } else { a(i) };
+            match i / 1000 {
+                0 => joint_state_of(i, &["a", "b"], &[x, 1.0], &[]),
+                1 => joint_state_of(i, &["b", "a"], &[1.0, x], &[]),
+                2 => joint_state_of(i, &["a", "b"], &[x, 1.0], &[f64::from(i), 0.5]),
+                _ => joint_state_of(i, &["a", "bearing"], &[x, 1.0], &[]),
+            }
+        };
+        let write = |nan_at: Option<u32>| {
+            let file = std::io::BufWriter::new(File::create(&path).unwrap());
+            let mut w = WriteOptions::new()
+                .profile("ros2")
+                .chunk_size(Some(4096))
+                .create(file)
+                .unwrap();
+            let schema = w
+                .add_schema(
+                    "sensor_msgs/msg/JointState",
+                    "ros2msg",
+                    JOINT_STATE_MSGDEF.as_bytes(),
+                )
+                .unwrap();
+            let js = w
+                .add_channel(schema, "/joint_states", "cdr", &BTreeMap::new())
+                .unwrap();
+            for i in 0..4000 {
+                let header = MessageHeader {
+                    channel_id: js,
+                    sequence: i,
+                    log_time: u64::from(i),
+                    publish_time: u64::from(i),
+                };
+                w.write_to_known_channel(&header, &message(i, nan_at))
+                    .unwrap();
+            }
+            w.finish().unwrap();
+        };
+        write(None);
+        let map = ErrorMap::new((0..72).map(|i| 1e-5 * f64::from(1 + i % 7)).collect());
+        let fix = Correction::new(map, AngleUnit::Rad, Wrapping::Positive);
+        for parallel_chunks in [PARALLEL_CHUNKS, usize::MAX] {
+            let out = dir.path().join(format!("out-{parallel_chunks}.mcap"));
+            let done = rewrite(
+                &path,
+                &out,
+                "a",
+                (&fix, &fix),
+                false,
+                false,
+                parallel_chunks,
+            )
+            .unwrap();
+            assert_eq!(done.readings, 4000);
+            let bytes = std::fs::read(&out).unwrap();
+            let copied: Vec<_> = mcap::MessageStream::new(&bytes)
+                .unwrap()
+                .map(|m| m.unwrap().data.into_owned())
+                .collect();
+            assert_eq!(copied.len(), 4000);
+            for (i, got) in (0..4000).zip(&copied) {
+                let expected = message(i, None);
+                let js = JointState::parse(&expected).unwrap();
+                let place = js.place(js.joint("a").unwrap()).unwrap();
+                let mut want = expected.clone();
+                place.write(&mut want, fix.apply(a(i)));
+                assert!(*got == want, "message {i}");
+                assert_ne!(*got, expected, "message {i} corrected");
+            }
+        }
+        write(Some(1500));
+        let out = dir.path().join("nan.mcap");
+        let e = rewrite(
+            &path,
+            &out,
+            "a",
+            (&fix, &fix),
+            false,
+            false,
+            PARALLEL_CHUNKS,
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(
+            e.contains("not a finite number") && e.contains("1500"),
+            "{e}"
+        );
+        assert!(!out.exists());
     }
 
     /// Offsets and lengths of the top-level chunk records of MCAP `bytes`.
