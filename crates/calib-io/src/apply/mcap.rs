@@ -1,5 +1,4 @@
-//! MCAP logs: every record copied through the `mcap` crate's writer, the channel's messages
-//! rewritten in place.
+//! MCAP logs: every record copied, the channel's messages rewritten in place.
 //!
 //! # Reading
 //! A log whose summary lists [`PARALLEL_CHUNKS`] chunks or more has its data section read as the
@@ -20,9 +19,17 @@
 //! # Writing
 //! Messages are gathered in batches (their data in one reused buffer) and handed to the
 //! writer; for a log read in parallel, to a thread that owns the writer, so that the writer's
-//! work — above all compressing the new chunks — runs beside reading and correcting. The writer
-//! is called with the same records in the same order either way, so the output's bytes are the
-//! same as writing message by message on one thread.
+//! work runs beside reading and correcting. The writer is
+//! [`ChunkWriter`](crate::mcap_log::chunk_write::ChunkWriter) for zstd and uncompressed chunks
+//! (the new chunks compressed on worker threads for a log read in parallel, on the writer's own
+//! thread otherwise), the `mcap` crate's writer for lz4 chunks and logs without chunks: the two
+//! write the same bytes for the same calls. The writer is called with the same records in the
+//! same order either way, so the output's bytes are the same as writing message by message on
+//! one thread.
+//!
+//! # Finding the channel
+//! A CDR JointState message is parsed in full only when its layout differs from the last one
+//! that held the channel (see [`Layout`]): in a log of one publisher, once.
 
 use super::Readings;
 use crate::atomic::AtomicFile;

@@ -6,7 +6,7 @@
 //! - **CSV**: the same header, columns and rows; only the channel's field of each row is
 //!   rewritten (in the log's unit, shortest round-trip decimal form). Every other byte of the file
 //!   — time stamps, sessions, other channels, quoting, line ends, blank lines — is copied as read.
-//! - **MCAP**: every record is copied through the `mcap` crate's writer — header (profile,
+//! - **MCAP**: every record is copied — header (profile,
 //!   library), schemas and channels with their IDs, every message with its log time, publish
 //!   time and sequence number, metadata, attachments and private records — and only the messages
 //!   carrying the channel are changed: in a ROS 2 JointState message the 8 bytes of that joint's
@@ -21,7 +21,9 @@
 //!
 //! Both stream: memory stays bounded by a row or a few MCAP chunks, whatever the log's length.
 //! An MCAP log of several chunks is read with its chunks decompressed on worker threads and
-//! written on a thread of its own (see the `mcap` module).
+//! written on a thread of its own, its new chunks compressed on worker threads (see the `mcap`
+//! module); [`ApplyOptions::one_thread`] does it all on the calling thread, with the same
+//! output.
 //!
 //! # Wrapping
 //! Unless told ([`ApplyOptions::wrapping`]), the channel's wrapping is detected by a first pass

@@ -101,11 +101,23 @@ struct Open {
     bounds: Option<(u64, u64)>,
 }
 
-/// A chunk's records and their compressed form, to and from a worker.
+/// A chunk's records and their compressed form and CRC, to and from a worker.
 struct Job {
     records: Vec<u8>,
     compressed: Vec<u8>,
+    /// The CRC-32 of `records`.
+    crc: u32,
     result: io::Result<()>,
+}
+
+impl Job {
+    /// Compresses the records (with `encoder`, if they are to be compressed) and hashes them.
+    fn run(&mut self, encoder: Option<&mut Option<Encoder<'static>>>) {
+        self.crc = crc32fast::hash(&self.records);
+        if let Some(encoder) = encoder {
+            self.result = compress(encoder, &self.records, &mut self.compressed);
+        }
+    }
 }
 
 /// Compresses `records` into `into` as one zstd frame, at zstd's default level, through the
@@ -134,7 +146,7 @@ fn compress(
 fn work(jobs: Receiver<Job>, done: SyncSender<Job>) {
     let mut encoder = None;
     while let Ok(mut job) = jobs.recv() {
-        job.result = compress(&mut encoder, &job.records, &mut job.compressed);
+        job.run(Some(&mut encoder));
         // The writer has gone: stop.
         if done.send(job).is_err() {
             return;
@@ -429,12 +441,11 @@ impl<W: Write> ChunkWriter<W> {
         let mut job = Job {
             records: chunk.records,
             compressed,
+            crc: 0,
             result: Ok(()),
         };
         let job = if self.workers.is_empty() {
-            if self.zstd {
-                job.result = compress(&mut self.encoder, &job.records, &mut job.compressed);
-            }
+            job.run(self.zstd.then_some(&mut self.encoder));
             Err(job)
         } else {
             if self.closed.len() >= 2 * self.workers.len() {
@@ -485,7 +496,7 @@ impl<W: Write> ChunkWriter<W> {
             message_start_time: start,
             message_end_time: end,
             uncompressed_size: job.records.len() as u64,
-            uncompressed_crc: crc32fast::hash(&job.records),
+            uncompressed_crc: job.crc,
             compression: if self.zstd { "zstd" } else { "" }.into(),
             compressed_size: data.len() as u64,
         };
