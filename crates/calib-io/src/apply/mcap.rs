@@ -418,15 +418,12 @@ fn finite(value: f64, channel: &str) -> Result<f64, String> {
     }
 }
 
-/// Where `data` (a message of this encoding) holds `channel`'s readings, if it does; for a CDR
-/// JointState holding it, also the span of its `position` elements and the reading's place
-/// (a [`Layout`]).
-#[allow(clippy::type_complexity)]
-fn find(
-    encoding: Option<Encoding>,
-    data: &[u8],
-    channel: &str,
-) -> Result<(Option<Hit>, Option<(Span<usize>, Place)>), String> {
+/// What [`find`] found: the hit, and for a CDR JointState holding the channel, the span of its
+/// `position` elements and the reading's place (a [`Layout`]).
+type Found = (Option<Hit>, Option<(Span<usize>, Place)>);
+
+/// Where `data` (a message of this encoding) holds `channel`'s readings, if it does.
+fn find(encoding: Option<Encoding>, data: &[u8], channel: &str) -> Result<Found, String> {
     match encoding {
         // A scalar topic's channel is the topic itself, refused by the caller.
         None | Some(Encoding::Scalar(_) | Encoding::Field) => Ok((None, None)),
