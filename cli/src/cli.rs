@@ -119,6 +119,7 @@ impl Command {
             Command::Tdr(a) => a.common.batch.jobs,
             Command::Reference(a) => a.common.batch.jobs,
             Command::ShiftAngle(a) => a.batch.jobs,
+            Command::Apply(a) => a.jobs,
             _ => None,
         }
     }

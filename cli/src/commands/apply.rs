@@ -85,6 +85,13 @@ pub struct Args {
     /// reads it back as `<topic>/corrected/<channel>`).
     #[arg(long)]
     pub keep: bool,
+    /// Threads to work on (default: the CALIB_JOBS environment variable, else the number of
+    /// cores). 1: the log is read, corrected and written on one thread; more: an MCAP log of
+    /// several chunks has its chunks decompressed on up to two threads and its new chunks
+    /// compressed on up to two more, written on a thread of its own. The output is the same,
+    /// byte for byte, either way.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub jobs: Option<u16>,
     /// Print what was done as JSON (docs/apply.schema.json) instead of the summary.
     #[arg(long)]
     pub json: bool,
@@ -124,6 +131,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         },
         skip_damaged: args.skip_damaged,
         keep: args.keep,
+        one_thread: crate::threads::read_inline(),
     };
     let cannot = || format!("cannot correct {}", args.log.display());
     let readings = scan(&args.log, &opts).with_context(cannot)?;

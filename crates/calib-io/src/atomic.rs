@@ -43,7 +43,13 @@ pub struct AtomicFile {
     temp: PathBuf,
     /// `None` once committed.
     inner: Option<BufWriter<NamedTempFile>>,
+    /// Bytes written since the disk was last asked to write the file out.
+    unsynced: u64,
 }
+
+/// Bytes written after which the file's pages are handed to the disk while writing goes on (see
+/// [`AtomicFile::start_write_out`]).
+const WRITE_OUT: u64 = 16 << 20;
 
 impl AtomicFile {
     /// Starts writing `target`: creates a hidden temporary file beside it.
@@ -62,7 +68,28 @@ impl AtomicFile {
             temp,
             // Large enough that writing a million-row log is not dominated by system calls.
             inner: Some(BufWriter::with_capacity(1 << 16, file)),
+            unsynced: 0,
         })
+    }
+
+    /// Counts `n` bytes written; every [`WRITE_OUT`] bytes, starts writing what the file holds
+    /// so far to disk without waiting for it, so that the `fsync` of [`commit`](Self::commit)
+    /// waits only for the last part (a 450 MB MCAP copy waited about a second there for all of
+    /// it). Linux only (`sync_file_range`); elsewhere the `fsync` writes everything.
+    fn written(&mut self, n: usize) {
+        self.unsynced += n as u64;
+        if self.unsynced < WRITE_OUT {
+            return;
+        }
+        self.unsynced = 0;
+        #[cfg(target_os = "linux")]
+        if let Some(w) = &self.inner {
+            use std::os::fd::AsRawFd;
+            let fd = w.get_ref().as_file().as_raw_fd();
+            // SAFETY: `fd` is the open temporary file's; the call only starts the write-back of
+            // its dirty pages (errors are the commit's `fsync`'s to report).
+            unsafe { libc::sync_file_range(fd, 0, 0, libc::SYNC_FILE_RANGE_WRITE) };
+        }
     }
 
     /// The path the file will have once committed.
@@ -139,10 +166,14 @@ fn parent_of(path: &Path) -> &Path {
 
 impl Write for AtomicFile {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.writer()?.write(buf)
+        let n = self.writer()?.write(buf)?;
+        self.written(n);
+        Ok(n)
     }
     fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
-        self.writer()?.write_all(buf)
+        self.writer()?.write_all(buf)?;
+        self.written(buf.len());
+        Ok(())
     }
     fn flush(&mut self) -> io::Result<()> {
         self.writer()?.flush()

@@ -1,5 +1,4 @@
-//! MCAP logs: every record copied through the `mcap` crate's writer, the channel's messages
-//! rewritten in place.
+//! MCAP logs: every record copied, the channel's messages rewritten in place.
 //!
 //! # Reading
 //! A log whose summary lists [`PARALLEL_CHUNKS`] chunks or more has its data section read as the
@@ -20,13 +19,22 @@
 //! # Writing
 //! Messages are gathered in batches (their data in one reused buffer) and handed to the
 //! writer; for a log read in parallel, to a thread that owns the writer, so that the writer's
-//! work — above all compressing the new chunks — runs beside reading and correcting. The writer
-//! is called with the same records in the same order either way, so the output's bytes are the
-//! same as writing message by message on one thread.
+//! work runs beside reading and correcting. The writer is
+//! [`ChunkWriter`](crate::mcap_log::chunk_write::ChunkWriter) for zstd and uncompressed chunks
+//! (the new chunks compressed on worker threads for a log read in parallel, on the writer's own
+//! thread otherwise), the `mcap` crate's writer for lz4 chunks and logs without chunks: the two
+//! write the same bytes for the same calls. The writer is called with the same records in the
+//! same order either way, so the output's bytes are the same as writing message by message on
+//! one thread.
+//!
+//! # Finding the channel
+//! A CDR JointState message is parsed in full only when its layout differs from the last one
+//! that held the channel (see [`Layout`]): in a log of one publisher, once.
 
 use super::Readings;
 use crate::atomic::AtomicFile;
-use crate::mcap_log::cdr::{JointFormat, JointState};
+use crate::mcap_log::cdr::{JointFormat, JointState, Place};
+use crate::mcap_log::chunk_write::ChunkWriter;
 use crate::mcap_log::chunks::{self, Chunked, Fallback};
 use crate::mcap_log::json::field_spans;
 use crate::mcap_log::read::read_summary;
@@ -35,9 +43,9 @@ use crate::ros2::encoding::Encoding;
 use crate::{DamagedChunk, Error, Truncation};
 use calib_core::AngleUnit;
 use calib_core::correction::Correction;
-use mcap::records::{Header, MessageHeader, Record, op};
+use mcap::records::{Channel, Header, MessageHeader, Metadata, Record, SchemaHeader, op};
 use mcap::sans_io::LinearReaderOptions;
-use mcap::{Compression, McapError, WriteOptions, Writer};
+use mcap::{Compression, McapError, McapResult, WriteOptions, Writer};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fs::File;
@@ -50,13 +58,9 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
 /// Where a message holds the channel's readings, and their values.
-enum Hit<'d> {
-    /// Position `index` of a JointState message, radians.
-    Joint {
-        message: JointState<'d>,
-        index: usize,
-        value: f64,
-    },
+enum Hit {
+    /// A position of a JointState message, radians, and where it lies in the message.
+    Joint { place: Place, value: f64 },
     /// The spans of the field's numbers in a JSON message (a key may repeat), in the JSON unit.
     Json { fields: Vec<(Span<usize>, f64)> },
 }
@@ -115,6 +119,36 @@ struct Walk<'a> {
     carrier: Option<String>,
     /// Messages met so far.
     messages: u64,
+    /// The last CDR JointState message that held the channel (see [`Layout`]).
+    layout: Option<Layout>,
+}
+
+/// A CDR JointState message holding the channel, on channel ID `channel_id`. Another message of
+/// that channel of the same length whose bytes equal this one's but in the header's stamp and
+/// the `position` elements parses the same — the same names, counts and offsets; no field
+/// checked by the parse but the positions differs, and the stamp is not checked — so its reading
+/// is at the same place, found without parsing it.
+struct Layout {
+    channel_id: u16,
+    message: Vec<u8>,
+    /// The `position` elements' span.
+    positions: Span<usize>,
+    place: Place,
+}
+
+/// Bytes 4–12 of a CDR JointState: the header's stamp, after the encapsulation header.
+const STAMP: Span<usize> = 4..12;
+
+impl Layout {
+    /// Whether `data`, a message of channel `channel_id`, has this layout.
+    fn fits(&self, channel_id: u16, data: &[u8]) -> bool {
+        let m = &self.message;
+        channel_id == self.channel_id
+            && data.len() == m.len()
+            && data[..STAMP.start] == m[..STAMP.start]
+            && data[STAMP.end..self.positions.start] == m[STAMP.end..self.positions.start]
+            && data[self.positions.end..] == m[self.positions.end..]
+    }
 }
 
 impl Walk<'_> {
@@ -159,6 +193,7 @@ impl Walk<'_> {
                 self.schemas.insert(header.id, header.name.clone());
             }
             Record::Channel(c) => {
+                self.layout = None;
                 let schema = self.schemas.get(&c.schema_id).map_or("", String::as_str);
                 let id = usize::from(c.id);
                 if self.topics.len() <= id {
@@ -199,8 +234,28 @@ impl Walk<'_> {
                     .strip_prefix(topic.name.as_str())
                     .and_then(|rest| rest.strip_prefix('/'))
                     .unwrap_or(channel);
-                hit = find(topic.encoding, data, member)
-                    .map_err(|m| mcap_error(path, Some(messages), Some(&topic.name), m))?;
+                let error = |m| mcap_error(path, Some(messages), Some(&topic.name), m);
+                hit = match &self.layout {
+                    Some(layout) if layout.fits(header.channel_id, data) => {
+                        let value = layout.place.read(data);
+                        Some(Hit::Joint {
+                            place: layout.place,
+                            value: finite(value, member).map_err(error)?,
+                        })
+                    }
+                    _ => {
+                        let (hit, layout) = find(topic.encoding, data, member).map_err(error)?;
+                        if let Some((positions, place)) = layout {
+                            self.layout = Some(Layout {
+                                channel_id: header.channel_id,
+                                message: data.to_vec(),
+                                positions,
+                                place,
+                            });
+                        }
+                        hit
+                    }
+                };
                 if hit.is_some() {
                     match &self.carrier {
                         Some(other) if *other != topic.name => {
@@ -315,6 +370,7 @@ fn walk(
         topics: Vec::new(),
         carrier: None,
         messages: 0,
+        layout: None,
     };
     // Records handed on from the chunks read in parallel, which the streaming reader skips if
     // it takes over; where the streaming reader started.
@@ -350,19 +406,31 @@ fn walk(
     }
 }
 
+/// `value`, the position of joint `channel`, if it is finite.
+fn finite(value: f64, channel: &str) -> Result<f64, String> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(format!(
+            "the position of joint `{channel}` is {value}, not a finite number; cut the damaged \
+             part out of the recording"
+        ))
+    }
+}
+
+/// What [`find`] found: the hit, and for a CDR JointState holding the channel, the span of its
+/// `position` elements and the reading's place (a [`Layout`]).
+type Found = (Option<Hit>, Option<(Span<usize>, Place)>);
+
 /// Where `data` (a message of this encoding) holds `channel`'s readings, if it does.
-fn find<'d>(
-    encoding: Option<Encoding>,
-    data: &'d [u8],
-    channel: &str,
-) -> Result<Option<Hit<'d>>, String> {
+fn find(encoding: Option<Encoding>, data: &[u8], channel: &str) -> Result<Found, String> {
     match encoding {
         // A scalar topic's channel is the topic itself, refused by the caller.
-        None | Some(Encoding::Scalar(_) | Encoding::Field) => Ok(None),
+        None | Some(Encoding::Scalar(_) | Encoding::Field) => Ok((None, None)),
         Some(Encoding::JointState(format)) => {
             let message = JointState::parse_as(data, format).map_err(|e| e.to_string())?;
             let Some(index) = message.joint(channel) else {
-                return Ok(None);
+                return Ok((None, None));
             };
             if format == JointFormat::Dynamic {
                 return Err(format!(
@@ -370,7 +438,7 @@ fn find<'d>(
                      apply does not rewrite; correct a JointState or JSON channel"
                 ));
             }
-            let value = message.positions().nth(index).ok_or_else(|| {
+            let place = message.place(index).ok_or_else(|| {
                 format!(
                     "the JointState message names {} joints but has {} positions, none for \
                      joint `{channel}`; the publisher must give a position for every joint",
@@ -378,22 +446,14 @@ fn find<'d>(
                     message.position_count()
                 )
             })?;
-            if !value.is_finite() {
-                return Err(format!(
-                    "the position of joint `{channel}` is {value}, not a finite number; cut the \
-                     damaged part out of the recording"
-                ));
-            }
-            Ok(Some(Hit::Joint {
-                message,
-                index,
-                value,
-            }))
+            let value = finite(place.read(data), channel)?;
+            let layout = (format == JointFormat::Cdr).then(|| (message.positions_span(), place));
+            Ok((Some(Hit::Joint { place, value }), layout))
         }
         Some(Encoding::Json) => {
             let spans = field_spans(data, channel)?;
             if spans.is_empty() {
-                return Ok(None);
+                return Ok((None, None));
             }
             let mut fields = Vec::with_capacity(spans.len());
             for span in spans {
@@ -406,7 +466,7 @@ fn find<'d>(
                 })?;
                 fields.push((span, value));
             }
-            Ok(Some(Hit::Json { fields }))
+            Ok((Some(Hit::Json { fields }), None))
         }
     }
 }
@@ -491,15 +551,20 @@ impl Companions {
     }
 }
 
-/// The writer's options for a copy of the log at `path`: its header's profile and library, and
-/// the compression of its chunks as its summary lists them (zstd if it has no summary). Also
-/// whether the summary lists `parallel_chunks` chunks or more (then the log is read in parallel
-/// and written on a thread of its own).
-fn write_options(
-    path: &Path,
-    header: &Header,
-    parallel_chunks: usize,
-) -> Result<(WriteOptions, bool), Error> {
+/// How the copy is written.
+enum Plan {
+    /// Chunks compressed with zstd (or not compressed, `zstd` false) by [`ChunkWriter`], on
+    /// worker threads for a log read in parallel.
+    Chunks { zstd: bool },
+    /// lz4 chunks, or no chunks: the `mcap` crate's writer with these options.
+    Crate(WriteOptions),
+}
+
+/// How to write a copy of the log at `path`: its chunks' compression as its summary lists them
+/// (zstd if it has no summary), with its header's profile and library. Also whether the summary
+/// lists `parallel_chunks` chunks or more (then the log is read in parallel, and written on a
+/// thread of its own with its chunks compressed on worker threads).
+fn plan(path: &Path, parallel_chunks: usize) -> Result<(Plan, bool), Error> {
     let mut file = File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -511,30 +576,137 @@ fn write_options(
             source,
         })?
         .len();
-    let options = WriteOptions::new()
-        .profile(header.profile.clone())
-        .library(header.library.clone())
-        // zstd on the writer's own thread (for a large log, not the reading thread): a zstd
-        // worker thread on top was slower on a shared 2-core machine (10e6 messages, load 6:
-        // 13.2–14.7 s wall and 9.4–10.1 s CPU against 11.4–12.2 s and 8.9–9.3 s).
-        .compression_threads(0);
     let summary = read_summary(&mut file, len);
     let parallel = summary
         .as_ref()
         .is_some_and(|s| s.chunk_indexes.len() >= parallel_chunks);
-    let options = match summary {
+    let zstd = Plan::Chunks { zstd: true };
+    let plan = match summary {
         Some(summary) => match summary.chunk_indexes.first() {
-            Some(chunk) => options.compression(match chunk.compression.as_str() {
-                "lz4" => Some(Compression::Lz4),
-                "" => None,
-                _ => Some(Compression::Zstd),
-            }),
-            None if summary.stats.is_some_and(|s| s.message_count > 0) => options.use_chunks(false),
-            None => options.compression(Some(Compression::Zstd)),
+            Some(chunk) => match chunk.compression.as_str() {
+                "lz4" => Plan::Crate(WriteOptions::new().compression(Some(Compression::Lz4))),
+                "" => Plan::Chunks { zstd: false },
+                _ => zstd,
+            },
+            None if summary.stats.is_some_and(|s| s.message_count > 0) => {
+                Plan::Crate(WriteOptions::new().use_chunks(false))
+            }
+            None => zstd,
         },
-        None => options.compression(Some(Compression::Zstd)),
+        None => zstd,
     };
-    Ok((options, parallel))
+    Ok((plan, parallel))
+}
+
+/// The writer of the copy for `plan`, its file started with `header` (the input's profile and
+/// library).
+fn sink(
+    plan: Plan,
+    header: &Header,
+    file: AtomicFile,
+    threaded: bool,
+) -> Result<Box<dyn Sink>, McapError> {
+    Ok(match plan {
+        Plan::Chunks { zstd } => Box::new(ChunkWriter::new(
+            file,
+            header,
+            zstd,
+            WriteOptions::DEFAULT_CHUNK_SIZE,
+            if threaded { chunks::workers() } else { 0 },
+        )?),
+        Plan::Crate(options) => Box::new(
+            options
+                .profile(header.profile.clone())
+                .library(header.library.clone())
+                // zstd (never used here) on the calling thread.
+                .compression_threads(0)
+                .create(file)?,
+        ),
+    })
+}
+
+/// The calls the copy makes of its writer: [`ChunkWriter`] or the `mcap` crate's, which take
+/// the same calls and write the same bytes.
+trait Sink: Send {
+    fn schema(&mut self, header: &SchemaHeader, data: &[u8]) -> McapResult<()>;
+    fn channel(&mut self, c: &Channel) -> McapResult<()>;
+    fn message(&mut self, header: &MessageHeader, data: &[u8]) -> McapResult<()>;
+    fn metadata(&mut self, m: &Metadata) -> McapResult<()>;
+    fn attach(&mut self, a: &mcap::Attachment) -> McapResult<()>;
+    fn private(&mut self, opcode: u8, data: &[u8]) -> McapResult<()>;
+    /// Writes the summary and footer.
+    fn finish(&mut self) -> McapResult<()>;
+    fn into_file(self: Box<Self>) -> AtomicFile;
+}
+
+impl Sink for ChunkWriter<AtomicFile> {
+    fn schema(&mut self, header: &SchemaHeader, data: &[u8]) -> McapResult<()> {
+        self.add_schema_with_id(header.id, &header.name, &header.encoding, data)
+            .map(drop)
+    }
+    fn channel(&mut self, c: &Channel) -> McapResult<()> {
+        self.add_channel_with_id(
+            c.id,
+            c.schema_id,
+            &c.topic,
+            &c.message_encoding,
+            &c.metadata,
+        )
+        .map(drop)
+    }
+    fn message(&mut self, header: &MessageHeader, data: &[u8]) -> McapResult<()> {
+        self.write_to_known_channel(header, data)
+    }
+    fn metadata(&mut self, m: &Metadata) -> McapResult<()> {
+        self.write_metadata(m)
+    }
+    fn attach(&mut self, a: &mcap::Attachment) -> McapResult<()> {
+        ChunkWriter::attach(self, a)
+    }
+    fn private(&mut self, opcode: u8, data: &[u8]) -> McapResult<()> {
+        self.write_private_record(opcode, data)
+    }
+    fn finish(&mut self) -> McapResult<()> {
+        ChunkWriter::finish(self)
+    }
+    fn into_file(self: Box<Self>) -> AtomicFile {
+        self.into_inner()
+    }
+}
+
+impl Sink for Writer<AtomicFile> {
+    fn schema(&mut self, header: &SchemaHeader, data: &[u8]) -> McapResult<()> {
+        self.add_schema_with_id(header.id, &header.name, &header.encoding, data)
+            .map(drop)
+    }
+    fn channel(&mut self, c: &Channel) -> McapResult<()> {
+        self.add_channel_with_id(
+            c.id,
+            c.schema_id,
+            &c.topic,
+            &c.message_encoding,
+            &c.metadata,
+        )
+        .map(drop)
+    }
+    fn message(&mut self, header: &MessageHeader, data: &[u8]) -> McapResult<()> {
+        self.write_to_known_channel(header, data)
+    }
+    fn metadata(&mut self, m: &Metadata) -> McapResult<()> {
+        self.write_metadata(m)
+    }
+    fn attach(&mut self, a: &mcap::Attachment) -> McapResult<()> {
+        Writer::attach(self, a)
+    }
+    fn private(&mut self, opcode: u8, data: &[u8]) -> McapResult<()> {
+        self.write_private_record(opcode, data, Default::default())
+    }
+    fn finish(&mut self) -> McapResult<()> {
+        Writer::finish(self).map(drop)
+    }
+    fn into_file(self: Box<Self>) -> AtomicFile {
+        self.into_inner()
+    }
 }
 
 /// Messages for the writer, gathered so that it is handed them in bulk: their headers, and their
@@ -592,13 +764,13 @@ fn copied(record: &Record) -> Option<Record<'static>> {
 /// A write that failed: the index of the message, if it was one, and the error.
 type Failed = (Option<u64>, McapError);
 
-/// Writes `out`: the calls the copy makes of the `mcap` crate's writer, in order.
-fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
+/// Writes `out`: the calls the copy makes of its writer, in order.
+fn write(w: &mut dyn Sink, out: &Out) -> Result<(), Failed> {
     let record = match out {
         Out::Messages(batch) => {
             let mut from = 0;
             for (i, (header, end)) in batch.headers.iter().enumerate() {
-                w.write_to_known_channel(header, &batch.data[from..*end])
+                w.message(header, &batch.data[from..*end])
                     .map_err(|e| (Some(batch.first + i as u64), e))?;
                 from = *end;
             }
@@ -607,19 +779,9 @@ fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
         Out::Record(record) => record,
     };
     let result = match record {
-        Record::Schema { header, data } => w
-            .add_schema_with_id(header.id, &header.name, &header.encoding, data)
-            .map(drop),
-        Record::Channel(c) => w
-            .add_channel_with_id(
-                c.id,
-                c.schema_id,
-                &c.topic,
-                &c.message_encoding,
-                &c.metadata,
-            )
-            .map(drop),
-        Record::Metadata(m) => w.write_metadata(m),
+        Record::Schema { header, data } => w.schema(header, data),
+        Record::Channel(c) => w.channel(c),
+        Record::Metadata(m) => w.metadata(m),
         Record::Attachment { header, data, .. } => w.attach(&mcap::Attachment {
             log_time: header.log_time,
             create_time: header.create_time,
@@ -627,9 +789,7 @@ fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
             media_type: header.media_type.clone(),
             data: Cow::Borrowed(data),
         }),
-        Record::Unknown { opcode, data } => {
-            w.write_private_record(*opcode, data, Default::default())
-        }
+        Record::Unknown { opcode, data } => w.private(*opcode, data),
         // Not handed here (see `copied`).
         _ => Ok(()),
     };
@@ -637,7 +797,7 @@ fn write(w: &mut Writer<AtomicFile>, out: &Out) -> Result<(), Failed> {
 }
 
 /// What the writer's thread gives back: the writer, and its first error.
-type Written = (Writer<AtomicFile>, Result<(), Failed>);
+type Written = (Box<dyn Sink>, Result<(), Failed>);
 
 /// Records handed to the writer's thread and not yet written.
 const QUEUE: usize = 4;
@@ -648,7 +808,7 @@ const QUEUE: usize = 4;
 /// the output's bytes, are the same either way.
 struct Output {
     /// Called in turn.
-    inline: Option<Box<Writer<AtomicFile>>>,
+    inline: Option<Box<dyn Sink>>,
     /// To the thread.
     queue: Option<SyncSender<Out>>,
     /// Batches written, back from the thread for reuse.
@@ -668,7 +828,7 @@ fn thread_failed() -> Failed {
 
 impl Output {
     /// Writes with `writer`: on a thread of its own with `threaded`, if it can be started.
-    fn new(writer: Writer<AtomicFile>, threaded: bool) -> io::Result<Self> {
+    fn new(writer: Box<dyn Sink>, threaded: bool) -> io::Result<Self> {
         let mut output = Output {
             inline: None,
             queue: None,
@@ -677,7 +837,7 @@ impl Output {
             spare: None,
         };
         if !threaded {
-            output.inline = Some(Box::new(writer));
+            output.inline = Some(writer);
             return Ok(output);
         }
         let (queue, todo) = sync_channel::<Out>(QUEUE);
@@ -687,7 +847,7 @@ impl Output {
             .spawn(move || {
                 let mut writer = writer;
                 while let Ok(out) = todo.recv() {
-                    if let Err(e) = write(&mut writer, &out) {
+                    if let Err(e) = write(writer.as_mut(), &out) {
                         return (writer, Err(e));
                     }
                     if let Out::Messages(batch) = out {
@@ -719,7 +879,7 @@ impl Output {
     /// Writes `out` (or hands it to the thread).
     fn put(&mut self, out: Out) -> Result<(), Failed> {
         if let Some(w) = self.inline.as_mut() {
-            write(w, &out)?;
+            write(w.as_mut(), &out)?;
             if let Out::Messages(batch) = out {
                 self.spare = Some(batch);
             }
@@ -734,9 +894,9 @@ impl Output {
     }
 
     /// The writer, once everything handed on is written; the first error of the thread.
-    fn join(&mut self) -> Result<Writer<AtomicFile>, Failed> {
+    fn join(&mut self) -> Result<Box<dyn Sink>, Failed> {
         if let Some(w) = self.inline.take() {
-            return Ok(*w);
+            return Ok(w);
         }
         self.queue = None;
         let (writer, result) = self
@@ -796,9 +956,8 @@ pub(super) fn rewrite(
     let each = |record: &Record, index: u64, hit: Option<Hit>| {
         let w = match (record, out.as_mut()) {
             (Record::Header(header), None) => {
-                let (options, threaded) = write_options(input, header, parallel_chunks)?;
-                let writer = options
-                    .create(AtomicFile::create(output)?)
+                let (plan, threaded) = plan(input, parallel_chunks)?;
+                let writer = sink(plan, header, AtomicFile::create(output)?, threaded)
                     .map_err(|e| fail((None, e)))?;
                 out = Some(Output::new(writer, threaded).map_err(|e| fail((None, e.into())))?);
                 return Ok(());
@@ -868,13 +1027,9 @@ pub(super) fn rewrite(
                 batch.data.extend_from_slice(data);
                 done.copied += 1;
             }
-            Some(Hit::Joint {
-                message,
-                index: joint,
-                value,
-            }) => {
+            Some(Hit::Joint { place, value }) => {
                 batch.data.extend_from_slice(data);
-                message.set_position(&mut batch.data[start..], joint, joint_fix.apply(value));
+                place.write(&mut batch.data[start..], joint_fix.apply(value));
                 done.readings += 1;
             }
             Some(Hit::Json { fields }) => {
@@ -909,7 +1064,7 @@ pub(super) fn rewrite(
     }
     let mut writer = out.join().map_err(fail)?;
     writer.finish().map_err(|e| fail((None, e)))?;
-    writer.into_inner().commit()?;
+    writer.into_file().commit()?;
     Ok(done)
 }
 
@@ -995,6 +1150,139 @@ mod tests {
             }
         }
         w.finish().unwrap();
+    }
+
+    /// A little-endian CDR JointState of joints `names` with `positions` and `velocity`.
+    fn joint_state_of(i: u32, names: &[&str], positions: &[f64], velocity: &[f64]) -> Vec<u8> {
+        // Pads to a multiple of `n` from the CDR origin, after the 4-byte encapsulation.
+        let align = |m: &mut Vec<u8>, n: usize| {
+            while (m.len() - 4) % n != 0 {
+                m.push(0);
+            }
+        };
+        let mut m = vec![0u8, 1, 0, 0];
+        m.extend(i.to_le_bytes());
+        m.extend((i * 7).to_le_bytes());
+        m.extend(1u32.to_le_bytes());
+        m.push(0);
+        align(&mut m, 4);
+        m.extend((names.len() as u32).to_le_bytes());
+        for name in names {
+            m.extend((name.len() as u32 + 1).to_le_bytes());
+            m.extend(name.as_bytes());
+            m.push(0);
+            align(&mut m, 4);
+        }
+        for values in [positions, velocity, &[]] {
+            m.extend((values.len() as u32).to_le_bytes());
+            if !values.is_empty() {
+                align(&mut m, 8);
+            }
+            for v in values {
+                m.extend(v.to_le_bytes());
+            }
+        }
+        m
+    }
+
+    /// Joint `a` of a log whose messages change layout — the joints' order, a velocity that
+    /// differs from message to message, a name that changes length — is corrected in every
+    /// message, wherever it lies, and every other byte copied; a position that is not finite,
+    /// after a thousand messages of the same layout, is an error naming its message.
+    #[test]
+    fn a_joint_is_found_in_every_message_whatever_its_layout() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("layouts.mcap");
+        let a = |i: u32| 0.001 * f64::from(i);
+        let message = |i: u32, nan_at: Option<u32>| {
+            let x = if Some(i) == nan_at { f64::NAN } else { a(i) };
+            match i / 1000 {
+                0 => joint_state_of(i, &["a", "b"], &[x, 1.0], &[]),
+                1 => joint_state_of(i, &["b", "a"], &[1.0, x], &[]),
+                2 => joint_state_of(i, &["a", "b"], &[x, 1.0], &[f64::from(i), 0.5]),
+                _ => joint_state_of(i, &["a", "bearing"], &[x, 1.0], &[]),
+            }
+        };
+        let write = |nan_at: Option<u32>| {
+            let file = std::io::BufWriter::new(File::create(&path).unwrap());
+            let mut w = WriteOptions::new()
+                .profile("ros2")
+                .chunk_size(Some(4096))
+                .create(file)
+                .unwrap();
+            let schema = w
+                .add_schema(
+                    "sensor_msgs/msg/JointState",
+                    "ros2msg",
+                    JOINT_STATE_MSGDEF.as_bytes(),
+                )
+                .unwrap();
+            let js = w
+                .add_channel(schema, "/joint_states", "cdr", &BTreeMap::new())
+                .unwrap();
+            for i in 0..4000 {
+                let header = MessageHeader {
+                    channel_id: js,
+                    sequence: i,
+                    log_time: u64::from(i),
+                    publish_time: u64::from(i),
+                };
+                w.write_to_known_channel(&header, &message(i, nan_at))
+                    .unwrap();
+            }
+            w.finish().unwrap();
+        };
+        write(None);
+        let map = ErrorMap::new((0..72).map(|i| 1e-5 * f64::from(1 + i % 7)).collect());
+        let fix = Correction::new(map, AngleUnit::Rad, Wrapping::Positive);
+        for parallel_chunks in [PARALLEL_CHUNKS, usize::MAX] {
+            let out = dir.path().join(format!("out-{parallel_chunks}.mcap"));
+            let done = rewrite(
+                &path,
+                &out,
+                "a",
+                (&fix, &fix),
+                false,
+                false,
+                parallel_chunks,
+            )
+            .unwrap();
+            assert_eq!(done.readings, 4000);
+            let bytes = std::fs::read(&out).unwrap();
+            let copied: Vec<_> = mcap::MessageStream::new(&bytes)
+                .unwrap()
+                .map(|m| m.unwrap().data.into_owned())
+                .collect();
+            assert_eq!(copied.len(), 4000);
+            for (i, got) in (0..4000).zip(&copied) {
+                let expected = message(i, None);
+                let js = JointState::parse(&expected).unwrap();
+                let place = js.place(js.joint("a").unwrap()).unwrap();
+                let mut want = expected.clone();
+                place.write(&mut want, fix.apply(a(i)));
+                assert!(*got == want, "message {i}");
+                assert_ne!(*got, expected, "message {i} corrected");
+            }
+        }
+        write(Some(1500));
+        let out = dir.path().join("nan.mcap");
+        let e = rewrite(
+            &path,
+            &out,
+            "a",
+            (&fix, &fix),
+            false,
+            false,
+            PARALLEL_CHUNKS,
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(
+            e.contains("not a finite number") && e.contains("1500"),
+            "{e}"
+        );
+        assert!(!out.exists());
     }
 
     /// Offsets and lengths of the top-level chunk records of MCAP `bytes`.

@@ -6,7 +6,7 @@
 //! - **CSV**: the same header, columns and rows; only the channel's field of each row is
 //!   rewritten (in the log's unit, shortest round-trip decimal form). Every other byte of the file
 //!   — time stamps, sessions, other channels, quoting, line ends, blank lines — is copied as read.
-//! - **MCAP**: every record is copied through the `mcap` crate's writer — header (profile,
+//! - **MCAP**: every record is copied — header (profile,
 //!   library), schemas and channels with their IDs, every message with its log time, publish
 //!   time and sequence number, metadata, attachments and private records — and only the messages
 //!   carrying the channel are changed: in a ROS 2 JointState message the 8 bytes of that joint's
@@ -21,7 +21,9 @@
 //!
 //! Both stream: memory stays bounded by a row or a few MCAP chunks, whatever the log's length.
 //! An MCAP log of several chunks is read with its chunks decompressed on worker threads and
-//! written on a thread of its own (see the `mcap` module).
+//! written on a thread of its own, its new chunks compressed on worker threads (see the `mcap`
+//! module); [`ApplyOptions::one_thread`] does it all on the calling thread, with the same
+//! output.
 //!
 //! # Wrapping
 //! Unless told ([`ApplyOptions::wrapping`]), the channel's wrapping is detected by a first pass
@@ -63,6 +65,10 @@ pub struct ApplyOptions {
     /// [`corrected_name`]`(channel)` right after the channel's, an MCAP log a copy of every
     /// message carrying the channel, corrected, on the topic [`corrected_topic`]`(topic)`.
     pub keep: bool,
+    /// MCAP: read, correct and write on the calling thread only (no threads decompressing the
+    /// log's chunks or compressing the output's, none writing). The output is the same either
+    /// way.
+    pub one_thread: bool,
 }
 
 /// The CSV column `--keep` adds beside channel `channel`: `a` → `a_corrected`.
@@ -193,6 +199,16 @@ fn formats(input: &Path, output: &Path) -> Result<LogFormat, Error> {
     Ok(format)
 }
 
+/// The chunks an MCAP log needs for them to be read in parallel and the output written on
+/// threads of its own: none with [`ApplyOptions::one_thread`].
+fn parallel_chunks(opts: &ApplyOptions) -> usize {
+    if opts.one_thread {
+        usize::MAX
+    } else {
+        PARALLEL_CHUNKS
+    }
+}
+
 /// The first pass of [`apply`] over `input`: the readings of `opts.channel`. An error if the
 /// log is a bag, or holds no readings of the channel.
 pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
@@ -205,7 +221,7 @@ pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
             &opts.channel,
             unit,
             opts.skip_damaged,
-            PARALLEL_CHUNKS,
+            parallel_chunks(opts),
         )?,
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
     };
@@ -272,7 +288,7 @@ pub fn apply_scanned(
                 (&joint, &json),
                 opts.skip_damaged,
                 opts.keep,
-                PARALLEL_CHUNKS,
+                parallel_chunks(opts),
             )?;
             beside.extend(done.beside);
             (

@@ -292,6 +292,35 @@ enum Positions<'a> {
     Interfaces(Vec<f64>),
 }
 
+/// Where one `position` element lies in a JointState message: its offset, and the message's byte
+/// order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Place {
+    pub at: usize,
+    pub big_endian: bool,
+}
+
+impl Place {
+    /// The position in `data`, a message of the layout this place was found in.
+    pub fn read(self, data: &[u8]) -> f64 {
+        let b: [u8; 8] = data[self.at..self.at + 8].try_into().unwrap_or_default();
+        if self.big_endian {
+            f64::from_be_bytes(b)
+        } else {
+            f64::from_le_bytes(b)
+        }
+    }
+
+    /// Overwrites the position in `data` with `value`; every other byte stays as it was.
+    pub fn write(self, data: &mut [u8], value: f64) {
+        data[self.at..self.at + 8].copy_from_slice(&if self.big_endian {
+            value.to_be_bytes()
+        } else {
+            value.to_le_bytes()
+        });
+    }
+}
+
 /// A decoded joint-state message (JointState in CDR or ROS 1, or DynamicJointState), borrowing
 /// from the message.
 #[derive(Debug, Clone)]
@@ -379,24 +408,37 @@ impl<'a> JointState<'a> {
         self.names().position(|n| n.is_ok_and(|n| n == name))
     }
 
+    /// Where `position[index]` lies in the message; `None` if the message has no such position
+    /// (a DynamicJointState has no `position` array).
+    pub fn place(&self, index: usize) -> Option<Place> {
+        (matches!(self.positions, Positions::Raw(_)) && index < self.position_count()).then_some(
+            Place {
+                at: self.positions_at + 8 * index,
+                big_endian: self.big_endian,
+            },
+        )
+    }
+
+    /// Where the `position` elements lie in the message (empty for a DynamicJointState).
+    pub fn positions_span(&self) -> std::ops::Range<usize> {
+        match &self.positions {
+            Positions::Raw(raw) => self.positions_at..self.positions_at + raw.len(),
+            Positions::Interfaces(_) => 0..0,
+        }
+    }
+
     /// Overwrites `position[index]` of `data` — the message this was parsed from, or a copy of
     /// it — with `value` in the message's byte order; every other byte stays as it was. `false`
-    /// (and `data` untouched) if the message has no such position (a DynamicJointState has no
-    /// `position` array).
+    /// (and `data` untouched) if the message has no such position.
+    #[cfg(test)]
     pub fn set_position(&self, data: &mut [u8], index: usize, value: f64) -> bool {
-        if !matches!(self.positions, Positions::Raw(_))
-            || index >= self.position_count()
-            || data.len() != self.data.len()
-        {
-            return false;
+        match self.place(index) {
+            Some(place) if data.len() == self.data.len() => {
+                place.write(data, value);
+                true
+            }
+            _ => false,
         }
-        let at = self.positions_at + 8 * index;
-        data[at..at + 8].copy_from_slice(&if self.big_endian {
-            value.to_be_bytes()
-        } else {
-            value.to_le_bytes()
-        });
-        true
     }
 
     /// The joint names, in order.

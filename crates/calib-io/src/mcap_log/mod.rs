@@ -46,6 +46,7 @@
 //! before the cut are kept too (a compressed one up to its last whole compressed block). An empty file, a file that is not MCAP, and corruption inside the data are errors.
 
 pub(crate) mod cdr;
+pub(crate) mod chunk_write;
 pub(crate) mod chunks;
 pub(crate) mod json;
 pub(crate) mod msgdef;

@@ -2,7 +2,7 @@
 //! MCAP file or a bag's row.
 
 use super::encoding::Encoding;
-use super::topic::{NO_POSITION, Topic};
+use super::topic::{NO_POSITION, SameLayout, Topic};
 use crate::TimeSource;
 use crate::mcap_log::cdr::{JointFormat, JointState};
 use crate::mcap_log::json;
@@ -20,6 +20,47 @@ fn log_time_ns(log_time: u64) -> Result<i64, String> {
     })
 }
 
+/// Puts `rad`, the reading of channel `i` of `names`, into `out`; an error naming the channel if
+/// it is not a reading.
+fn put_reading(
+    names: &[String],
+    out: &mut [f64],
+    i: usize,
+    rad: f64,
+) -> Result<(), (Option<String>, String)> {
+    match crate::limits::reading_problem(crate::limits::Readable(rad), rad, rad) {
+        Some(problem) => Err((Some(names[i].clone()), problem)),
+        None => {
+            out[i] = rad;
+            Ok(())
+        }
+    }
+}
+
+/// A JointState's stamp in nanoseconds: its header's `sec` and `nanosec`, or the message's log
+/// time with [`TimeSource::Log`] or a zero stamp; an error for `nanosec` past a second.
+fn stamp_of(
+    sec: i64,
+    nanosec: u32,
+    message: &mcap::Message,
+    time: TimeSource,
+) -> Result<i64, (Option<String>, String)> {
+    if nanosec >= 1_000_000_000 {
+        return Err((
+            None,
+            format!(
+                "header.stamp.nanosec is {nanosec}, not below 10⁹; the publisher's stamps are \
+                 broken (nanoseconds must be the fraction of the second)"
+            ),
+        ));
+    }
+    if time == TimeSource::Log || (sec == 0 && nanosec == 0) {
+        log_time_ns(message.log_time).map_err(|m| (None, m))
+    } else {
+        Ok(sec * 1_000_000_000 + i64::from(nanosec))
+    }
+}
+
 /// Decodes a message of `topic` into `out` (radians, one slot per channel of the topic, left
 /// as they are for channels the message does not carry) and returns its stamp in nanoseconds
 /// and whether it carried every channel in the topic's order. Errors carry the channel
@@ -32,6 +73,13 @@ pub(crate) fn decode(
 ) -> Result<(i64, bool), (Option<String>, String)> {
     match topic.encoding {
         Encoding::JointState(format) => {
+            if let Some(same) = topic.same.as_ref().filter(|s| s.fits(&message.data)) {
+                for (i, rad) in same.positions(&message.data).enumerate() {
+                    put_reading(&topic.names, out, i, rad)?;
+                }
+                let (sec, nanosec) = same.stamp(&message.data);
+                return Ok((stamp_of(sec, nanosec, message, time)?, same.full));
+            }
             let js =
                 JointState::parse_as(&message.data, format).map_err(|e| (None, e.to_string()))?;
             if js.position_count() != js.name_count {
@@ -52,17 +100,7 @@ pub(crate) fn decode(
                 Some(topic.layout(&js).map_err(|m| (None, m))?)
             };
             let names = &topic.names;
-            let mut put = |i: usize, rad: f64| match crate::limits::reading_problem(
-                crate::limits::Readable(rad),
-                rad,
-                rad,
-            ) {
-                Some(problem) => Err((Some(names[i].clone()), problem)),
-                None => {
-                    out[i] = rad;
-                    Ok(())
-                }
-            };
+            let mut put = |i: usize, rad: f64| put_reading(names, out, i, rad);
             // A DynamicJointState joint without a `position` interface carries no reading.
             let dynamic = format == JointFormat::Dynamic;
             let mut missing = false;
@@ -73,6 +111,7 @@ pub(crate) fn decode(
                 }
                 put(i, rad)
             };
+            let same_names = layout.is_none();
             let full = if let Some(layout) = layout {
                 for (&i, rad) in layout.iter().zip(js.positions()) {
                     if i != NO_POSITION {
@@ -91,21 +130,10 @@ pub(crate) fn decode(
                 js.name_count == names.len()
             };
             let full = full && !missing;
-            if js.nanosec >= 1_000_000_000 {
-                return Err((
-                    None,
-                    format!(
-                        "header.stamp.nanosec is {}, not below 10⁹; the publisher's stamps are \
-                         broken (nanoseconds must be the fraction of the second)",
-                        js.nanosec
-                    ),
-                ));
+            let stamp = stamp_of(js.sec, js.nanosec, message, time)?;
+            if format == JointFormat::Cdr && same_names {
+                topic.same = Some(SameLayout::of(&js, &message.data, full));
             }
-            let stamp = if time == TimeSource::Log || (js.sec == 0 && js.nanosec == 0) {
-                log_time_ns(message.log_time).map_err(|m| (None, m))?
-            } else {
-                js.sec * 1_000_000_000 + i64::from(js.nanosec)
-            };
             Ok((stamp, full))
         }
         Encoding::Scalar(kind) => {

@@ -60,7 +60,76 @@ pub(crate) struct Topic {
     pub(super) plan: Option<Box<Plan>>,
     /// JSON: which channels a message has given, reused between messages.
     pub(super) seen: Vec<bool>,
+    /// CDR JointState: the last message of the first message's names (see [`SameLayout`]).
+    pub(super) same: Option<SameLayout>,
     pub(crate) stats: TopicStats,
+}
+
+/// A CDR JointState message whose names are the topic's first message's. Another message of the
+/// same length whose bytes equal this one's but in the header's stamp and the `position`
+/// elements decodes the same way — the same names, counts and offsets: no field the parse
+/// checks differs — so its stamp and positions are read where this one's are, without a parse.
+pub(crate) struct SameLayout {
+    message: Vec<u8>,
+    /// The `position` elements' span.
+    positions: std::ops::Range<usize>,
+    big_endian: bool,
+    /// Whether the message carries every channel of the topic, in order.
+    pub(super) full: bool,
+}
+
+/// Bytes 4–12 of a CDR JointState: `header.stamp` (`sec`, `nanosec`) after the encapsulation.
+const STAMP: std::ops::Range<usize> = 4..12;
+
+impl SameLayout {
+    /// The layout of `data`, a CDR JointState parsed as `js`.
+    pub(super) fn of(js: &JointState, data: &[u8], full: bool) -> Self {
+        SameLayout {
+            message: data.to_vec(),
+            positions: js.positions_span(),
+            // The encapsulation header: [0, 0] big-endian, [0, 1] little-endian.
+            big_endian: data[1] == 0,
+            full,
+        }
+    }
+
+    /// Whether `data` has this layout.
+    pub(super) fn fits(&self, data: &[u8]) -> bool {
+        let m = &self.message;
+        data.len() == m.len()
+            && data[..STAMP.start] == m[..STAMP.start]
+            && data[STAMP.end..self.positions.start] == m[STAMP.end..self.positions.start]
+            && data[self.positions.end..] == m[self.positions.end..]
+    }
+
+    /// `header.stamp` of `data`: seconds (signed, as the parse reads them) and nanoseconds.
+    pub(super) fn stamp(&self, data: &[u8]) -> (i64, u32) {
+        let u32_at = |at: usize| {
+            let b: [u8; 4] = data[at..at + 4].try_into().unwrap_or_default();
+            if self.big_endian {
+                u32::from_be_bytes(b)
+            } else {
+                u32::from_le_bytes(b)
+            }
+        };
+        (
+            i64::from(u32_at(STAMP.start) as i32),
+            u32_at(STAMP.start + 4),
+        )
+    }
+
+    /// The positions of `data`, in order.
+    pub(super) fn positions<'d>(&self, data: &'d [u8]) -> impl Iterator<Item = f64> + 'd {
+        let big_endian = self.big_endian;
+        data[self.positions.clone()].chunks_exact(8).map(move |b| {
+            let b: [u8; 8] = b.try_into().unwrap_or_default();
+            if big_endian {
+                f64::from_be_bytes(b)
+            } else {
+                f64::from_le_bytes(b)
+            }
+        })
+    }
 }
 
 /// The type name of an MCAP channel's messages; empty if it has no schema.
@@ -188,6 +257,7 @@ impl Topic {
             scale,
             plan: None,
             seen: Vec::new(),
+            same: None,
             stats: TopicStats::default(),
         }
     }

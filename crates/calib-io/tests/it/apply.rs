@@ -46,6 +46,7 @@ fn opts(channel: &str) -> ApplyOptions {
         wrapping: None,
         skip_damaged: false,
         keep: false,
+        one_thread: false,
     }
 }
 

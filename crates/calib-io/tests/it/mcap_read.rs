@@ -992,3 +992,69 @@ fn a_flipped_bit_in_an_unchunked_file_fails_the_data_section_crc() {
         "{error}"
     );
 }
+
+/// A message of the layout of the messages before it (the same bytes but its stamp and
+/// positions) is read without a parse: its readings and stamp are still exactly its own, a
+/// zero stamp still falls back to the log time, and a bad position or a `nanosec` past a second
+/// is still the error it is; a message of another layout (the joints swapped, an effort added)
+/// in between is parsed and read as such. Big- and little-endian.
+#[test]
+fn messages_of_one_layout_are_read_as_parsed() {
+    let dir = temp();
+    for be in [false, true] {
+        let path = dir.path().join(format!("layouts-{be}.mcap"));
+        let mut b = Builder::new(&path, Some(Compression::Zstd), true);
+        let ch = b.joint_state_topic("/joint_states");
+        let ns = |i: u64| T0 + i * 1_000_000;
+        for i in 0..3000u64 {
+            let (x, y) = (i as f64 * 1e-3, -(i as f64));
+            let mut msg = match i {
+                1000..1010 => joint_state(ns(i), &["b", "a"], &[y, x]),
+                _ => joint_state(ns(i), &["a", "b"], &[x, y]),
+            };
+            if (2000..2010).contains(&i) {
+                msg.effort = vec![0.5; 3];
+            }
+            if i == 2500 {
+                msg.header.stamp.sec = 0;
+                msg.header.stamp.nanosec = 0;
+            }
+            b.put(ch, ns(i) - 100, &cdr(&msg, be));
+        }
+        b.finish();
+        let (_, samples) = read_all(&path, &ReadOptions::default());
+        assert_eq!(samples.len(), 3000);
+        for (i, s) in (0..3000u64).zip(&samples) {
+            let t = if i == 2500 { ns(i) - 100 } else { ns(i) };
+            assert_eq!(s.t, secs(t), "{be} {i}");
+            assert_eq!(s.values, [i as f64 * 1e-3, -(i as f64)], "{be} {i}");
+        }
+    }
+    // Errors after a thousand messages of the same layout.
+    let good = |i: u64| cdr(&joint_state(T0 + i, &["a", "b"], &[0.0, 1.0]), false);
+    let mut nan = good(1500);
+    // Position `a` (0.0) comes right before position `b`, the message's only 1.0.
+    let one = 1.0f64.to_le_bytes();
+    let at = nan.windows(8).position(|w| w == one).unwrap() - 8;
+    nan[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+    let mut nanosec = good(1500);
+    nanosec[8..12].copy_from_slice(&1_000_000_000u32.to_le_bytes());
+    for (name, bad, expect) in [
+        ("nan", nan, "not a finite number"),
+        ("nanosec", nanosec, "not below 10⁹"),
+    ] {
+        let path = dir.path().join(format!("{name}.mcap"));
+        let mut b = Builder::new(&path, Some(Compression::Zstd), true);
+        let ch = b.joint_state_topic("/joint_states");
+        for i in 0..1500 {
+            b.put(ch, i, &good(i));
+        }
+        b.put(ch, 1500, &bad);
+        b.finish();
+        let (read, err) = first_error(&path);
+        assert_eq!(read, 1500, "{name}");
+        let (index, _, message) = mcap_error(err);
+        assert_eq!(index, Some(1500), "{name}");
+        assert!(message.contains(expect), "{name}: {message}");
+    }
+}

@@ -979,6 +979,7 @@ fn apply_on_a_field_path_says_field_paths_are_not_rewritten() {
         wrapping: None,
         skip_damaged: false,
         keep: false,
+        one_thread: false,
     };
     let err = calib_io::apply::apply(&path, &dir.path().join("out.mcap"), &map, &opts)
         .unwrap_err()
