@@ -8,47 +8,35 @@ use calib_io::export;
 use calib_io::import::{self, ImportOptions};
 use std::path::PathBuf;
 
-/// The form the file holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Format {
-    /// mjbots moteus: `conf set KEY VALUE` lines (calib's `moteus`, a --write-config file, a
-    /// console transcript), `KEY VALUE` lines (`moteus-config`, `moteus_tool --dump-config`) or
-    /// `conf get KEY` answered by its value; other keys are skipped.
-    #[value(alias = "moteus-config")]
-    Moteus,
-    /// SimpleFOC (since PR #75): `uint16_t calibrationLut[N] = {…};` as printLUT() prints it, or
-    /// calib's `simplefoc` output.
-    Simplefoc,
-    /// SimpleFOC releases before PR #75: a `float NAME[N] = {…};` table (calib's
-    /// `simplefoc-float`).
-    SimplefocFloat,
-    /// calib's `lut-f32-rad`: one f32 per line, the correction in radians.
-    LutF32Rad,
-    /// calib's `lut-i16` (scale from its header, or --scale).
-    LutI16,
-    /// calib's `lut-u16` (scale from its header, or --scale).
-    LutU16,
-    /// calib's `lut-i8` (scale from its header, or --scale).
-    LutI8,
-    /// calib's `c-array`: a float array of the correction in arcseconds.
-    CArray,
-    /// calib's `csv`: `angle_deg,correction_arcsec` rows.
-    Csv,
-}
+/// The form the file holds: one of `calib_io::import::FORMATS`, each described there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Format(export::Format);
 
-impl Format {
-    fn to_io(self) -> export::Format {
-        match self {
-            Format::Moteus => export::Format::Moteus,
-            Format::Simplefoc => export::Format::Simplefoc,
-            Format::SimplefocFloat => export::Format::SimplefocFloat,
-            Format::LutF32Rad => export::Format::LutF32Rad,
-            Format::LutI16 => export::Format::LutI16,
-            Format::LutU16 => export::Format::LutU16,
-            Format::LutI8 => export::Format::LutI8,
-            Format::CArray => export::Format::CArray,
-            Format::Csv => export::Format::Csv,
-        }
+/// Every format read back, for clap's list of values.
+const FORMATS: [Format; 9] = {
+    let mut all = [Format(export::Format::Csv); 9];
+    let mut i = 0;
+    while i < all.len() {
+        all[i] = Format(import::FORMATS[i]);
+        i += 1;
+    }
+    all
+};
+
+impl clap::ValueEnum for Format {
+    fn value_variants<'a>() -> &'a [Self] {
+        &FORMATS
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        let value = clap::builder::PossibleValue::new(self.0.name())
+            .help(crate::flags::in_cli_words(import::about(self.0)));
+        // moteus reads `moteus-config` files too.
+        Some(if self.0 == export::Format::Moteus {
+            value.alias(export::Format::MoteusConfig.name())
+        } else {
+            value
+        })
     }
 }
 
@@ -114,7 +102,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         &format!("-o {}", crate::ui::shown(&args.output)),
     )?;
     crate::output::prepare_file(&args.output, "-o")?;
-    let mut opts = ImportOptions::new(args.format.to_io());
+    let mut opts = ImportOptions::new(args.format.0);
     opts.moteus_source = args.source;
     opts.scale_arcsec = args.scale;
     let table = import::import(&args.file, &opts)

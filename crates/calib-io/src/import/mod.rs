@@ -109,9 +109,9 @@ pub fn about(format: Format) -> &'static str {
              `simplefoc-float`)"
         }
         Format::LutF32Rad => "calib's `lut-f32-rad`: one f32 per line, the correction in radians",
-        Format::LutI16 => "calib's `lut-i16` (scale from its header, or --scale)",
-        Format::LutU16 => "calib's `lut-u16` (scale from its header, or --scale)",
-        Format::LutI8 => "calib's `lut-i8` (scale from its header, or --scale)",
+        Format::LutI16 => "calib's `lut-i16` (scale from its header, or the `scale_arcsec` option)",
+        Format::LutU16 => "calib's `lut-u16` (scale from its header, or the `scale_arcsec` option)",
+        Format::LutI8 => "calib's `lut-i8` (scale from its header, or the `scale_arcsec` option)",
         Format::CArray => "calib's `c-array`: a float array of the correction in arcseconds",
         Format::Csv => "calib's `csv`: `angle_deg,correction_arcsec` rows",
         Format::Harmonic => "",
