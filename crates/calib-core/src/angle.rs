@@ -167,13 +167,6 @@ impl Travel {
         self.range.map_or(0.0, |(lo, hi)| hi - lo)
     }
 
-    /// The span in degrees if the channel moved (more than 1°) but never turned a whole
-    /// revolution; `None` if it turned one, or stood still (which a method says in its own
-    /// words).
-    pub fn partial_turn_deg(&self) -> Option<f64> {
-        self.partial_turn("").map(|turn| turn.span_deg)
-    }
-
     /// [`PartialTurn`] for a method that `needs` whole turns, if the channel moved but never
     /// turned one.
     pub fn partial_turn(&self, needs: &'static str) -> Option<PartialTurn> {
@@ -211,20 +204,25 @@ mod tests {
     #[test]
     fn travel_tells_a_partial_turn_from_a_whole_one_across_the_wrap() {
         let mut t = Travel::new();
-        assert_eq!(t.partial_turn_deg(), None);
+        assert_eq!(t.partial_turn("").map(|p| p.span_deg), None);
         // 350° → 10° → 80°: 90° of travel across the wrap; NaN skipped.
         for deg in [350.0f64, 0.0, 10.0, f64::NAN, 80.0] {
             t.push(deg.to_radians());
         }
-        assert!((t.partial_turn_deg().unwrap() - 90.0).abs() < 1e-9);
+        assert!((t.partial_turn("").map(|p| p.span_deg).unwrap() - 90.0).abs() < 1e-9);
         for deg in [170.0f64, 260.0, 350.0, 80.0] {
             t.push(deg.to_radians());
         }
-        assert_eq!(t.partial_turn_deg(), None, "{}", t.span().to_degrees());
+        assert_eq!(
+            t.partial_turn("").map(|p| p.span_deg),
+            None,
+            "{}",
+            t.span().to_degrees()
+        );
         let mut still = Travel::new();
         still.push(0.3);
         still.push(0.3001);
-        assert_eq!(still.partial_turn_deg(), None);
+        assert_eq!(still.partial_turn("").map(|p| p.span_deg), None);
     }
 
     #[test]

@@ -135,13 +135,6 @@ impl TableMap {
             TableMap::Range(m) => m.rms(),
         }
     }
-    /// Largest absolute value, arcseconds.
-    pub fn max_abs_arcsec(&self) -> f64 {
-        match self {
-            TableMap::Turn(m) => m.max_abs_arcsec(),
-            TableMap::Range(m) => m.max_abs_arcsec(),
-        }
-    }
 }
 
 #[cfg(test)]
