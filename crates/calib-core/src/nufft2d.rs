@@ -43,7 +43,9 @@
 //! On x86-64 CPUs with AVX2 and FMA (detected at run time) the spreading uses those
 //! instructions. Two consecutive samples that share their first row and start at most
 //! 4 columns apart along `b` — nearly all of them when the samples are in time order — are
-//! spread in one pass over the grid's rows. Measured on a 2-core machine shared with other jobs
+//! spread in one pass over the grid's rows. Along one dimension (`j_max = 0`) two consecutive
+//! samples' kernels are evaluated together (the two chains of Horner's rule that two dimensions
+//! use for `a` and `b`), each as it would be alone. Measured on a 2-core machine shared with other jobs
 //! (load 1.5–2), 10⁷ samples of `calib tdr`'s spin-down, `K = 2`, `j_max = 127`,
 //! `m_max = 1016`: 0.47–0.53 s wall (~0.9 s of CPU); on one thread 0.76–0.82 s, ~80 ns per
 //! sample (`tests/nufft2d.rs`; `benches/nufft2d.rs` for 10⁶ samples).
@@ -352,11 +354,7 @@ impl<const K: usize> Placed<K> {
     /// Places sample `(a, b, w)`, in place (no copies of the arrays, and the zeros stay).
     #[inline(always)]
     fn place(&mut self, lanes: impl Lanes, plan: &Plan, (a, b, w): (f64, f64, [f64; K])) {
-        let (row, fa) = if plan.two_d {
-            plan.a.locate(a)
-        } else {
-            (0, 0.5)
-        };
+        let (row, fa) = plan.a.locate(a);
         let (first, fb) = plan.b.locate(b);
         let [ka, kb] = lanes.kernels(&plan.kernel, fa, fb);
         for (c, k) in self.padded[PAIR_SHIFT..].iter_mut().zip(kb) {
@@ -407,6 +405,10 @@ fn spread_samples<const K: usize, L: Lanes, F>(
 ) where
     F: Fn(usize) -> (f64, f64, [f64; K]),
 {
+    if !plan.two_d {
+        spread_row(lanes, plan, sample, range, grid);
+        return;
+    }
     let row_len = plan.row_len();
     // `slots[0]` is the next sample to spread when `placed`, `slots[1]` the one after it.
     let mut slots = [Placed::zero(), Placed::zero()];
@@ -418,7 +420,7 @@ fn spread_samples<const K: usize, L: Lanes, F>(
             n += 1;
         }
         placed = false;
-        if !plan.two_d || n == range.end {
+        if n == range.end {
             spread_one(lanes, plan, &slots[0], grid);
             continue;
         }
@@ -441,7 +443,49 @@ fn spread_samples<const K: usize, L: Lanes, F>(
     }
 }
 
-/// Adds one placed sample to `grid`.
+/// [`spread_samples`] along `b` alone (`j_max = 0`, one row): the kernels of two consecutive
+/// samples from one call of [`Lanes::kernels`], whose two chains are computed alike (each gives
+/// the bits it gives for one sample), then each sample's `W` values times its weights added to
+/// the row, in order.
+#[inline(always)]
+fn spread_row<const K: usize, L: Lanes, F>(
+    lanes: L,
+    plan: &Plan,
+    sample: &F,
+    range: Range<usize>,
+    grid: &mut [[f64; K]],
+) where
+    F: Fn(usize) -> (f64, f64, [f64; K]),
+{
+    let mut scaled = [[0.0; K]; WIDTH];
+    for n in range.clone().step_by(2) {
+        let count = (range.end - n).min(2);
+        let pair: [(usize, f64, [f64; K]); 2] = std::array::from_fn(|i| {
+            let (_, b, w) = if i < count {
+                sample(n + i)
+            } else {
+                (0.0, 0.0, [0.0; K])
+            };
+            let (first, f) = plan.b.locate(b);
+            (first, f, w)
+        });
+        let kernels = lanes.kernels(&plan.kernel, pair[0].1, pair[1].1);
+        for ((first, _, w), kernel) in pair.into_iter().zip(kernels).take(count) {
+            for (c, k) in scaled.iter_mut().zip(kernel) {
+                for s in 0..K {
+                    c[s] = k * w[s];
+                }
+            }
+            lanes.add_row(
+                grid[first..first + WIDTH].as_flattened_mut(),
+                1.0,
+                scaled.as_flattened(),
+            );
+        }
+    }
+}
+
+/// Adds one placed sample to `grid` (two dimensions).
 #[inline(always)]
 fn spread_one<const K: usize>(
     lanes: impl Lanes,
@@ -450,10 +494,6 @@ fn spread_one<const K: usize>(
     grid: &mut [[f64; K]],
 ) {
     let (first, scaled) = (p.first, p.scaled(0, WIDTH));
-    if !plan.two_d {
-        lanes.add_row(grid[first..first + WIDTH].as_flattened_mut(), 1.0, scaled);
-        return;
-    }
     for (i, r) in p.rows(plan.a.n) {
         let start = r * plan.row_len() + first;
         lanes.add_row(

@@ -17,8 +17,9 @@
 //! A straight line between two readings would not do: it errs by `α·h²/8` for a step `h`, 16″
 //! at 200 Hz in a ramp of 25 rad/s²; the cubic is exact for a constant acceleration. With the lag unknown
 //! ([`Latency::Auto`]) the log is calibrated, the lag the sessions still show is added to the
-//! shift and the log is read again, until what is left is not significant ([`significant`]) or
-//! after [`MAX_PASSES`] readings; the first-order estimate falls short of a large lag (a 20 ms
+//! shift and the log is read again, until what is left is not significant ([`significant`]), is
+//! no smaller than what the reading before left (the shift no longer acts on it), or after
+//! [`MAX_PASSES`] readings; the first-order estimate falls short of a large lag (a 20 ms
 //! lag reads as 14 ms on the first pass, where it also cuts sessions at their ramps), and each
 //! pass takes most of what is left.
 //!
@@ -97,6 +98,8 @@ pub fn calibrate<E>(
         Latency::Fixed(tau) => tau,
     };
     let mut passes = 0;
+    // |τ| left after the last reading: a reading that leaves no less will not converge.
+    let mut last_left = f64::INFINITY;
     loop {
         passes += 1;
         let mut csrr = Csrr::new(CsrrOptions {
@@ -104,16 +107,23 @@ pub fn calibrate<E>(
             ..opts.clone()
         });
         feed(&mut csrr)?;
-        // A large lag can make the solve fail: the lag is read again with it removed first.
-        let (left, result) = csrr.finish_with_lag();
+        // A large lag can make the solve fail: the lag is read again with it removed first,
+        // and a reading that is read again is not solved.
+        let (left, segmented) = csrr.segment();
         let again = latency == Latency::Auto
             && passes < MAX_PASSES
-            && left.as_ref().is_some_and(significant);
-        if again {
-            applied += left.map_or(0.0, |l| l.tau);
+            && left
+                .as_ref()
+                .is_some_and(|e| significant(e) && e.tau.abs() < last_left);
+        if let (true, Some(left)) = (again, left) {
+            applied += left.tau;
+            last_left = left.tau.abs();
             continue;
         }
-        let mut cal = match (result, left.filter(|e| significant(e) && matters(e))) {
+        let mut cal = match (
+            segmented.solve(),
+            left.filter(|e| significant(e) && matters(e)),
+        ) {
             (Ok(cal), _) => cal,
             (Err(e), None) => return Ok(Err(e)),
             (Err(e), Some(lag)) => {
@@ -207,11 +217,18 @@ fn warning(o: &LatencyOutcome) -> Option<String> {
 /// (at the ends of the log, next to a gap). A sample whose `t + τ` lies before the log, beyond
 /// its end, or in a gap (two samples further apart than [`GAP_FACTOR`] times the step before
 /// them) is dropped and counted.
+///
+/// Times are taken from the first sample's inside: stamps since 1970 (a ROS 2 bag's) are
+/// ~1.7·10⁹ s, whose doubles are 2.4·10⁻⁷ s apart, so `t + τ` could not move by a lag of a
+/// few nanoseconds; their differences from the first stamp are exact.
 #[derive(Debug)]
 pub(super) struct TimeShift {
     tau: f64,
+    /// The first sample's time.
+    origin: Option<f64>,
     unwrap: Unwrapper,
-    /// B's readings `(t, y unwrapped)` from a little before the oldest pending `t + τ`.
+    /// B's readings `(t − origin, y unwrapped)` from a little before the oldest pending
+    /// `t − origin + τ`.
     b: VecDeque<(f64, f64)>,
     /// Samples waiting for B's reading at `t + τ`: `(t, x, mark, extra)`.
     pending: VecDeque<(f64, f64, Option<u32>, Vec<f64>)>,
@@ -226,6 +243,7 @@ impl TimeShift {
     pub(super) fn new(tau: f64) -> Self {
         TimeShift {
             tau,
+            origin: None,
             unwrap: Unwrapper::new(),
             b: VecDeque::new(),
             pending: VecDeque::new(),
@@ -241,10 +259,11 @@ impl TimeShift {
         mut emit: impl FnMut(f64, f64, f64, Option<u32>, &[f64]),
     ) {
         let yu = self.unwrap.unwrap(y);
-        self.b.push_back((t, yu));
+        let origin = *self.origin.get_or_insert(t);
+        self.b.push_back((t - origin, yu));
         self.pending.push_back((t, x, mark, extra.to_vec()));
         while let Some(&(tp, _, _, _)) = self.pending.front() {
-            let target = tp + self.tau;
+            let target = (tp - origin) + self.tau;
             // Two readings at or after the target: the cubic's right-hand pair.
             let after = self
                 .b
@@ -262,13 +281,13 @@ impl TimeShift {
             }
         }
         // Keep one reading before the oldest target still to come.
-        let oldest = self.pending.front().map_or(t, |&(tp, _, _, _)| tp).min(t) + self.tau;
+        let oldest = self.pending.front().map_or(t, |&(tp, _, _, _)| tp).min(t) - origin + self.tau;
         while self.b.len() > 4 && self.b[3].0 <= oldest {
             self.b.pop_front();
         }
     }
 
-    /// B's reading at `target`, which is not after the newest reading.
+    /// B's reading at `target` (from the origin), which is not after the newest reading.
     fn at(&self, target: f64) -> Option<f64> {
         let i = self.b.partition_point(|&(tb, _)| tb < target);
         let &(t1, y1) = self.b.get(i)?;
@@ -345,6 +364,23 @@ mod tests {
         );
         for (t, y) in out {
             assert!((y - 2.0 * (t + 0.015)).abs() < 1e-12, "{t} {y}");
+        }
+    }
+
+    #[test]
+    fn a_lag_of_nanoseconds_moves_stamps_since_1970() {
+        // Stamps of 1.7·10⁹ s are 2.4·10⁻⁷ s apart as doubles: a 3 ns shift must still act.
+        let t0 = 1_700_000_000.0;
+        let samples: Vec<(f64, f64)> = (0..100)
+            .map(|i| {
+                let t = t0 + i as f64 * 1e-4;
+                (t, 2.0 * (t - t0))
+            })
+            .collect();
+        let (out, _) = shifted(3e-9, &samples);
+        assert!(out.len() > 90);
+        for (t, y) in out {
+            assert!((y - 2.0 * (t - t0 + 3e-9)).abs() < 1e-13, "{t} {y}");
         }
     }
 

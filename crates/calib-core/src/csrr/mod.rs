@@ -431,38 +431,23 @@ impl Csrr {
 
     /// Solves, once every sample is in.
     pub fn finish(self) -> Result<Calibration, CsrrError> {
-        self.finish_with_lag().1
+        self.segment().1.solve()
     }
 
-    /// [`finish`](Self::finish), with the lag between the channels the sessions show
-    /// (`Segmentation::latency`) whether or not the solve succeeds: a lag can be what makes it
-    /// fail.
-    pub(crate) fn finish_with_lag(
-        mut self,
-    ) -> (
-        Option<crate::segment::LatencyEstimate>,
-        Result<Calibration, CsrrError>,
-    ) {
+    /// Ends the sessions: the lag between the channels they show (`Segmentation::latency`),
+    /// and the solve still to run. A caller that reads the log again with the lag removed skips
+    /// the solve; one that keeps this reading has the lag whether or not the solve succeeds (a
+    /// lag can be what makes it fail).
+    pub(crate) fn segment(mut self) -> (Option<crate::segment::LatencyEstimate>, Segmented) {
         let segmenter = std::mem::replace(&mut self.segmenter, Segmenter::new(self.opts.segments));
         let segmentation = segmenter.finish(&mut self.sinks);
-        let latency = segmentation.latency;
-        let (a, b) = std::mem::take(&mut self.travel);
-        let result = self.solve(segmentation).map_err(|e| {
-            let partial = |sensor, travel: &Travel| {
-                travel
-                    .partial_turn(NEEDS_WHOLE_TURNS)
-                    .map(|turn| (sensor, turn))
-            };
-            match partial('A', &a).or_else(|| partial('B', &b)) {
-                Some((sensor, turn)) => CsrrError::NoWholeTurn {
-                    sensor,
-                    turn,
-                    cause: Box::new(e),
-                },
-                None => e,
-            }
-        });
-        (latency, result)
+        (
+            segmentation.latency,
+            Segmented {
+                csrr: self,
+                segmentation,
+            },
+        )
     }
 
     fn solve(mut self, segmentation: Segmentation) -> Result<Calibration, CsrrError> {
@@ -514,6 +499,39 @@ impl Csrr {
             cal.reference = Some(r.finish(&cal.a, &cal.b, &deltas));
         }
         Ok(cal)
+    }
+}
+
+/// A calibration whose sessions are ended and whose solve is still to run ([`Csrr::segment`]).
+pub(crate) struct Segmented {
+    csrr: Csrr,
+    segmentation: Segmentation,
+}
+
+impl Segmented {
+    /// The joint solve ([`Csrr::finish`]); if it fails for a sensor that moved but never turned a
+    /// whole revolution, the error is [`CsrrError::NoWholeTurn`].
+    pub(crate) fn solve(self) -> Result<Calibration, CsrrError> {
+        let Segmented {
+            mut csrr,
+            segmentation,
+        } = self;
+        let (a, b) = std::mem::take(&mut csrr.travel);
+        csrr.solve(segmentation).map_err(|e| {
+            let partial = |sensor, travel: &Travel| {
+                travel
+                    .partial_turn(NEEDS_WHOLE_TURNS)
+                    .map(|turn| (sensor, turn))
+            };
+            match partial('A', &a).or_else(|| partial('B', &b)) {
+                Some((sensor, turn)) => CsrrError::NoWholeTurn {
+                    sensor,
+                    turn,
+                    cause: Box::new(e),
+                },
+                None => e,
+            }
+        })
     }
 }
 

@@ -101,7 +101,9 @@
 //! non-uniform FFT gives ([`crate::nufft2d`]). Ten million samples cost one such pass and one
 //! more for the residual's structure (above); each fit then costs `O(n²)` for its `n` columns
 //! and a Cholesky factor. Both passes use two threads where rayon has them and sum in a fixed
-//! order, so the results are the same bits on any number of threads.
+//! order, so the results are the same bits on any number of threads; the readings' noise is
+//! measured beside the screening's factorization, and the coast's trace (its intervals each
+//! in order) beside the residual's pass.
 
 use crate::angle::{ARCSEC_PER_RAD, PartialTurn, Unwrapper};
 use crate::detection::{self, Verdict};
@@ -522,8 +524,13 @@ impl Tdr {
         let moments = Moments::of_coast(samples, max_degree, h, hd);
 
         // 1. Which orders the data hold: every order to h, the motion at its highest degree.
-        let mut screen =
-            screen_orders(&moments, span, max_degree, h, None).ok_or(underdetermined)?;
+        // The readings' own noise, for the verdict at the end, is measured beside it (the
+        // screening's factorization runs on one core).
+        let (screen, noise_rms) = rayon::join(
+            || screen_orders(&moments, span, max_degree, h, None),
+            || readings_noise(t, r),
+        );
+        let mut screen = screen.ok_or(underdetermined)?;
         let screen_motion = TdrMotion {
             degree: max_degree,
             t_start: span.0,
@@ -588,8 +595,12 @@ impl Tdr {
 
         // 4. What the model leaves: periodic structure in the residual above the orders fitted.
         let top = ((0.5 * densest) as usize).max(2 * h).min(4 * h.max(8));
-        let unresolved = residual_orders(samples, &basis, &fit, h + 1..=top);
-        let coast_bins = coast_trace(samples, &basis, &fit, COAST_BINS);
+        // The trace's intervals first: the other core takes the spectrum's two halves, and the
+        // intervals fill in around them.
+        let (coast_bins, unresolved) = rayon::join(
+            || coast_trace(samples, &basis, &fit, COAST_BINS),
+            || residual_orders(samples, &basis, &fit, h + 1..=top),
+        );
         warnings.extend(unresolved_warning(&unresolved, h));
 
         let floor = detection::detection_floor(screen.detection_limit);
@@ -604,7 +615,6 @@ impl Tdr {
                 screen.detection_limit,
             ));
         }
-        let noise_rms = readings_noise(t, r);
         match detection::residual_verdict(residual_rms, noise_rms, !orders.is_empty()) {
             Verdict::Explained => {}
             Verdict::Above(ratio) => warnings.push(detection::residual_warning(

@@ -8,6 +8,7 @@ use crate::angle::ARCSEC_PER_RAD;
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
 use crate::nufft2d::type1_blocks;
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 use std::ops::Range;
 
@@ -55,14 +56,16 @@ pub(super) fn residual_orders(
 }
 
 /// The coast in `bins` intervals of equal samples (fewer on a short coast): each interval's
-/// mean speed and the final fit's residuals over it, for a report to draw against time.
+/// mean speed and the final fit's residuals over it, for a report to draw against time. The
+/// intervals are evaluated on the rayon pool, each in order by itself: the same bits on any
+/// number of threads.
 pub(super) fn coast_trace(s: Samples, basis: &Basis, fit: &Fit, bins: usize) -> Vec<CoastBin> {
     let model = Model::new(basis, fit);
     let n = s.len();
     let bins = bins.min(n / 2).max(1);
-    let mut residuals = Vec::new();
     (0..bins)
-        .filter_map(|k| {
+        .into_par_iter()
+        .map_init(Vec::new, |residuals, k| {
             let range = k * n / bins..(k + 1) * n / bins;
             let (first, last) = (range.start, range.end.checked_sub(1)?);
             let dt = s.t[last] - s.t[first];
@@ -70,7 +73,7 @@ pub(super) fn coast_trace(s: Samples, basis: &Basis, fit: &Fit, bins: usize) -> 
                 return None;
             }
             residuals.clear();
-            model.points(s, range.clone(), &mut residuals);
+            model.points(s, range.clone(), residuals);
             let e = residuals.iter().map(|p| p.2[0]);
             let count = residuals.len() as f64;
             Some(CoastBin {
@@ -81,6 +84,7 @@ pub(super) fn coast_trace(s: Samples, basis: &Basis, fit: &Fit, bins: usize) -> 
                 residual_max: e.fold(f64::NEG_INFINITY, f64::max),
             })
         })
+        .flatten()
         .collect()
 }
 
