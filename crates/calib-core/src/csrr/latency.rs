@@ -218,7 +218,7 @@ fn warning(o: &LatencyOutcome) -> Option<String> {
 /// its end, or in a gap (two samples further apart than [`GAP_FACTOR`] times the step before
 /// them) is dropped and counted.
 ///
-/// Times are taken from the first sample's inside: stamps since 1970 (a ROS 2 bag's) are
+/// Time is counted from the first sample's inside: stamps since 1970 (a ROS 2 bag's) are
 /// ~1.7·10⁹ s, whose doubles are 2.4·10⁻⁷ s apart, so `t + τ` could not move by a lag of a
 /// few nanoseconds; their differences from the first stamp are exact.
 #[derive(Debug)]
