@@ -109,7 +109,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         }
     }
     let reader = samples.finish();
-    let result = inspector.finish();
+    let result = inspector.finish().with_time_origin(reader.time_origin_s());
     if result.samples == 0 {
         anyhow::bail!("{}: the log holds no samples", args.log.display());
     }

@@ -239,7 +239,10 @@ pub fn finish_log(
     shown: Presentation,
     mut results: Results,
 ) -> anyhow::Result<Outcome> {
-    results.section = results.section.with_alignment(alignment_detail(reader));
+    results.section = results
+        .section
+        .with_alignment(alignment_detail(reader))
+        .with_time_origin(reader.time_origin_s());
     finish(
         out,
         shown,

@@ -2,12 +2,13 @@
 //! and their errors. The tests write the bags themselves, through the tables rosbag2 (Humble)
 //! creates, with CDR payloads as `rmw` serializes them.
 
-use crate::common::{self, inspect, ros};
+use crate::common::{self, inspect, json, ros};
 
 use calib_core::{AngleUnit, Channel, Sample};
 use calib_io::mcap_log::McapWriter;
 use common::*;
 use inspect::{inspect, inspect_json};
+use json::read_json;
 use ros::*;
 use rusqlite::{Connection, params};
 use std::path::{Path, PathBuf};
@@ -1185,4 +1186,64 @@ fn a_wal_bag_without_a_temporary_folder_says_what_to_do() {
         .collect();
     names.sort();
     assert_eq!(names, ["tmp-file", "wal.db3", "wal.db3-wal"]);
+}
+
+/// `spindown.toml`'s coast as `/joint_states` JointStates (`enc`, `ref`) in an MCAP file, each
+/// message stamped (header and log time) `origin_ns` plus its sample's time.
+fn write_coast(path: &Path, origin_ns: u64) {
+    let mut writer = RawMcap::create(
+        path,
+        JOINT_STATE,
+        "ros2msg",
+        calib_io::mcap_log::JOINT_STATE_MSGDEF.as_bytes(),
+    );
+    let id = writer.channel("/joint_states", "cdr");
+    for (n, s) in scenario_samples("spindown.toml").iter().enumerate() {
+        let t = origin_ns + ns(s.t);
+        let data = joint_state(t as i64, &["enc", "ref"], &s.values);
+        writer.write(id, n as u32, t, &data);
+    }
+    writer.finish();
+}
+
+/// A robot's log is stamped in nanoseconds since 1970, which a double of seconds (2.4·10⁻⁷ s
+/// apart there) cannot hold: at 600 r/min such a step is 0.9″ of rotation, and a coast read that
+/// way left 0.8″ of residual and a map 0.018″ off (0.06″ and 0.0014″ timed from 0). The reader
+/// counts stamps from the first one's second, so the same run stamped since 1970 gives the same
+/// bytes of map as stamped from 0, and report.json and `inspect` give the coast on the log's
+/// clock.
+#[test]
+fn stamps_since_1970_give_the_map_of_stamps_from_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let origin_ns = 1_700_000_000_000_000_000;
+    let (from_0, since_1970) = (dir.path().join("zero.mcap"), dir.path().join("1970.mcap"));
+    write_coast(&from_0, 0);
+    write_coast(&since_1970, origin_ns);
+    let (out_0, out_1970) = (dir.path().join("zero"), dir.path().join("1970"));
+    for (log, out) in [(&from_0, &out_0), (&since_1970, &out_1970)] {
+        expect_exit(
+            &calib(&["tdr", s(log), "--channel", "enc", "-o", s(out)]),
+            0,
+        );
+    }
+    let table = |out: &Path| std::fs::read(out.join("enc.csv")).unwrap();
+    assert!(table(&out_0) == table(&out_1970), "the maps differ");
+    let coast = |out: &Path| {
+        let report = read_json(&out.join("report.json"));
+        let m = &report["details"]["motion"];
+        (m["start_s"].as_f64().unwrap(), m["end_s"].as_f64().unwrap())
+    };
+    let (zero, since) = (coast(&out_0), coast(&out_1970));
+    // On the log's clock: the stamps since 1970, to a double's step there.
+    assert!(
+        (since.0 - 1.7e9 - zero.0).abs() < 5e-7,
+        "{since:?} {zero:?}"
+    );
+    assert!(
+        (since.1 - 1.7e9 - zero.1).abs() < 5e-7,
+        "{since:?} {zero:?}"
+    );
+    let inspection = inspect_json(&since_1970, &[]);
+    let start = inspection["inspection"]["start_s"].as_f64().unwrap();
+    assert!((start - 1.7e9).abs() < 1e-6, "{start}");
 }

@@ -206,3 +206,48 @@ fn usage_errors_exit_2() {
     }
     assert_no_output(&out);
 }
+
+/// A CSV log timed in seconds since 1970 with every digit (a Python `time.time()` log) gives
+/// the map of the same run timed from 0, byte for byte: the reader counts the stamps' whole
+/// seconds from the first row's in integers and adds their fractions, where a double of
+/// ~1.7·10⁹ s would have kept steps of 2.4·10⁻⁷ s only (0.9″ of rotation at 600 r/min). The
+/// summary and report.json give the coast on the file's clock.
+#[test]
+fn seconds_since_1970_give_the_map_of_seconds_from_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let from_0 = simulate(&testdata("scenarios/spindown.toml"), dir.path(), "zero.csv");
+    let text = std::fs::read_to_string(&from_0).unwrap();
+    let shifted: String = text
+        .lines()
+        .map(|line| match line.split_once('.') {
+            Some((whole, rest)) if whole.bytes().all(|b| b.is_ascii_digit()) => {
+                let whole: u64 = whole.parse().unwrap();
+                format!("{}.{rest}\n", whole + 1_700_000_000)
+            }
+            _ => format!("{line}\n"),
+        })
+        .collect();
+    assert!(
+        shifted.contains("\n1700000000.0005,"),
+        "{}",
+        &shifted[..200]
+    );
+    let since_1970 = write(dir.path(), "1970.csv", &shifted);
+    let (out_0, out_1970) = (dir.path().join("zero"), dir.path().join("1970"));
+    let mut printed = Vec::new();
+    for (log, out) in [(&from_0, &out_0), (&since_1970, &out_1970)] {
+        let o = calib(&["tdr", s(log), "--channel", "enc", "-o", s(out)]);
+        expect_exit(&o, 0);
+        printed.push(stdout(&o));
+    }
+    let table = |out: &std::path::Path| std::fs::read(out.join("enc.csv")).unwrap();
+    assert!(table(&out_0) == table(&out_1970), "the maps differ");
+    let start = |out: &std::path::Path| {
+        read_json(&out.join("report.json"))["details"]["motion"]["start_s"]
+            .as_f64()
+            .unwrap()
+    };
+    let (zero, since) = (start(&out_0), start(&out_1970));
+    assert!((since - 1.7e9 - zero).abs() < 5e-7, "{since} {zero}");
+    assert_mentions(&printed[1], &["coast 1700000000."]);
+}

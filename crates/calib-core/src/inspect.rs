@@ -68,6 +68,24 @@ pub struct StampEvent {
     pub step_s: f64,
 }
 
+impl Inspection {
+    /// The inspection with its times on the log's own clock: the times the inspector was given
+    /// plus `origin_s`, the stamp they were counted from (readers count stamps since 1970 from
+    /// the first one's second, to keep their nanoseconds in a double).
+    pub fn with_time_origin(mut self, origin_s: f64) -> Self {
+        self.start_s += origin_s;
+        self.end_s += origin_s;
+        for e in self.gap_list.iter_mut().chain(&mut self.non_monotonic_list) {
+            e.t += origin_s;
+        }
+        for s in &mut self.segments {
+            s.start_s += origin_s;
+            s.end_s += origin_s;
+        }
+        self
+    }
+}
+
 /// Everything `inspect` found.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct Inspection {

@@ -413,6 +413,20 @@ impl LogReader {
         matches!(&self.inner, Inner::Csv(r) if r.has_session_column())
     }
 
+    /// The stamp, seconds on the log's own clock, from which the samples' times are counted:
+    /// a sample's time plus this is its stamp. Stamps since 1970 as doubles are 2.4·10⁻⁷ s
+    /// apart, too coarse for a fast coast, so the readers count stamps beyond 2²¹ s (24 days) from
+    /// the whole second of the first (an MCAP file's, a bag's, a CSV time column's); 0 for a log
+    /// timed from its start and for integer CSV stamps beyond 2⁵³, which are counted from the
+    /// first row's (see `docs/recordings.md`). Known once the first sample is read; reports add
+    /// it back.
+    pub fn time_origin_s(&self) -> f64 {
+        match &self.inner {
+            Inner::Csv(r) => r.time_origin_s(),
+            Inner::Ros2(r) => r.samples().time_origin_s(),
+        }
+    }
+
     /// What the reader noticed so far (complete once the iterator is exhausted).
     pub fn diagnostics(&self) -> &ReadDiagnostics {
         match &self.inner {

@@ -1250,6 +1250,12 @@ impl BagReader {
         self.samples.alignment()
     }
 
+    /// The stamp, s, from which the samples' times count: the whole second of the first
+    /// message's stamp (see [`crate::LogReader::time_origin_s`]).
+    pub fn time_origin_s(&self) -> f64 {
+        self.samples.time_origin_s()
+    }
+
     /// What the reader noticed so far.
     pub fn diagnostics(&self) -> &ReadDiagnostics {
         &self.samples.diagnostics

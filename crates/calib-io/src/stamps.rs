@@ -18,6 +18,13 @@
 use crate::TimeSource;
 use crate::ros2::decode::seconds;
 
+/// Stamps from this many seconds on (2²¹ s, 24 days: seconds since 1970, ~1.7·10⁹ s, whose
+/// doubles are 2.4·10⁻⁷ s apart) are counted from the whole second of the log's first stamp, so
+/// that a sample's time, a double, keeps every nanosecond; below it doubles are at most
+/// 4.7·10⁻¹⁰ s apart and stamps are kept as they are. Reports add the origin back
+/// ([`crate::LogReader::time_origin_s`]).
+pub(crate) const ORIGIN_FROM_S: i64 = 1 << 21;
+
 /// The last stamp of the clock channel and the message that carried it.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct StampOrder {

@@ -133,6 +133,24 @@ pub fn alignment(reader: &LogReader) -> Option<calib_core::report::Alignment> {
     reader.alignment().filter(|a| !a.is_exact())
 }
 
+/// What a result's report takes from how its log was read (the default for readings given as
+/// arrays).
+#[derive(Debug, Default)]
+pub struct LogRead {
+    /// How the channels were aligned on the clock ([`alignment`]).
+    pub alignment: Option<calib_core::report::Alignment>,
+    /// The stamp, s, from which the samples' times count ([`LogReader::time_origin_s`]).
+    pub time_origin_s: f64,
+}
+
+/// How `reader`'s log was read, once it is read.
+pub fn log_read(reader: &LogReader) -> LogRead {
+    LogRead {
+        alignment: alignment(reader),
+        time_origin_s: reader.time_origin_s(),
+    }
+}
+
 /// Reads a whole log into numpy arrays (see `calib.read`).
 #[pyfunction]
 #[pyo3(signature = (path, channels=None, time="header", unit=None, max_gap=None, time_column=None, time_unit=None))]
@@ -171,6 +189,9 @@ pub fn read<'py>(
             Ok::<_, String>((t, values, sessions, reader))
         })
         .map_err(data)?;
+    // The stamps on the log's own clock (the reader counts them from an origin).
+    let origin = reader.time_origin_s();
+    let t: Vec<f64> = t.into_iter().map(|t| t + origin).collect();
     let out = PyDict::new(py);
     out.set_item("t", PyArray1::from_vec(py, t))?;
     let columns = PyDict::new(py);
@@ -252,7 +273,8 @@ pub fn inspect(
         .detach(|| {
             let reader =
                 for_each_sample(&path, reader, |s| inspector.push(s.t, s.values, s.session))?;
-            Ok::<_, String>((inspector.finish(), reader))
+            let result = inspector.finish().with_time_origin(reader.time_origin_s());
+            Ok::<_, String>((result, reader))
         })
         .map_err(data)?;
     if result.samples == 0 {

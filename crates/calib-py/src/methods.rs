@@ -5,7 +5,7 @@
 //! (`error_arcsec`) and standard uncertainties (`u_arcsec`, or `None`).
 
 use crate::errors::{check_non_negative, check_points, check_range, data, usage};
-use crate::logs::{LogOptions, alignment, for_each_sample, open, reopen};
+use crate::logs::{LogOptions, LogRead, for_each_sample, log_read, open, reopen};
 use calib_core::Report;
 use calib_core::TableMap;
 use calib_core::angle::ARCSEC_PER_RAD;
@@ -239,11 +239,12 @@ fn csrr_result<'py>(
     reference: Option<&str>,
     inputs: Vec<String>,
     warnings: Vec<String>,
-    aligned: Option<calib_core::report::Alignment>,
+    read: LogRead,
 ) -> PyResult<Bound<'py, PyDict>> {
     let section = cal
         .report_section((a, b), reference, None)
-        .with_alignment(aligned);
+        .with_alignment(read.alignment)
+        .with_time_origin(read.time_origin_s);
     let (ua, ub) = match &cal.uncertainty {
         Some((ua, ub)) => (Some(ua.u.as_slice()), Some(ub.u.as_slice())),
         None => (None, None),
@@ -334,7 +335,15 @@ pub fn csrr<'py>(
     let (na, nb) = (names.0.as_str(), names.1.as_str());
     let cal = cal.map_err(|e| data(csrr_error("the arrays", na, nb, &e)))?;
     let reference = r.map(|_| "ref");
-    csrr_result(py, &cal, (na, nb), reference, vec![], vec![], None)
+    csrr_result(
+        py,
+        &cal,
+        (na, nb),
+        reference,
+        vec![],
+        vec![],
+        LogRead::default(),
+    )
 }
 
 /// CSRR self-calibration of two channels of a log (see `calib.csrr_log`).
@@ -423,7 +432,7 @@ pub fn csrr_log<'py>(
         r#ref.as_deref(),
         vec![what],
         reader.warnings(&path),
-        alignment(&reader),
+        log_read(&reader),
     )
 }
 
@@ -499,11 +508,12 @@ fn reference_result<'py>(
     (dut, reference, ref_u): (&str, &str, Option<f64>),
     inputs: Vec<String>,
     warnings: Vec<String>,
-    aligned: Option<calib_core::report::Alignment>,
+    read: LogRead,
 ) -> PyResult<Bound<'py, PyDict>> {
     let section = cal
         .report_section(dut, reference, ref_u)
-        .with_alignment(aligned);
+        .with_alignment(read.alignment)
+        .with_time_origin(read.time_origin_s);
     let values = cal.map.values();
     let (start, step) = match &cal.map {
         TableMap::Turn(m) => (0.0, std::f64::consts::TAU / m.len() as f64),
@@ -568,7 +578,14 @@ pub fn reference<'py>(
             names.0, names.1
         ))
     })?;
-    reference_result(py, &cal, (&names.0, &names.1, ref_u), vec![], vec![], None)
+    reference_result(
+        py,
+        &cal,
+        (&names.0, &names.1, ref_u),
+        vec![],
+        vec![],
+        LogRead::default(),
+    )
 }
 
 /// Cross-calibration of a log's DUT channel against its reference channel (see
@@ -632,6 +649,6 @@ pub fn reference_log<'py>(
         (&dut, &r#ref, ref_u),
         vec![what],
         reader.warnings(&path),
-        alignment(&reader),
+        log_read(&reader),
     )
 }

@@ -2,7 +2,7 @@
 //! (`calib multihead`).
 
 use crate::errors::{check_points, data, usage};
-use crate::logs::{LogOptions, alignment, for_each_sample, open};
+use crate::logs::{LogOptions, LogRead, for_each_sample, log_read, open};
 use crate::methods::{result, same_length, turn};
 use calib_core::multihead::{Head, Method, Multihead, MultiheadCalibration, MultiheadOptions};
 use numpy::PyReadonlyArray1;
@@ -103,9 +103,12 @@ fn multihead_result<'py>(
     heads: &[Head],
     inputs: Vec<String>,
     warnings: Vec<String>,
-    aligned: Option<calib_core::report::Alignment>,
+    read: LogRead,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let section = cal.report_section(heads).with_alignment(aligned);
+    let section = cal
+        .report_section(heads)
+        .with_alignment(read.alignment)
+        .with_time_origin(read.time_origin_s);
     let table = turn(&heads[0].name, &cal.map, Some(&cal.uncertainty.u));
     result(py, section, inputs, warnings, &[table])
 }
@@ -156,7 +159,7 @@ pub fn multihead<'py>(
         mh.finish().map_err(|e| e.to_string())
     });
     let cal = cal.map_err(|e| data(format!("the arrays: heads {}: {e}", joined(&heads))))?;
-    multihead_result(py, &cal, &heads, vec![], vec![], None)
+    multihead_result(py, &cal, &heads, vec![], vec![], LogRead::default())
 }
 
 /// Multi-head self-calibration of a log's head channels (see `calib.multihead_log`).
@@ -201,6 +204,6 @@ pub fn multihead_log<'py>(
         &heads,
         vec![what],
         reader.warnings(&path),
-        alignment(&reader),
+        log_read(&reader),
     )
 }

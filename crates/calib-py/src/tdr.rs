@@ -1,7 +1,7 @@
 //! The spin-down (TDR) method on arrays and on logs: `tdr`, `tdr_log` (`calib tdr`).
 
 use crate::errors::{check_points, data, usage};
-use crate::logs::{LogOptions, alignment, for_each_sample, open};
+use crate::logs::{LogOptions, LogRead, for_each_sample, log_read, open};
 use crate::methods::{result, same_length, turn};
 use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
 use numpy::PyReadonlyArray1;
@@ -61,11 +61,12 @@ fn tdr_result<'py>(
     (channel, reference, max_drag_order): (&str, Option<&str>, usize),
     inputs: Vec<String>,
     warnings: Vec<String>,
-    aligned: Option<calib_core::report::Alignment>,
+    read: LogRead,
 ) -> PyResult<Bound<'py, PyDict>> {
     let section = cal
         .report_section(channel, reference, max_drag_order)
-        .with_alignment(aligned);
+        .with_alignment(read.alignment)
+        .with_time_origin(read.time_origin_s);
     let table = turn(channel, &cal.map, Some(&cal.uncertainty.u));
     result(py, section, inputs, warnings, &[table])
 }
@@ -117,7 +118,7 @@ pub fn tdr<'py>(
         (&name, reference, max_drag_order),
         vec![],
         vec![],
-        None,
+        LogRead::default(),
     )
 }
 
@@ -182,6 +183,6 @@ pub fn tdr_log<'py>(
         (&channel, r#ref.as_deref(), max_drag_order),
         vec![what],
         reader.warnings(&path),
-        alignment(&reader),
+        log_read(&reader),
     )
 }

@@ -16,12 +16,17 @@ pub(super) fn render_summary(
 ) -> String {
     let mut o = String::new();
     let m = &cal.motion;
+    // The coast on the log's clock, as report.json gives it.
+    let coast = match &report.details {
+        calib_core::report::Details::Tdr(d) => (d.motion.start_s, d.motion.end_s),
+        _ => (m.t_start, m.t_end),
+    };
     let _ = writeln!(
         o,
         "Spin-down (TDR) self-calibration of `{}` — coast {:.3}–{:.3} s, {:.1} revolutions, {:.1} → {:.1} r/min",
         args.channel,
-        m.t_start,
-        m.t_end,
+        coast.0,
+        coast.1,
         cal.revolutions,
         rpm(cal.speed_start),
         rpm(cal.speed_end)

@@ -462,11 +462,13 @@ impl Csrr {
                 ));
             }
         }
+        // Times from the log's start: a reader may count stamps from an origin of its own.
+        let log_start = segmentation.segments.first().map_or(0.0, |s| s.start_s);
         for s in segmentation.short_segments() {
             warnings.push(format!(
-                "the rotating segment at {:.3}–{:.3} s covers {:.2} revolutions, less than one: not used as a session",
-                s.start_s,
-                s.end_s,
+                "the rotating segment {:.3}–{:.3} s after the log's start covers {:.2} revolutions, less than one: not used as a session",
+                s.start_s - log_start,
+                s.end_s - log_start,
                 s.revolutions.abs()
             ));
         }

@@ -94,6 +94,21 @@ impl ReportSection {
         *slot = alignment;
         self
     }
+
+    /// The section with its times on the log's own clock: the times the method was given plus
+    /// `origin_s`, the stamp they were counted from (readers count stamps since 1970 from the
+    /// first one's second, to keep their nanoseconds in a double).
+    pub fn with_time_origin(mut self, origin_s: f64) -> Self {
+        for s in &mut self.sessions {
+            s.start_s += origin_s;
+            s.end_s += origin_s;
+        }
+        if let Details::Tdr(d) = &mut self.details {
+            d.motion.start_s += origin_s;
+            d.motion.end_s += origin_s;
+        }
+        self
+    }
 }
 
 impl Report {

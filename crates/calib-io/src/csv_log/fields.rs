@@ -125,6 +125,82 @@ pub(crate) fn parse_integer(field: &[u8]) -> Option<i128> {
     std::str::from_utf8(f).ok()?.parse().ok()
 }
 
+/// A plain decimal field (`-1700000000.25`; `-1700000000,25` with a decimal comma; no exponent):
+/// its sign, whole part and fraction's digits, so that it can be counted from a whole number
+/// without the rounding a double of the whole would make.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Decimal<'a> {
+    negative: bool,
+    /// The whole part, with the sign.
+    whole: i128,
+    fraction: &'a [u8],
+}
+
+impl<'a> Decimal<'a> {
+    /// `field` as a plain decimal, `comma` its decimal separator where set; `None` if it is not
+    /// one (an exponent, text, no digit).
+    pub(crate) fn parse(field: &'a [u8], comma: bool) -> Option<Self> {
+        let f = field.trim_ascii();
+        let separator = if comma { b',' } else { b'.' };
+        let (whole, fraction) = match f.iter().position(|&b| b == separator) {
+            Some(i) => (&f[..i], &f[i + 1..]),
+            None => (f, &f[f.len()..]),
+        };
+        let (negative, digits) = match whole.split_first() {
+            Some((b'-', rest)) => (true, rest),
+            Some((b'+', rest)) => (false, rest),
+            _ => (false, whole),
+        };
+        if (digits.is_empty() && fraction.is_empty())
+            || digits.len() > 38
+            || !digits.iter().all(u8::is_ascii_digit)
+            || !fraction.iter().all(u8::is_ascii_digit)
+        {
+            return None;
+        }
+        let whole: i128 = match digits {
+            [] => 0,
+            d => std::str::from_utf8(d).ok()?.parse().ok()?,
+        };
+        Some(Decimal {
+            negative,
+            whole: if negative { -whole } else { whole },
+            fraction,
+        })
+    }
+
+    /// The whole part, with the sign.
+    pub(crate) fn whole(&self) -> i128 {
+        self.whole
+    }
+
+    /// The number less `origin`, rounded once to a double where it is not negative — the double
+    /// the same digits counted from `origin` would be read as — else its whole part's difference
+    /// plus its fraction.
+    pub(crate) fn since(&self, origin: i128) -> Option<f64> {
+        let whole = self.whole - origin;
+        // Up to 39 digits, the separator, and as many of the fraction's digits as fit (a double
+        // holds 17).
+        let mut buf = [0u8; 96];
+        let mut text = std::io::Cursor::new(&mut buf[..]);
+        std::io::Write::write_fmt(&mut text, format_args!("{}.", whole.unsigned_abs())).ok()?;
+        let at = text.position() as usize;
+        let kept = self.fraction.len().min(buf.len() - at);
+        buf[at..at + kept].copy_from_slice(&self.fraction[..kept]);
+        let digits = std::str::from_utf8(&buf[..at + kept]).ok()?;
+        if !self.negative && whole >= 0 {
+            return digits.parse().ok();
+        }
+        // A negative stamp, or one before the origin: the two parts apart.
+        let fraction: f64 = match kept {
+            0 => 0.0,
+            _ => digits[at - 1..].parse().ok()?,
+        };
+        let fraction = if self.negative { -fraction } else { fraction };
+        Some(whole as f64 + fraction)
+    }
+}
+
 /// A field as quoted in an error message: lossy UTF-8, cut short so one bad cell cannot flood
 /// the terminal.
 pub(crate) fn show(field: &[u8]) -> String {
@@ -290,6 +366,31 @@ pub(crate) fn from_csv(path: &Path, e: csv::Error) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn decimals_count_from_a_whole_number_with_their_digits() {
+        let since = |field: &[u8], comma: bool, origin: i128| {
+            Decimal::parse(field, comma).and_then(|d| d.since(origin))
+        };
+        let d = Decimal::parse(b" 1700000000.000000001 ", false).unwrap();
+        assert_eq!(d.whole(), 1_700_000_000);
+        assert_eq!(d.since(1_700_000_000), Some(1e-9));
+        // Rounded once, as the digits counted from the origin would be read.
+        assert_eq!(
+            since(b"1700000012.3456", false, 1_700_000_000),
+            Some(12.3456)
+        );
+        assert_eq!(since(b"-12.5", false, 0), Some(-12.5));
+        assert_eq!(since(b"-12.5", false, -13), Some(0.5));
+        assert_eq!(since(b"12.5", false, 13), Some(-0.5));
+        assert_eq!(since(b"+7", false, 0), Some(7.0));
+        assert_eq!(since(b"-.25", false, 0), Some(-0.25));
+        assert_eq!(since(b"3.", false, 1), Some(2.0));
+        assert_eq!(since(b"3,75", true, 3), Some(0.75));
+        for bad in [&b"1.7e9"[..], b"", b".", b"-", b"1.2.3", b"12a", b"3,75"] {
+            assert_eq!(Decimal::parse(bad, false), None, "{bad:?}");
+        }
+    }
 
     #[test]
     fn numbers_tolerate_whitespace_and_reject_text() {

@@ -1,7 +1,7 @@
 //! Streaming reader of CSV logs.
 
 use super::dialect::{self, Dialect, Header, TimeUnit, WHITESPACE};
-use super::fields::{self, line_of, parse_f64, parse_f64_comma, parse_integer};
+use super::fields::{self, Decimal, line_of, parse_f64, parse_f64_comma, parse_integer};
 use super::time_step::{TimeStep, UnitFrom};
 use crate::limits::LineLimit;
 use crate::progress::ReadProgress;
@@ -53,9 +53,8 @@ pub struct CsvReader {
     names: Vec<String>,
     channels: Vec<Channel>,
     time: Time,
-    /// Integer time stamps too large for an `f64` to hold exactly: the first row's, from which
-    /// every stamp is counted (in integers).
-    origin: Option<i128>,
+    /// Where the time column's stamps are counted from, if not from 0.
+    origin: Option<Origin>,
     /// Data rows read so far.
     rows: u64,
     /// Numbers are written with a decimal comma.
@@ -92,6 +91,20 @@ enum Time {
     Column { col: usize, scale: f64 },
     /// The row index times `period` seconds (TwinCAT's `SampleTime`; 1 for a point list).
     Index { period: f64 },
+}
+
+/// Where a time column's stamps are counted from, in its unit, when not from 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Origin {
+    /// Integer stamps too large for an `f64` to hold exactly (beyond 2⁵³: nanoseconds since 1970,
+    /// FILETIME ticks): the first row's, from which every stamp is counted in integers; the log's
+    /// time starts at 0.
+    FirstRow(i128),
+    /// Stamps beyond [`ORIGIN_FROM_S`](crate::stamps::ORIGIN_FROM_S) (seconds since 1970,
+    /// ~1.7·10⁹ s, whose doubles are 2.4·10⁻⁷ s apart): the first row's whole number of units,
+    /// from which every stamp's whole part is counted before its fraction is added, so each
+    /// keeps its digits; reports add it back ([`CsvReader::time_origin_s`]).
+    Whole(i128),
 }
 
 /// The records of the file, split as its dialect says.
@@ -479,6 +492,47 @@ impl CsvReader {
         }
     }
 
+    /// The stamp, seconds on the file's clock, from which its rows' times are counted: the first
+    /// row's whole units where its stamps are beyond 2²¹ s (24 days), else 0 (integer stamps
+    /// beyond 2⁵³ start at 0, see [`Origin::FirstRow`]).
+    pub fn time_origin_s(&self) -> f64 {
+        match (self.origin, self.time) {
+            (Some(Origin::Whole(whole)), Time::Column { scale, .. }) => whole as f64 * scale,
+            _ => 0.0,
+        }
+    }
+
+    /// The origin the first row's time `raw`, in units of `scale` seconds, chooses for every
+    /// row, and that time counted from it.
+    fn first_time(&self, raw: &[u8], scale: f64) -> (Option<Origin>, Option<f64>) {
+        // Beyond 2^53 an `f64` cannot hold every integer: count from the first. (Not seconds:
+        // that many seconds are a unit mistake, refused below.)
+        if let Some(v) = parse_integer(raw).filter(|v| v.unsigned_abs() > 1 << 53 && scale < 1.0) {
+            return (Some(Origin::FirstRow(v)), Some(0.0));
+        }
+        let Some(t) = self.number(raw) else {
+            return (None, None);
+        };
+        let s = t * scale;
+        if s.abs() < crate::stamps::ORIGIN_FROM_S as f64 || crate::limits::time_problem(s).is_some()
+        {
+            return (None, Some(t));
+        }
+        match Decimal::parse(raw, self.decimal_comma) {
+            Some(d) => (Some(Origin::Whole(d.whole())), d.since(d.whole())),
+            None => (None, Some(t)),
+        }
+    }
+
+    /// The time `raw` counted from `origin` whole units, its digits kept ([`Decimal::since`]; a
+    /// number with an exponent, which has no digits to keep, as a double).
+    fn since(&self, origin: i128, raw: &[u8]) -> Option<f64> {
+        match Decimal::parse(raw, self.decimal_comma) {
+            Some(d) => d.since(origin),
+            None => self.number(raw).map(|t| t - origin as f64),
+        }
+    }
+
     /// The sample in `self.record`.
     fn parse_row(&mut self) -> Result<Sample, Error> {
         let record = &self.record;
@@ -492,27 +546,26 @@ impl CsvReader {
             Time::Column { col, scale } => {
                 let raw_t = field(col);
                 let number = match self.origin {
-                    Some(origin) => parse_integer(raw_t).map(|v| (v - origin) as f64),
-                    None if self.rows == 0 => match parse_integer(raw_t) {
-                        // Beyond 2^53 an `f64` cannot hold every integer: count from the first.
-                        // (Not seconds: that many seconds are a unit mistake, refused below.)
-                        Some(v) if v.unsigned_abs() > 1 << 53 && scale < 1.0 => {
-                            self.origin = Some(v);
-                            Some(0.0)
-                        }
-                        _ => self.number(raw_t),
-                    },
+                    Some(Origin::FirstRow(origin)) => {
+                        parse_integer(raw_t).map(|v| (v - origin) as f64)
+                    }
+                    Some(Origin::Whole(origin)) => self.since(origin, raw_t),
+                    None if self.rows == 0 => {
+                        let (origin, t) = self.first_time(raw_t, scale);
+                        self.origin = origin;
+                        t
+                    }
                     None => self.number(raw_t),
                 };
                 let t = number.map(|t| t * scale).ok_or_else(|| {
                     let message = match self.origin {
-                        Some(origin) => format!(
+                        Some(Origin::FirstRow(origin)) => format!(
                             "`{}` is not a whole number, but the first row's time stamp {origin} \
                              is; such stamps are counted from the first exactly, in integers: \
                              give every row's stamp as a whole number",
                             fields::show(raw_t)
                         ),
-                        None => fields::not_a_number(raw_t, "the time"),
+                        Some(Origin::Whole(_)) | None => fields::not_a_number(raw_t, "the time"),
                     };
                     self.error(Some(col), message)
                 })?;
@@ -544,6 +597,14 @@ impl CsvReader {
                     "goes back before"
                 };
                 let prev_line = fields::line_at(&self.path, prev_pos);
+                // Stamps counted from an origin: the row's as written, the previous one's on the
+                // file's clock (a double there may round their difference away).
+                let origin = self.time_origin_s();
+                let (t, prev_t) = if origin == 0.0 {
+                    (t.to_string(), prev_t.to_string())
+                } else {
+                    (fields::show(field(t_col)), (prev_t + origin).to_string())
+                };
                 return Err(self.error(
                     Some(t_col),
                     format!(

@@ -356,6 +356,12 @@ impl McapReader {
         self.samples.topics()
     }
 
+    /// The stamp, s, from which the samples' times count: the whole second of the first
+    /// message's stamp (see [`crate::LogReader::time_origin_s`]).
+    pub fn time_origin_s(&self) -> f64 {
+        self.samples.time_origin_s()
+    }
+
     /// What the reader noticed so far: where a truncated file broke off (once iteration has
     /// ended).
     pub fn diagnostics(&self) -> &ReadDiagnostics {

@@ -8,9 +8,9 @@ use crate::mcap_log::cdr::{JointFormat, JointState};
 use crate::mcap_log::json;
 
 /// A stamp in nanoseconds as seconds, rounded once to the nearest double: within a
-/// nanosecond for stamps below 2²³ s (97 days: a log timed from its start), but stamps since 1970
-/// (~1.7·10⁹ s) land on doubles 2.4·10⁻⁷ s apart, which a fast coast's readings feel (`calib
-/// tdr` at 600 r/min: 0.8″ of residual where the same run timed from 0 leaves 0.06″).
+/// nanosecond for stamps below 2²³ s (97 days: a log timed from its start, or stamps counted
+/// from the first one's second as samples are), but stamps since 1970 (~1.7·10⁹ s) land on
+/// doubles 2.4·10⁻⁷ s apart.
 pub(crate) fn seconds(ns: i64) -> f64 {
     const NS: i64 = 1_000_000_000;
     ns.div_euclid(NS) as f64 + ns.rem_euclid(NS) as f64 * 1e-9

@@ -370,3 +370,86 @@ fn lab_dialects_semicolons_metadata_and_time_units() {
         .to_string();
     assert!(err.contains("line 4, column `a`"), "{err}");
 }
+
+/// Seconds since 1970 with nine decimals (a Python `time.time()` log, a LabVIEW export): a
+/// double of ~1.7·10⁹ s keeps steps of 2.4·10⁻⁷ s only, so the reader counts every stamp's
+/// whole part from the first row's in integers and adds its fraction: each keeps its
+/// nanoseconds, and the origin is the stamp's second, given back for reports.
+#[test]
+fn decimal_seconds_since_1970_keep_their_nanoseconds() {
+    let mut text = String::from("t,a\n");
+    let ns = |i: u64| 123_456_789 + i * 1_000_001;
+    for i in 0..2000 {
+        let t = ns(i);
+        let _ = std::fmt::Write::write_fmt(
+            &mut text,
+            format_args!(
+                "{}.{:09},0.5\n",
+                1_700_000_000 + t / 1_000_000_000,
+                t % 1_000_000_000
+            ),
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_tmp(&dir, text.as_bytes());
+    let mut reader = CsvReader::open(&path, &ReadOptions::default()).unwrap();
+    let samples: Vec<Sample> = (&mut reader).collect::<Result<_, _>>().unwrap();
+    assert_eq!(samples.len(), 2000);
+    assert_eq!(reader.time_origin_s(), 1_700_000_000.0);
+    for (i, s) in samples.iter().enumerate() {
+        // Within a double's rounding of a number below 3 s (4.4·10⁻¹⁶ s), not 2.4·10⁻⁷ s.
+        let want = ns(i as u64) as f64 * 1e-9;
+        assert!(
+            (s.t - want).abs() < 1e-15,
+            "row {i}: {} against {want}",
+            s.t
+        );
+    }
+    // Stamps a step of one nanosecond apart still increase; their error names them on the
+    // file's clock.
+    let m = error_of(
+        "t,a\n1700000000.000000001,0\n1700000000.000000002,0\n1700000000.000000002,0\n",
+        4,
+        Some("t"),
+    );
+    assert!(m.contains("1700000000.000000002 s repeats"), "{m}");
+}
+
+/// A stamp with a decimal comma, a sign, or in milliseconds since 1970 keeps its digits as
+/// well; stamps below 2²¹ s (24 days) are read as they are.
+#[test]
+fn other_stamps_since_1970_keep_their_digits() {
+    let read = |text: &str, opts: ReadOptions| {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write_tmp(&dir, text.as_bytes());
+        let mut reader = CsvReader::open(&path, &opts).unwrap();
+        let samples: Vec<Sample> = (&mut reader).collect::<Result<_, _>>().unwrap();
+        (
+            reader.time_origin_s(),
+            samples.iter().map(|s| s.t).collect::<Vec<_>>(),
+        )
+    };
+    let (origin, t) = read(
+        "t;a\n1700000000,000000100;0,5\n1700000000,000000300;0,5\n",
+        ReadOptions::default(),
+    );
+    assert_eq!(origin, 1_700_000_000.0);
+    assert!(
+        (t[0] - 1e-7).abs() < 1e-20 && (t[1] - 3e-7).abs() < 1e-20,
+        "{t:?}"
+    );
+    let (origin, t) = read(
+        "time [ms],a\n1700000000123.5,0\n1700000000124.25,0\n",
+        ReadOptions::default(),
+    );
+    assert!((origin - 1_700_000_000.123).abs() < 1e-6, "{origin}");
+    assert!(
+        (t[0] - 0.5e-3).abs() < 1e-18 && (t[1] - 1.25e-3).abs() < 1e-18,
+        "{t:?}"
+    );
+    let (origin, t) = read("t,a\n-2097152.25,0\n-2097152.0,0\n", ReadOptions::default());
+    assert_eq!(origin, -2_097_152.0);
+    assert_eq!(t, [-0.25, 0.0]);
+    let (origin, t) = read("t,a\n2097151.5,0\n2097152.5,0\n", ReadOptions::default());
+    assert_eq!((origin, t), (0.0, vec![2_097_151.5, 2_097_152.5]));
+}

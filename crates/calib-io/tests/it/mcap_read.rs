@@ -31,8 +31,11 @@ fn names(reader: &McapReader) -> Vec<&str> {
     reader.channels().iter().map(|c| c.name.as_str()).collect()
 }
 
-/// The time a reader gives for a stamp in ns (exact: second and fraction converted apart).
+/// The time a reader gives for a stamp in ns (exact: second and fraction converted apart):
+/// stamps since 1970 (from `T0` on) counted from the second of the log's first, `T0` in these
+/// files (see `LogReader::time_origin_s`).
 fn secs(ns: u64) -> f64 {
+    let ns = if ns >= T0 { ns - T0 } else { ns };
     (ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9
 }
 
@@ -40,6 +43,7 @@ fn secs(ns: u64) -> f64 {
 fn python_fixture_joins_joint_states_with_json_reference() {
     let (reader, samples) = read_all(&fixture(), &ReadOptions::default());
     assert_eq!(names(&reader), ["a", "b", "ref"]);
+    assert_eq!(reader.time_origin_s(), (T0 / 1_000_000_000) as f64);
     let units: Vec<AngleUnit> = reader.channels().iter().map(|c| c.unit).collect();
     assert_eq!(units, [AngleUnit::Rad, AngleUnit::Rad, AngleUnit::Deg]);
     // See make_fixture.py: 300 JointStates, JSON missing for i = 100..=104, two stray JSONs.
@@ -867,12 +871,16 @@ fn log_times_near_the_i64_limit_are_read_or_refused_never_wrapped() {
     b.put(ch, last_ok, br#"{"a": 2}"#);
     b.put(ch, last_ok + 1, br#"{"a": 3}"#);
     b.finish();
-    let reader = McapReader::open(&path, &ReadOptions::default()).expect("open");
-    let mut results: Vec<_> = reader.collect();
+    let mut reader = McapReader::open(&path, &ReadOptions::default()).expect("open");
+    let mut results: Vec<_> = (&mut reader).collect();
     assert_eq!(results.len(), 3);
     let t0 = results[0].as_ref().expect("first").t;
     let t1 = results[1].as_ref().expect("second").t;
-    assert!(t0 <= t1 && (t1 - secs(last_ok)).abs() < 1e-5, "{t0} {t1}");
+    // Counted from the first stamp's second: 1 ns apart, exactly enough.
+    let origin = reader.time_origin_s();
+    assert_eq!(origin, (last_ok / 1_000_000_000) as f64);
+    assert!((t1 - t0 - 1e-9).abs() < 1e-15, "{t0} {t1}");
+    assert!((t1 + origin - last_ok as f64 * 1e-9).abs() < 1e-5, "{t1}");
     let (index, _, message) = mcap_error(results.pop().expect("three").unwrap_err());
     assert_eq!(index, Some(2));
     assert!(message.contains("beyond the year 2262"), "{message}");

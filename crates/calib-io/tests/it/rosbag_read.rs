@@ -112,8 +112,11 @@ fn one_topic(path: &Path, n: i64) {
     db.execute_batch("COMMIT").unwrap();
 }
 
-/// The time a reader gives for a stamp in ns (exact: second and fraction converted apart).
+/// The time a reader gives for a stamp in ns (exact: second and fraction converted apart):
+/// stamps since 1970 (from `T0` on) counted from the second of the bag's first, `T0` in these
+/// bags (see `LogReader::time_origin_s`).
 fn secs(ns: i64) -> f64 {
+    let ns = if ns >= T0 { ns - T0 } else { ns };
     (ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9
 }
 
