@@ -113,6 +113,7 @@ use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation
 use chebyshev::chebyshev_with_derivatives;
 use moments::{Moments, Normal, Samples};
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use residual::{coast_trace, reference_check, residual_orders};
 use std::f64::consts::TAU;
 
@@ -479,19 +480,14 @@ impl Tdr {
     /// a whole revolution, the error is [`TdrError::NoWholeTurn`].
     pub fn finish(self) -> Result<TdrCalibration, TdrError> {
         // The readings are unwrapped as they come: their extent is the travel.
-        let (lo, hi) = self
-            .r
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &r| {
-                (lo.min(r), hi.max(r))
-            });
+        let (lo, hi) = extent(&self.r);
         let turn = PartialTurn::of(
             (hi - lo).to_degrees(),
             "TDR needs a free coast of at least one whole turn (better many) to tell the encoder's \
              error, periodic in angle, from the motion; a coast over part of a turn cannot separate \
              them",
         );
-        self.fit().map_err(|e| match turn {
+        self.fit((lo, hi)).map_err(|e| match turn {
             Some(turn) => TdrError::NoWholeTurn {
                 turn,
                 cause: Box::new(e),
@@ -500,8 +496,9 @@ impl Tdr {
         })
     }
 
-    fn fit(self) -> Result<TdrCalibration, TdrError> {
-        let coast = find_coast(&self.t, &self.r, &self.opts)?;
+    /// The fit of the readings, which span `extent` (their least and greatest).
+    fn fit(self, extent: (f64, f64)) -> Result<TdrCalibration, TdrError> {
+        let coast = find_coast(&self.t, &self.r, extent, &self.opts)?;
         let (i0, i1) = (coast.first, coast.end);
         let t = &self.t[i0..i1];
         let r = &self.r[i0..i1];
@@ -1086,16 +1083,16 @@ struct Coast {
 /// drive still on) is skipped, and the window where it ends; the coast then runs until the speed falls below
 /// [`TdrOptions::min_speed_fraction`] of the peak, rises again by more than 1 % of the peak above
 /// its lowest value so far (the drive back on), or the log ends.
-fn find_coast(t: &[f64], r: &[f64], opts: &TdrOptions) -> Result<Coast, TdrError> {
+fn find_coast(
+    t: &[f64],
+    r: &[f64],
+    (lo, hi): (f64, f64),
+    opts: &TdrOptions,
+) -> Result<Coast, TdrError> {
     let n = t.len();
     if n < 128 {
         return Err(TdrError::TooFewSamples { count: n });
     }
-    let (lo, hi) = r
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
     if hi - lo < TAU {
         return Err(TdrError::Stationary {
             travel_deg: (hi - lo).to_degrees(),
@@ -1169,15 +1166,29 @@ fn find_coast(t: &[f64], r: &[f64], opts: &TdrOptions) -> Result<Coast, TdrError
     })
 }
 
+/// The least and the greatest of `values`, on both cores (NaNs left out; the same whatever the
+/// order).
+fn extent(values: &[f64]) -> (f64, f64) {
+    let least_greatest = |(lo, hi): (f64, f64), v: f64| (lo.min(v), hi.max(v));
+    let none = || (f64::INFINITY, f64::NEG_INFINITY);
+    values
+        .par_chunks(1 << 16)
+        .map(|c| c.iter().copied().fold(none(), least_greatest))
+        .reduce(none, |a, b| least_greatest(least_greatest(a, b.0), b.1))
+}
+
 /// The median time step, seconds: the step of rank `⌊(N−1)/2⌋` among the `N − 1` steps.
 ///
 /// Found by a radix selection on the steps' bits (positive doubles order as their bits do),
 /// 16 bits a pass over the times, rather than by sorting a copy of the steps: ten million
-/// samples would need 80 MB more.
+/// samples would need 80 MB more. Each pass counts the two halves' steps on the two cores (the
+/// counts are integers: the same in any order).
 fn median_step(t: &[f64]) -> f64 {
-    let steps = || t.windows(2).map(|w| (w[1] - w[0]).to_bits());
     let mut rank = (t.len() - 1) / 2;
     let mut prefix = 0u64;
+    // Two halves sharing one time: their steps are every step once.
+    let half = t.len() / 2;
+    let halves = [&t[..(half + 1).min(t.len())], &t[half..]];
     for pass in 0..4 {
         let shift = 48 - 16 * pass;
         let mask = if pass == 0 {
@@ -1185,9 +1196,17 @@ fn median_step(t: &[f64]) -> f64 {
         } else {
             u64::MAX << (shift + 16)
         };
-        let mut counts = vec![0usize; 1 << 16];
-        for s in steps().filter(|s| s & mask == prefix) {
-            counts[((s >> shift) & 0xffff) as usize] += 1;
+        let count = |times: &[f64]| {
+            let mut counts = vec![0usize; 1 << 16];
+            let steps = times.windows(2).map(|w| (w[1] - w[0]).to_bits());
+            for s in steps.filter(|s| s & mask == prefix) {
+                counts[((s >> shift) & 0xffff) as usize] += 1;
+            }
+            counts
+        };
+        let (mut counts, second) = rayon::join(|| count(halves[0]), || count(halves[1]));
+        for (c, s) in counts.iter_mut().zip(second) {
+            *c += s;
         }
         let mut digit = 0;
         while rank >= counts[digit] {
@@ -1303,7 +1322,6 @@ impl Fit {
 /// `L⁻¹` of a lower-triangular `L`, column by column (`n³/6` multiply-adds, on contiguous
 /// columns of `L`).
 fn lower_triangular_inverse(l: &DMatrix<f64>) -> DMatrix<f64> {
-    use rayon::prelude::*;
     let n = l.nrows();
     // Each column of L⁻¹ on its own (on the threads rayon has), each as it would be alone.
     let columns: Vec<Vec<f64>> = (0..n)

@@ -494,7 +494,7 @@ impl CsvReader {
 
     /// The stamp, seconds on the file's clock, from which its rows' times are counted: the first
     /// row's whole units where its stamps are beyond 2²¹ s (24 days), else 0 (integer stamps
-    /// beyond 2⁵³ start at 0, see [`Origin::FirstRow`]).
+    /// beyond 2⁵³ start at 0: they are counted from the first row's).
     pub fn time_origin_s(&self) -> f64 {
         match (self.origin, self.time) {
             (Some(Origin::Whole(whole)), Time::Column { scale, .. }) => whole as f64 * scale,
