@@ -1181,14 +1181,11 @@ fn extent(values: &[f64]) -> (f64, f64) {
 ///
 /// Found by a radix selection on the steps' bits (positive doubles order as their bits do),
 /// 16 bits a pass over the times, rather than by sorting a copy of the steps: ten million
-/// samples would need 80 MB more. Each pass counts the two halves' steps on the two cores (the
-/// counts are integers: the same in any order).
+/// samples would need 80 MB more.
 fn median_step(t: &[f64]) -> f64 {
+    let steps = || t.windows(2).map(|w| (w[1] - w[0]).to_bits());
     let mut rank = (t.len() - 1) / 2;
     let mut prefix = 0u64;
-    // Two halves sharing one time: their steps are every step once.
-    let half = t.len() / 2;
-    let halves = [&t[..(half + 1).min(t.len())], &t[half..]];
     for pass in 0..4 {
         let shift = 48 - 16 * pass;
         let mask = if pass == 0 {
@@ -1196,17 +1193,9 @@ fn median_step(t: &[f64]) -> f64 {
         } else {
             u64::MAX << (shift + 16)
         };
-        let count = |times: &[f64]| {
-            let mut counts = vec![0usize; 1 << 16];
-            let steps = times.windows(2).map(|w| (w[1] - w[0]).to_bits());
-            for s in steps.filter(|s| s & mask == prefix) {
-                counts[((s >> shift) & 0xffff) as usize] += 1;
-            }
-            counts
-        };
-        let (mut counts, second) = rayon::join(|| count(halves[0]), || count(halves[1]));
-        for (c, s) in counts.iter_mut().zip(second) {
-            *c += s;
+        let mut counts = vec![0usize; 1 << 16];
+        for s in steps().filter(|s| s & mask == prefix) {
+            counts[((s >> shift) & 0xffff) as usize] += 1;
         }
         let mut digit = 0;
         while rank >= counts[digit] {
