@@ -192,10 +192,11 @@ pub fn type1_blocks<const K: usize>(
         two_d: j_max > 0,
         kernel: Kernel::fit(),
     };
-    // The pieces go to the rayon pool one by one (a core that finishes early takes the next);
-    // `collect` keeps them in order.
+    // The pieces go to the rayon pool one by one (a core that finishes early takes the next,
+    // never two at once); `collect` keeps them in order.
     let pieces: Vec<Piece<K>> = pieces(len)
         .into_par_iter()
+        .with_max_len(1)
         .map(|range| plan.spread(&fill, range))
         .collect();
     if plan.two_d {

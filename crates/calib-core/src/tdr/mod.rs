@@ -114,7 +114,7 @@ use chebyshev::chebyshev_with_derivatives;
 use moments::{Moments, Normal, Samples};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
-use residual::{coast_trace, reference_check, residual_orders};
+use residual::{reference_check, residual_and_trace};
 use std::f64::consts::TAU;
 
 mod chebyshev;
@@ -592,12 +592,8 @@ impl Tdr {
 
         // 4. What the model leaves: periodic structure in the residual above the orders fitted.
         let top = ((0.5 * densest) as usize).max(2 * h).min(4 * h.max(8));
-        // The trace's intervals first: the other core takes the spectrum's two halves, and the
-        // intervals fill in around them.
-        let (coast_bins, unresolved) = rayon::join(
-            || coast_trace(samples, &basis, &fit, COAST_BINS),
-            || residual_orders(samples, &basis, &fit, h + 1..=top),
-        );
+        let (unresolved, coast_bins) =
+            residual_and_trace(samples, &basis, &fit, h + 1..=top, COAST_BINS);
         warnings.extend(unresolved_warning(&unresolved, h));
 
         let floor = detection::detection_floor(screen.detection_limit);

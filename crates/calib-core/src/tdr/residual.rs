@@ -7,10 +7,11 @@ use super::{Basis, CoastBin, Fit, ReferenceCheck, significance_threshold};
 use crate::angle::ARCSEC_PER_RAD;
 use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
-use crate::nufft2d::type1_blocks;
+use crate::nufft2d::{BLOCK, type1_blocks};
 use rayon::prelude::*;
 use std::f64::consts::TAU;
 use std::ops::Range;
+use std::sync::OnceLock;
 
 /// Samples whose motion is evaluated side by side.
 const LANES: usize = 8;
@@ -23,24 +24,42 @@ const TABLE: usize = 1 << 16;
 /// Intervals of the tables of the drag's weights over the coast's normalized time.
 const WEIGHT_TABLE: usize = 4096;
 
-/// Periodic structure in the residual of `fit` at `orders`: each order's residual projected on
-/// `e^{ikr}` over the samples, `z_k = Σ e_n e^{ikr_n}` (one non-uniform FFT), amplitude `2|z_k|/N`;
-/// under white noise `2|z_k|²/(Nσ²)` is a chi-square of 2 degrees of freedom, and the orders that
-/// pass the significance rule are returned, largest first.
-pub(super) fn residual_orders(
+/// What the final fit leaves, from one evaluation of its residuals over the samples:
+///
+/// - the residual's periodic structure at `orders`: each order's residual projected on
+///   `e^{ikr}` over the samples, `z_k = Σ e_n e^{ikr_n}` (one non-uniform FFT), amplitude
+///   `2|z_k|/N`; under white noise `2|z_k|²/(Nσ²)` is a chi-square of 2 degrees of freedom, and
+///   the orders that pass the significance rule are returned, largest first;
+/// - the coast in `bins` intervals of equal samples (fewer on a short coast): each interval's
+///   mean speed and the residuals over it, for a report to draw against time.
+///
+/// The residuals are summed a block of samples at a time, each block in order by itself, and
+/// the blocks in order: the same bits on any number of threads.
+pub(super) fn residual_and_trace(
     s: Samples,
     basis: &Basis,
     fit: &Fit,
     orders: std::ops::RangeInclusive<usize>,
-) -> Vec<Harmonic> {
+    bins: usize,
+) -> (Vec<Harmonic>, Vec<CoastBin>) {
     let (lo, hi) = (*orders.start(), *orders.end());
-    if hi < lo || fit.sigma <= 0.0 {
-        return Vec::new();
-    }
     let model = Model::new(basis, fit);
-    let [z] = type1_blocks::<1>(s.len(), 0, hi, |range, points| {
-        model.points(s, range, points)
-    });
+    let trace = Trace::new(s.len(), bins);
+    let residuals = |range: Range<usize>, points: &mut Vec<(f64, f64, [f64; 1])>| {
+        let from = points.len();
+        model.points(s, range.clone(), points);
+        trace.record(range, points[from..].iter().map(|p| p.2[0]));
+    };
+    if hi < lo || fit.sigma <= 0.0 {
+        (0..s.len().div_ceil(BLOCK))
+            .into_par_iter()
+            .for_each_init(Vec::new, |points, b| {
+                points.clear();
+                residuals(b * BLOCK..((b + 1) * BLOCK).min(s.len()), points);
+            });
+        return (Vec::new(), trace.bins(s));
+    }
+    let [z] = type1_blocks::<1>(s.len(), 0, hi, residuals);
     let n = s.len() as f64;
     let sigma2 = fit.rss / n;
     let threshold = significance_threshold(hi - lo + 1);
@@ -52,40 +71,97 @@ pub(super) fn residual_orders(
         })
         .collect();
     found.sort_by(|a, b| b.amplitude.total_cmp(&a.amplitude));
-    found
+    (found, trace.bins(s))
 }
 
-/// The coast in `bins` intervals of equal samples (fewer on a short coast): each interval's
-/// mean speed and the final fit's residuals over it, for a report to draw against time. The
-/// intervals are evaluated on the rayon pool, each in order by itself: the same bits on any
-/// number of threads.
-pub(super) fn coast_trace(s: Samples, basis: &Basis, fit: &Fit, bins: usize) -> Vec<CoastBin> {
-    let model = Model::new(basis, fit);
-    let n = s.len();
-    let bins = bins.min(n / 2).max(1);
-    (0..bins)
-        .into_par_iter()
-        .map_init(Vec::new, |residuals, k| {
-            let range = k * n / bins..(k + 1) * n / bins;
-            let (first, last) = (range.start, range.end.checked_sub(1)?);
-            let dt = s.t[last] - s.t[first];
-            if last <= first || dt <= 0.0 {
-                return None;
+/// The residuals' sum, least and greatest over the part of an interval in one block of samples.
+#[derive(Debug, Clone, Copy)]
+struct Part {
+    bin: usize,
+    sum: f64,
+    min: f64,
+    max: f64,
+}
+
+/// The coast's intervals `k·n/bins .. (k + 1)·n/bins`, gathered a block of [`BLOCK`] samples at a
+/// time from any thread.
+struct Trace {
+    n: usize,
+    bins: usize,
+    /// Per block, its parts of the intervals it overlaps, in order.
+    blocks: Vec<OnceLock<Vec<Part>>>,
+}
+
+impl Trace {
+    fn new(n: usize, bins: usize) -> Trace {
+        Trace {
+            n,
+            bins: bins.min(n / 2).max(1),
+            blocks: (0..n.div_ceil(BLOCK)).map(|_| OnceLock::new()).collect(),
+        }
+    }
+
+    /// The first sample of interval `k` (or `n` for `k = bins`).
+    fn start(&self, k: usize) -> usize {
+        k * self.n / self.bins
+    }
+
+    /// The residuals of the samples `range`, one block.
+    fn record(&self, range: Range<usize>, residuals: impl Iterator<Item = f64>) {
+        // Interval k holds sample i when start(k) ≤ i < start(k + 1), i.e. k·n < (i + 1)·bins.
+        let mut bin = ((range.start + 1) * self.bins - 1) / self.n;
+        let mut end = self.start(bin + 1);
+        let mut parts: Vec<Part> = Vec::new();
+        for (i, e) in range.clone().zip(residuals) {
+            if i == end || parts.is_empty() {
+                if i == end {
+                    bin += 1;
+                    end = self.start(bin + 1);
+                }
+                parts.push(Part {
+                    bin,
+                    sum: 0.0,
+                    min: f64::INFINITY,
+                    max: f64::NEG_INFINITY,
+                });
             }
-            residuals.clear();
-            model.points(s, range.clone(), residuals);
-            let e = residuals.iter().map(|p| p.2[0]);
-            let count = residuals.len() as f64;
-            Some(CoastBin {
-                t: 0.5 * (s.t[first] + s.t[last]),
-                speed: ((s.r[last] - s.r[first]) / dt).abs(),
-                residual_mean: e.clone().sum::<f64>() / count,
-                residual_min: e.clone().fold(f64::INFINITY, f64::min),
-                residual_max: e.fold(f64::NEG_INFINITY, f64::max),
+            let part = parts.last_mut().expect("pushed above");
+            part.sum += e;
+            part.min = part.min.min(e);
+            part.max = part.max.max(e);
+        }
+        // Each block is recorded once; a second recording would hold the same values.
+        let _ = self.blocks[range.start / BLOCK].set(parts);
+    }
+
+    /// The intervals, from the parts of every block (blocks never recorded count for nothing).
+    fn bins(self, s: Samples) -> Vec<CoastBin> {
+        let mut acc = vec![(0.0, f64::INFINITY, f64::NEG_INFINITY); self.bins];
+        for part in self.blocks.iter().filter_map(OnceLock::get).flatten() {
+            let a = &mut acc[part.bin];
+            a.0 += part.sum;
+            a.1 = a.1.min(part.min);
+            a.2 = a.2.max(part.max);
+        }
+        acc.into_iter()
+            .enumerate()
+            .filter_map(|(k, (sum, min, max))| {
+                let (first, end) = (self.start(k), self.start(k + 1));
+                let last = end.checked_sub(1)?;
+                let dt = s.t[last] - s.t[first];
+                if last <= first || dt <= 0.0 {
+                    return None;
+                }
+                Some(CoastBin {
+                    t: 0.5 * (s.t[first] + s.t[last]),
+                    speed: ((s.r[last] - s.r[first]) / dt).abs(),
+                    residual_mean: sum / (end - first) as f64,
+                    residual_min: min,
+                    residual_max: max,
+                })
             })
-        })
-        .flatten()
-        .collect()
+            .collect()
+    }
 }
 
 /// The final fit as a function of a sample: the motion's series, the map, and the drag
