@@ -326,6 +326,54 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_trace_gathered_by_blocks_is_the_trace_of_the_samples() {
+        // Coasts with intervals longer than a block and shorter (several in one block), and a
+        // last block that is not full; the blocks recorded out of order, as threads do.
+        for n in [5, 300, 1000, 3 * BLOCK + 17, 250_000] {
+            let t: Vec<f64> = (0..n).map(|i| 0.01 * i as f64).collect();
+            let r: Vec<f64> = (0..n)
+                .map(|i| 0.3 * i as f64 + 0.001 * (i * i) as f64)
+                .collect();
+            let e: Vec<f64> = (0..n).map(|i| (1.7 * i as f64).sin() * 1e-5).collect();
+            let s = Samples {
+                t: &t,
+                r: &r,
+                origin: 0.0,
+                span: (t[0], t[n - 1]),
+            };
+            let trace = Trace::new(n, 400);
+            let blocks = n.div_ceil(BLOCK);
+            for b in (0..blocks).rev() {
+                let range = b * BLOCK..((b + 1) * BLOCK).min(n);
+                trace.record(range.clone(), e[range].iter().copied());
+            }
+            let bins = trace.bins(s);
+            let count = 400.min(n / 2).max(1);
+            assert_eq!(bins.len(), count, "n = {n}");
+            for (k, bin) in bins.iter().enumerate() {
+                let range = k * n / count..(k + 1) * n / count;
+                let (first, last) = (range.start, range.end - 1);
+                let part = &e[range.clone()];
+                let mean = part.iter().sum::<f64>() / part.len() as f64;
+                assert!(
+                    (bin.residual_mean - mean).abs() < 1e-19,
+                    "n = {n}, interval {k}"
+                );
+                assert_eq!(
+                    bin.residual_min,
+                    part.iter().copied().fold(f64::INFINITY, f64::min)
+                );
+                assert_eq!(
+                    bin.residual_max,
+                    part.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                );
+                assert_eq!(bin.t, 0.5 * (t[first] + t[last]));
+                assert_eq!(bin.speed, (r[last] - r[first]) / (t[last] - t[first]));
+            }
+        }
+    }
+
+    #[test]
     fn cubic_tables_interpolate_smooth_functions_closely() {
         let mut series = FourierSeries::zeros(500);
         series.sin[499] = 1.0;
