@@ -61,9 +61,10 @@
 //! # Determinism
 //! The samples are split by index into pieces fixed by their count alone (one below 131,072
 //! samples, at most eight), each spread in order into its own grid on the rayon pool, and the
-//! grids are added into the first cell by cell in the pieces' order; the FFTs of rows and
-//! columns are independent of each other. So the bits do not depend on the number of threads. They may differ between CPUs with
-//! and without AVX2/FMA (a fused multiply-add rounds once).
+//! grids are summed cell by cell, in the pieces' order, as their rows are transformed; the FFTs
+//! of rows and columns are independent of each other. So the bits do not depend on the number
+//! of threads. They may differ between CPUs with and without AVX2/FMA (a fused multiply-add
+//! rounds once).
 //!
 //! # Memory
 //! A grid per piece of `N_a × (N_b + 19)` cells of `K` values, of which the system allocates
@@ -75,7 +76,7 @@
 //! transformed, and freed after; then the row
 //! spectra (`N_a·K·(m_max + 1)` complex values, 16.7 MB) and the columns' results (8.3 MB)
 //! are held, and the returned spectra hold `(2·j_max + 1)·(m_max + 1)` complex values each
-//! (4.2 MB). Below 65,536 samples, one grid.
+//! (4.2 MB). Below 131,072 samples, one grid.
 
 use rayon::prelude::*;
 use realfft::RealFftPlanner;
@@ -157,13 +158,13 @@ impl Spectrum2 {
 /// `sample(n)` gives sample `n`'s two angles `(a_n, b_n)` in radians — any finite values, reduced
 /// modulo 2π exactly inside (up to ~10¹³ turns, where a double's resolution becomes coarser than
 /// the grid) — and its `K` real weights. It is called once per sample, from the rayon pool's
-/// threads (each piece of `0..len` in order on one of them). With `j_max = 0`, `a_n` is not used (a 1-D transform along `b`).
+/// threads (each piece of `0..len` in order on one of them). With `j_max = 0`, `a_n` is not
+/// used (a 1-D transform along `b`).
 ///
 /// `len = 0` gives all-zero spectra. A non-finite angle or weight makes the spectra NaN (no panic).
-/// Limits: a grid takes `N_a·(N_b + 19)·K·8` bytes (see the module's memory section for how many
-/// are held) with `N ≈ 4·max_order + 2` rounded up to
-/// a product of 2, 3 and 5 (at least 32), `N_a = 1` when `j_max = 0`; sizes whose grids do not
-/// fit in memory abort on allocation.
+/// Limits: a grid takes `N_a·(N_b + 19)·K·8` bytes (the module's memory section says how many
+/// are held) with `N ≈ 4·max_order + 2` rounded up to a product of 2, 3 and 5 (at least 32),
+/// `N_a = 1` when `j_max = 0`; sizes whose grids do not fit in memory abort on allocation.
 pub fn type1<const K: usize>(
     len: usize,
     j_max: usize,
@@ -177,9 +178,9 @@ pub fn type1<const K: usize>(
 
 /// [`type1`] with the samples given a block at a time: `fill(range, points)` appends the points
 /// of the samples `range` — at most [`BLOCK`] of them, starting at a multiple of `BLOCK`, each
-/// block once, from the rayon pool's threads. A caller whose per-sample work vectorizes across samples (a
-/// series evaluated side by side) does it here, and may keep a sum per block: the blocks are the
-/// same whatever the threads.
+/// block once, from the rayon pool's threads. A caller whose per-sample work vectorizes across
+/// samples (a series evaluated side by side) does it here, and may keep a sum per block: the
+/// blocks are the same whatever the threads.
 pub fn type1_blocks<const K: usize>(
     len: usize,
     j_max: usize,
