@@ -60,9 +60,13 @@ impl AtomicFile {
             path: target.to_path_buf(),
             source,
         };
+        // Created and registered under the lock: a signal's clean-up, which takes it, finds the
+        // file registered or not yet made.
+        let mut live = lock_live();
         let file = temp_file_beside(target).map_err(io_err)?;
         let temp = file.path().to_path_buf();
-        register(&temp);
+        live.push(temp.clone());
+        drop(live);
         Ok(AtomicFile {
             target: target.to_path_buf(),
             temp,
@@ -228,11 +232,14 @@ impl TempFolder {
     pub fn create(name: &str) -> io::Result<Self> {
         let parent = std::env::temp_dir();
         remove_stale(&parent);
+        // Created and registered under the lock, as `AtomicFile::create`'s file.
+        let mut live = lock_live();
         let dir = tempfile::Builder::new()
             .prefix(&temp_prefix(name))
             .suffix(".tmp")
             .tempdir_in(&parent)?;
-        register(dir.path());
+        live.push(dir.path().to_path_buf());
+        drop(live);
         Ok(TempFolder { dir })
     }
 
@@ -259,10 +266,6 @@ static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 fn lock_live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     // A panic while holding the lock leaves the list itself intact.
     LIVE.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-fn register(path: &Path) {
-    lock_live().push(path.to_path_buf());
 }
 
 /// Removes this run's temporary files and folders and exits with `code`, holding the lock so
@@ -472,11 +475,13 @@ fn staging_for(folder: &Path) -> io::Result<(PathBuf, bool)> {
             .map(tempfile::TempDir::keep)
     };
     let parent = folder.parent().filter(|p| same_file_system(folder, p));
+    // Created and registered under the lock, as `AtomicFile::create`'s file.
+    let mut live = lock_live();
     let (staging, inside) = match parent.map(make) {
         Some(Ok(staging)) => (staging, false),
         _ => (make(folder)?, true),
     };
-    register(&staging);
+    live.push(staging.clone());
     Ok((staging, inside))
 }
 
