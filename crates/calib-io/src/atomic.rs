@@ -60,13 +60,9 @@ impl AtomicFile {
             path: target.to_path_buf(),
             source,
         };
-        // Created and registered under the lock: a signal's clean-up, which takes it, finds the
-        // file registered or not yet made.
-        let mut live = lock_live();
-        let file = temp_file_beside(target).map_err(io_err)?;
+        let file =
+            registered(|| temp_file_beside(target), |f| f.path().to_path_buf()).map_err(io_err)?;
         let temp = file.path().to_path_buf();
-        live.push(temp.clone());
-        drop(live);
         Ok(AtomicFile {
             target: target.to_path_buf(),
             temp,
@@ -232,14 +228,15 @@ impl TempFolder {
     pub fn create(name: &str) -> io::Result<Self> {
         let parent = std::env::temp_dir();
         remove_stale(&parent);
-        // Created and registered under the lock, as `AtomicFile::create`'s file.
-        let mut live = lock_live();
-        let dir = tempfile::Builder::new()
-            .prefix(&temp_prefix(name))
-            .suffix(".tmp")
-            .tempdir_in(&parent)?;
-        live.push(dir.path().to_path_buf());
-        drop(live);
+        let dir = registered(
+            || {
+                tempfile::Builder::new()
+                    .prefix(&temp_prefix(name))
+                    .suffix(".tmp")
+                    .tempdir_in(&parent)
+            },
+            |d| d.path().to_path_buf(),
+        )?;
         Ok(TempFolder { dir })
     }
 
@@ -262,6 +259,19 @@ impl Drop for TempFolder {
 
 /// The temporary files and folders of this run not yet renamed into place or removed.
 static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// A temporary made by `make`, its `path` registered in [`LIVE`] under the lock: a signal's
+/// clean-up, which takes the lock, finds it registered or not yet made (made first and
+/// registered after, a signal between the two left it behind).
+fn registered<T>(
+    make: impl FnOnce() -> io::Result<T>,
+    path: impl FnOnce(&T) -> PathBuf,
+) -> io::Result<T> {
+    let mut live = lock_live();
+    let made = make()?;
+    live.push(path(&made));
+    Ok(made)
+}
 
 fn lock_live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     // A panic while holding the lock leaves the list itself intact.
@@ -475,14 +485,13 @@ fn staging_for(folder: &Path) -> io::Result<(PathBuf, bool)> {
             .map(tempfile::TempDir::keep)
     };
     let parent = folder.parent().filter(|p| same_file_system(folder, p));
-    // Created and registered under the lock, as `AtomicFile::create`'s file.
-    let mut live = lock_live();
-    let (staging, inside) = match parent.map(make) {
-        Some(Ok(staging)) => (staging, false),
-        _ => (make(folder)?, true),
-    };
-    live.push(staging.clone());
-    Ok((staging, inside))
+    registered(
+        || match parent.map(make) {
+            Some(Ok(staging)) => Ok((staging, false)),
+            _ => Ok((make(folder)?, true)),
+        },
+        |(staging, _)| staging.clone(),
+    )
 }
 
 #[cfg(unix)]

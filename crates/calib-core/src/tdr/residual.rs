@@ -109,23 +109,22 @@ impl Trace {
     /// The residuals of the samples `range`, one block.
     fn record(&self, range: Range<usize>, residuals: impl Iterator<Item = f64>) {
         // Interval k holds sample i when start(k) ≤ i < start(k + 1), i.e. k·n < (i + 1)·bins.
+        let part = |bin| Part {
+            bin,
+            sum: 0.0,
+            min: f64::INFINITY,
+            max: f64::NEG_INFINITY,
+        };
         let mut bin = ((range.start + 1) * self.bins - 1) / self.n;
         let mut end = self.start(bin + 1);
-        let mut parts: Vec<Part> = Vec::new();
+        let mut parts = vec![part(bin)];
         for (i, e) in range.clone().zip(residuals) {
-            if i == end || parts.is_empty() {
-                if i == end {
-                    bin += 1;
-                    end = self.start(bin + 1);
-                }
-                parts.push(Part {
-                    bin,
-                    sum: 0.0,
-                    min: f64::INFINITY,
-                    max: f64::NEG_INFINITY,
-                });
+            if i == end {
+                bin += 1;
+                end = self.start(bin + 1);
+                parts.push(part(bin));
             }
-            let part = parts.last_mut().expect("pushed above");
+            let part = parts.last_mut().expect("one part at least");
             part.sum += e;
             part.min = part.min.min(e);
             part.max = part.max.max(e);
