@@ -34,7 +34,7 @@ use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Samples whose preliminary motion is evaluated side by side.
-const LANES: usize = 8;
+const LANES: usize = 16;
 
 /// Highest Chebyshev degree kept of the drag's weights `w`, `v` and their products. They are
 /// analytic on the coast (the speed stays above [`super::TdrOptions::min_speed_fraction`] of its

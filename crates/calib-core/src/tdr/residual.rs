@@ -14,7 +14,7 @@ use std::ops::Range;
 use std::sync::OnceLock;
 
 /// Samples whose motion is evaluated side by side.
-const LANES: usize = 8;
+const LANES: usize = 16;
 
 /// Points per revolution of the tables the residual's periodic parts are interpolated from:
 /// cubic interpolation of an order `k` errs by about `0.023·(2πk/TABLE)⁴` of its amplitude,
