@@ -36,9 +36,9 @@
 //! intervals, fitted once per call at Chebyshev points, evaluated by Horner's rule as FINUFFT
 //! does): a sample costs `2·W·13` multiply-adds for its two kernels and `K·W²` for the
 //! spreading, no `exp`. Samples in time order, whose position along `a` moves slowly, are
-//! spread by runs instead (the `spread` module): the kernel along `a`, a polynomial of degree 4 on each
-//! 1/128 of a grid step, is shared by a run's samples, so each adds `K·W·5` values to five
-//! rows along `b`, and the run's `W` rows of the grid are written once.
+//! spread by runs instead (the `spread` module): the kernel along `a`, a polynomial of degree 4
+//! on each 1/128 of a grid step, is shared by a run's samples, so each adds `K·W·5` values to
+//! five rows along `b`, and the run's `W` rows of the grid are written once.
 //!
 //! With `j_max = 0` the `a` dimension is dropped: a 1-D transform along `b` only.
 //!
