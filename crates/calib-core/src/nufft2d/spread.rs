@@ -285,11 +285,13 @@ impl<const K: usize> Run<K> {
                 self.tiles.push(t);
             }
         }
-        for d in 0..RANK {
-            let start = d * self.len + first;
-            let row = self.sums[start..start + cells].as_flattened_mut();
-            lanes.add_row_pair(row, [pows[0][d], pows[1][d]], scaled);
+        let mut k = [[0.0; 2]; RANK];
+        for (d, k) in k.iter_mut().enumerate() {
+            *k = [pows[0][d], pows[1][d]];
         }
+        let from = first * K;
+        let rows = &mut self.sums.as_flattened_mut()[from..];
+        lanes.add_rows_pair(rows, self.len * K, k, scaled);
     }
 
     /// Adds the open run to the grid's `W` rows from its first, `Σ_d c_{s,d,i}·H_d` to row
@@ -396,6 +398,17 @@ pub(super) trait Lanes: Copy {
     /// `scaled` zero outside its sample's `W·K` values.
     fn add_row_pair(self, cells: &mut [f64], k: [f64; 2], scaled: [&[f64]; 2]);
 
+    /// `rows[d·stride + q] += k_d₀·scaled₀[q] + k_d₁·scaled₁[q]` for `d < RANK`: the same two
+    /// samples' row into each of a run's rows, as [`add_row_pair`](Lanes::add_row_pair) would
+    /// add it to each, the two rows' values loaded once for all.
+    fn add_rows_pair(
+        self,
+        rows: &mut [f64],
+        stride: usize,
+        k: [[f64; 2]; RANK],
+        scaled: [&[f64]; 2],
+    );
+
     /// `cells[q] += Σ_d k_d·rows_d[q]`: a run's rows into one of the grid's.
     fn add_combination(self, cells: &mut [f64], k: [f64; RANK], rows: [&[f64]; RANK]);
 }
@@ -430,6 +443,22 @@ impl Lanes for Portable {
     fn add_row_pair(self, cells: &mut [f64], k: [f64; 2], [s0, s1]: [&[f64]; 2]) {
         for ((c, v0), v1) in cells.iter_mut().zip(s0).zip(s1) {
             *c += k[0] * v0 + k[1] * v1;
+        }
+    }
+
+    #[inline(always)]
+    fn add_rows_pair(
+        self,
+        rows: &mut [f64],
+        stride: usize,
+        k: [[f64; 2]; RANK],
+        [s0, s1]: [&[f64]; 2],
+    ) {
+        for (q, (v0, v1)) in s0.iter().zip(s1).enumerate() {
+            for (d, k) in k.iter().enumerate() {
+                let c = &mut rows[d * stride + q];
+                *c += k[0] * v0 + k[1] * v1;
+            }
         }
     }
 
@@ -599,7 +628,9 @@ pub(super) mod avx2 {
     //! [`Lanes`] in AVX2 and FMA instructions.
 
     use super::{DEGREE, Kernel, Lanes, PAIR_WIDTH, Plan, RANK, Spreading, WIDTH, spread_block};
-    use std::arch::x86_64::{_mm256_fmadd_pd, _mm256_loadu_pd, _mm256_set1_pd, _mm256_storeu_pd};
+    use std::arch::x86_64::{
+        _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_set1_pd, _mm256_setzero_pd, _mm256_storeu_pd,
+    };
 
     /// Proof that the CPU has AVX2 and FMA: made only by [`Avx2::detect`].
     #[derive(Clone, Copy)]
@@ -703,6 +734,37 @@ pub(super) mod avx2 {
         }
 
         #[inline(always)]
+        fn add_rows_pair(
+            self,
+            rows: &mut [f64],
+            stride: usize,
+            k: [[f64; 2]; RANK],
+            [s0, s1]: [&[f64]; 2],
+        ) {
+            let len = s0.len();
+            assert!(s1.len() == len && len % 4 == 0 && rows.len() >= (RANK - 1) * stride + len);
+            // SAFETY: `self` proves AVX2 and FMA; each load and store covers `q..q + 4` below
+            // `len` of `s0`, `s1` and of `rows` from `d·stride`, all within the slices.
+            unsafe {
+                let mut k0 = [_mm256_setzero_pd(); RANK];
+                let mut k1 = [_mm256_setzero_pd(); RANK];
+                for d in 0..RANK {
+                    k0[d] = _mm256_set1_pd(k[d][0]);
+                    k1[d] = _mm256_set1_pd(k[d][1]);
+                }
+                for q in (0..len).step_by(4) {
+                    let v0 = _mm256_loadu_pd(s0.as_ptr().add(q));
+                    let v1 = _mm256_loadu_pd(s1.as_ptr().add(q));
+                    for d in 0..RANK {
+                        let p = rows.as_mut_ptr().add(d * stride + q);
+                        let c = _mm256_fmadd_pd(k0[d], v0, _mm256_loadu_pd(p));
+                        _mm256_storeu_pd(p, _mm256_fmadd_pd(k1[d], v1, c));
+                    }
+                }
+            }
+        }
+
+        #[inline(always)]
         fn add_combination(self, cells: &mut [f64], k: [f64; RANK], rows: [&[f64]; RANK]) {
             let len = cells.len();
             assert!(rows.iter().all(|r| r.len() == len));
@@ -710,12 +772,15 @@ pub(super) mod avx2 {
             // SAFETY: `self` proves AVX2 and FMA; each load and store covers `q..q + 4` below
             // `whole ≤ len`, the length of every slice.
             unsafe {
-                let k = k.map(|k| _mm256_set1_pd(k));
+                let mut kv = [_mm256_setzero_pd(); RANK];
+                for d in 0..RANK {
+                    kv[d] = _mm256_set1_pd(k[d]);
+                }
                 for q in (0..whole).step_by(4) {
                     let p = cells.as_mut_ptr().add(q);
                     let mut c = _mm256_loadu_pd(p);
                     for d in 0..RANK {
-                        c = _mm256_fmadd_pd(k[d], _mm256_loadu_pd(rows[d].as_ptr().add(q)), c);
+                        c = _mm256_fmadd_pd(kv[d], _mm256_loadu_pd(rows[d].as_ptr().add(q)), c);
                     }
                     _mm256_storeu_pd(p, c);
                 }

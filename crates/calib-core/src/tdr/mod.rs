@@ -111,7 +111,7 @@ use crate::error_map::ErrorMap;
 use crate::harmonics::{FourierSeries, Harmonic};
 use crate::uncertainty::{Evaluation, MapComponent, MapUncertainty, interpolation_uncertainty};
 use chebyshev::chebyshev_with_derivatives;
-use moments::{Moments, Normal, Samples};
+use moments::{Moments, Normal, Samples, preliminary_motion};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use residual::{reference_check, residual_and_trace};
@@ -503,8 +503,7 @@ impl Tdr {
         let t = &self.t[i0..i1];
         let r = &self.r[i0..i1];
         let mut warnings = self.coast_warnings(&coast);
-        let densest = TAU / (coast.slowest_speed * median_step(t));
-        let (max_degree, h) = self.sizes(&coast, t.len(), densest, &mut warnings)?;
+        let max_degree = self.max_degree(&coast, &mut warnings);
         let y0 = r[0];
         let span = (t[0], t[t.len() - 1]);
         let samples = Samples {
@@ -513,12 +512,19 @@ impl Tdr {
             origin: y0,
             span,
         };
+        // The two passes before the spectra, each on one core, side by side.
+        let (step, preliminary) = rayon::join(
+            || median_step(t),
+            || preliminary_motion(samples, max_degree),
+        );
+        let densest = TAU / (coast.slowest_speed * step);
+        let h = self.max_order(t.len(), densest, max_degree, &mut warnings)?;
         let underdetermined = TdrError::Underdetermined {
             unknowns: max_degree + 1 + 2 * h,
             samples: t.len(),
         };
         let hd = self.opts.max_drag_order.min(h);
-        let moments = Moments::of_coast(samples, max_degree, h, hd);
+        let moments = Moments::with_preliminary(samples, preliminary, h, hd);
 
         // 1. Which orders the data hold: every order to h, the motion at its highest degree.
         // The readings' own noise, for the verdict at the end, is measured beside it (the
@@ -735,18 +741,10 @@ impl Tdr {
         warnings
     }
 
-    /// The motion's highest degree and the highest order tested, given or from the coast
-    /// (`densest`: its samples per revolution at the slow end), with a warning where a given
-    /// one is beyond what the coast supports; an error where the unknowns exceed a quarter of
-    /// the `samples`.
-    fn sizes(
-        &self,
-        coast: &Coast,
-        samples: usize,
-        densest: f64,
-        warnings: &mut Vec<String>,
-    ) -> Result<(usize, usize), TdrError> {
-        let max_degree = match self.opts.motion_degree {
+    /// The motion's highest degree, given or from the coast's revolutions, with a warning where
+    /// a given one is beyond what the coast supports.
+    fn max_degree(&self, coast: &Coast, warnings: &mut Vec<String>) -> usize {
+        match self.opts.motion_degree {
             Some(p) => {
                 if p as f64 > coast.revolutions / 2.0 {
                     warnings.push(format!(
@@ -757,7 +755,20 @@ impl Tdr {
                 p
             }
             None => ((coast.revolutions / 2.0).floor() as usize).clamp(2, 30),
-        };
+        }
+    }
+
+    /// The highest order tested, given or from the coast (`densest`: its samples per revolution
+    /// at the slow end), with a warning where a given one is beyond what the coast supports; an
+    /// error where the unknowns, with the motion to `max_degree`, exceed a quarter of the
+    /// `samples`.
+    fn max_order(
+        &self,
+        samples: usize,
+        densest: f64,
+        max_degree: usize,
+        warnings: &mut Vec<String>,
+    ) -> Result<usize, TdrError> {
         // At most a quarter as many unknowns as samples.
         let room = (samples / 4).saturating_sub(max_degree + 1) / 2;
         let h = match self.opts.max_order {
@@ -776,7 +787,7 @@ impl Tdr {
         if 4 * unknowns > samples {
             return Err(TdrError::Underdetermined { unknowns, samples });
         }
-        Ok((max_degree, h))
+        Ok(h)
     }
 
     /// The reference check over the coast's samples `range` at the orders `seen`, or `None`
@@ -1177,10 +1188,11 @@ fn extent(values: &[f64]) -> (f64, f64) {
 ///
 /// Found by a radix selection on the steps' bits (positive doubles order as their bits do),
 /// 16 bits a pass over the times, rather than by sorting a copy of the steps: ten million
-/// samples would need 80 MB more.
+/// samples would need 80 MB more. Each pass counts pieces of [`STEP_PIECE`] steps on the
+/// threads rayon has, and adds their counts: whole numbers, the same in any order.
 fn median_step(t: &[f64]) -> f64 {
-    let steps = || t.windows(2).map(|w| (w[1] - w[0]).to_bits());
-    let mut rank = (t.len() - 1) / 2;
+    let steps = t.len() - 1;
+    let mut rank = steps / 2;
     let mut prefix = 0u64;
     for pass in 0..4 {
         let shift = 48 - 16 * pass;
@@ -1189,10 +1201,27 @@ fn median_step(t: &[f64]) -> f64 {
         } else {
             u64::MAX << (shift + 16)
         };
-        let mut counts = vec![0usize; 1 << 16];
-        for s in steps().filter(|s| s & mask == prefix) {
-            counts[((s >> shift) & 0xffff) as usize] += 1;
-        }
+        let count = |piece: usize| {
+            let mut counts = vec![0usize; 1 << 16];
+            let end = ((piece + 1) * STEP_PIECE).min(steps);
+            for w in t[piece * STEP_PIECE..=end].windows(2) {
+                let s = (w[1] - w[0]).to_bits();
+                if s & mask == prefix {
+                    counts[((s >> shift) & 0xffff) as usize] += 1;
+                }
+            }
+            counts
+        };
+        let counts = (0..steps.div_ceil(STEP_PIECE))
+            .into_par_iter()
+            .map(count)
+            .reduce_with(|mut a, b| {
+                for (a, b) in a.iter_mut().zip(b) {
+                    *a += b;
+                }
+                a
+            })
+            .unwrap_or_default();
         let mut digit = 0;
         while rank >= counts[digit] {
             rank -= counts[digit];
@@ -1202,6 +1231,9 @@ fn median_step(t: &[f64]) -> f64 {
     }
     f64::from_bits(prefix)
 }
+
+/// Steps [`median_step`] counts in one piece.
+const STEP_PIECE: usize = 1 << 20;
 
 /// The columns of the fit (1): `T_0..T_p(τ)`, then `cos kr, sin kr` for the map's orders `k`,
 /// then for each drag order `h` the pair of eq. (3),
@@ -1408,26 +1440,59 @@ fn noise_through_fit(basis: &Basis, l_inv: &DMatrix<f64>, sigma: f64, points: us
 /// a little above the noise where the motion's jerk or the encoder's error curves within a few
 /// samples (a high order at the fast start of a coast): a residual judged against it is never
 /// taken for structure too early.
+///
+/// The terms are computed [`NOISE_LANES`] samples side by side (with AVX where the CPU has it:
+/// four divisions to an instruction) and summed in order: the same bits as one at a time.
 pub fn readings_noise(t: &[f64], r: &[f64]) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        #[target_feature(enable = "avx")]
+        unsafe fn avx(t: &[f64], r: &[f64]) -> f64 {
+            third_differences(t, r)
+        }
+        // SAFETY: the CPU has AVX.
+        return unsafe { avx(t, r) };
+    }
+    third_differences(t, r)
+}
+
+/// Samples whose third differences [`readings_noise`] computes side by side.
+const NOISE_LANES: usize = 8;
+
+#[inline(always)]
+fn third_differences(t: &[f64], r: &[f64]) -> f64 {
+    const L: usize = NOISE_LANES;
+    let n = t.len().min(r.len()).saturating_sub(3);
     let (mut sum, mut count) = (0.0, 0usize);
-    for n in 0..t.len().saturating_sub(3) {
-        let (ts, rs) = (&t[n..n + 4], &r[n..n + 4]);
-        if ts.windows(2).any(|w| w[1] <= w[0]) {
-            continue;
-        }
-        let (mut e, mut w2) = (0.0, 0.0);
+    // A block's times and readings, copied (the last block padded with zeros, whose lanes are
+    // computed and left out) so that the lanes' loops index arrays of fixed length.
+    let (mut tb, mut rb) = ([0.0; L + 3], [0.0; L + 3]);
+    for first in (0..n).step_by(L) {
+        let lanes = L.min(n - first);
+        tb[..lanes + 3].copy_from_slice(&t[first..first + lanes + 3]);
+        rb[..lanes + 3].copy_from_slice(&r[first..first + lanes + 3]);
+        let (mut e, mut w2) = ([0.0; L], [0.0; L]);
         for i in 0..4 {
-            let w = 1.0
-                / (0..4)
-                    .filter(|&j| j != i)
-                    .map(|j| ts[i] - ts[j])
-                    .product::<f64>();
-            // The weights sum to zero: readings relative to the first keep the precision.
-            e += w * (rs[i] - rs[0]);
-            w2 += w * w;
+            let mut p = [1.0; L];
+            for j in (0..4).filter(|&j| j != i) {
+                for l in 0..L {
+                    p[l] *= tb[l + i] - tb[l + j];
+                }
+            }
+            for l in 0..L {
+                let w = 1.0 / p[l];
+                // The weights sum to zero: readings relative to the first keep the precision.
+                e[l] += w * (rb[l + i] - rb[l]);
+                w2[l] += w * w;
+            }
         }
-        sum += e * e / w2;
-        count += 1;
+        for l in 0..lanes {
+            if (0..3).any(|i| tb[l + i + 1] <= tb[l + i]) {
+                continue;
+            }
+            sum += e[l] * e[l] / w2[l];
+            count += 1;
+        }
     }
     if count == 0 {
         0.0
@@ -1512,9 +1577,10 @@ mod tests {
     #[test]
     fn the_median_step_is_the_sorted_steps_middle_one() {
         // Steps with many repeats (a regular clock), jitter and a few gaps.
+        // More than two pieces of steps, counted on any threads.
         let mut t = vec![0.0];
         let mut state = 12_345u64;
-        for i in 0..10_001 {
+        for i in 0..2 * STEP_PIECE + 10_001 {
             state = state
                 .wrapping_mul(6_364_136_223_846_793_005)
                 .wrapping_add(1);
@@ -1525,10 +1591,67 @@ mod tests {
             };
             t.push(t[i] + step);
         }
-        for len in [3, 4, 1000, t.len()] {
+        for len in [3, 4, 1000, STEP_PIECE + 1, STEP_PIECE + 2, t.len()] {
             let mut d: Vec<f64> = t[..len].windows(2).map(|w| w[1] - w[0]).collect();
             d.sort_by(f64::total_cmp);
             assert_eq!(median_step(&t[..len]).to_bits(), d[(len - 1) / 2].to_bits());
+        }
+    }
+
+    #[test]
+    fn the_noise_side_by_side_is_the_noise_one_at_a_time() {
+        // Each sample's term as the equation reads, summed in order.
+        let one_at_a_time = |t: &[f64], r: &[f64]| {
+            let (mut sum, mut count) = (0.0, 0usize);
+            for n in 0..t.len().saturating_sub(3) {
+                let (ts, rs) = (&t[n..n + 4], &r[n..n + 4]);
+                if ts.windows(2).any(|w| w[1] <= w[0]) {
+                    continue;
+                }
+                let (mut e, mut w2) = (0.0, 0.0);
+                for i in 0..4 {
+                    let w = 1.0
+                        / (0..4)
+                            .filter(|&j| j != i)
+                            .map(|j| ts[i] - ts[j])
+                            .product::<f64>();
+                    e += w * (rs[i] - rs[0]);
+                    w2 += w * w;
+                }
+                sum += e * e / w2;
+                count += 1;
+            }
+            if count == 0 {
+                0.0
+            } else {
+                (sum / count as f64).sqrt()
+            }
+        };
+        // A jittered clock with a repeated time (skipped) and noisy readings of a coast.
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut t: Vec<f64> = (0..1003)
+            .map(|i| 1e-4 * (i as f64 + 0.3 * next()))
+            .collect();
+        t[500] = t[499];
+        let r: Vec<f64> = t
+            .iter()
+            .map(|&t| 60.0 * t - 2.0 * t * t + 1e-6 * next())
+            .collect();
+        for len in [0, 3, 4, 11, 12, 13, 1003] {
+            let (t, r) = (&t[..len], &r[..len]);
+            let got = readings_noise(t, r);
+            assert_eq!(
+                got.to_bits(),
+                one_at_a_time(t, r).to_bits(),
+                "{len} samples"
+            );
+            assert!(len < 12 || got > 0.0);
         }
     }
 }

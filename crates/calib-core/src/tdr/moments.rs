@@ -107,7 +107,13 @@ impl Moments {
     /// The spectra of the coast for fits with the motion up to `degree`, the map's orders up to
     /// `h` and drag orders up to `drag`.
     pub fn of_coast(s: Samples, degree: usize, h: usize, drag: usize) -> Moments {
-        let preliminary = preliminary_motion(s, degree);
+        Moments::with_preliminary(s, preliminary_motion(s, degree), h, drag)
+    }
+
+    /// [`of_coast`](Self::of_coast) with the preliminary motion given: [`preliminary_motion`]
+    /// of the samples, its degree the motion's highest.
+    pub fn with_preliminary(s: Samples, preliminary: Vec<f64>, h: usize, drag: usize) -> Moments {
+        let degree = preliminary.len() - 1;
         let j_max = (degree + DRAG_WEIGHT_DEGREE).max(2 * degree);
         let m_max = (2 * h).max(h + drag).max(2 * drag).max(1);
         // Σy′² of each block, summed in order afterwards: the same bits on any threads.
@@ -187,7 +193,7 @@ impl Moments {
 
 /// `P`: the motion's Chebyshev series of `degree` fitted by least squares to about
 /// [`PRELIMINARY_SAMPLES`] samples evenly spread over the coast.
-fn preliminary_motion(s: Samples, degree: usize) -> Vec<f64> {
+pub(super) fn preliminary_motion(s: Samples, degree: usize) -> Vec<f64> {
     let stride = (s.len() / PRELIMINARY_SAMPLES).max(1);
     let n = degree + 1;
     // The lower triangle of `GᵀG` row by row, in one flat array: the compiler vectorizes the
