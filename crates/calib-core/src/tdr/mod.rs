@@ -1441,8 +1441,8 @@ fn noise_through_fit(basis: &Basis, l_inv: &DMatrix<f64>, sigma: f64, points: us
 /// samples (a high order at the fast start of a coast): a residual judged against it is never
 /// taken for structure too early.
 ///
-/// The terms are computed [`NOISE_LANES`] samples side by side (with AVX where the CPU has it:
-/// four divisions to an instruction) and summed in order: the same bits as one at a time.
+/// The terms are computed eight samples side by side (with AVX where the CPU has it: four
+/// divisions to an instruction) and summed in order: the same bits as one at a time.
 pub fn readings_noise(t: &[f64], r: &[f64]) -> f64 {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx") {
