@@ -53,8 +53,8 @@
 //! spin-down, `K = 2`, `j_max = 127`, `m_max = 1016` (`tests/nufft2d.rs`, 3 alternating
 //! rounds): 0.41–0.61 s wall on two threads, 0.71–0.96 s on one (70–95 ns per sample); sample by
 //! sample, as before runs, 0.60–0.79 and 1.09–1.49 s. Loading a pair's row once for a run's five
-//! rows: 0.58–0.64 s on one thread where the same hour gave 0.63–0.65 s before. `benches/nufft2d.rs` (10⁶ samples):
-//! 125 ms against 181 ms.
+//! rows: 0.58–0.64 s on one thread where the same hour gave 0.63–0.65 s before.
+//! `benches/nufft2d.rs` (10⁶ samples): 125 ms against 181 ms.
 //!
 //! # Accuracy
 //! `|F_s(j, m) − exact| ≤ 10⁻¹³·Σ_n |w_{s,n}|` at every returned `(j, m)`: the tests measure
