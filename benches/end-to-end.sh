@@ -60,6 +60,8 @@
 # 100 kHz: 10,000,001 samples, 600 → 80 r/min) by calib, the floor on it alternating REPEAT
 # times with
 #   tdr        calib tdr COAST --channel enc -o OUT -q
+# and, in the same rounds, the floor and `calib csrr` on the first writer's log again
+# (floor-paired, csrr-paired), so that tdr's ratio and csrr's come from the same minutes.
 # (COAST_HZ=0 leaves it out: a tdr run takes minutes, the fit and not the reading.)
 # It prints each one's median wall and CPU time, its peak RSS, and the ratio of its median wall
 # time to the floor's (apply's: to floor+write's; the bag's: to bag-floor's). Each log is read
@@ -276,14 +278,24 @@ if [[ $coast_hz != 0 ]]; then
     testdata/scenarios/spindown.toml > "$coast_scenario"
   simulate_once "$coast_scenario" "$coast"
   "$floor" "$coast" >&2
-  : > "$work/floor-coast.txt"
-  : > "$work/tdr.txt"
+  # csrr on the first writer's log in the same rounds: the bar "tdr at or below csrr's ratio"
+  # compares two ratios measured minutes apart otherwise, and the machine drifts by as much.
+  paired=${logs[${writers%% *}]:-}
+  for name in floor-coast tdr floor-paired csrr-paired; do : > "$work/$name.txt"; done
   for ((i = 1; i <= repeat; i++)); do
     echo "coast round $i/$repeat ($(uptime | sed 's/.*load/load/'))" >&2
     measure "$floor" "$coast" >> "$work/floor-coast.txt"
     measure "$calib" tdr "$coast" --channel enc -o "$work/out-tdr" -q >> "$work/tdr.txt"
+    if [[ -n $paired ]]; then
+      measure "$floor" "$paired" >> "$work/floor-paired.txt"
+      measure "$calib" csrr "$paired" -o "$work/out-csrr-paired" -q >> "$work/csrr-paired.txt"
+    fi
   done
   echo "# $(size_mb "$coast") coast log, $repeat runs each"
   table floor-coast floor-coast tdr
+  if [[ -n $paired ]]; then
+    echo "# in the same rounds, $(basename "$paired") (tdr's bar: its ratio at or below csrr's):"
+    table floor-paired floor-paired csrr-paired
+  fi
   echo "# load after: $(uptime | sed 's/.*load/load/')"
 fi
