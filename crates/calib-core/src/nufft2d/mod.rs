@@ -66,15 +66,16 @@
 //!
 //! # Determinism
 //! The samples are split by index into pieces fixed by their count alone (one below 131,072
-//! samples, at most eight), each spread in order into its own grid on the rayon pool, and the
-//! grids are summed cell by cell, in the pieces' order, as their rows are transformed; the FFTs
-//! of rows and columns are independent of each other. So the bits do not depend on the number
-//! of threads. They may differ between CPUs with and without AVX2/FMA (a fused multiply-add
-//! rounds once).
+//! samples, at most eight in two dimensions and 32 in one), each spread in order into its own
+//! grid on the rayon pool, and the grids are summed cell by cell, in the pieces' order, as their
+//! rows are transformed; the FFTs of rows and columns are independent of each other. So the
+//! bits do not depend on the number of threads. They may differ between CPUs with and without
+//! AVX2/FMA (a fused multiply-add rounds once).
 //!
 //! # Memory
 //! A grid per piece of `N_a × (N_b + 19)` cells of `K` values, of which the system allocates
-//! only the rows the piece's samples reach (pages are allocated when first written), the peak:
+//! only the rows the piece's samples reach (each written with zeros before it is added to, so
+//! that its pages are allocated by one fault each, the module `spread`'s `FirstRows`), the peak:
 //! samples in time order along `a`, as `calib tdr`'s, reach each piece's own rows, and the
 //! grids together hold little more than one full grid — for `j_max = 127`, `m_max = 1016`,
 //! `K = 2` (`N_a = 512`, `N_b = 4096`) 33.7 MB. Samples in random order reach every row from
@@ -117,6 +118,10 @@ const MIN_SPLIT: usize = 1 << 16;
 /// for half the work: measured on `calib tdr`'s 10⁷-sample coast on 2 cores, fixed halves
 /// finished 0.35 s apart in one run of two.
 const MAX_PIECES: usize = 8;
+/// Pieces at most along one dimension: a piece's grid is one row (`N_b + 19` cells), so many
+/// cost nothing, and the last piece one core spreads while the other waits is short — with
+/// eight, `calib tdr`'s residual pass (10⁷ samples) had one core idle for up to 0.05 s.
+const MAX_PIECES_1D: usize = 32;
 /// Samples [`type1_blocks`] asks for at a time; the pieces split at a multiple of it.
 pub const BLOCK: usize = 256;
 /// `1/(2π)` as a double-double: the nearest double plus the remainder.
@@ -200,7 +205,12 @@ pub fn type1_blocks<const K: usize>(
     let plan = Plan::new(j_max, m_max);
     // The pieces go to the rayon pool one by one (a core that finishes early takes the next,
     // never two at once); `collect` keeps them in order.
-    let pieces: Vec<Piece<K>> = pieces(len)
+    let max_pieces = if plan.two_d {
+        MAX_PIECES
+    } else {
+        MAX_PIECES_1D
+    };
+    let pieces: Vec<Piece<K>> = pieces(len, max_pieces)
         .into_par_iter()
         .with_max_len(1)
         .map(|range| plan.spread(&fill, range))
@@ -213,11 +223,11 @@ pub fn type1_blocks<const K: usize>(
 }
 
 /// The pieces [`type1_blocks`] spreads each into its own grid: `0..len` cut at multiples of
-/// [`BLOCK`] into `len / MIN_SPLIT` (at least 1, at most [`MAX_PIECES`]) runs of nearly equal
-/// length. They depend on `len` alone, so the grids' sum has the same bits on any number of
-/// threads.
-fn pieces(len: usize) -> Vec<Range<usize>> {
-    let count = (len / MIN_SPLIT).clamp(1, MAX_PIECES);
+/// [`BLOCK`] into `len / MIN_SPLIT` (at least 1, at most `max`) runs of nearly equal length.
+/// They depend on `len` (and the dimensions) alone, so the grids' sum has the same bits on any
+/// number of threads.
+fn pieces(len: usize, max: usize) -> Vec<Range<usize>> {
+    let count = (len / MIN_SPLIT).clamp(1, max);
     let size = len / count / BLOCK * BLOCK;
     (0..count)
         .map(|k| k * size..if k + 1 == count { len } else { (k + 1) * size })
@@ -520,7 +530,7 @@ fn transform_2d<const K: usize>(
     let width = m_max + 1;
     let rfft = RealFftPlanner::<f64>::new().plan_fft_forward(nb);
     // The row transforms, `m ≤ m_max`, of row r and set s at `(r·K + s)·width`.
-    let mut rows = vec![Complex64::default(); na * K * width];
+    let mut rows = zeros(na * K * width);
     rows.par_chunks_exact_mut(K * width)
         .enumerate()
         .for_each_init(
@@ -548,7 +558,7 @@ fn transform_2d<const K: usize>(
     let cfft = FftPlanner::<f64>::new().plan_fft_forward(na);
     let orders = 2 * j_max + 1;
     // F_s(j, m) at `(s·width + m)·orders + j + j_max`.
-    let mut columns = vec![Complex64::default(); K * width * orders];
+    let mut columns = zeros(K * width * orders);
     columns
         .par_chunks_exact_mut(orders)
         .enumerate()
@@ -574,9 +584,20 @@ fn transform_2d<const K: usize>(
         j_max,
         m_max,
         values: (0..orders * width)
+            .into_par_iter()
             .map(|i| columns[(s * width + i % width) * orders + i / width])
             .collect(),
     })
+}
+
+/// `len` zeros, written on the rayon pool: `vec![Complex64::default(); len]` writes them on the
+/// caller's thread (a struct gets no zeroed allocation), and the first write to each page is a
+/// page fault — for the 2-D transform's 25 MB, 0.03 s with the other core idle.
+fn zeros(len: usize) -> Vec<Complex64> {
+    (0..len)
+        .into_par_iter()
+        .map(|_| Complex64::default())
+        .collect()
 }
 
 /// Steps 2 and 3 for the 1-D grid (`j_max = 0`).
@@ -825,7 +846,7 @@ mod tests {
         // reaching every row.
         let mut pts = time_ordered(4 * MIN_SPLIT + 1000, 40.0, 11);
         pts.extend(samples(5000, 12));
-        assert_eq!(pieces(pts.len()).len(), 4);
+        assert_eq!(pieces(pts.len(), MAX_PIECES).len(), 4);
         let orders: Vec<(i64, i64)> = (-8..=8)
             .flat_map(|j| [(j, 0), (j, 17), (j, -40)])
             .chain((-40..=40).flat_map(|m| [(0, m), (5, m), (-8, m)]))
