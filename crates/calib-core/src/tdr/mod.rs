@@ -1343,23 +1343,44 @@ fn lower_triangular_inverse(l: &DMatrix<f64>) -> DMatrix<f64> {
     // Each column of L⁻¹ on its own (on the threads rayon has), each as it would be alone.
     let columns: Vec<Vec<f64>> = (0..n)
         .into_par_iter()
-        .map(|j| {
-            let mut col = vec![0.0; n];
-            col[j] = 1.0;
-            for k in j..n {
-                let v = col[k] / l[(k, k)];
-                col[k] = v;
-                if v != 0.0 {
-                    let lk = l.column(k);
-                    for i in k + 1..n {
-                        col[i] -= v * lk[i];
-                    }
-                }
-            }
-            col
-        })
+        .map(|j| inverse_column(l.as_slice(), n, j))
         .collect();
     DMatrix::from_fn(n, n, |i, j| columns[j][i])
+}
+
+/// Column `j` of `L⁻¹` for the column-major `n × n` lower-triangular `l`, by forward
+/// substitution. On x86-64 CPUs with AVX (detected at run time) the updates run four to an
+/// instruction instead of SSE2's two: the same multiplications and subtractions (no fused
+/// multiply-add), so the same bits.
+fn inverse_column(l: &[f64], n: usize, j: usize) -> Vec<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        #[target_feature(enable = "avx")]
+        unsafe fn avx(l: &[f64], n: usize, j: usize) -> Vec<f64> {
+            substitute(l, n, j)
+        }
+        // SAFETY: the CPU has AVX.
+        return unsafe { avx(l, n, j) };
+    }
+    substitute(l, n, j)
+}
+
+/// [`inverse_column`] as the compiler builds it for the CPU it targets.
+#[inline(always)]
+fn substitute(l: &[f64], n: usize, j: usize) -> Vec<f64> {
+    let mut col = vec![0.0; n];
+    col[j] = 1.0;
+    for k in j..n {
+        let lk = &l[k * n..(k + 1) * n];
+        let v = col[k] / lk[k];
+        col[k] = v;
+        if v != 0.0 {
+            for (c, x) in col[k + 1..].iter_mut().zip(&lk[k + 1..]) {
+                *c -= v * x;
+            }
+        }
+    }
+    col
 }
 
 /// The map's budget. The fit's noise: the map at `x` is `c(x)ᵀβ_E`, `c(x)` the `cos kx, sin kx`
@@ -1652,6 +1673,34 @@ mod tests {
                 "{len} samples"
             );
             assert!(len < 12 || got > 0.0);
+        }
+    }
+
+    #[test]
+    fn the_inverse_is_the_substitution_as_built_and_inverts() {
+        // Well-conditioned lower-triangular matrices with zeros below the diagonal, of sizes
+        // around the vectors' width.
+        for n in [1, 2, 3, 5, 8, 37] {
+            let l = DMatrix::from_fn(n, n, |i, j| match (i, j) {
+                (i, j) if i < j => 0.0,
+                (i, j) if i == j => 2.0 + (i as f64 * 0.37).sin(),
+                (i, j) if (i + j) % 5 == 0 => 0.0,
+                (i, j) => ((i * 7 + j * 3) as f64).cos() / n as f64,
+            });
+            let inv = lower_triangular_inverse(&l);
+            for j in 0..n {
+                let portable = substitute(l.as_slice(), n, j);
+                for i in 0..n {
+                    assert_eq!(inv[(i, j)].to_bits(), portable[i].to_bits(), "n = {n}");
+                }
+            }
+            let identity = &l * &inv;
+            for i in 0..n {
+                for j in 0..n {
+                    let want = if i == j { 1.0 } else { 0.0 };
+                    assert!((identity[(i, j)] - want).abs() < 1e-14, "n = {n}");
+                }
+            }
         }
     }
 }
