@@ -5,7 +5,8 @@
 //! cargo test --release -p calib-core --test it nufft2d:: -- --ignored --nocapture
 //! ```
 //!
-//! 10⁷ time-ordered samples of a spin-down, K = 2 weight sets, `j_max = 127`, `m_max = 1016`:
+//! 10⁷ time-ordered samples of a spin-down, K = 2 weight sets, `j_max = 127`, `m_max = 1016`
+//! (then along `b` alone, `j_max = 0`, with one of the weight sets):
 //! `a_n = acos(τ_n)` with `τ_n` the normalized time from −1 to 1 (so that `cos(j·a_n)` is the
 //! Chebyshev polynomial `T_j(τ_n)`), `b_n` a decelerating phase over 400 turns.
 
@@ -33,4 +34,12 @@ fn ten_million_samples() {
     let sum_tau: f64 = pts.iter().map(|p| p.2[1]).sum();
     let l1: f64 = pts.iter().map(|p| p.2[1].abs()).sum();
     assert!((s1.at(0, 0).re - sum_tau).abs() <= 1e-13 * l1);
+    // Along `b` alone with one weight set, as `calib tdr` spreads its residuals.
+    let start = Instant::now();
+    let [r] = type1(pts.len(), 0, 1016, |n| (0.0, pts[n].1, [pts[n].2[1]]));
+    eprintln!(
+        "type1 along b alone (K = 1) in {:.3} s",
+        start.elapsed().as_secs_f64()
+    );
+    assert!((r.at(0, 0).re - sum_tau).abs() <= 1e-13 * l1);
 }

@@ -551,3 +551,34 @@ fn the_default_table_points_hold_linear_interpolation_to_a_hundredth_of_an_arcse
     );
     assert!(bound(&cal) <= 0.01, "{}", bound(&cal));
 }
+
+/// The fit of `benches/end-to-end.sh`'s coast log in memory, timed (`#[ignore]`d: ~2 GB and
+/// tens of seconds to simulate):
+///
+/// ```text
+/// cargo test --release -p calib-core --test it tdr::ten_million -- --ignored --nocapture
+/// ```
+///
+/// `spindown.toml` at 100 kHz for 100 s (10,000,001 samples, 600 → 80 r/min), channel `enc`
+/// pushed once; then three `finish`es of clones, each timed, which must agree to the bit.
+#[test]
+#[ignore = "full size (10⁷ samples): run by hand with --release"]
+#[allow(clippy::print_stderr, reason = "the figures are the point of this run")]
+fn ten_million_sample_coast() {
+    let mut s = scenario("spindown.toml");
+    s.rate_hz = 100_000.0;
+    s.spin_down.as_mut().unwrap().duration_s = 100.0;
+    let mut pushed = Tdr::new(TdrOptions::default());
+    for sample in s.samples().unwrap() {
+        pushed.push(sample.t, sample.values[0]);
+    }
+    let mut maps = Vec::new();
+    for _ in 0..3 {
+        let tdr = pushed.clone();
+        let start = std::time::Instant::now();
+        let cal = tdr.finish().unwrap();
+        eprintln!("finish in {:.3} s", start.elapsed().as_secs_f64());
+        maps.push(cal.map.values().to_vec());
+    }
+    assert!(maps.iter().all(|m| m == &maps[0]));
+}
