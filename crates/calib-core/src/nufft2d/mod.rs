@@ -66,10 +66,10 @@
 //!
 //! # Determinism
 //! The samples are split by index into pieces fixed by their count alone (one below 131,072
-//! samples, at most eight in two dimensions and 32 in one), each spread in order into its own
-//! grid on the rayon pool, and the grids are summed cell by cell, in the pieces' order, as their
-//! rows are transformed; the FFTs of rows and columns are independent of each other. So the
-//! bits do not depend on the number of threads. They may differ between CPUs with and without
+//! samples, at most eight), each spread in order into its own grid on the rayon pool, and the
+//! grids are summed cell by cell, in the pieces' order, as their rows are transformed; the FFTs
+//! of rows and columns are independent of each other. So the bits do not depend on the number
+//! of threads. They may differ between CPUs with and without
 //! AVX2/FMA (a fused multiply-add rounds once).
 //!
 //! # Memory
@@ -118,10 +118,6 @@ const MIN_SPLIT: usize = 1 << 16;
 /// for half the work: measured on `calib tdr`'s 10⁷-sample coast on 2 cores, fixed halves
 /// finished 0.35 s apart in one run of two.
 const MAX_PIECES: usize = 8;
-/// Pieces at most along one dimension: a piece's grid is one row (`N_b + 19` cells), so many
-/// cost nothing, and the last piece one core spreads while the other waits is short — with
-/// eight, `calib tdr`'s residual pass (10⁷ samples) had one core idle for up to 0.05 s.
-const MAX_PIECES_1D: usize = 32;
 /// Samples [`type1_blocks`] asks for at a time; the pieces split at a multiple of it.
 pub const BLOCK: usize = 256;
 /// `1/(2π)` as a double-double: the nearest double plus the remainder.
@@ -205,12 +201,7 @@ pub fn type1_blocks<const K: usize>(
     let plan = Plan::new(j_max, m_max);
     // The pieces go to the rayon pool one by one (a core that finishes early takes the next,
     // never two at once); `collect` keeps them in order.
-    let max_pieces = if plan.two_d {
-        MAX_PIECES
-    } else {
-        MAX_PIECES_1D
-    };
-    let pieces: Vec<Piece<K>> = pieces(len, max_pieces)
+    let pieces: Vec<Piece<K>> = pieces(len)
         .into_par_iter()
         .with_max_len(1)
         .map(|range| plan.spread(&fill, range))
@@ -223,11 +214,11 @@ pub fn type1_blocks<const K: usize>(
 }
 
 /// The pieces [`type1_blocks`] spreads each into its own grid: `0..len` cut at multiples of
-/// [`BLOCK`] into `len / MIN_SPLIT` (at least 1, at most `max`) runs of nearly equal length.
-/// They depend on `len` (and the dimensions) alone, so the grids' sum has the same bits on any
-/// number of threads.
-fn pieces(len: usize, max: usize) -> Vec<Range<usize>> {
-    let count = (len / MIN_SPLIT).clamp(1, max);
+/// [`BLOCK`] into `len / MIN_SPLIT` (at least 1, at most [`MAX_PIECES`]) runs of nearly equal
+/// length. They depend on `len` alone, so the grids' sum has the same bits on any number of
+/// threads.
+fn pieces(len: usize) -> Vec<Range<usize>> {
+    let count = (len / MIN_SPLIT).clamp(1, MAX_PIECES);
     let size = len / count / BLOCK * BLOCK;
     (0..count)
         .map(|k| k * size..if k + 1 == count { len } else { (k + 1) * size })
@@ -846,7 +837,7 @@ mod tests {
         // reaching every row.
         let mut pts = time_ordered(4 * MIN_SPLIT + 1000, 40.0, 11);
         pts.extend(samples(5000, 12));
-        assert_eq!(pieces(pts.len(), MAX_PIECES).len(), 4);
+        assert_eq!(pieces(pts.len()).len(), 4);
         let orders: Vec<(i64, i64)> = (-8..=8)
             .flat_map(|j| [(j, 0), (j, 17), (j, -40)])
             .chain((-40..=40).flat_map(|m| [(0, m), (5, m), (-8, m)]))
