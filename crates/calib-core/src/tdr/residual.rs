@@ -338,10 +338,12 @@ impl Model {
             let motion = chebyshev_lanes(&self.motion, &tau);
             for l in 0..lanes {
                 let r = s.r[first + l];
-                let mut e = r - s.origin - motion[l] - self.map.at(r);
+                // One place in the revolution for the map's table and the drag's two.
+                let place = TablePlace::of(r);
+                let mut e = r - s.origin - motion[l] - self.map.at(place);
                 if let Some(d) = &self.drag {
                     let u = (tau[l] + 1.0) * 0.5 * WEIGHT_TABLE as f64;
-                    e -= cubic(&d.w, u) * d.a.at(r) + cubic(&d.v, u) * d.b.at(r);
+                    e -= cubic(&d.w, u) * d.a.at(place) + cubic(&d.v, u) * d.b.at(place);
                 }
                 out.push((0.0, r, [e]));
             }
@@ -364,16 +366,32 @@ impl Periodic {
         Periodic(padded)
     }
 
-    /// Cubic (4-point Lagrange) interpolation at `x` radians (any revolution).
+    /// Cubic (4-point Lagrange) interpolation at `place`.
     #[inline(always)]
-    fn at(&self, x: f64) -> f64 {
+    fn at(&self, place: TablePlace) -> f64 {
+        let p = &self.0[place.i..place.i + 4];
+        lagrange([p[0], p[1], p[2], p[3]], place.f)
+    }
+}
+
+/// Where an angle falls among a [`Periodic`] table's points: the point before it and the
+/// fraction of the step past it.
+#[derive(Debug, Clone, Copy)]
+struct TablePlace {
+    i: usize,
+    f: f64,
+}
+
+impl TablePlace {
+    /// The place of `x` radians (any revolution).
+    #[inline(always)]
+    fn of(x: f64) -> TablePlace {
         // x − 2π·⌊x/2π⌋ rather than `rem_euclid` (a libm call): a rounding of the turn count
         // moves the point by an ulp of x, nothing to an interpolation.
         let turns = x / TAU;
         let u = (turns - turns.floor()) * TABLE as f64;
         let i = (u.floor() as usize).min(TABLE - 1);
-        let p = &self.0[i..i + 4];
-        lagrange([p[0], p[1], p[2], p[3]], u - i as f64)
+        TablePlace { i, f: u - i as f64 }
     }
 }
 
@@ -536,7 +554,8 @@ mod tests {
         let table = Periodic::of(&series);
         for x in [0.0, 0.1, 1.234_567, 3.0, 6.2, 2000.5] {
             // 0.023·(2π·500/2¹⁶)⁴ ≈ 1.2·10⁻⁷ of the amplitude at order 500.
-            assert!((table.at(x) - (500.0 * x).sin()).abs() < 2e-7, "at {x}");
+            let at = table.at(TablePlace::of(x));
+            assert!((at - (500.0 * x).sin()).abs() < 2e-7, "at {x}");
         }
         let smooth: Vec<f64> = (0..=WEIGHT_TABLE)
             .map(|i| (-1.0 + 2.0 * i as f64 / WEIGHT_TABLE as f64).exp())
