@@ -85,8 +85,9 @@ impl Plan {
 
 /// The points of the samples `range`, by `fill`, in place of `points`' old ones: out of line,
 /// once per [`BLOCK`], so that the spreading loop stays small. With a caller's `fill` inlined
-/// into it (`calib tdr`'s residual evaluates its model there), the 1-D loop waited on each
-/// point through memory; out of line, `calib tdr`'s residual took a quarter less time.
+/// into it (a residual model evaluated there), the 1-D loop waited on each point through
+/// memory; out of line, `calib tdr`'s residual pass (then a 1-D transform) took a quarter less
+/// time.
 #[inline(never)]
 fn refill<const K: usize, F>(fill: &F, range: Range<usize>, points: &mut Vec<(f64, f64, [f64; K])>)
 where
