@@ -1,8 +1,9 @@
 //! Fast evaluation of Fourier series at arbitrary points, and its exact adjoint.
 //!
 //! Used by CSRR's and multi-head's joint solvers, and by TDR's check of its residual (the
-//! adjoint alone, [`stencil`] and [`scatter_one`] a point at a time). The CSRR solver needs `e(x_j) = Σ_h a_h cos hx_j + b_h sin hx_j` at ~10⁵–10⁶ points for
-//! ~1000 orders, and the transpose of that map, dozens of times. Direct summation costs O(M·H).
+//! adjoint alone, [`stencil`] and [`scatter_one`] a point at a time). The CSRR solver needs
+//! `e(x_j) = Σ_h a_h cos hx_j + b_h sin hx_j` at ~10⁵–10⁶ points for ~1000 orders, and the
+//! transpose of that map, dozens of times. Direct summation costs O(M·H).
 //! Instead (a non-uniform FFT of the simplest kind): synthesize the series on a uniform grid of
 //! `G ≥ 16·H` points with one inverse real FFT, then interpolate each point from its 6 nearest grid
 //! values with Lagrange weights. The transpose spreads values onto the grid with the same weights

@@ -34,7 +34,7 @@ fn ten_million_samples() {
     let sum_tau: f64 = pts.iter().map(|p| p.2[1]).sum();
     let l1: f64 = pts.iter().map(|p| p.2[1].abs()).sum();
     assert!((s1.at(0, 0).re - sum_tau).abs() <= 1e-13 * l1);
-    // Along `b` alone with one weight set, as `calib tdr` spreads its residuals.
+    // Along `b` alone with one weight set (the 1-D path).
     let start = Instant::now();
     let [r] = type1(pts.len(), 0, 1016, |n| (0.0, pts[n].1, [pts[n].2[1]]));
     eprintln!(
