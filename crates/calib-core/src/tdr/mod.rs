@@ -101,10 +101,12 @@
 //! non-uniform FFT gives ([`crate::nufft2d`]). Ten million samples cost one such pass and one
 //! more for the residual's structure (above: the residuals spread onto a uniform grid with the
 //! 6-point weights of CSRR's solver, exact to ~10⁻⁸ of `Σ|e|`, what a significance test against
-//! the noise can use); each fit then costs `O(n²)` for its `n` columns and a Cholesky factor. Both passes use two threads where rayon has them and sum in a fixed
-//! order, so the results are the same bits on any number of threads; the readings' noise is
-//! measured beside the screening's factorization, and the coast's trace (its intervals each
-//! in order) beside the residual's pass.
+//! the noise can use); each fit then costs `O(n²)` for its `n` columns and a Cholesky factor
+//! (`nalgebra`'s arithmetic in panels of columns on the rayon pool, the `cholesky` module).
+//! Both passes use two threads where rayon has them and sum in a fixed order, so the results
+//! are the same bits on any number of threads; the readings' noise is measured beside the
+//! screening's factorization, and the coast's trace (its intervals each in order) beside the
+//! residual's pass.
 
 use crate::angle::{ARCSEC_PER_RAD, PartialTurn, Unwrapper};
 use crate::detection::{self, Verdict};
@@ -119,6 +121,7 @@ use residual::{reference_check, residual_and_trace};
 use std::f64::consts::TAU;
 
 mod chebyshev;
+mod cholesky;
 mod moments;
 mod residual;
 
@@ -168,7 +171,7 @@ impl Default for TdrOptions {
 pub const ORDERS_PER_SAMPLE: f64 = 0.4;
 
 /// Cap of the default highest order: the screening fit's cost grows as the orders cubed (a
-/// dense Cholesky factor and its inverse), 500 orders take a tenth of a second.
+/// dense Cholesky factor and its inverse), 500 orders take some 0.05 s on two cores.
 pub const MAX_DEFAULT_ORDER: usize = 500;
 
 /// The significance rule's family-wise false-alarm probability: an order (or drag order, or a
@@ -1486,34 +1489,35 @@ fn third_differences(t: &[f64], r: &[f64]) -> f64 {
     const L: usize = NOISE_LANES;
     let n = t.len().min(r.len()).saturating_sub(3);
     let (mut sum, mut count) = (0.0, 0usize);
-    // A block's times and readings, copied (the last block padded with zeros, whose lanes are
-    // computed and left out) so that the lanes' loops index arrays of fixed length.
-    let (mut tb, mut rb) = ([0.0; L + 3], [0.0; L + 3]);
-    for first in (0..n).step_by(L) {
-        let lanes = L.min(n - first);
-        tb[..lanes + 3].copy_from_slice(&t[first..first + lanes + 3]);
-        rb[..lanes + 3].copy_from_slice(&r[first..first + lanes + 3]);
-        let (mut e, mut w2) = ([0.0; L], [0.0; L]);
-        for i in 0..4 {
-            let mut p = [1.0; L];
-            for j in (0..4).filter(|&j| j != i) {
-                for l in 0..L {
-                    p[l] *= tb[l + i] - tb[l + j];
-                }
-            }
-            for l in 0..L {
-                let w = 1.0 / p[l];
-                // The weights sum to zero: readings relative to the first keep the precision.
-                e[l] += w * (rb[l + i] - rb[l]);
-                w2[l] += w * w;
+    // The sum stays in a register: nothing in this loop calls a function (copying a block of
+    // a length not fixed, as the last one is, called `memmove`, and the sum was stored and
+    // loaded around it every sample).
+    let whole = n / L * L;
+    for first in (0..whole).step_by(L) {
+        let tb = t[first..first + L + 3].try_into().expect("a block's times");
+        let rb = r[first..first + L + 3]
+            .try_into()
+            .expect("a block's readings");
+        let (term, ascending) = noise_terms(tb, rb);
+        for l in 0..L {
+            if ascending[l] {
+                sum += term[l];
+                count += 1;
             }
         }
+    }
+    if whole < n {
+        // The last block padded with zeros, whose lanes are computed and left out.
+        let (mut tb, mut rb) = ([0.0; L + 3], [0.0; L + 3]);
+        let lanes = n - whole;
+        tb[..lanes + 3].copy_from_slice(&t[whole..n + 3]);
+        rb[..lanes + 3].copy_from_slice(&r[whole..n + 3]);
+        let (term, ascending) = noise_terms(&tb, &rb);
         for l in 0..lanes {
-            if (0..3).any(|i| tb[l + i + 1] <= tb[l + i]) {
-                continue;
+            if ascending[l] {
+                sum += term[l];
+                count += 1;
             }
-            sum += e[l] * e[l] / w2[l];
-            count += 1;
         }
     }
     if count == 0 {
@@ -1521,6 +1525,38 @@ fn third_differences(t: &[f64], r: &[f64]) -> f64 {
     } else {
         (sum / count as f64).sqrt()
     }
+}
+
+/// The terms `e_n²/Σ w_i²` of [`readings_noise`] for the samples `n = 0..NOISE_LANES` of a block
+/// of times and readings, and whether each one's four times ascend (a term whose times do not
+/// is left out).
+#[inline(always)]
+fn noise_terms(
+    tb: &[f64; NOISE_LANES + 3],
+    rb: &[f64; NOISE_LANES + 3],
+) -> ([f64; NOISE_LANES], [bool; NOISE_LANES]) {
+    const L: usize = NOISE_LANES;
+    let (mut e, mut w2) = ([0.0; L], [0.0; L]);
+    for i in 0..4 {
+        let mut p = [1.0; L];
+        for j in (0..4).filter(|&j| j != i) {
+            for l in 0..L {
+                p[l] *= tb[l + i] - tb[l + j];
+            }
+        }
+        for l in 0..L {
+            let w = 1.0 / p[l];
+            // The weights sum to zero: readings relative to the first keep the precision.
+            e[l] += w * (rb[l + i] - rb[l]);
+            w2[l] += w * w;
+        }
+    }
+    let (mut term, mut ascending) = ([0.0; L], [false; L]);
+    for l in 0..L {
+        term[l] = e[l] * e[l] / w2[l];
+        ascending[l] = !(0..3).any(|i| tb[l + i + 1] <= tb[l + i]);
+    }
+    (term, ascending)
 }
 
 /// The ascending union of two ascending order lists.

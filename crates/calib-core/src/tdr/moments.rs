@@ -476,7 +476,7 @@ impl Normal {
         }
         let fixed = &self.g * &b;
         let sub = DMatrix::from_fn(cols.len(), cols.len(), |a, c| self.g[(cols[a], cols[c])]);
-        let chol = sub.cholesky()?;
+        let chol = super::cholesky::factor(sub)?;
         let x = chol.solve(&DVector::from_fn(cols.len(), |a, _| {
             self.rhs[cols[a]] - fixed[cols[a]]
         }));
