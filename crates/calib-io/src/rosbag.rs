@@ -1482,22 +1482,33 @@ fn read_topics(db: &Connection, file: &Path) -> Result<Vec<(i64, String, String,
     })
 }
 
-/// Messages, first and last timestamp of each `topic_id`.
+/// Messages, first and last timestamp of each `topic_id`: the table's rows in its own order,
+/// counted here. (SQLite answers `GROUP BY topic_id` by sorting every row first, with no index
+/// on the topic: 0.3 s of CPU on a 1 M-message bag, more than the ordered scan of the messages
+/// that follows.)
 fn read_counts(db: &Connection, file: &Path) -> Result<HashMap<i64, (u64, u64, u64)>, Error> {
-    let rows: Result<HashMap<_, _>, rusqlite::Error> = db
-        .prepare(
-            "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages \
-             GROUP BY topic_id",
-        )
+    let mut counts: HashMap<i64, (u64, i64, i64)> = HashMap::new();
+    let rows = db
+        .prepare("SELECT topic_id, timestamp FROM messages")
         .and_then(|mut s| {
-            s.query_map([], |r| {
-                let (n, first, last): (i64, i64, i64) = (r.get(1)?, r.get(2)?, r.get(3)?);
-                let ns = |v: i64| u64::try_from(v).unwrap_or(0);
-                Ok((r.get(0)?, (ns(n), ns(first), ns(last))))
-            })?
-            .collect()
+            let mut rows = s.query([])?;
+            while let Some(r) = rows.next()? {
+                let (topic, t): (i64, i64) = (r.get(0)?, r.get(1)?);
+                let (n, first, last) = counts.entry(topic).or_insert((0, t, t));
+                *n += 1;
+                *first = (*first).min(t);
+                *last = (*last).max(t);
+            }
+            Ok(())
         });
-    rows.map_err(|e| {
+    let ns = |v: i64| u64::try_from(v).unwrap_or(0);
+    rows.map(|()| {
+        counts
+            .into_iter()
+            .map(|(topic, (n, first, last))| (topic, (n, ns(first), ns(last))))
+            .collect()
+    })
+    .map_err(|e| {
         bag_error(
             file,
             Some("messages"),
@@ -1514,6 +1525,43 @@ fn read_counts(db: &Connection, file: &Path) -> Result<HashMap<i64, (u64, u64, u
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn topic_counts_are_what_sqlite_groups() {
+        // Rows out of time order, two topics, a negative stamp (read as 0, as before).
+        let db = Connection::open_in_memory().unwrap();
+        db.execute_batch(
+            "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, \
+             timestamp INTEGER NOT NULL, data BLOB NOT NULL);",
+        )
+        .unwrap();
+        let rows = [(1, 50), (2, 7), (1, 20), (1, 90), (2, -3), (3, 4), (1, 60)];
+        for (topic, t) in rows {
+            db.execute(
+                "INSERT INTO messages(topic_id, timestamp, data) VALUES (?1, ?2, x'00')",
+                (topic, t),
+            )
+            .unwrap();
+        }
+        let counts = read_counts(&db, Path::new("bag_0.db3")).unwrap();
+        let ns = |v: i64| u64::try_from(v).unwrap_or(0);
+        let grouped: HashMap<i64, (u64, u64, u64)> = db
+            .prepare(
+                "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages \
+                 GROUP BY topic_id",
+            )
+            .unwrap()
+            .query_map([], |r| {
+                let (n, first, last): (i64, i64, i64) = (r.get(1)?, r.get(2)?, r.get(3)?);
+                Ok((r.get(0)?, (ns(n), ns(first), ns(last))))
+            })
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap();
+        assert_eq!(counts, grouped);
+        assert_eq!(counts[&1], (4, 20, 90));
+        assert_eq!(counts[&2], (2, 0, 7));
+    }
 
     #[test]
     fn a_full_disk_under_a_copy_is_named_with_the_folder_the_bytes_and_tmpdir() {
