@@ -279,6 +279,35 @@ mod tests {
     }
 
     #[test]
+    fn a_tile_without_avx_is_the_tile_with_it() {
+        // The portable loop (CPUs without AVX) against the dispatched one, to the bit, on a
+        // panel of a whole group and a part of one.
+        let (n, j0) = (48, 32);
+        let g = gram(n, 5);
+        for width in [4, 7] {
+            let neg = (0..j0 * width)
+                .map(|i| -g.as_slice()[i * 7 % (n * n)])
+                .collect();
+            let left = Left {
+                s: g.as_slice(),
+                n,
+                neg,
+                width,
+                k_end: j0,
+            };
+            let start: Vec<f64> = (0..ROWS * width).map(|i| i as f64 * 0.37).collect();
+            let (mut dispatched, mut portable) = (start.clone(), start);
+            left.products(&mut dispatched, j0 + ROWS);
+            left.products_from(&mut portable, j0 + ROWS, 0);
+            let same = dispatched
+                .iter()
+                .zip(&portable)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "width {width}");
+        }
+    }
+
+    #[test]
     fn a_matrix_that_is_not_positive_definite_has_no_factor_as_with_nalgebra() {
         for n in [3, 40, 100] {
             let mut g = gram(n, 9);
