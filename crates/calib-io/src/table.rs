@@ -726,29 +726,31 @@ pub(crate) fn push_fixed(out: &mut String, x: f64) {
         }
         return;
     };
-    // Digits from the last: six decimals, the point, the whole part, the sign.
+    // Digits from the last: six decimals, the point, the whole part (at least one digit), the
+    // sign.
     let mut digits = [0u8; 24];
     let mut at = digits.len();
-    let mut rest = micro;
-    for place in 0..7 {
-        if place == 6 {
-            at -= 1;
-            digits[at] = b'.';
-        }
+    let mut push = |digit: u8| {
         at -= 1;
-        digits[at] = b'0' + (rest % 10) as u8;
-        rest /= 10;
+        digits[at] = digit;
+    };
+    let (mut whole, mut decimals) = (micro / 1_000_000, micro % 1_000_000);
+    for _ in 0..6 {
+        push(b'0' + (decimals % 10) as u8);
+        decimals /= 10;
     }
-    while rest > 0 {
-        at -= 1;
-        digits[at] = b'0' + (rest % 10) as u8;
-        rest /= 10;
+    push(b'.');
+    loop {
+        push(b'0' + (whole % 10) as u8);
+        whole /= 10;
+        if whole == 0 {
+            break;
+        }
     }
     if x.is_sign_negative() && micro > 0 {
-        at -= 1;
-        digits[at] = b'-';
+        push(b'-');
     }
-    out.push_str(std::str::from_utf8(&digits[at..]).expect("ASCII digits"));
+    out.extend(digits[at..].iter().map(|&b| char::from(b)));
 }
 
 /// `|x|·10⁶` rounded half to even, exactly, if `x` is finite and it is below 2⁶⁴ (|x| below
