@@ -1190,13 +1190,94 @@ fn extent(values: &[f64]) -> (f64, f64) {
 
 /// The median time step, seconds: the step of rank `⌊(N−1)/2⌋` among the `N − 1` steps.
 ///
-/// Found by a radix selection on the steps' bits (positive doubles order as their bits do),
-/// 16 bits a pass over the times, rather than by sorting a copy of the steps: ten million
-/// samples would need 80 MB more. Each pass counts pieces of [`STEP_PIECE`] steps on the
-/// threads rayon has, and adds their counts: whole numbers, the same in any order.
+/// Positive doubles order as their bits do, so the steps are compared as bits. Two values of a
+/// regular subsample of the steps bracket the median ([`bracketed_step`]), and one pass over
+/// the times finds it; where the bracket misses (a subsample unlike the whole) a radix
+/// selection finds it in four ([`radix_step`]). Neither sorts a copy of all the steps: ten
+/// million samples would need 80 MB more.
 fn median_step(t: &[f64]) -> f64 {
+    let rank = (t.len() - 1) / 2;
+    bracketed_step(t, rank).unwrap_or_else(|| radix_step(t, rank))
+}
+
+/// Steps between two of the subsample [`bracketed_step`] takes (a prime, so that a pattern of
+/// steps repeating with a short period is not sampled at one phase only).
+const STEP_SAMPLE: usize = 251;
+
+/// The step of `rank` among the steps of `t` when it lies between the subsample's values `lo ≤
+/// hi` of ranks `m/2 ∓ 3√m` among its `m`: one pass counts the steps below `lo`, at `lo` and
+/// at `hi`, and keeps those between, and the step of `rank` is `lo`, `hi` or the kept one of
+/// its rank. `None` when it is outside, or more than a quarter of the steps fall between. (For
+/// the median to fall outside, the count of the subsample's steps below it must stray from
+/// `m/2` by `3√m`: six standard deviations were they drawn at random. Ten million samples give
+/// `m ≈ 40,000` and a bracket of 3 % of the steps; below some 300,000 samples a quarter or
+/// more fall between, and the radix selection answers.)
+///
+/// The pass counts pieces of [`STEP_PIECE`] steps on the threads rayon has and adds their
+/// counts and kept steps: the same answer in any order.
+fn bracketed_step(t: &[f64], rank: usize) -> Option<f64> {
     let steps = t.len() - 1;
-    let mut rank = steps / 2;
+    let step = |i: usize| (t[i + 1] - t[i]).to_bits();
+    let mut sample: Vec<u64> = (0..steps).step_by(STEP_SAMPLE).map(step).collect();
+    let (m, spread) = (sample.len(), 3 * sample.len().isqrt());
+    if m <= 2 * spread + 1 {
+        return None;
+    }
+    sample.sort_unstable();
+    let (lo, hi) = (sample[m / 2 - spread], sample[m / 2 + spread]);
+    let cap = steps / 4;
+    #[derive(Default)]
+    struct Tally {
+        below: usize,
+        at_lo: usize,
+        at_hi: usize,
+        between: Vec<u64>,
+    }
+    let tally = |piece: usize| {
+        let mut tally = Tally::default();
+        let end = ((piece + 1) * STEP_PIECE).min(steps);
+        for w in t[piece * STEP_PIECE..=end].windows(2) {
+            let s = (w[1] - w[0]).to_bits();
+            tally.below += usize::from(s < lo);
+            tally.at_lo += usize::from(s == lo);
+            tally.at_hi += usize::from(s == hi && hi != lo);
+            if lo < s && s < hi && tally.between.len() <= cap {
+                tally.between.push(s);
+            }
+        }
+        tally
+    };
+    let mut tally = (0..steps.div_ceil(STEP_PIECE))
+        .into_par_iter()
+        .map(tally)
+        .reduce(Tally::default, |mut a, mut b| {
+            a.below += b.below;
+            a.at_lo += b.at_lo;
+            a.at_hi += b.at_hi;
+            a.between.append(&mut b.between);
+            a
+        });
+    if tally.between.len() > cap {
+        return None;
+    }
+    let mut rank = rank.checked_sub(tally.below)?;
+    if rank < tally.at_lo {
+        return Some(f64::from_bits(lo));
+    }
+    rank -= tally.at_lo;
+    if rank < tally.between.len() {
+        return Some(f64::from_bits(*tally.between.select_nth_unstable(rank).1));
+    }
+    rank -= tally.between.len();
+    (rank < tally.at_hi).then_some(f64::from_bits(hi))
+}
+
+/// The step of `rank` among the steps of `t` by a radix selection on their bits, 16 bits a
+/// pass over the times. Each pass counts pieces of [`STEP_PIECE`] steps on the threads rayon
+/// has, and adds their counts: whole numbers, the same in any order.
+fn radix_step(t: &[f64], rank: usize) -> f64 {
+    let steps = t.len() - 1;
+    let mut rank = rank;
     let mut prefix = 0u64;
     for pass in 0..4 {
         let shift = 48 - 16 * pass;
@@ -1649,10 +1730,46 @@ mod tests {
             };
             t.push(t[i] + step);
         }
-        for len in [3, 4, 1000, STEP_PIECE + 1, STEP_PIECE + 2, t.len()] {
-            let mut d: Vec<f64> = t[..len].windows(2).map(|w| w[1] - w[0]).collect();
+        let median = |t: &[f64]| {
+            let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
             d.sort_by(f64::total_cmp);
-            assert_eq!(median_step(&t[..len]).to_bits(), d[(len - 1) / 2].to_bits());
+            d[(t.len() - 1) / 2]
+        };
+        for len in [3, 4, 1000, 10_000, STEP_PIECE + 1, STEP_PIECE + 2, t.len()] {
+            assert_eq!(
+                median_step(&t[..len]).to_bits(),
+                median(&t[..len]).to_bits()
+            );
+            assert_eq!(
+                radix_step(&t[..len], (len - 1) / 2).to_bits(),
+                median(&t[..len]).to_bits()
+            );
+        }
+        // The bracket found it on the long runs; a clock whose every 251st step is long shows
+        // the subsample only long steps: the bracket misses, and the radix selection answers.
+        assert!(bracketed_step(&t, (t.len() - 1) / 2).is_some());
+        let mut t = vec![0.0];
+        for i in 0..100_000 {
+            let step = if i % STEP_SAMPLE == 0 { 0.25 } else { 1e-3 };
+            t.push(t[i] + step);
+        }
+        assert!(bracketed_step(&t, (t.len() - 1) / 2).is_none());
+        assert_eq!(median_step(&t).to_bits(), median(&t).to_bits());
+        // Jittered steps all distinct: the median among the kept ones.
+        let mut state = 99u64;
+        let mut t = vec![0.0];
+        for i in 0..1_000_000 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            t.push(t[i] + 1e-3 * (1.0 + (state >> 11) as f64 / (1u64 << 53) as f64));
+        }
+        assert!(bracketed_step(&t, (t.len() - 1) / 2).is_some());
+        for len in [400 * STEP_SAMPLE, 400 * STEP_SAMPLE + 1, t.len()] {
+            assert_eq!(
+                median_step(&t[..len]).to_bits(),
+                median(&t[..len]).to_bits()
+            );
         }
     }
 
