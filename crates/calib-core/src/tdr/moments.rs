@@ -45,6 +45,9 @@ const DRAG_WEIGHT_DEGREE: usize = 96;
 /// Samples of the subsample the preliminary motion is fitted to.
 const PRELIMINARY_SAMPLES: usize = 100_000;
 
+/// Samples of the preliminary fit whose rows are summed side by side.
+const PRELIMINARY_BATCH: usize = 8;
+
 /// Samples per chunk of the direct sums (fixed, so the sums are the same bits on any number of
 /// threads).
 const CHUNK: usize = 1 << 14;
@@ -196,30 +199,44 @@ impl Moments {
 pub(super) fn preliminary_motion(s: Samples, degree: usize) -> Vec<f64> {
     let stride = (s.len() / PRELIMINARY_SAMPLES).max(1);
     let n = degree + 1;
-    // The lower triangle of `GᵀG` row by row, in one flat array: the compiler vectorizes the
-    // products of a row (a matrix's indexing, checked per element, ran five times slower).
-    let mut lower = vec![0.0; n * (n + 1) / 2];
-    let mut b = DVector::<f64>::zeros(n);
-    let mut row = vec![0.0; n];
-    for i in (0..s.len()).step_by(stride) {
-        chebyshev_row(s.tau(i), &mut row);
-        let y = s.r[i] - s.origin;
-        let mut sums = lower.as_mut_slice();
-        for (a, &ra) in row.iter().enumerate() {
-            b[a] += ra * y;
-            let (line, rest) = sums.split_at_mut(a + 1);
-            for (g, &rc) in line.iter_mut().zip(&row) {
-                *g += ra * rc;
+    // `GᵀG` in rows of whole vectors of 4 (its lower triangle used, and beside it as many
+    // entries as fill a row's last vector), `Gᵀy`, each entry summed over the samples in their
+    // order. The samples come [`PRELIMINARY_BATCH`] at a time, their rows side by side, so that
+    // an entry's sums over them stay in a register (loading and storing each entry per sample
+    // took four times as long).
+    let width = n.next_multiple_of(4);
+    let mut gram = vec![0.0; n * width];
+    let mut b = vec![0.0; n];
+    let mut rows = vec![0.0; PRELIMINARY_BATCH * width];
+    let mut ys = [0.0; PRELIMINARY_BATCH];
+    let picked: Vec<usize> = (0..s.len()).step_by(stride).collect();
+    for batch in picked.chunks(PRELIMINARY_BATCH) {
+        for ((&i, row), y) in batch.iter().zip(rows.chunks_exact_mut(width)).zip(&mut ys) {
+            chebyshev_row(s.tau(i), &mut row[..n]);
+            *y = s.r[i] - s.origin;
+        }
+        let rows = &rows[..batch.len() * width];
+        for (a, (line, b)) in gram.chunks_exact_mut(width).zip(&mut b).enumerate() {
+            for (q, cells) in line[..(a + 1).next_multiple_of(4)]
+                .chunks_exact_mut(4)
+                .enumerate()
+            {
+                let mut sums: [f64; 4] = cells.try_into().expect("chunks of 4");
+                for row in rows.chunks_exact(width) {
+                    for (sum, &rc) in sums.iter_mut().zip(&row[4 * q..4 * q + 4]) {
+                        *sum += row[a] * rc;
+                    }
+                }
+                cells.copy_from_slice(&sums);
             }
-            sums = rest;
+            for (row, &y) in rows.chunks_exact(width).zip(&ys) {
+                *b += row[a] * y;
+            }
         }
     }
-    let g = DMatrix::<f64>::from_fn(n, n, |a, c| {
-        let (a, c) = (a.max(c), a.min(c));
-        lower[a * (a + 1) / 2 + c]
-    });
+    let g = DMatrix::<f64>::from_fn(n, n, |a, c| gram[a.max(c) * width + a.min(c)]);
     g.cholesky()
-        .map(|ch| ch.solve(&b).iter().copied().collect())
+        .map(|ch| ch.solve(&DVector::from_vec(b)).iter().copied().collect())
         .unwrap_or_else(|| vec![0.0; n])
 }
 
@@ -535,6 +552,54 @@ mod tests {
             })
             .collect();
         (t, r, motion)
+    }
+
+    #[test]
+    fn the_preliminary_motion_sums_each_entry_over_the_samples_in_order() {
+        // Each entry of `GᵀG` and `Gᵀy` summed over the samples one at a time, as the
+        // equations read: the batched sums must give the same bits.
+        let one_at_a_time = |s: Samples, degree: usize| {
+            let stride = (s.len() / PRELIMINARY_SAMPLES).max(1);
+            let n = degree + 1;
+            let (mut g, mut b) = (DMatrix::<f64>::zeros(n, n), DVector::<f64>::zeros(n));
+            let mut row = vec![0.0; n];
+            for i in (0..s.len()).step_by(stride) {
+                chebyshev_row(s.tau(i), &mut row);
+                let y = s.r[i] - s.origin;
+                for a in 0..n {
+                    b[a] += row[a] * y;
+                    for c in 0..=a {
+                        g[(a, c)] += row[a] * row[c];
+                    }
+                }
+            }
+            let g = DMatrix::from_fn(n, n, |a, c| g[(a.max(c), a.min(c))]);
+            g.cholesky()
+                .map(|ch| ch.solve(&b).iter().copied().collect::<Vec<f64>>())
+                .unwrap_or_else(|| vec![0.0; n])
+        };
+        for (n, degree) in [
+            (5, 2),
+            (13, 1),
+            (20_003, 2),
+            (20_003, 17),
+            (250_001, 30),
+            (9, 45),
+        ] {
+            let (t, r, _) = coast(n);
+            let s = Samples {
+                t: &t,
+                r: &r,
+                origin: r[0],
+                span: (t[0], t[n - 1]),
+            };
+            let bits = |v: Vec<f64>| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+            assert_eq!(
+                bits(preliminary_motion(s, degree)),
+                bits(one_at_a_time(s, degree)),
+                "{n} samples, degree {degree}"
+            );
+        }
     }
 
     #[test]
