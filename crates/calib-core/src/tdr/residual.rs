@@ -196,25 +196,14 @@ impl Trace {
     /// The residuals of the samples `range`, one block.
     fn record(&self, range: Range<usize>, residuals: impl Iterator<Item = f64>) {
         // Interval k holds sample i when start(k) ≤ i < start(k + 1), i.e. k·n < (i + 1)·bins.
-        let part = |bin| Part {
-            bin,
-            sum: 0.0,
-            min: f64::INFINITY,
-            max: f64::NEG_INFINITY,
-        };
         let mut bin = ((range.start + 1) * self.bins - 1) / self.n;
-        let mut end = self.start(bin + 1);
-        let mut parts = vec![part(bin)];
-        for (i, e) in range.clone().zip(residuals) {
-            if i == end {
-                bin += 1;
-                end = self.start(bin + 1);
-                parts.push(part(bin));
-            }
-            let part = parts.last_mut().expect("one part at least");
-            part.sum += e;
-            part.min = part.min.min(e);
-            part.max = part.max.max(e);
+        let mut parts = Vec::with_capacity(2);
+        let (mut first, mut residuals) = (range.start, residuals);
+        while first < range.end {
+            let end = self.start(bin + 1).min(range.end);
+            let (sum, min, max) = summary(residuals.by_ref().take(end - first));
+            parts.push(Part { bin, sum, min, max });
+            (first, bin) = (end, bin + 1);
         }
         // Each block is recorded once; a second recording would hold the same values.
         let _ = self.blocks[range.start / BLOCK].set(parts);
@@ -248,6 +237,17 @@ impl Trace {
             })
             .collect()
     }
+}
+
+/// The sum, the least and the greatest of `residuals`, in their order. Out of line, so that
+/// the three stay in registers: inlined into the residuals' pass they went through memory at
+/// every sample, and the intervals took 1.6 times as long.
+#[inline(never)]
+fn summary(residuals: impl Iterator<Item = f64>) -> (f64, f64, f64) {
+    residuals.fold(
+        (0.0, f64::INFINITY, f64::NEG_INFINITY),
+        |(sum, min, max), e| (sum + e, min.min(e), max.max(e)),
+    )
 }
 
 /// The final fit as a function of a sample: the motion's series, the map, and the drag
