@@ -31,7 +31,12 @@ fn clenshaw<const L: usize>(c: &[f64], tau: &[f64; L]) -> [f64; L] {
         }
     }
     let c0 = c.first().copied().unwrap_or(0.0);
-    std::array::from_fn(|l| c0 + tau[l] * b1[l] - b2[l])
+    // A loop, not `array::from_fn`: its closure is compiled apart, without the caller's AVX.
+    let mut f = [0.0; L];
+    for l in 0..L {
+        f[l] = c0 + tau[l] * b1[l] - b2[l];
+    }
+    f
 }
 
 /// The `n` coefficients of the Chebyshev interpolant of `f` at the `n` Chebyshev points

@@ -64,7 +64,34 @@ pub(super) struct Samples<'a> {
 
 impl Samples<'_> {
     pub fn tau(&self, i: usize) -> f64 {
-        (2.0 * self.t[i] - self.span.0 - self.span.1) / (self.span.1 - self.span.0)
+        self.normalized(self.t[i])
+    }
+
+    #[inline(always)]
+    fn normalized(&self, t: f64) -> f64 {
+        (2.0 * t - self.span.0 - self.span.1) / (self.span.1 - self.span.0)
+    }
+
+    /// `τ` of the `N` samples from `first`, the one before `end` repeated past it. A whole
+    /// group is one loop over a slice, which the compiler turns into vector divisions where
+    /// the caller's target features allow (`array::from_fn`'s closure, compiled apart, divided
+    /// one at a time).
+    #[inline(always)]
+    pub fn taus<const N: usize>(&self, first: usize, end: usize) -> [f64; N] {
+        let mut tau = [0.0; N];
+        match self.t.get(first..first + N).filter(|_| first + N <= end) {
+            Some(t) => {
+                for (tau, &t) in tau.iter_mut().zip(t) {
+                    *tau = self.normalized(t);
+                }
+            }
+            None => {
+                for (l, tau) in tau.iter_mut().enumerate() {
+                    *tau = self.tau((first + l).min(end - 1));
+                }
+            }
+        }
+        tau
     }
 
     pub fn len(&self) -> usize {
@@ -78,7 +105,7 @@ impl Samples<'_> {
         let mut squares = 0.0;
         for first in range.clone().step_by(LANES) {
             let lanes = LANES.min(range.end - first);
-            let tau: [f64; LANES] = std::array::from_fn(|l| self.tau(first + l.min(lanes - 1)));
+            let tau: [f64; LANES] = self.taus(first, range.end);
             let motion = chebyshev_lanes(p, &tau);
             for l in 0..lanes {
                 let r = self.r[first + l];

@@ -334,7 +334,7 @@ impl Model {
     fn residuals(&self, s: Samples, range: Range<usize>, out: &mut Vec<(f64, f64, [f64; 1])>) {
         for first in range.clone().step_by(LANES) {
             let lanes = LANES.min(range.end - first);
-            let tau: [f64; LANES] = std::array::from_fn(|l| s.tau(first + l.min(lanes - 1)));
+            let tau: [f64; LANES] = s.taus(first, range.end);
             let motion = chebyshev_lanes(&self.motion, &tau);
             for l in 0..lanes {
                 let r = s.r[first + l];
