@@ -44,7 +44,8 @@
 //!
 //! # Speed
 //! On x86-64 CPUs with AVX2 and FMA (detected at run time) the spreading uses those
-//! instructions. Two consecutive samples that share their first row (and, by runs, their
+//! instructions, and places four samples on the grid at a time (the same bits as one at a
+//! time). Two consecutive samples that share their first row (and, by runs, their
 //! sub-interval) and start at most 4 columns apart along `b` — nearly all of them when the
 //! samples are in time order — are added in one pass. Two consecutive samples' kernels along
 //! `b` are evaluated together along one dimension (`j_max = 0`) and by runs (the two chains of
