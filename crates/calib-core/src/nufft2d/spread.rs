@@ -130,20 +130,6 @@ impl<const K: usize> Located<K> {
         let x = fa * SUBDIV as f64;
         let sub = (x as usize).min(SUBDIV - 1);
         let u = 2.0 * (x - sub as f64) - 1.0;
-        Located::of_parts(row, fa, sub, u, first, fb, w)
-    }
-
-    /// A located sample from its parts, as [`Located::new`] computes them.
-    #[inline(always)]
-    fn of_parts(
-        row: usize,
-        fa: f64,
-        sub: usize,
-        u: f64,
-        first: usize,
-        fb: f64,
-        w: [f64; K],
-    ) -> Self {
         Located {
             row,
             fa,
@@ -876,21 +862,21 @@ pub(super) mod avx2 {
                 match placed {
                     Some((row, fa, sub, u, first, fb)) => {
                         for (l, p) in g.iter().enumerate() {
-                            located.push(Located::of_parts(
-                                row[l], fa[l], sub[l], u[l], first[l], fb[l], p.2,
-                            ));
+                            located.push(Located {
+                                row: row[l],
+                                fa: fa[l],
+                                sub: sub[l],
+                                u: u[l],
+                                first: first[l],
+                                fb: fb[l],
+                                w: p.2,
+                            });
                         }
                     }
-                    None => {
-                        for &p in g {
-                            located.push(Located::new(plan, p));
-                        }
-                    }
+                    None => super::Portable.locate(plan, g, located),
                 }
             }
-            for &p in groups.remainder() {
-                located.push(Located::new(plan, p));
-            }
+            super::Portable.locate(plan, groups.remainder(), located);
         }
 
         #[inline(always)]
