@@ -230,19 +230,21 @@ pub(super) fn preliminary_motion(s: Samples, degree: usize) -> Vec<f64> {
     // entries as fill a row's last vector), `Gᵀy`, each entry summed over the samples in their
     // order. The samples come [`PRELIMINARY_BATCH`] at a time, their rows side by side, so that
     // an entry's sums over them stay in a register (loading and storing each entry per sample
-    // took four times as long).
+    // took 1.7 times as long).
     let width = n.next_multiple_of(4);
     let mut gram = vec![0.0; n * width];
     let mut b = vec![0.0; n];
     let mut rows = vec![0.0; PRELIMINARY_BATCH * width];
     let mut ys = [0.0; PRELIMINARY_BATCH];
-    let picked: Vec<usize> = (0..s.len()).step_by(stride).collect();
-    for batch in picked.chunks(PRELIMINARY_BATCH) {
-        for ((&i, row), y) in batch.iter().zip(rows.chunks_exact_mut(width)).zip(&mut ys) {
+    let batch_step = PRELIMINARY_BATCH * stride;
+    for first in (0..s.len()).step_by(batch_step) {
+        let batch = (first..s.len().min(first + batch_step)).step_by(stride);
+        let count = batch.len();
+        for ((i, row), y) in batch.zip(rows.chunks_exact_mut(width)).zip(&mut ys) {
             chebyshev_row(s.tau(i), &mut row[..n]);
             *y = s.r[i] - s.origin;
         }
-        let rows = &rows[..batch.len() * width];
+        let rows = &rows[..count * width];
         for (a, (line, b)) in gram.chunks_exact_mut(width).zip(&mut b).enumerate() {
             for (q, cells) in line[..(a + 1).next_multiple_of(4)]
                 .chunks_exact_mut(4)
