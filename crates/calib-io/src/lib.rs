@@ -49,6 +49,7 @@ pub mod apply;
 pub mod atomic;
 mod bookkeeping;
 pub mod budget;
+mod columns;
 pub mod compare;
 pub mod csv_log;
 mod error;

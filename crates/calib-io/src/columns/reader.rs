@@ -1,0 +1,1 @@
+//! Turns a [`super::ColumnSet`] into samples (written next).
