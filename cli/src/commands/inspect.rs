@@ -81,7 +81,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let point_list = reader.is_point_list();
     // How the file was read: a CSV dialect other than the plain one, or what a columnar file
     // holds and where its time came from.
-    let structure = reader.structure();
+    let structure: Vec<String> = reader
+        .structure()
+        .iter()
+        .map(|l| crate::flags::in_cli_words(l))
+        .collect();
     let layout = reader
         .csv_dialect()
         .filter(|d| !d.is_plain())

@@ -306,17 +306,10 @@ impl TimeAxis {
         if opts.allow_point_list {
             return Ok(TimeAxis::Index);
         }
-        let hint = columns
-            .iter()
-            .find(|c| steadily_increasing(&c.values))
-            .map(|c| {
-                format!(
-                    "; `{0}` increases steadily: if it is the time, give `time_column = {0}` \
-                     (and the `time_unit` option if it is not in seconds)",
-                    c.name
-                )
-            })
-            .unwrap_or_else(|| "; name the time channel with the `time_column` option".to_string());
+        let hint = steady_hint(columns).map_or_else(
+            || "; name the time channel with the `time_column` option".to_string(),
+            |h| format!("; {h}"),
+        );
         Err(format!(
             "no time channel among {} (none is named t, time or timestamp, nor typed as time \
              stamps or a waveform){hint}",
@@ -358,12 +351,11 @@ impl TimeAxis {
         let (stamps_ns, what, point_list) = match self {
             TimeAxis::Index => {
                 let times = (0..len).map(|i| i as f64).collect();
-                return Ok((
-                    times,
-                    0.0,
-                    "none: a point list, samples in order".into(),
-                    true,
-                ));
+                let what = match steady_hint(columns) {
+                    Some(hint) => format!("none: read as a point list, samples in order; {hint}"),
+                    None => "none: read as a point list, samples in order".into(),
+                };
+                return Ok((times, 0.0, what, true));
             }
             TimeAxis::Waveform {
                 start_ns,
@@ -478,6 +470,21 @@ fn unit_name(unit: TimeUnit) -> &'static str {
         TimeUnit::Ns => "nanoseconds",
         TimeUnit::Ticks => "100 ns ticks",
     }
+}
+
+/// What to say of the first channel that increases steadily, the likely time of a file that
+/// names none.
+fn steady_hint(columns: &[Column]) -> Option<String> {
+    columns
+        .iter()
+        .find(|c| steadily_increasing(&c.values))
+        .map(|c| {
+            format!(
+                "`{0}` increases steadily: if it is the time, give `time_column = {0}` (and the \
+                 `time_unit` option if it is not in seconds)",
+                c.name
+            )
+        })
 }
 
 /// Whether `values` increase at every step, by steps within 1 % of their median: a clock.
