@@ -257,9 +257,9 @@ fn pid_namespace() -> Option<u64> {
     link.strip_prefix("pid:[")?.strip_suffix(']')?.parse().ok()
 }
 
-/// A hidden temporary file in `target`'s directory (`.name.calib-<pid>@<host>.XXXXXX.tmp`), readable as
-/// an ordinary output once renamed: a `NamedTempFile` is private (0600) by default, so ask for
-/// 0666 and let the user's umask decide, as for any other file they create.
+/// A hidden temporary file in `target`'s directory (`.name.calib-<pid>@<host>.XXXXXX.tmp`),
+/// readable as an ordinary output once renamed: a `NamedTempFile` is private (0600) by default,
+/// so ask for 0666 and let the user's umask decide, as for any other file they create.
 pub(crate) fn temp_file_beside(target: &Path) -> io::Result<NamedTempFile> {
     let name = target
         .file_name()
@@ -438,8 +438,8 @@ fn remove_staging_folder(folder: &Path) -> Option<bool> {
 }
 
 /// The process ID and host in a temporary name of calib's
-/// (`.<name>.calib-<pid>@<host>.<random>.tmp`); the host is `None` in a name made by an earlier calib
-/// (`.<name>.calib-<pid>.<random>.tmp`).
+/// (`.<name>.calib-<pid>@<host>.<random>.tmp`); the host is `None` in a name made by an earlier
+/// calib (`.<name>.calib-<pid>.<random>.tmp`).
 fn stale_owner(name: &str) -> Option<(u32, Option<&str>)> {
     if !name.starts_with('.') || !name.ends_with(".tmp") {
         return None;
