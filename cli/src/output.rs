@@ -124,27 +124,32 @@ pub fn allow_replacing(force: bool) {
 /// file that calib did not write: each of them that exists must be listed in the folder's
 /// manifest ([`calib_io::atomic::Manifest`]: an earlier output of calib's), unless `--force`.
 /// The error names every such file and the option. An input of the run among them is refused
-/// first, as such ([`crate::overwrite`]), `--force` or not.
+/// as such ([`crate::overwrite`]), `--force` or not. A folder in the way is not checked here:
+/// nothing can replace it, and writing fails naming it before any file is put in place.
 pub fn check_replaces_only_calibs<'a>(
     folder: &Path,
     names: impl IntoIterator<Item = &'a str>,
     via: &str,
 ) -> Result<(), Usage> {
-    let names: Vec<&str> = names.into_iter().collect();
-    for name in &names {
-        crate::overwrite::check(&folder.join(name), via)?;
-    }
     if FORCE.get().copied().unwrap_or(false) {
         return Ok(());
     }
     let manifest = calib_io::atomic::Manifest::read(folder);
     let mut foreign: Vec<&str> = names
         .into_iter()
-        .filter(|n| folder.join(n).symlink_metadata().is_ok() && !manifest.lists(n))
+        .filter(|n| {
+            folder
+                .join(n)
+                .symlink_metadata()
+                .is_ok_and(|m| !m.is_dir() && !manifest.lists(n))
+        })
         .collect();
     foreign.dedup();
     if foreign.is_empty() {
         return Ok(());
+    }
+    for name in &foreign {
+        crate::overwrite::check(&folder.join(name), via)?;
     }
     let (them, are, it) = if foreign.len() == 1 {
         ("it", "is", "it")
