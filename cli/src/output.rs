@@ -105,8 +105,8 @@ fn report_stale(dir: &Path) {
     }
     for (path, why) in &stale.kept {
         eprintln!(
-            "calib: note: left {} in place although its calib run has ended: {why}; remove it \
-             yourself if nothing else uses it",
+            "calib: note: left {} in place, although no process of this host has its pid: \
+             {why}; remove it yourself if no calib run uses it",
             crate::ui::shown(path)
         );
     }
@@ -123,8 +123,9 @@ pub fn allow_replacing(force: bool) {
 /// Checks that writing `names` into `folder` (for the option `via`, e.g. `-o out`) replaces no
 /// file that calib did not write: each of them that exists must be listed in the folder's
 /// manifest ([`calib_io::atomic::Manifest`]: an earlier output of calib's), unless `--force`.
-/// The error names every such file and the option. An input of the run among them is refused
-/// as such ([`crate::overwrite`]), `--force` or not. A folder in the way is not checked here:
+/// The error names every such file and the option; an input of the run among them is named as
+/// such instead ([`crate::overwrite`], which refuses inputs `--force` or not, wherever a command
+/// writes). A folder in the way is not checked here:
 /// nothing can replace it, and writing fails naming it before any file is put in place.
 pub fn check_replaces_only_calibs<'a>(
     folder: &Path,
