@@ -65,9 +65,12 @@ pub struct BatchArgs {
     /// for scripts whose wildcard may match a single file.
     #[arg(long)]
     pub per_log: bool,
-    /// Replace an output folder that holds the results of another command or of other logs
-    /// (without it that is refused, exit 2, naming the run and its files: rerunning the same
-    /// command on the same logs replaces its results without asking).
+    /// Replace an output folder that holds the results of another command or of other logs,
+    /// and files in it (or in --plots DIR) that calib did not write, such as your own
+    /// report.json beside the logs with -o . (without it either is refused, exit 2, naming the
+    /// run or the files, before anything is written: rerunning the same command on the same logs
+    /// replaces its results without asking, and calib's own earlier outputs, listed in the
+    /// folder's hidden .calib-manifest, are always replaced).
     #[arg(long)]
     pub force: bool,
 }
@@ -220,14 +223,30 @@ where
     F: Fn(&Path, &Path) -> anyhow::Result<Outcome> + Sync,
 {
     crate::output::prepare_folder(output)?;
+    // Held until the run returns: a second run into the folder refuses at once.
+    let _lock = crate::output::lock_folder(output, "-o")?;
     if !opts.force {
         crate::output::check_replacing(output, method, logs)?;
     }
-    if let Some(plots) = &opts.plots {
-        crate::output::prepare_folder(plots)?;
+    if logs.len() == 1 && !opts.per_log {
+        // The reports every method writes, checked now rather than after the calibration (the
+        // tables' names, known only then, are checked before anything is written).
+        crate::output::check_replaces_only_calibs(
+            output,
+            ["report.json", "report.html"],
+            &format!("-o {}", crate::ui::shown(output)),
+        )?;
     }
+    let _plots_lock = match &opts.plots {
+        Some(plots) => {
+            crate::output::prepare_folder(plots)?;
+            Some(crate::output::lock_folder(plots, "--plots")?)
+        }
+        None => None,
+    };
     if let Some(path) = &opts.junit {
         crate::overwrite::check(path, &format!("--junit {}", crate::ui::shown(path)))?;
+        crate::output::check_file_replaceable(path, "--junit")?;
     }
     if logs.len() == 1 && !opts.per_log {
         let result = calibrate(&logs[0], output);
@@ -256,6 +275,11 @@ where
     let folders = folder_names(logs);
     let summary_path = output.join("summary.json");
     crate::overwrite::check(&summary_path, &format!("-o {}", crate::ui::shown(output)))?;
+    crate::output::check_replaces_only_calibs(
+        output,
+        ["summary.json"],
+        &format!("-o {}", crate::ui::shown(output)),
+    )?;
     std::fs::create_dir_all(output)
         .with_context(|| format!("cannot create the output folder {}", output.display()))?;
     // On rayon's threads, as many as `--jobs` (crate::threads); `collect` keeps the input order
@@ -292,6 +316,7 @@ where
     };
     let summary_json = calib_io::report::render_json(&summary)?;
     calib_io::atomic::write_atomic(&summary_path, summary_json.as_bytes())?;
+    crate::output::record_written([&summary_path]);
     if let Some(path) = &opts.junit {
         write_junit(path, method, &results)?;
     }
@@ -471,7 +496,9 @@ fn render_text(results: &[LogResult], output: &Path, summary_path: &Path) -> Str
 /// Writes the JUnit XML file: one `<testcase>` per log.
 fn write_junit(path: &Path, method: &str, results: &[LogResult]) -> anyhow::Result<()> {
     calib_io::atomic::write_atomic(path, render_junit(method, results).as_bytes())
-        .with_context(|| format!("cannot write the JUnit file {}", path.display()))
+        .with_context(|| format!("cannot write the JUnit file {}", path.display()))?;
+    crate::output::record_written([path]);
+    Ok(())
 }
 
 /// The JUnit XML of `results`: no times or host names, so equal runs give equal files.

@@ -124,6 +124,27 @@ impl Command {
         }
     }
 
+    /// The command's `--force`, where it has one: replace files calib did not write
+    /// ([`crate::output::check_replaces_only_calibs`]).
+    pub fn force(&self) -> bool {
+        match self {
+            Command::Inspect(_) | Command::Uncertainty(_) => false,
+            Command::Simulate(a) => a.force,
+            Command::Csrr(a) => a.common.batch.force,
+            Command::Multihead(a) => a.common.batch.force,
+            Command::Tdr(a) => a.common.batch.force,
+            Command::Reference(a) => a.common.batch.force,
+            Command::ShiftAngle(a) => a.batch.force,
+            Command::MoteusDump(a) => a.force,
+            Command::Compare(a) => a.force,
+            Command::Apply(a) => a.force,
+            Command::Compose(a) => a.force,
+            Command::Export(a) => a.force,
+            Command::Import(a) => a.force,
+            Command::Plan(a) => a.force,
+        }
+    }
+
     /// Every path the command reads, with what it is: none of them may be written
     /// ([`crate::overwrite`]). A new command or input option is listed here.
     pub fn inputs(&self) -> Inputs {

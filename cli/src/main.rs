@@ -63,6 +63,7 @@ fn run(cli: cli::Cli) -> anyhow::Result<String> {
     ui::set(cli.global);
     threads::declare(cli.command.jobs())?;
     overwrite::protect(cli.command.inputs());
+    output::allow_replacing(cli.command.force());
     match cli.command {
         Command::Inspect(args) => commands::inspect::run(&args),
         Command::Simulate(args) => commands::simulate::run(&args),

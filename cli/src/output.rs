@@ -31,7 +31,8 @@ pub fn prepare_folder(dir: &Path) -> anyhow::Result<()> {
 }
 
 /// Checks, before any reading, that a file can be written at `path` (its folder exists and is
-/// writable, and it is not a folder), and removes stale temporary files beside it.
+/// writable, it is not a folder, and it is not a file calib did not write, unless `--force`:
+/// [`check_file_replaceable`]), and removes stale temporary files beside it.
 pub fn prepare_file(path: &Path, option: &str) -> anyhow::Result<()> {
     if path.is_dir() {
         return Err(Usage(format!(
@@ -40,10 +41,7 @@ pub fn prepare_file(path: &Path, option: &str) -> anyhow::Result<()> {
         ))
         .into());
     }
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let parent = parent_of(path);
     if !parent.is_dir() {
         return Err(Usage(format!(
             "{option} {}: the folder {} does not exist; create it first or choose another path",
@@ -53,6 +51,7 @@ pub fn prepare_file(path: &Path, option: &str) -> anyhow::Result<()> {
         .into());
     }
     check_writable(parent, option)?;
+    check_file_replaceable(path, option)?;
     report_stale(parent);
     Ok(())
 }
@@ -93,14 +92,137 @@ fn check_writable(dir: &Path, option: &str) -> anyhow::Result<()> {
         })
 }
 
-/// Removes stale temporary files of calib's from `dir`, noting how many on standard error.
+/// Removes stale temporary files of calib's from `dir`, noting how many on standard error, and
+/// names those that may be stale but that calib cannot prove its own (so leaves alone).
 fn report_stale(dir: &Path) {
-    let n = calib_io::atomic::remove_stale(dir);
-    if n > 0 {
+    let stale = calib_io::atomic::remove_stale(dir);
+    if stale.removed > 0 {
         eprintln!(
-            "calib: note: removed {n} temporary file(s) left in {} by a calib run that was killed",
+            "calib: note: removed {} temporary file(s) left in {} by a calib run that was killed",
+            stale.removed,
             dir.display()
         );
+    }
+    for (path, why) in &stale.kept {
+        eprintln!(
+            "calib: note: left {} in place, although no process of this host has its pid: \
+             {why}; remove it yourself if no calib run uses it",
+            crate::ui::shown(path)
+        );
+    }
+}
+
+/// `--force`: replace files that calib did not write. Set once, from the command's arguments.
+static FORCE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+
+/// Records the running command's `--force`; the first call wins.
+pub fn allow_replacing(force: bool) {
+    let _ = FORCE.set(force);
+}
+
+/// Checks that writing `names` into `folder` (for the option `via`, e.g. `-o out`) replaces no
+/// file that calib did not write: each of them that exists must be listed in the folder's
+/// manifest ([`calib_io::atomic::Manifest`]: an earlier output of calib's), unless `--force`.
+/// The error names every such file and the option; an input of the run among them is named as
+/// such instead ([`crate::overwrite`], which refuses inputs `--force` or not, wherever a command
+/// writes). A folder in the way is not checked here:
+/// nothing can replace it, and writing fails naming it before any file is put in place.
+pub fn check_replaces_only_calibs<'a>(
+    folder: &Path,
+    names: impl IntoIterator<Item = &'a str>,
+    via: &str,
+) -> Result<(), Usage> {
+    if FORCE.get().copied().unwrap_or(false) {
+        return Ok(());
+    }
+    let manifest = calib_io::atomic::Manifest::read(folder);
+    let mut foreign: Vec<&str> = names
+        .into_iter()
+        .filter(|n| {
+            folder
+                .join(n)
+                .symlink_metadata()
+                .is_ok_and(|m| !m.is_dir() && !manifest.lists(n))
+        })
+        .collect();
+    foreign.dedup();
+    if foreign.is_empty() {
+        return Ok(());
+    }
+    for name in &foreign {
+        crate::overwrite::check(&folder.join(name), via)?;
+    }
+    let (them, are, it) = if foreign.len() == 1 {
+        ("it", "is", "it")
+    } else {
+        ("them", "are", "them")
+    };
+    Err(Usage(format!(
+        "{via}: {} {are} already there and calib did not write {them} (no calib manifest in {} \
+         lists {it}); calib replaces only its own earlier outputs: move {them} away, choose \
+         another output path, or add --force to replace {them}",
+        foreign
+            .iter()
+            .map(|n| crate::ui::shown(&folder.join(n)))
+            .collect::<Vec<_>>()
+            .join(", "),
+        crate::ui::shown(folder)
+    )))
+}
+
+/// [`check_replaces_only_calibs`] for one file, `path`.
+pub fn check_file_replaceable(path: &Path, option: &str) -> Result<(), Usage> {
+    let Some(name) = path.file_name() else {
+        return Ok(());
+    };
+    let name = name.to_string_lossy();
+    check_replaces_only_calibs(
+        parent_of(path),
+        [name.as_ref()],
+        &format!("{option} {}", crate::ui::shown(path)),
+    )
+}
+
+/// Lists `paths`, files just written one at a time, in their folders' manifests, so that
+/// calib may replace them later without `--force`. A manifest that cannot be written is noted
+/// on standard error: the outputs themselves are complete.
+pub fn record_written<P: AsRef<Path>>(paths: impl IntoIterator<Item = P>) {
+    for path in paths {
+        if let Err(e) = calib_io::atomic::record_written(path.as_ref()) {
+            eprintln!(
+                "calib: note: {}: not listed as calib's output ({e}); replacing it later needs \
+                 --force",
+                crate::ui::shown(path.as_ref())
+            );
+        }
+    }
+}
+
+/// Locks `dir` for this run ([`calib_io::folder_lock`]): a second run into the same folder
+/// fails at once with a usage error naming the folder and the run that holds it.
+pub fn lock_folder(dir: &Path, option: &str) -> anyhow::Result<calib_io::folder_lock::FolderLock> {
+    use calib_io::folder_lock::{FolderLock, LockError};
+    FolderLock::acquire(dir).map_err(|e| match e {
+        LockError::Held { holder, lock, .. } => Usage(format!(
+            "{option} {}: another calib run is writing into this folder ({holder}; lock file \
+             {}); calib does not wait: run again once it has finished, or choose another \
+             folder",
+            crate::ui::shown(dir),
+            crate::ui::shown(&lock)
+        ))
+        .into(),
+        LockError::Io(e) => anyhow::Error::new(e).context(format!(
+            "cannot lock the folder {} for this run",
+            dir.display()
+        )),
+    })
+}
+
+/// The directory holding `path` (`.` for a bare name).
+fn parent_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
     }
 }
 
@@ -253,9 +375,14 @@ pub fn write_outputs(
     for (folder, option, names) in folders {
         let via = format!("{option} {}", crate::ui::shown(folder));
         let previous = calib_io::atomic::read_manifest(folder);
-        for name in names.into_iter().chain(previous.iter().map(String::as_str)) {
+        for name in names
+            .iter()
+            .copied()
+            .chain(previous.iter().map(String::as_str))
+        {
             crate::overwrite::check(&folder.join(name), &via)?;
         }
+        check_replaces_only_calibs(folder, names, &via)?;
     }
     let mut outputs = calib_io::atomic::OutputSet::new();
     for (folder, what) in

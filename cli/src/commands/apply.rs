@@ -95,6 +95,10 @@ pub struct Args {
     /// Print what was done as JSON (docs/apply.schema.json) instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// Replace FILE even if calib did not write it (without it, a file there that no calib
+    /// manifest of its folder lists is refused, exit 2, and left as it is).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Runs `calib apply`: checks the arguments, corrects the log, says what was done.
@@ -146,6 +150,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     .finish(&args.log)?;
     let done = apply_scanned(&args.log, &args.output, &table.map, &opts, &readings)
         .with_context(cannot)?;
+    crate::output::record_written([&args.output]);
     if args.json {
         return render_json(args, &name, &table, &done, &notes);
     }

@@ -59,6 +59,10 @@ pub struct Args {
     /// Print the comparison as JSON instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// Replace files in DIR that calib did not write (without it, a file there that DIR's calib
+    /// manifest does not list is refused, exit 2, and left as it is).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Runs `calib compare`.
@@ -72,6 +76,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     }
     let csv_path = args.output.join("compare.csv");
     crate::overwrite::check(&csv_path, &format!("-o {}", crate::ui::shown(&args.output)))?;
+    crate::output::check_replaces_only_calibs(
+        &args.output,
+        ["compare.csv"],
+        &format!("-o {}", crate::ui::shown(&args.output)),
+    )?;
     let t1 = calib_io::points::read_points(&args.map1)?;
     let t2 = calib_io::points::read_points(&args.map2)?;
     let mut m1 = with_expanded(&t1, &args.map1, args.u1, args.k, "--U1")?;
@@ -115,6 +124,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         &csv_path,
         calib_io::compare::render_compare_csv(&c).as_bytes(),
     )?;
+    crate::output::record_written([&csv_path]);
     let stdout = if args.json {
         serde_json::to_string_pretty(&c)? + "\n"
     } else {

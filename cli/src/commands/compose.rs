@@ -45,6 +45,10 @@ pub struct Args {
     /// Print what was composed as JSON (docs/compose.schema.json) instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// Replace FILE even if calib did not write it (without it, a file there that no calib
+    /// manifest of its folder lists is refused, exit 2, and left as it is).
+    #[arg(long)]
+    pub force: bool,
     /// The part of the residual to take: 1 for all of it, less for a partial update.
     #[arg(long, default_value_t = 1.0)]
     pub factor: f64,
@@ -87,6 +91,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     };
     calib_io::table::write_table(&args.output, &done.map.clone().into(), u.as_deref())
         .with_context(|| format!("cannot write {}", args.output.display()))?;
+    crate::output::record_written([&args.output]);
 
     let arcsec = |x: f64| x * ARCSEC_PER_RAD;
     let describe = |t: &Table<ErrorMap>, path: &Path| {

@@ -111,6 +111,10 @@ pub struct Args {
     /// Print what was written as JSON (docs/export.schema.json) instead of the header; needs -o.
     #[arg(long, requires = "output")]
     pub json: bool,
+    /// Replace FILE even if calib did not write it (without it, a file there that no calib
+    /// manifest of its folder lists is refused, exit 2, and left as it is).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// A list of harmonic orders (`--orders`).
@@ -208,6 +212,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     match &args.output {
         Some(path) => {
             calib_io::atomic::write_atomic(path, out.text.as_bytes())?;
+            crate::output::record_written([path]);
             if args.json {
                 return crate::json::render(&ExportJson {
                     schema_version: calib_core::report::SCHEMA_VERSION,

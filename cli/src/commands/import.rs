@@ -74,6 +74,10 @@ pub struct Args {
     /// Print what was read as JSON (docs/import.schema.json) instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// Replace FILE even if calib did not write it (without it, a file there that no calib
+    /// manifest of its folder lists is refused, exit 2, and left as it is).
+    #[arg(long)]
+    pub force: bool,
     /// moteus: the motor_position source to read (0, 1 or 2; default: the only one the file
     /// has a table for).
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..3))]
@@ -108,6 +112,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let table = import::import(&args.file, &opts)
         .with_context(|| format!("cannot read {}", args.file.display()))?;
     calib_io::table::write_table(&args.output, &table.map.clone().into(), None)?;
+    crate::output::record_written([&args.output]);
     let map = &table.map;
     if args.json {
         return crate::json::render(&crate::json::ImportJson {

@@ -61,11 +61,17 @@ pub struct Args {
     /// Print report.json on standard output instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// Replace files in DIR that calib did not write (without it, a file there that DIR's calib
+    /// manifest does not list is refused, exit 2, and left as it is).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Runs `calib moteus-dump`.
 pub fn run(args: &Args) -> anyhow::Result<String> {
     crate::input::check_points(Some(args.points))?;
+    // Held until the run returns: a second run into the folder refuses at once.
+    let _lock = crate::output::lock_folder(&args.output, "-o")?;
     if args.pole_pairs == Some(0) {
         return Err(crate::exit::Usage("--pole-pairs must be at least 1".to_string()).into());
     }

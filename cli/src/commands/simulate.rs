@@ -63,7 +63,10 @@ pub struct Args {
     /// linearly to 0.02″ for errors of ±700″ at order 84).
     #[arg(long, default_value_t = 36000)]
     pub points: usize,
-    /// Write the run even when it has more samples than the limit (see Limits in `calib --help`).
+    /// Write the run even when it has more samples than the limit (see Limits in `calib --help`),
+    /// and replace FILE and its truth tables even if calib did not write them (without it, a
+    /// file there that no calib manifest of its folder lists is refused, exit 2, and left as it
+    /// is).
     #[arg(long)]
     pub force: bool,
     /// Print what was written as JSON (docs/simulate.schema.json) instead of the summary.
@@ -175,6 +178,16 @@ fn run_scenario(args: &Args, scenario_path: &Path, output: &Path) -> anyhow::Res
     for (name, _) in &truths {
         crate::overwrite::check(&dir.join(table_name(name)), &via)?;
     }
+    crate::output::check_replaces_only_calibs(
+        &dir,
+        truths
+            .iter()
+            .map(|(name, _)| table_name(name))
+            .collect::<Vec<_>>()
+            .iter()
+            .map(String::as_str),
+        &format!("-o {} (its truth tables)", crate::ui::shown(output)),
+    )?;
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut written = Vec::new();
     let mut peaks = Vec::new();
@@ -195,6 +208,9 @@ fn run_scenario(args: &Args, scenario_path: &Path, output: &Path) -> anyhow::Res
         written.push(path);
     }
     writer.finish()?;
+    crate::output::record_written(
+        std::iter::once(output).chain(written.iter().map(PathBuf::as_path)),
+    );
 
     if args.json {
         return crate::json::render(&SimulateJson {

@@ -319,11 +319,13 @@ fn stale_temporary_files_of_dead_runs_are_removed_and_reported() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
+    // Temporary names say which process on which host made them (issue 52).
+    let host = common::this_host(dir.path());
     // A process that has ended: its pid names a dead run.
     let mut gone = Command::new("true").spawn().unwrap();
     gone.wait().unwrap();
-    let dead = format!(".a.csv.calib-{}.AbC123.tmp", gone.id());
-    let live = format!(".a.csv.calib-{}.XyZ789.tmp", std::process::id());
+    let dead = format!(".a.csv.calib-{}@{host}.AbC123.tmp", gone.id());
+    let live = format!(".a.csv.calib-{}@{host}.XyZ789.tmp", std::process::id());
     std::fs::write(out.join(&dead), "half a table").unwrap();
     std::fs::write(out.join(&live), "a concurrent run's table").unwrap();
     let o = calib(&["csrr", s(&quick_mcap()), "-o", s(&out)]);

@@ -1,13 +1,15 @@
 //! Outputs that cannot destroy or mislead: no command writes over one of its inputs, whatever
 //! the spelling of the path (issue 33 item 1); a folder holding another run's results is
 //! replaced only with --force (issue 30 item 6); readings in radians or counts read in the
-//! default degrees are refused, naming the unit (issue 30 item 4).
+//! default degrees are refused, naming the unit (issue 30 item 4); a file calib did not write is
+//! replaced only with --force, two runs into one folder exclude each other, and stale temporary
+//! entries are removed only where calib can prove them its own (issue 52).
 
 use crate::common;
 
 use common::*;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 /// Runs calib with `args` in the folder `dir`.
 fn calib_in(dir: &Path, args: &[&str]) -> Output {
@@ -485,4 +487,255 @@ noise_arcsec = 0.0
         "rest {rest}″, truth {vs_truth}″"
     );
     assert!(rest < vs_reference / 3.0, "rest {rest}″");
+}
+
+/// The entries of `dir`, sorted.
+fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// `cd lab && calib reference run.csv --dut dut --ref ref -o .` beside the user's own
+/// `dut.csv` and `report.json` (not inputs, no calib manifest) replaced both, exit 0; now exit 2
+/// naming both and --force, before anything is written, and both as they were. With --force they
+/// are replaced; calib's own earlier outputs (listed in the manifest it wrote) are replaced
+/// without it.
+#[test]
+fn files_calib_did_not_write_are_replaced_only_with_force() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "run.csv", &dut_log());
+    let dut = write(dir.path(), "dut.csv", "my own table, not calib's\n");
+    let report = write(dir.path(), "report.json", "{\"mine\": true}\n");
+    let run = [
+        "reference",
+        "run.csv",
+        "--dut",
+        "dut",
+        "--ref",
+        "ref",
+        "-o",
+        ".",
+    ];
+    let err = expect_exit(&calib_in(dir.path(), &run), 2);
+    assert_mentions(
+        &err,
+        &["-o .", "./report.json", "calib did not write", "--force"],
+    );
+    assert_eq!(
+        std::fs::read_to_string(&dut).unwrap(),
+        "my own table, not calib's\n"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&report).unwrap(),
+        "{\"mine\": true}\n"
+    );
+    assert_eq!(entries(dir.path()), ["dut.csv", "report.json", "run.csv"]);
+    // The table alone in the way: found once its name is known, still before anything is written.
+    std::fs::rename(&report, dir.path().join("my-report.json")).unwrap();
+    let err = expect_exit(&calib_in(dir.path(), &run), 2);
+    assert_mentions(
+        &err,
+        &["-o .", "./dut.csv", "calib did not write it", "--force"],
+    );
+    assert_eq!(
+        std::fs::read_to_string(&dut).unwrap(),
+        "my own table, not calib's\n"
+    );
+    assert_eq!(
+        entries(dir.path()),
+        ["dut.csv", "my-report.json", "run.csv"]
+    );
+    std::fs::rename(dir.path().join("my-report.json"), &report).unwrap();
+    // --force replaces them.
+    let mut forced = run.to_vec();
+    forced.push("--force");
+    expect_exit(&calib_in(dir.path(), &forced), 0);
+    assert!(read_table(&dut).len() > 10);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["method"], "reference");
+    // Now calib's own (the manifest lists them): rerun without --force replaces them.
+    let manifest = std::fs::read_to_string(dir.path().join(".calib-manifest")).unwrap();
+    assert_mentions(&manifest, &["dut.csv\n", "report.json\n", "report.html\n"]);
+    std::fs::write(&dut, "stale").unwrap();
+    expect_exit(&calib_in(dir.path(), &run), 0);
+    assert!(read_table(&dut).len() > 10);
+}
+
+/// `--plots DIR` holding the user's own `map-a.png` replaced it, exit 0; now exit 2 naming it,
+/// nothing written (neither the plots nor the output folder), and --force replaces it; the
+/// plots calib wrote there are replaced by the next run without --force.
+#[test]
+fn a_plots_folder_keeps_files_calib_did_not_write() {
+    let dir = tempfile::tempdir().unwrap();
+    simulate_quick(dir.path(), "run.csv", &[]);
+    let plots = dir.path().join("plots");
+    std::fs::create_dir(&plots).unwrap();
+    let mine = write(&plots, "map-a.png", "my own picture");
+    let run = ["csrr", "run.csv", "-o", "out", "--plots", "plots"];
+    let err = expect_exit(&calib_in(dir.path(), &run), 2);
+    assert_mentions(
+        &err,
+        &[
+            "--plots plots",
+            "plots/map-a.png",
+            "calib did not write",
+            "--force",
+        ],
+    );
+    assert_eq!(std::fs::read_to_string(&mine).unwrap(), "my own picture");
+    assert_eq!(entries(&plots), ["map-a.png"]);
+    assert_no_output(&dir.path().join("out"));
+    let mut forced = run.to_vec();
+    forced.push("--force");
+    expect_exit(&calib_in(dir.path(), &forced), 0);
+    assert!(std::fs::read(&mine).unwrap().starts_with(b"\x89PNG"));
+    expect_exit(&calib_in(dir.path(), &run), 0);
+    assert!(dir.path().join("out/report.json").is_file());
+}
+
+/// `calib export -o FILE` over the user's own FILE: exit 2 and FILE kept; --force replaces it,
+/// and the file calib wrote is replaced by the next export without --force.
+#[test]
+fn a_single_output_file_is_replaced_only_when_calib_wrote_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = table(
+        dir.path(),
+        "t.csv",
+        &[(0.0, 1.0), (90.0, -1.0), (180.0, 2.0), (270.0, 0.5)],
+    );
+    let header = write(dir.path(), "enc.h", "// my own header\n");
+    let export = ["export", s(&t), "--format", "c-array", "-o", "enc.h"];
+    let err = expect_exit(&calib_in(dir.path(), &export), 2);
+    assert_mentions(&err, &["-o enc.h", "calib did not write it", "--force"]);
+    assert_eq!(
+        std::fs::read_to_string(&header).unwrap(),
+        "// my own header\n"
+    );
+    let mut forced = export.to_vec();
+    forced.push("--force");
+    expect_exit(&calib_in(dir.path(), &forced), 0);
+    let written = std::fs::read_to_string(&header).unwrap();
+    assert_ne!(written, "// my own header\n");
+    expect_exit(&calib_in(dir.path(), &export), 0);
+    assert_eq!(std::fs::read_to_string(&header).unwrap(), written);
+}
+
+/// `calib csrr A -o o` and `calib csrr B -o o` started together into one new folder: both
+/// exited 0 and printed "wrote … into o" (8 of 8 trials) while one's results were gone. Now one
+/// runs and the other refuses at once (exit 2) naming the folder and the run holding it; the
+/// folder then holds the survivor's complete set. The logs are 10× quick.toml's rate, so that a
+/// run (over a second here) outlasts the few milliseconds between the two starts.
+#[test]
+fn two_runs_into_one_folder_exclude_each_other() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = simulate_quick(dir.path(), "a.csv", &[("rate_hz", "rate_hz = 2000.0")]);
+    let b = dir.path().join("b.csv");
+    std::fs::copy(&a, &b).unwrap();
+    for trial in 0..4 {
+        let out = dir.path().join(format!("o{trial}"));
+        let spawn = |log: &Path| {
+            Command::new(env!("CARGO_BIN_EXE_calib"))
+                .args(["csrr", s(log), "-o", s(&out)])
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("cannot start calib")
+        };
+        let runs = [spawn(&a), spawn(&b)];
+        let pids = [runs[0].id(), runs[1].id()];
+        let [ra, rb] = runs.map(|c| c.wait_with_output().unwrap());
+        let (won, lost, log, pid) = match (code(&ra), code(&rb)) {
+            (0, 2) => (ra, rb, &a, pids[0]),
+            (2, 0) => (rb, ra, &b, pids[1]),
+            (x, y) => panic!(
+                "trial {trial}: exits {x} and {y}\n{}\n{}",
+                stderr(&ra),
+                stderr(&rb)
+            ),
+        };
+        assert!(stdout(&won).contains("wrote"), "{}", stdout(&won));
+        assert_mentions(
+            &stderr(&lost),
+            &[
+                &format!("-o {}", out.display()),
+                "another calib run is writing into this folder",
+                &format!("(process {pid} on "),
+            ],
+        );
+        // The survivor's set, complete: exactly the files its manifest lists.
+        let manifest = std::fs::read_to_string(out.join(".calib-manifest")).unwrap();
+        let mut listed: Vec<&str> = manifest.lines().collect();
+        listed.push(".calib-manifest");
+        listed.sort();
+        assert_eq!(entries(&out), listed, "trial {trial}");
+        assert_eq!(listed.len(), 5, "{listed:?}");
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(report["inputs"][0], s(log), "trial {trial}");
+        assert!(read_table(&out.join("a.csv")).len() > 100);
+        assert!(read_table(&out.join("b.csv")).len() > 100);
+        // Nothing of either run is left beside the folder: no lock file, no staging folder.
+        let beside: Vec<String> = entries(dir.path())
+            .into_iter()
+            .filter(|n| n.starts_with('.') && n != ".calib-manifest")
+            .collect();
+        assert!(beside.is_empty(), "{beside:?}");
+    }
+}
+
+/// Stale cleanup removed, recursively, any `.X.calib-<pid>.Y.tmp` entry whose pid was not
+/// alive here — a live run's staging folder on another host sharing the folder too. Now: a
+/// dead run's staging folder of this host goes; another host's stays; a folder that is not
+/// calib's staging layout (it holds a subfolder), or a name without a host (an earlier calib),
+/// stays and is reported.
+#[test]
+fn stale_cleanup_removes_only_what_is_provably_calibs() {
+    let dir = tempfile::tempdir().unwrap();
+    let host = this_host(dir.path());
+    // Simulated first: `calib simulate` cleans its folder too.
+    let log = simulate_quick(dir.path(), "run.csv", &[]);
+    let mut gone = Command::new("true").spawn().unwrap();
+    gone.wait().unwrap();
+    let dead = gone.id();
+    let staging = |owner: &str, random: &str| {
+        let name = format!(".out.calib-{owner}.{random}.tmp");
+        let path = dir.path().join(&name);
+        std::fs::create_dir(&path).unwrap();
+        std::fs::write(path.join("a.csv"), "staged").unwrap();
+        name
+    };
+    let ours = staging(&format!("{dead}@{host}"), "AbC123");
+    let elsewhere = staging(&format!("{dead}@another-host+4026531836"), "XyZ789");
+    let earlier = staging(&dead.to_string(), "QqQ111");
+    let foreign = staging(&format!("{dead}@{host}"), "WwW222");
+    std::fs::create_dir(dir.path().join(&foreign).join("results")).unwrap();
+    std::fs::write(dir.path().join(&foreign).join("results/keep.csv"), "mine").unwrap();
+    // An existing folder: its parent, where the staging folders are, is cleaned too.
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let o = calib(&["csrr", s(&log), "-o", s(&out)]);
+    let err = expect_exit(&o, 0);
+    assert_mentions(&err, &["removed 1 temporary file(s)"]);
+    assert_mentions(
+        &err,
+        &[
+            &earlier,
+            "did not record its host",
+            &foreign,
+            "more than calib's staged files",
+        ],
+    );
+    assert!(!dir.path().join(&ours).exists(), "{ours}");
+    assert_eq!(entries(&dir.path().join(&elsewhere)), ["a.csv"]);
+    assert_eq!(entries(&dir.path().join(&earlier)), ["a.csv"]);
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join(&foreign).join("results/keep.csv")).unwrap(),
+        "mine"
+    );
 }

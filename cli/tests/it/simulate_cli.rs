@@ -58,13 +58,18 @@ fn simulate_writes_mcap_log_and_truth_tables() {
     assert!(bytes.starts_with(b"\x89MCAP0\r\n"), "MCAP magic");
     assert!(bytes.ends_with(b"\x89MCAP0\r\n"), "MCAP footer magic");
     assert_truth_tables(dir.path(), "run");
-    // Only the log and its truth folder: no temporary left behind.
+    // Only the log, its truth folder and the manifest listing the log as calib's (issue 52): no
+    // temporary left behind.
     let mut names: Vec<String> = std::fs::read_dir(dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().into_string().unwrap())
         .collect();
     names.sort();
-    assert_eq!(names, ["run.mcap", "run.truth"]);
+    assert_eq!(names, [".calib-manifest", "run.mcap", "run.truth"]);
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join(".calib-manifest")).unwrap(),
+        "/run.mcap\n"
+    );
 }
 
 #[test]

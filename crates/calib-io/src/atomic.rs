@@ -8,8 +8,10 @@
 //!
 //! An [`OutputSet`] does the same for the files of a run that belong together (tables, reports,
 //! plots): see its docs for the guarantee. Temporary files and folders are named
-//! `.<name>.calib-<pid>.<random>.tmp`: [`remove_stale`] removes those of runs that are no longer
-//! alive, and [`remove_live_and_exit`] (called on SIGINT/SIGTERM) those of this run.
+//! `.<name>.calib-<pid>@<host>.<random>.tmp` ([`owner`]): [`remove_stale`] removes those that
+//! this host's runs left when they died, and [`remove_live_and_exit`] (called on SIGINT/SIGTERM)
+//! those of this run. A folder's [`Manifest`] lists the files calib wrote there, the only ones a
+//! run may replace without being told to.
 
 use crate::Error;
 use std::fs::File;
@@ -186,17 +188,78 @@ impl Seek for AtomicFile {
     }
 }
 
-/// The infix of every temporary name calib makes: `.<name>.calib-<pid>.<random>.tmp`.
+/// The infix of every temporary name calib makes: `.<name>.calib-<pid>@<host>.<random>.tmp`.
 const TEMP_INFIX: &str = ".calib-";
 
 /// The start of the temporary names for `name` made by this process.
 fn temp_prefix(name: &str) -> String {
-    format!(".{name}{TEMP_INFIX}{}.", std::process::id())
+    format!(".{name}{TEMP_INFIX}{}.", owner())
 }
 
-/// A hidden temporary file in `target`'s directory (`.name.calib-<pid>.XXXXXX.tmp`), readable as
-/// an ordinary output once renamed: a `NamedTempFile` is private (0600) by default, so ask for
-/// 0666 and let the user's umask decide, as for any other file they create.
+/// Who makes this process's temporary names: `<pid>@<host>`, where `<host>` is the host's name
+/// (letters, digits and `-`; anything else as `-`, at most 40 characters) and, on Linux, `+` and
+/// the number of the PID namespace the pid belongs to. A temporary is removed as stale only by a
+/// run whose `<host>` is the same — on this host, in this PID namespace, where "no process has
+/// that pid" means its run is gone — never by a run on another host sharing the folder (NFS, a
+/// CI cache), whose pids mean nothing here.
+pub fn owner() -> &'static str {
+    static OWNER: OnceLock<String> = OnceLock::new();
+    OWNER.get_or_init(|| format!("{}@{}", std::process::id(), host_token()))
+}
+
+/// The `<host>` of [`owner`]: empty where the host's name is unknown (then no temporary is ever
+/// taken for this host's).
+fn host_token() -> String {
+    let mut host: String = host_name()
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '-'
+            }
+        })
+        .take(40)
+        .collect();
+    if host.is_empty() {
+        return host;
+    }
+    if let Some(ns) = pid_namespace() {
+        host.push('+');
+        host.push_str(&ns.to_string());
+    }
+    host
+}
+
+/// The host's name (`gethostname`), empty if unknown.
+#[cfg(unix)]
+fn host_name() -> String {
+    let mut buf = [0u8; 256];
+    // SAFETY: the buffer is valid for its length; the name is NUL-terminated when it fits.
+    let r = unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) };
+    if r != 0 {
+        return String::new();
+    }
+    let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+    String::from_utf8_lossy(&buf[..end]).into_owned()
+}
+
+/// The host's name, from the environment where the system gives none directly.
+#[cfg(not(unix))]
+fn host_name() -> String {
+    std::env::var("COMPUTERNAME").unwrap_or_default()
+}
+
+/// The inode of this process's PID namespace (`/proc/self/ns/pid` → `pid:[4026531836]`).
+fn pid_namespace() -> Option<u64> {
+    let link = std::fs::read_link("/proc/self/ns/pid").ok()?;
+    let link = link.to_str()?;
+    link.strip_prefix("pid:[")?.strip_suffix(']')?.parse().ok()
+}
+
+/// A hidden temporary file in `target`'s directory (`.name.calib-<pid>@<host>.XXXXXX.tmp`),
+/// readable as an ordinary output once renamed: a `NamedTempFile` is private (0600) by default,
+/// so ask for 0666 and let the user's umask decide, as for any other file they create.
 pub(crate) fn temp_file_beside(target: &Path) -> io::Result<NamedTempFile> {
     let name = target
         .file_name()
@@ -214,7 +277,7 @@ pub(crate) fn temp_file_beside(target: &Path) -> io::Result<NamedTempFile> {
 }
 
 /// A temporary folder of this run in the system's temporary directory (a bag's decompressed or
-/// merged splits), named as calib's other temporaries (`.<name>.calib-<pid>.<random>.tmp`):
+/// merged splits), named as calib's other temporaries (`.<name>.calib-<pid>@<host>.<random>.tmp`):
 /// removed when dropped, by [`remove_live_and_exit`] on SIGINT/SIGTERM, and by [`remove_stale`]
 /// of the temporary directory (which [`TempFolder::create`] runs first) once its run has died
 /// without either.
@@ -293,42 +356,102 @@ pub fn remove_live_and_exit(code: i32) -> ! {
     std::process::exit(code)
 }
 
-/// Removes, from `dir`, temporary files and folders of calib's naming whose run is no longer
-/// alive (killed before it could clean up); returns how many. Those of live runs (a concurrent
-/// run into the same folder) are kept.
-pub fn remove_stale(dir: &Path) -> usize {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return 0;
-    };
-    let mut removed = 0;
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let Some(pid) = stale_owner(&name.to_string_lossy()) else {
-            continue;
-        };
-        if pid == std::process::id() || alive(pid) {
-            continue;
-        }
-        let path = entry.path();
-        let gone = match entry.file_type() {
-            Ok(t) if t.is_dir() => std::fs::remove_dir_all(&path),
-            _ => std::fs::remove_file(&path),
-        };
-        removed += usize::from(gone.is_ok());
-    }
-    removed
+/// What [`remove_stale`] did in a folder.
+#[derive(Debug, Default, PartialEq, Eq)]
+pub struct Stale {
+    /// Temporary files and staging folders removed: this host's, of runs that have died.
+    pub removed: usize,
+    /// Entries of calib's temporary naming that were kept although they may be stale, with why:
+    /// a folder that does not hold what calib stages (only files), or a name without a host
+    /// (made by an earlier calib, which cannot tell where it ran). The user decides.
+    pub kept: Vec<(PathBuf, &'static str)>,
 }
 
-/// The process ID in a temporary name of calib's (`.<name>.calib-<pid>.<random>.tmp`).
-fn stale_owner(name: &str) -> Option<u32> {
+/// Removes, from `dir`, the temporary files and staging folders that runs of calib on this host
+/// left when they died (killed before they could clean up), as far as it can prove them its own:
+/// the name says which process on which host made it ([`owner`]), and it is removed only when
+/// that host is this one and that process no longer exists. An entry of another host (a run
+/// elsewhere sharing the folder) or of a live run (a concurrent run into the same folder) is
+/// left alone; so is a folder that holds anything but plain files (calib stages only files
+/// there: a folder holding a subfolder or a link is not calib's to remove), which is reported
+/// in [`Stale::kept`] instead. Nothing is removed recursively.
+pub fn remove_stale(dir: &Path) -> Stale {
+    let mut stale = Stale::default();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return stale;
+    };
+    let host = owner().split_once('@').map_or("", |o| o.1);
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some((pid, made_on)) = stale_owner(&name) else {
+            continue;
+        };
+        let path = entry.path();
+        let Some(made_on) = made_on else {
+            if !alive(pid) {
+                stale.kept.push((
+                    path,
+                    "made by an older calib, which did not record its host",
+                ));
+            }
+            continue;
+        };
+        if host.is_empty() || made_on != host || pid == std::process::id() || alive(pid) {
+            continue;
+        }
+        let removed = match entry.file_type() {
+            Ok(t) if t.is_file() => std::fs::remove_file(&path).is_ok(),
+            Ok(t) if t.is_dir() => match remove_staging_folder(&path) {
+                Some(gone) => gone,
+                None => {
+                    stale
+                        .kept
+                        .push((path, "a folder holding more than calib's staged files"));
+                    false
+                }
+            },
+            _ => {
+                stale.kept.push((path, "neither a file nor a folder"));
+                false
+            }
+        };
+        stale.removed += usize::from(removed);
+    }
+    stale
+}
+
+/// Removes `folder` if it has calib's staging layout — plain files only, no subfolder, no link —
+/// file by file and then the empty folder: `Some(removed)`. `None` (and nothing removed) if it
+/// holds anything else.
+fn remove_staging_folder(folder: &Path) -> Option<bool> {
+    let files: Vec<PathBuf> = std::fs::read_dir(folder)
+        .ok()?
+        .map(|e| {
+            let e = e.ok()?;
+            e.file_type().ok()?.is_file().then(|| e.path())
+        })
+        .collect::<Option<_>>()?;
+    for file in &files {
+        let _ = std::fs::remove_file(file);
+    }
+    Some(std::fs::remove_dir(folder).is_ok())
+}
+
+/// The process ID and host in a temporary name of calib's
+/// (`.<name>.calib-<pid>@<host>.<random>.tmp`); the host is `None` in a name made by an earlier
+/// calib (`.<name>.calib-<pid>.<random>.tmp`).
+fn stale_owner(name: &str) -> Option<(u32, Option<&str>)> {
     if !name.starts_with('.') || !name.ends_with(".tmp") {
         return None;
     }
     let at = name.rfind(TEMP_INFIX)?;
     let rest = &name[at + TEMP_INFIX.len()..];
-    let (pid, random) = rest.split_once('.')?;
+    let (owner, random) = rest.split_once('.')?;
     (random.len() > ".tmp".len()).then_some(())?;
-    pid.parse().ok()
+    match owner.split_once('@') {
+        Some((pid, host)) => Some((pid.parse().ok()?, Some(host))),
+        None => Some((owner.parse().ok()?, None)),
+    }
 }
 
 /// Whether process `pid` exists.
@@ -369,8 +492,77 @@ fn fault_point() {
 /// The exit status of a run stopped by the fault-injection hook.
 pub const KILLED_EXIT: i32 = 86;
 
-/// The file listing the files of the run that wrote a folder, one name per line: written last.
+/// The file listing the files calib wrote into a folder, one name per line ([`Manifest`]).
 pub const MANIFEST: &str = ".calib-manifest";
+
+/// What a folder's [`MANIFEST`] lists: the files calib wrote there, and so the only files there
+/// that a run replaces without `--force`.
+///
+/// One name per line. A plain name is a file of the set the last [`OutputSet`] into the folder
+/// wrote (a method's tables and reports), which the next set replaces whole; a name after a `/`
+/// (`/corrected.mcap`) is a file written alone ([`record_written`]: `calib apply -o`, `calib
+/// export -o`, …), which a set leaves in place. No file name holds a `/`, so the two cannot be
+/// confused, and readers that know only plain names skip the others.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub struct Manifest {
+    /// The files of the last set written into the folder.
+    pub set: Vec<String>,
+    /// The files written into the folder one at a time.
+    pub alone: Vec<String>,
+}
+
+impl Manifest {
+    /// `folder`'s manifest (empty if it has none or it cannot be read).
+    pub fn read(folder: &Path) -> Self {
+        let Ok(text) = std::fs::read_to_string(folder.join(MANIFEST)) else {
+            return Self::default();
+        };
+        let name_ok = |l: &str| !l.is_empty() && !l.contains('/') && l != "." && l != "..";
+        let mut manifest = Self::default();
+        for line in text.lines() {
+            match line.strip_prefix('/') {
+                Some(alone) if name_ok(alone) => manifest.alone.push(alone.to_string()),
+                Some(_) => {}
+                None if name_ok(line) => manifest.set.push(line.to_string()),
+                None => {}
+            }
+        }
+        manifest
+    }
+
+    /// Whether it lists `name` (in the set or alone): a file calib wrote.
+    pub fn lists(&self, name: &str) -> bool {
+        self.set.iter().chain(&self.alone).any(|n| n == name)
+    }
+
+    /// Its text: the set's names, then the others after a `/`; a blank line when empty.
+    fn render(&self) -> String {
+        let mut text: String = self.set.iter().map(|f| format!("{f}\n")).collect();
+        text.extend(self.alone.iter().map(|f| format!("/{f}\n")));
+        if text.is_empty() {
+            text.push('\n');
+        }
+        text
+    }
+}
+
+/// Adds `path`, a file just written alone (not as part of an [`OutputSet`]), to its folder's
+/// [`Manifest`], so that a later run may replace it as calib's own. The manifest is replaced
+/// atomically; a name it already lists is left where it is. Two such writes into one folder at
+/// the same instant may keep only one of the names: the other file then needs `--force` to be
+/// replaced, never more.
+pub fn record_written(path: &Path) -> Result<(), Error> {
+    let Some(name) = path.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return Ok(());
+    };
+    let folder = parent_of(path);
+    let mut manifest = Manifest::read(folder);
+    if manifest.lists(&name) {
+        return Ok(());
+    }
+    manifest.alone.push(name);
+    write_atomic(&folder.join(MANIFEST), manifest.render().as_bytes())
+}
 
 /// Several outputs that appear together or not at all.
 ///
@@ -515,10 +707,18 @@ impl Staged {
             let path = path.to_path_buf();
             move |source| Error::Io { path, source }
         };
-        let mut listing: String = self.files.iter().map(|f| format!("{f}\n")).collect();
-        if listing.is_empty() {
-            listing.push('\n');
+        // The files written alone into the folder stay, and stay listed (they are still calib's),
+        // where this set does not write them again.
+        let previous = Manifest::read(&self.target);
+        let listing = Manifest {
+            set: self.files.clone(),
+            alone: previous
+                .alone
+                .into_iter()
+                .filter(|f| !self.files.contains(f) && self.target.join(f).is_file())
+                .collect(),
         }
+        .render();
         let manifest = self.staging.join(MANIFEST);
         let mut file = File::create(&manifest).map_err(io_err(&self.target.join(MANIFEST)))?;
         file.write_all(listing.as_bytes())
@@ -612,14 +812,7 @@ impl Staged {
 /// run wrote there, which the next [`OutputSet`] into `folder` removes where it does not write
 /// them again.
 pub fn read_manifest(folder: &Path) -> Vec<String> {
-    std::fs::read_to_string(folder.join(MANIFEST))
-        .map(|s| {
-            s.lines()
-                .filter(|l| !l.is_empty() && !l.contains('/') && *l != "." && *l != "..")
-                .map(str::to_string)
-                .collect()
-        })
-        .unwrap_or_default()
+    Manifest::read(folder).set
 }
 
 /// Whether `folder` can be replaced as a whole: it does not exist, is empty, or holds only the
@@ -728,16 +921,33 @@ mod tests {
     }
 
     #[test]
-    fn temporary_names_carry_the_owner() {
-        assert_eq!(stale_owner(".a.csv.calib-123.AbC9x1.tmp"), Some(123));
-        assert_eq!(stale_owner(".out.calib-77.Xy12Zq.old.tmp"), Some(77));
+    fn temporary_names_carry_the_owner_and_host() {
+        assert_eq!(
+            stale_owner(".a.csv.calib-123@lab-pc+4026531836.AbC9x1.tmp"),
+            Some((123, Some("lab-pc+4026531836")))
+        );
+        assert_eq!(
+            stale_owner(".out.calib-77@ci.Xy12Zq.old.tmp"),
+            Some((77, Some("ci")))
+        );
+        // An earlier calib's name: the pid, but no host.
+        assert_eq!(
+            stale_owner(".a.csv.calib-123.AbC9x1.tmp"),
+            Some((123, None))
+        );
         assert_eq!(stale_owner("a.csv"), None);
         assert_eq!(stale_owner(".a.csv.AbC9x1.tmp"), None);
         assert_eq!(stale_owner(".calib-manifest"), None);
         let dir = tempfile::tempdir().unwrap();
         let f = temp_file_beside(&dir.path().join("t.csv")).unwrap();
         let name = f.path().file_name().unwrap().to_string_lossy().into_owned();
-        assert_eq!(stale_owner(&name), Some(std::process::id()), "{name}");
+        let (pid, host) = stale_owner(&name).unwrap();
+        assert_eq!(pid, std::process::id(), "{name}");
+        assert_eq!(Some(host.unwrap()), owner().split_once('@').map(|o| o.1));
+        assert!(
+            !host.unwrap().is_empty() && !host.unwrap().contains('.'),
+            "{name}"
+        );
     }
 
     #[test]
@@ -789,22 +999,69 @@ mod tests {
         assert_eq!(entries(dir.path()), ["out"]);
     }
 
-    #[test]
-    fn stale_temporaries_of_dead_runs_go_and_live_ones_stay() {
-        let dir = tempfile::tempdir().unwrap();
+    /// A pid no process has: that of a child that has ended.
+    fn dead_pid() -> u32 {
         let mut child = std::process::Command::new("true").spawn().unwrap();
         child.wait().unwrap();
-        let dead = format!(".a.csv.calib-{}.AbCdEf.tmp", child.id());
-        let mine = format!(".a.csv.calib-{}.AbCdEf.tmp", std::process::id());
-        std::fs::write(dir.path().join(&dead), "x").unwrap();
-        std::fs::create_dir(
-            dir.path()
-                .join(format!(".out.calib-{}.QwErTy.tmp", child.id())),
-        )
-        .unwrap();
+        child.id()
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_runs_on_this_host_go_and_others_stay() {
+        let dir = tempfile::tempdir().unwrap();
+        let here = owner().split_once('@').unwrap().1.to_string();
+        let dead = dead_pid();
+        let name = |what: &str, owner: &str| format!(".{what}.calib-{owner}.AbCdEf.tmp");
+        let file = name("a.csv", &format!("{dead}@{here}"));
+        let mine = name("b.csv", owner());
+        let staging = name("out", &format!("{dead}@{here}"));
+        let elsewhere = name("out2", &format!("{dead}@other-host+1"));
+        let earlier = name("out3", &dead.to_string());
+        let not_staging = name("out4", &format!("{dead}@{here}"));
+        std::fs::write(dir.path().join(&file), "x").unwrap();
         std::fs::write(dir.path().join(&mine), "x").unwrap();
-        assert_eq!(remove_stale(dir.path()), 2);
-        assert_eq!(entries(dir.path()), [mine]);
+        for folder in [&staging, &elsewhere, &earlier] {
+            std::fs::create_dir(dir.path().join(folder)).unwrap();
+            std::fs::write(dir.path().join(folder).join("a.csv"), "x").unwrap();
+        }
+        std::fs::create_dir_all(dir.path().join(&not_staging).join("keep")).unwrap();
+        let stale = remove_stale(dir.path());
+        assert_eq!(stale.removed, 2);
+        let mut kept: Vec<String> = stale
+            .kept
+            .iter()
+            .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        kept.sort();
+        assert_eq!(kept, [earlier.clone(), not_staging.clone()]);
+        let mut left = vec![mine, elsewhere, earlier, not_staging.clone()];
+        left.sort();
+        assert_eq!(entries(dir.path()), left);
+        assert_eq!(entries(&dir.path().join(&not_staging)), ["keep"]);
+    }
+
+    #[test]
+    fn the_manifest_keeps_files_written_alone_apart_from_the_set() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        write_atomic(&out.join("x.h"), b"an export").unwrap();
+        record_written(&out.join("x.h")).unwrap();
+        record_written(&out.join("x.h")).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(out.join(MANIFEST)).unwrap(),
+            "/x.h\n"
+        );
+        let mut set = OutputSet::new();
+        set.add(&out.join("a.csv"), b"a1").unwrap();
+        set.commit().unwrap();
+        // The file written alone stays, listed after the set.
+        assert_eq!(entries(&out), [MANIFEST, "a.csv", "x.h"]);
+        let manifest = Manifest::read(&out);
+        assert_eq!(manifest.set, ["a.csv"]);
+        assert_eq!(manifest.alone, ["x.h"]);
+        assert!(manifest.lists("x.h") && manifest.lists("a.csv") && !manifest.lists("b.csv"));
+        assert_eq!(read_manifest(&out), ["a.csv"]);
     }
 
     #[test]
@@ -813,7 +1070,11 @@ mod tests {
         let path = folder.path().to_path_buf();
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         // Removed by a later run once this one has died (SIGKILL), as the other temporaries.
-        assert_eq!(stale_owner(&name), Some(std::process::id()), "{name}");
+        assert_eq!(
+            stale_owner(&name).map(|o| o.0),
+            Some(std::process::id()),
+            "{name}"
+        );
         // Removed by the SIGINT/SIGTERM handler while alive.
         assert!(lock_live().contains(&path));
         std::fs::write(path.join("bag_0.db3"), "x").unwrap();

@@ -12,6 +12,7 @@
 //!   `conf set` lines, SimpleFOC `CalibratedSensor` tables, harmonics).
 //! - [`import`]: the same forms read back into calib tables (a table already on a controller).
 //! - [`atomic`]: output files that appear only when complete.
+//! - [`folder_lock`]: one run at a time into an output folder.
 //! - [`apply`]: a log rewritten with one channel corrected by an error map.
 //! - [`log`]: [`LogReader`] and [`LogWriter`] choose the format from the file.
 //! - [`Prefetch`]: a reader on a second thread, filling batches of samples ahead of the caller;
@@ -54,6 +55,7 @@ pub mod compare;
 pub mod csv_log;
 mod error;
 pub mod export;
+pub mod folder_lock;
 pub mod import;
 pub mod limits;
 pub mod log;

@@ -38,6 +38,10 @@ pub struct Args {
     /// The method to plan for.
     #[command(subcommand)]
     pub method: Method,
+    /// Replace --procedure's files even if calib did not write them (without it, a file there
+    /// that no calib manifest of its folder lists is refused, exit 2, and left as it is).
+    #[arg(long, global = true)]
+    pub force: bool,
 }
 
 /// The planners.
@@ -215,6 +219,9 @@ fn write_procedure(
             path.with_extension("md").display()
         ))));
     }
+    for file in std::iter::once(path).chain(others.iter().map(PathBuf::as_path)) {
+        crate::output::check_file_replaceable(file, "--procedure")?;
+    }
     calib_io::atomic::write_atomic(path, text.as_bytes())
         .with_context(|| format!("cannot write the procedure {}", path.display()))?;
     let mut written = vec![path.to_path_buf()];
@@ -223,6 +230,7 @@ fn write_procedure(
             .with_context(|| format!("cannot write the {what} {}", other.display()))?;
         written.push(other);
     }
+    crate::output::record_written(&written);
     Ok(written)
 }
 
@@ -338,6 +346,9 @@ fn csrr(args: &CsrrArgs) -> anyhow::Result<String> {
                 path.with_extension("md").display()
             )));
         }
+        for file in [path, &scenario_path] {
+            crate::output::check_file_replaceable(file, "--procedure")?;
+        }
         let text = render_csrr_procedure(&plan, &rig, args.max_order);
         calib_io::atomic::write_atomic(path, text.as_bytes())
             .with_context(|| format!("cannot write the procedure {}", path.display()))?;
@@ -357,6 +368,7 @@ fn csrr(args: &CsrrArgs) -> anyhow::Result<String> {
             .with_context(|| format!("cannot write the scenario {}", scenario_path.display()))?;
         written.push(path.clone());
         written.push(scenario_path);
+        crate::output::record_written(&written);
     }
 
     if args.json {

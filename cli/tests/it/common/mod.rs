@@ -219,3 +219,25 @@ speeds_deg_s = [36.0]
 ramp_s = 0.5
 pause_s = 0.5
 "#;
+
+/// This host as calib's temporary names carry it (`.<name>.calib-<pid>@<host>.<random>.tmp`):
+/// read from the staging folder a run stopped by the fault-injection hook leaves.
+pub fn this_host(dir: &Path) -> String {
+    let log = simulate_quick(dir, "host.csv", &[]);
+    let out = dir.join("host-out");
+    let o = Command::new(env!("CARGO_BIN_EXE_calib"))
+        .args(["csrr", s(&log), "-o", s(&out)])
+        .env("CALIB_TEST_KILL_AT", "1")
+        .output()
+        .unwrap();
+    assert_eq!(code(&o), 86, "{}", stderr(&o));
+    let staging = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .find(|n| n.starts_with(".host-out.calib-") && n.ends_with(".tmp"))
+        .expect("no staging folder left");
+    std::fs::remove_dir_all(dir.join(&staging)).unwrap();
+    let owner = staging.trim_start_matches(".host-out.calib-");
+    let host = owner.split_once('@').expect("no host in the name").1;
+    host.split_once('.').unwrap().0.to_string()
+}
