@@ -135,7 +135,14 @@ pub struct ReadDiagnostics {
     /// MCAP chunks left out because they were damaged (only with
     /// [`ReadOptions::skip_damaged`]; otherwise the first is an error).
     pub damaged_chunks: Vec<DamagedChunk>,
+    /// Messages (CSV rows) dropped because they repeat the one before exactly, stamp and
+    /// readings: a message recorded twice (see `stamps`, the rule every reader shares).
+    pub duplicates_dropped: u64,
+    /// How the unit of a CSV time column that names none was chosen from its stamps'
+    /// magnitude (stamps since 1970 in ms, µs or ns); `None` where nothing was chosen.
+    pub time_unit: Option<calib_core::report::TimeUnitChoice>,
 }
+
 
 /// An MCAP chunk whose records do not match the CRC its header records, or cannot be decoded.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
