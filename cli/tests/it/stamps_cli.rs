@@ -4,7 +4,7 @@
 //! Each log is the quick scenario simulated, then edited as the recorder would have written it;
 //! the maps of the edited log are compared with those of the clean one.
 
-use crate::common::{calib, expect_exit, read_table, s, simulate, stderr, testdata};
+use crate::common::{calib, expect_exit, read_table, s, simulate, stderr, stdout, testdata};
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
@@ -40,11 +40,12 @@ fn write_mcap(path: &Path, messages: &[mcap::Message<'static>]) {
     writer.finish().unwrap();
 }
 
-/// `calib csrr LOG -o OUT` (sessions from the marks); asserts success and returns stderr.
+/// `calib csrr LOG -o OUT` (sessions from the marks); asserts success and returns what it
+/// printed (its summary, whose `warning:` lines are the report's warnings).
 fn csrr(log: &Path, out: &Path) -> String {
     let o = calib(&["csrr", s(log), "-o", s(out)]);
     expect_exit(&o, 0);
-    stderr(&o)
+    stdout(&o)
 }
 
 /// The largest difference between two tables' errors, arcsec, asserting the same grid.
@@ -102,12 +103,12 @@ fn mcap_messages_recorded_twice_are_dropped_and_the_maps_are_the_clean_logs() {
     write_mcap(&clean_log, &clean);
     write_mcap(&doubled_log, &doubled);
     let (clean_out, doubled_out) = (dir.path().join("clean"), dir.path().join("twice"));
-    let clean_err = csrr(&clean_log, &clean_out);
-    assert!(!clean_err.contains("duplicated"), "{clean_err}");
-    let err = csrr(&doubled_log, &doubled_out);
+    let clean_printed = csrr(&clean_log, &clean_out);
+    assert!(!clean_printed.contains("duplicated"), "{clean_printed}");
+    let printed = csrr(&doubled_log, &doubled_out);
     assert!(
-        err.contains("twice.mcap: 400 duplicated message(s) dropped"),
-        "{err}"
+        printed.contains("twice.mcap: 400 duplicated message(s) dropped"),
+        "{printed}"
     );
     assert_eq!(
         report(&doubled_out)["details"]["reading"]["duplicates_dropped"],
@@ -154,8 +155,17 @@ fn csv_rows_recorded_twice_are_dropped_and_a_conflict_names_both_rows() {
     write_csv(&doubled_log, &header, &doubled);
     let (clean_out, doubled_out) = (dir.path().join("clean"), dir.path().join("twice"));
     csrr(&clean_log, &clean_out);
-    let err = csrr(&doubled_log, &doubled_out);
-    assert!(err.contains("twice.csv: 400 duplicated row(s) dropped"), "{err}");
+    let printed = csrr(&doubled_log, &doubled_out);
+    assert!(
+        printed.contains("twice.csv: 400 duplicated row(s) dropped"),
+        "{printed}"
+    );
+    assert!(
+        report(&doubled_out)["warnings"][0]
+            .as_str()
+            .unwrap()
+            .contains("400 duplicated row(s) dropped")
+    );
     assert_eq!(
         report(&doubled_out)["details"]["reading"]["duplicates_dropped"],
         400
@@ -231,7 +241,7 @@ fn nanoseconds_since_1970_in_a_plain_timestamp_column_are_read_as_such() {
         assert!(d < 1e-3, "{channel}: {d}″");
     }
     let o = calib(&["inspect", s(&ns_log)]);
-    let text = crate::common::stdout(&o);
+    let text = stdout(&o);
     assert!(
         text.contains("  time: column `timestamp` read in ns: the column names no unit"),
         "{text}"

@@ -443,7 +443,7 @@ impl LogReader {
 
     /// How the log was read where the reader decided something the user did not say, for
     /// `details.reading` in `report.json` (complete once the iterator is exhausted): messages
-    /// dropped as exact copies of the one before ([`crate::stamps`]), the unit a CSV time
+    /// dropped as exact copies of the one before (the `stamps` module), the unit a CSV time
     /// column was read in by its stamps' magnitude. `None` where it decided nothing.
     pub fn reading(&self) -> Option<calib_core::report::Reading> {
         let d = self.diagnostics();

@@ -234,13 +234,22 @@ mod tests {
     #[test]
     fn an_exact_copy_is_a_duplicate_and_other_values_a_conflict() {
         let mut order = StampOrder::default();
-        assert_eq!(order.check(1_000_000_000, 0, &[1.0, f64::NAN]), Ok(Step::New));
+        assert_eq!(
+            order.check(1_000_000_000, 0, &[1.0, f64::NAN]),
+            Ok(Step::New)
+        );
         assert_eq!(order.check(2_000_000_000, 1, &[2.0, 0.0]), Ok(Step::New));
         // The same stamp and values (-0.0 is 0.0): dropped and counted.
-        assert_eq!(order.check(2_000_000_000, 2, &[2.0, -0.0]), Ok(Step::Duplicate));
+        assert_eq!(
+            order.check(2_000_000_000, 2, &[2.0, -0.0]),
+            Ok(Step::Duplicate)
+        );
         assert_eq!(order.duplicates(), 1);
         let conflict = order.check(2_000_000_000, 3, &[2.5, 0.0]).unwrap_err();
-        assert_eq!((conflict.previous, conflict.previous_message), (2_000_000_000, 1));
+        assert_eq!(
+            (conflict.previous, conflict.previous_message),
+            (2_000_000_000, 1)
+        );
         assert_eq!(conflict.conflict.as_deref(), Some(&[(0, 2.0, 2.5)][..]));
         let text = conflict.describe(
             "a",
@@ -255,17 +264,25 @@ mod tests {
         );
         let back = order.check(1_500_000_000, 4, &[3.0, 0.0]).unwrap_err();
         assert!(back.conflict.is_none());
-        let text = back.describe("a", "message id", TimeSource::Log, |_| "a".into(), |v| {
-            v.to_string()
-        });
+        let text = back.describe(
+            "a",
+            "message id",
+            TimeSource::Log,
+            |_| "a".into(),
+            |v| v.to_string(),
+        );
         assert!(
             text.contains("the log time 1.5 s of clock channel `a` goes back before the previous one, 2 s (message id 1)"),
             "{text}"
         );
         assert!(!text.contains("`time = log`"), "{text}");
-        let text = back.describe("a", "message", TimeSource::Header, |_| "a".into(), |v| {
-            v.to_string()
-        });
+        let text = back.describe(
+            "a",
+            "message",
+            TimeSource::Header,
+            |_| "a".into(),
+            |v| v.to_string(),
+        );
         assert!(text.contains("`time = log`"), "{text}");
         // A refused stamp does not move the order: the next increasing one passes.
         assert_eq!(order.check(3_000_000_000, 5, &[3.0, 0.0]), Ok(Step::New));

@@ -540,8 +540,8 @@ impl CsvReader {
         self.progress.clone()
     }
 
-    /// What the reader noticed; a CSV log has nothing to report beyond its errors, so this is
-    /// always the default.
+    /// What the reader noticed so far: rows dropped as exact copies of the one before, the unit
+    /// the time column was read in by its stamps' magnitude.
     pub fn diagnostics(&self) -> &ReadDiagnostics {
         &self.diagnostics
     }

@@ -265,7 +265,13 @@ impl Samples {
     /// be dropped; a conflict or a step back is refused where the message carries the clock
     /// channel, unless told to pass it on, and otherwise passed on (the aligner leaves out a
     /// channel's samples out of order and counts them).
-    fn check_stamp(&mut self, k: usize, stamp: i64, key: i64, offset: usize) -> Result<Step, Failure> {
+    fn check_stamp(
+        &mut self,
+        k: usize,
+        stamp: i64,
+        key: i64,
+        offset: usize,
+    ) -> Result<Step, Failure> {
         if self.orders.len() <= k {
             self.orders.resize_with(k + 1, StampOrder::default);
         }

@@ -28,7 +28,14 @@ fn read(path: &Path, channels: &[usize]) -> (Vec<Sample>, LogReader) {
 /// Rows `t,a,b` at 100 Hz, `a` = 0.1·i°, `b` = −0.1·i°.
 fn rows(n: usize) -> Vec<String> {
     (0..n)
-        .map(|i| format!("{:.2},{:.1},{:.1}", i as f64 * 0.01, i as f64 * 0.1, -(i as f64) * 0.1))
+        .map(|i| {
+            format!(
+                "{:.2},{:.1},{:.1}",
+                i as f64 * 0.01,
+                i as f64 * 0.1,
+                -(i as f64) * 0.1
+            )
+        })
         .collect()
 }
 
@@ -47,7 +54,10 @@ fn rows_repeated_exactly_are_dropped_and_counted() {
     let text = |rows: &[&String]| {
         format!(
             "t,a,b\n{}\n",
-            rows.iter().map(|r| r.as_str()).collect::<Vec<_>>().join("\n")
+            rows.iter()
+                .map(|r| r.as_str())
+                .collect::<Vec<_>>()
+                .join("\n")
         )
     };
     let clean = write(&dir, "clean.csv", &text(&rows.iter().collect::<Vec<_>>()));
@@ -74,16 +84,25 @@ fn stamps_since_1970_are_read_in_the_unit_their_magnitude_says() {
         let body: String = (0..20)
             .map(|i| format!("{},{}\n", base + (i as f64 * 0.01 * per_s) as i64, i))
             .collect();
-        let path = write(&dir, &format!("{unit}.csv"), &format!("timestamp,a\n{body}"));
+        let path = write(
+            &dir,
+            &format!("{unit}.csv"),
+            &format!("timestamp,a\n{body}"),
+        );
         let mut reader = CsvReader::open(&path, &ReadOptions::default()).unwrap();
         let samples: Vec<Sample> = reader.by_ref().collect::<Result<_, _>>().unwrap();
         // Times from 1764000000 s (or from the first row's for ns): steps of 10 ms.
         let step = samples[1].t - samples[0].t;
         assert!((step - 0.01).abs() < 1e-9, "{unit}: step {step}");
         let choice = reader.diagnostics().time_unit.clone().expect(unit);
-        assert_eq!((choice.column.as_str(), choice.unit.as_str()), ("timestamp", unit));
+        assert_eq!(
+            (choice.column.as_str(), choice.unit.as_str()),
+            ("timestamp", unit)
+        );
         assert!(
-            choice.reason.contains(&format!("its first stamp, {first}, is a date in 2025")),
+            choice
+                .reason
+                .contains(&format!("its first stamp, {first}, is a date in 2025")),
             "{}",
             choice.reason
         );
@@ -104,7 +123,9 @@ fn stamps_since_1970_are_read_in_the_unit_their_magnitude_says() {
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("in nanoseconds, the column `time [s]`'s stamps are dates in 2025: say `time_unit = ns`"),
+        err.contains(
+            "in nanoseconds, the column `time [s]`'s stamps are dates in 2025: say `time_unit = ns`"
+        ),
         "{err}"
     );
 }
@@ -113,8 +134,12 @@ fn stamps_since_1970_are_read_in_the_unit_their_magnitude_says() {
 #[test]
 fn time_columns_in_other_languages_are_found() {
     let dir = tempfile::tempdir().unwrap();
-    for (name, scale) in [("Zeit [s]", 1.0), ("temps (ms)", 1e-3), ("時間", 1.0), ("czas_us", 1e-6)]
-    {
+    for (name, scale) in [
+        ("Zeit [s]", 1.0),
+        ("temps (ms)", 1e-3),
+        ("時間", 1.0),
+        ("czas_us", 1e-6),
+    ] {
         let path = write(&dir, "lang.csv", &format!("{name};a;b\n0;1;2\n5;1,5;2,5\n"));
         let samples = read(&path, &[]).0;
         assert_eq!(samples.len(), 2, "{name}");
@@ -174,7 +199,12 @@ fn sparse_rows_after_the_first_64_kib_are_read() {
     assert!(text.len() > 64 * 1024);
     for i in 4000..4100 {
         let t = i as f64 * 0.01;
-        text.push_str(&format!("{t:.2},{:.1},\n{:.3},,{:.1}\n", i as f64 * 0.1, t + 0.005, -(i as f64) * 0.1));
+        text.push_str(&format!(
+            "{t:.2},{:.1},\n{:.3},,{:.1}\n",
+            i as f64 * 0.1,
+            t + 0.005,
+            -(i as f64) * 0.1
+        ));
     }
     let path = write(&dir, "late.csv", &text);
     let (samples, reader) = read(&path, &[0, 1]);
@@ -182,8 +212,14 @@ fn sparse_rows_after_the_first_64_kib_are_read() {
     // away; the first of them may lack `b` before it).
     assert!((4098..=4100).contains(&samples.len()), "{}", samples.len());
     let last = samples.last().unwrap();
-    assert!((last.values[0].to_degrees() - 409.8).abs() < 0.2, "{last:?}");
-    assert!((last.values[1].to_degrees() + last.values[0].to_degrees()).abs() < 0.1, "{last:?}");
+    assert!(
+        (last.values[0].to_degrees() - 409.8).abs() < 0.2,
+        "{last:?}"
+    );
+    assert!(
+        (last.values[1].to_degrees() + last.values[0].to_degrees()).abs() < 0.1,
+        "{last:?}"
+    );
     let warnings = reader.warnings(&path);
     assert!(
         warnings.iter().any(|w| w.contains("from line 4002 on")),
@@ -200,7 +236,11 @@ fn an_empty_column_not_read_is_left_alone() {
     let path = write(&dir, "notes.csv", &format!("t,a,b,notes\n{body}"));
     let (samples, _) = read(&path, &[0, 1]);
     assert_eq!(samples.len(), 30);
-    assert!(samples.iter().all(|s| s.values.iter().all(|v| v.is_finite())));
+    assert!(
+        samples
+            .iter()
+            .all(|s| s.values.iter().all(|v| v.is_finite()))
+    );
 }
 
 /// A FILETIME column out of order is to be sorted by its own name. Before: "sort the log by
