@@ -129,6 +129,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .collect();
     let topics = reader.topics();
     let alignment = reader.alignment();
+    let reading = reader.reading();
     let stated = reader.stated_directions();
     if args.json {
         let json = InspectJson {
@@ -140,6 +141,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             structure,
             topics,
             alignment,
+            reading,
             inspection: result,
             suggestions,
             warnings,
@@ -156,9 +158,18 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ));
     }
     let mut text = render(&args.log, &result, &render_topics(&topics), &warnings);
+    // After the file's name: how it was read.
+    let at = text.find('\n').map_or(text.len(), |i| i + 1);
+    if let Some(choice) = reading.as_ref().and_then(|r| r.time_unit.as_ref()) {
+        let line = format!(
+            "  time: column `{}` read in {}: {}\n",
+            choice.column,
+            choice.unit,
+            crate::flags::in_cli_words(&choice.reason)
+        );
+        text.insert_str(at, &line);
+    }
     if let Some(layout) = layout {
-        // After the file's name: how it was read.
-        let at = text.find('\n').map_or(text.len(), |i| i + 1);
         text.insert_str(at, &format!("  read as: {layout}\n"));
     }
     Ok(text + &alignment_text(alignment.as_ref()) + &render_next(&args.log, &suggestions))
@@ -226,6 +237,11 @@ pub struct InspectJson {
     pub topics: Vec<TopicInfo>,
     /// How the channels were aligned on one clock (`null` for one channel or CSV).
     pub alignment: Option<calib_core::report::Alignment>,
+    /// How the log was read where the reader decided something the user did not say: messages
+    /// dropped as exact copies, the unit a CSV time column was read in by its magnitude (as in
+    /// report.json's `details.reading`); absent where it decided nothing.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reading: Option<calib_core::report::Reading>,
     /// What the log holds: timing, channels, segments.
     pub inspection: Inspection,
     /// The methods the log's motion suits, the likeliest first, with the channels to give them.
@@ -378,11 +394,19 @@ fn render(path: &std::path::Path, r: &Inspection, topics: &str, warnings: &[Stri
         );
     }
     for g in &r.non_monotonic_list {
-        let _ = writeln!(
-            o,
-            "    stamp steps back by {:.6} s at sample {} ({:.6} s)",
-            -g.step_s, g.index, g.t
-        );
+        if g.step_s == 0.0 {
+            let _ = writeln!(
+                o,
+                "    stamp repeats the previous one at sample {} ({:.6} s)",
+                g.index, g.t
+            );
+        } else {
+            let _ = writeln!(
+                o,
+                "    stamp steps back by {:.6} s at sample {} ({:.6} s)",
+                -g.step_s, g.index, g.t
+            );
+        }
     }
     if !topics.is_empty() {
         let _ = write!(o, "\n{}", topics.trim_end_matches('\n'));

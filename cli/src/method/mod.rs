@@ -242,6 +242,7 @@ pub fn finish_log(
     results.section = results
         .section
         .with_alignment(alignment_detail(reader))
+        .with_reading(reader.reading())
         .with_time_origin(reader.time_origin_s());
     finish(
         out,

@@ -27,6 +27,7 @@ mod schema_cli;
 mod shift_angle_cli;
 mod simulate_cli;
 mod snapshots;
+mod stamps_cli;
 mod tdr_cli;
 mod threads_cli;
 mod unit_hints_cli;

@@ -90,8 +90,10 @@ pub struct ReadOptions {
     /// The unit of readings in formats that do not fix it (CSV, JSON messages); degrees if `None`.
     /// JointState positions are radians by definition and ignore it.
     pub unit: Option<AngleUnit>,
-    /// Pass CSV rows whose time stamp repeats or goes back instead of failing on them (for
-    /// `calib inspect`, which reports them). Methods need increasing stamps and leave it off.
+    /// Pass messages (CSV rows) whose time stamp repeats with other readings or goes back
+    /// instead of failing on them (for `calib inspect`, which reports them). Methods need
+    /// increasing stamps and leave it off. Exact copies of the message before are dropped
+    /// either way.
     pub allow_unordered_time: bool,
     /// Read a CSV file without a time column as a list of stationary points, in row order,
     /// timed by the row index (0, 1, 2, … s; see [`LogReader::is_point_list`]), instead of
@@ -137,6 +139,12 @@ pub struct ReadDiagnostics {
     /// MCAP chunks left out because they were damaged (only with
     /// [`ReadOptions::skip_damaged`]; otherwise the first is an error).
     pub damaged_chunks: Vec<DamagedChunk>,
+    /// Messages (CSV rows) dropped because they repeat the one before exactly, stamp and
+    /// readings: a message recorded twice (see `stamps`, the rule every reader shares).
+    pub duplicates_dropped: u64,
+    /// How the unit of a CSV time column that names none was chosen from its stamps'
+    /// magnitude (stamps since 1970 in ms, µs or ns); `None` where nothing was chosen.
+    pub time_unit: Option<calib_core::report::TimeUnitChoice>,
 }
 
 /// An MCAP chunk whose records do not match the CRC its header records, or cannot be decoded.

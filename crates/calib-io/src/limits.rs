@@ -244,8 +244,9 @@ pub(crate) fn time_problem(t: f64) -> Option<String> {
     }
     let t = readable(t);
     Some(format!(
-        "time stamp {t} s is beyond ±{MAX_TIME_S:e} s (the year 2286); time stamps must be in \
-         seconds — convert milliseconds or nanoseconds"
+        "time stamp {t} s is beyond ±{MAX_TIME_S:e} s (the year 2286): the column is not in \
+         seconds; say its unit with `time_unit = ms`, `us` or `ns` (milliseconds, microseconds \
+         or nanoseconds)"
     ))
 }
 

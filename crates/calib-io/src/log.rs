@@ -301,6 +301,9 @@ pub struct LogReader {
     /// A sparse CSV's selected channels aligned on the first one's stamps, as MCAP topics are;
     /// `true` once the file is read to its end.
     csv_aligner: Option<(Aligner, bool)>,
+    /// How a CSV's selected channels are aligned, should the file turn out sparse after its
+    /// first rows ([`CsvReader::sparse_from_line`]).
+    csv_align: AlignOptions,
     /// A bag's warnings about how it was found (a missing `metadata.yaml`).
     bag_warnings: Vec<String>,
     /// The samples read but not yet handed on by [`Iterator::next`].
@@ -376,6 +379,7 @@ impl LogReader {
             names,
             selection: None,
             csv_aligner: None,
+            csv_align: AlignOptions::default(),
             bag_warnings,
             one: OneByOne::default(),
             renames,
@@ -405,6 +409,8 @@ impl LogReader {
                 if r.is_sparse() && !channels.is_empty() {
                     self.csv_aligner = Some((Aligner::new(channels.to_vec(), opts), false));
                 }
+                r.set_needed(channels);
+                self.csv_align = opts;
                 self.selection = Some((channels.to_vec(), chosen));
             }
             Inner::Ros2(r) => r.samples_mut().select(channels, opts),
@@ -521,6 +527,18 @@ impl LogReader {
         }
     }
 
+    /// How the log was read where the reader decided something the user did not say, for
+    /// `details.reading` in `report.json` (complete once the iterator is exhausted): messages
+    /// dropped as exact copies of the one before (the `stamps` module), the unit a CSV time
+    /// column was read in by its stamps' magnitude. `None` where it decided nothing.
+    pub fn reading(&self) -> Option<calib_core::report::Reading> {
+        let d = self.diagnostics();
+        (d.duplicates_dropped > 0 || d.time_unit.is_some()).then(|| calib_core::report::Reading {
+            duplicates_dropped: d.duplicates_dropped,
+            time_unit: d.time_unit.clone(),
+        })
+    }
+
     /// How the channels were aligned on the first one's clock (complete once the iterator is
     /// exhausted); `None` for a CSV log whose rows hold every channel at one stamp.
     pub fn alignment(&self) -> Option<Alignment> {
@@ -596,6 +614,28 @@ impl LogReader {
     pub fn warnings(&self, path: &Path) -> Vec<String> {
         let d = self.diagnostics();
         let mut w = self.bag_warnings.clone();
+        if d.duplicates_dropped > 0 {
+            let what = match &self.inner {
+                Inner::Csv(_) => "row(s)",
+                Inner::Ros2(_) => "message(s)",
+            };
+            w.push(format!(
+                "{}: {} duplicated {what} dropped: each repeated the one before it exactly, \
+                 stamp and readings (recorded twice: a recorder or bridge subscribed twice, a \
+                 replayed segment)",
+                path.display(),
+                d.duplicates_dropped
+            ));
+        }
+        if let Inner::Csv(r) = &self.inner
+            && let Some(line) = r.sparse_from_line()
+        {
+            w.push(format!(
+                "{}: rows leave a channel's cell empty from line {line} on: read from there as \
+                 sparse rows, each channel a series of its own aligned on the first one's stamps",
+                path.display()
+            ));
+        }
         if let Some(t) = &d.truncated {
             w.push(format!(
                 "{}: the log ends early at byte {} (a crashed recording?): the {} messages before the break were used",
@@ -669,37 +709,45 @@ impl LogReader {
         let Inner::Csv(r) = &mut self.inner else {
             return None;
         };
-        if let Some((aligner, ended)) = self.csv_aligner.as_mut() {
-            loop {
-                if let Some(s) = aligner.pop() {
+        if self.csv_aligner.is_none() {
+            let sample = r.next()?;
+            let Some((columns, _)) = &self.selection else {
+                return Some(sample);
+            };
+            match sample {
+                Ok(s) if r.sparse_from_line().is_some() && !columns.is_empty() => {
+                    // Sparse from this row on: it and the rows after it through the aligner.
+                    let mut aligner = Aligner::new(columns.clone(), self.csv_align);
+                    aligner.push((s.t * 1e9).round() as i64, s.t, &s.values, s.session);
+                    self.csv_aligner = Some((aligner, false));
+                }
+                Ok(mut s) => {
+                    s.values = columns.iter().map(|&i| s.values[i]).collect();
                     return Some(Ok(s));
                 }
-                if *ended {
-                    return None;
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        let (aligner, ended) = self.csv_aligner.as_mut()?;
+        loop {
+            if let Some(s) = aligner.pop() {
+                return Some(Ok(s));
+            }
+            if *ended {
+                return None;
+            }
+            match r.next() {
+                Some(Ok(s)) => aligner.push((s.t * 1e9).round() as i64, s.t, &s.values, s.session),
+                Some(Err(e)) => {
+                    *ended = true;
+                    return Some(Err(e));
                 }
-                match r.next() {
-                    Some(Ok(s)) => {
-                        aligner.push((s.t * 1e9).round() as i64, s.t, &s.values, s.session)
-                    }
-                    Some(Err(e)) => {
-                        *ended = true;
-                        return Some(Err(e));
-                    }
-                    None => {
-                        *ended = true;
-                        aligner.finish();
-                    }
+                None => {
+                    *ended = true;
+                    aligner.finish();
                 }
             }
         }
-        let sample = r.next()?;
-        Some(match (sample, &self.selection) {
-            (Ok(mut s), Some((columns, _))) => {
-                s.values = columns.iter().map(|&i| s.values[i]).collect();
-                Ok(s)
-            }
-            (other, _) => other,
-        })
     }
 }
 

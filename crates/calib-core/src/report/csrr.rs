@@ -58,6 +58,10 @@ pub struct CsrrDetails {
     /// How the channels were aligned on one clock, where anything was interpolated or dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<super::Alignment>,
+    /// How the log was read where the reader decided something the user did not say (copies
+    /// dropped, a time unit chosen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reading: Option<super::Reading>,
     /// B's lag behind A removed, seconds (positive: B's sample is older than its stamp says;
     /// 0 where none was); absent where the calibration did not look (a library caller of
     /// `Csrr::finish`).
@@ -289,6 +293,7 @@ impl Calibration {
                 }
             }),
             alignment: None,
+            reading: None,
             latency_s: self.latency.map(|l| l.applied),
             latency: self.latency.map(|l| CsrrLatencyReport {
                 mode: match l.mode {

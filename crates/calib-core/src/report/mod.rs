@@ -95,6 +95,20 @@ impl ReportSection {
         self
     }
 
+    /// The section with how the log was read where the reader decided something the user did
+    /// not say (`details.reading`), for the methods that read logs; `None` leaves it out.
+    pub fn with_reading(mut self, reading: Option<Reading>) -> Self {
+        let slot = match &mut self.details {
+            Details::Csrr(d) => &mut d.reading,
+            Details::Multihead(d) => &mut d.reading,
+            Details::Tdr(d) => &mut d.reading,
+            Details::Reference(d) => &mut d.reading,
+            Details::ShiftAngle(_) => return self,
+        };
+        *slot = reading;
+        self
+    }
+
     /// The section with its times on the log's own clock: the times the method was given plus
     /// `origin_s`, the stamp they were counted from (readers count stamps since 1970 from the
     /// first one's second, to keep their nanoseconds in a double).
@@ -409,6 +423,36 @@ impl Alignment {
                 .iter()
                 .all(|c| c.interpolated == 0 && c.dropped == 0 && c.out_of_order == 0)
     }
+}
+
+/// How a log was read, written in `details.reading` where the reader decided something the
+/// user did not say: messages it dropped as copies, a time unit it chose.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Reading {
+    /// Messages (CSV rows) dropped because they repeated the one before exactly, stamp and
+    /// readings: a message recorded twice (a recorder or bridge subscribed twice, a replayed
+    /// segment). Conflicting repeats (the same stamp, other readings) are refused instead.
+    #[serde(default)]
+    pub duplicates_dropped: u64,
+    /// The unit a CSV time column that names none was read in, chosen from its stamps'
+    /// magnitude; absent where the option, the column's name or a units row gave it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_unit: Option<TimeUnitChoice>,
+}
+
+/// The unit a CSV time column was read in when neither the `time_unit` option, its name nor a
+/// units row gave one, and why: its first stamp is a date between 1990 and 2100 counted in that
+/// unit since 1970.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TimeUnitChoice {
+    /// The time column.
+    pub column: String,
+    /// The unit taken: `ms`, `us` or `ns`.
+    pub unit: String,
+    /// Why, in words: the first stamp and the date it is in that unit.
+    pub reason: String,
 }
 
 /// How one channel was aligned to the clock.

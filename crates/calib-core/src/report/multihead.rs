@@ -41,6 +41,10 @@ pub struct MultiheadDetails {
     /// How the channels were aligned on one clock, where anything was interpolated or dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<super::Alignment>,
+    /// How the log was read where the reader decided something the user did not say (copies
+    /// dropped, a time unit chosen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reading: Option<super::Reading>,
 }
 
 /// The multi-head solver (as [`Method`]).
@@ -167,6 +171,7 @@ impl MultiheadCalibration {
                 })
                 .collect(),
             alignment: None,
+            reading: None,
         };
         ReportSection {
             method: "multihead",

@@ -48,6 +48,10 @@ pub struct ReferenceDetails {
     /// How the channels were aligned on one clock, where anything was interpolated or dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<super::Alignment>,
+    /// How the log was read where the reader decided something the user did not say (copies
+    /// dropped, a time unit chosen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reading: Option<super::Reading>,
     /// The DUT's lag behind the reference, seconds (positive: the DUT's sample is older), as
     /// removed from the map (0 where none was); absent with `--latency 0`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -366,6 +370,7 @@ impl ReferenceCalibration {
             }),
             repeat_spread_deg: self.repeat_spread.map(f64::to_degrees),
             alignment: None,
+            reading: None,
             latency_s: self.latency.map(|l| l.applied),
             latency: self.latency.map(|l| {
                 Box::new(LatencyReport {

@@ -39,6 +39,10 @@ pub struct TdrDetails {
     /// How the channels were aligned on one clock, where anything was interpolated or dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<super::Alignment>,
+    /// How the log was read where the reader decided something the user did not say (copies
+    /// dropped, a time unit chosen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reading: Option<super::Reading>,
 }
 
 /// The coast's motion: a Chebyshev series of time.
@@ -257,6 +261,7 @@ impl TdrCalibration {
                     rms_difference_arcsec: r.rms_diff_arcsec,
                 }),
             alignment: None,
+            reading: None,
         };
         ReportSection {
             method: "tdr",

@@ -27,8 +27,11 @@
 //!   - none: the first line is already numeric (a matrix of numbers); the columns are named
 //!     `1`, `2`, … and the file has no time column.
 //! - the **time column** ([`time_column`]): the one `--time-column` names, else one whose name
-//!   is `t`, `time` or `timestamp` (any case), bare or with a unit suffix ` [s]`, `[ms]`, ` (us)`,
-//!   `_ns`, …; its unit from the suffix, or `--time-unit`, else seconds.
+//!   is `t`, `time` or `timestamp` or the word for time in German, French, Spanish, Italian,
+//!   Polish, Japanese or Chinese ([`TIME_NAMES`]: `Zeit [s]`), any case, bare or with a unit
+//!   suffix ` [s]`, `[ms]`, ` (us)`, `_ns`, …; its unit from `--time-unit`, the suffix or a
+//!   units row, else from the first stamp's magnitude where it is a date since 1970 in ms, µs or
+//!   ns ([`epoch_unit`]), else seconds.
 //!
 //! A file in which no header can be found this way (a header with no data rows, say) is read as
 //! the plain dialect — `,` and the header on line 1 — so that its errors stay the usual ones.
@@ -195,6 +198,30 @@ impl TimeUnit {
             "ns" => Some(TimeUnit::Ns),
             "100ns" | "ticks" => Some(TimeUnit::Ticks),
             _ => None,
+        }
+    }
+}
+
+impl TimeUnit {
+    /// The unit's name in a sentence: `seconds`, `milliseconds`, …
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeUnit::S => "seconds",
+            TimeUnit::Ms => "milliseconds",
+            TimeUnit::Us => "microseconds",
+            TimeUnit::Ns => "nanoseconds",
+            TimeUnit::Ticks => "100 ns ticks",
+        }
+    }
+
+    /// The unit as the `time_unit` option takes it: `s`, `ms`, `us`, `ns`, `100ns`.
+    pub fn suffix(self) -> &'static str {
+        match self {
+            TimeUnit::S => "s",
+            TimeUnit::Ms => "ms",
+            TimeUnit::Us => "us",
+            TimeUnit::Ns => "ns",
+            TimeUnit::Ticks => "100ns",
         }
     }
 }
@@ -501,18 +528,71 @@ pub fn time_column(
     Some((i, unit.or(suffix_unit).unwrap_or(TimeUnit::S)))
 }
 
+/// A column among `names` whose name looks like a time column's but is not one calib takes by
+/// itself (`Timestamp (UTC)`, `elapsed_time`, `Zeitstempel`): the first whose name holds one of
+/// the words of [`TIME_NAMES`] (but `t`) or `stamp`, any case. Named in the error of a file
+/// without a time column, with the option that reads it.
+pub fn looks_like_time(names: &[String]) -> Option<&str> {
+    names
+        .iter()
+        .find(|n| {
+            let lower = n.to_lowercase();
+            TIME_NAMES[..2]
+                .iter()
+                .chain(&TIME_NAMES[3..])
+                .chain(&["stamp"])
+                .any(|w| lower.contains(w))
+        })
+        .map(String::as_str)
+}
+
+/// Stamps since 1970 (Unix time) are taken as dates from 1990-01-01 (631,152,000 s) …
+const EPOCH_FROM_S: f64 = 631_152_000.0;
+/// … to 2100-01-01 (4,102,444,800 s): in s, ms, µs and ns these ranges are 1000× apart and
+/// each spans a factor of 6.5, so at most one unit holds a given stamp.
+const EPOCH_TO_S: f64 = 4_102_444_800.0;
+
+/// The unit in which `stamp`, a time column's number, is a date between 1990 and 2100 counted
+/// since 1970 (s ~1.7·10⁹, ms ~1.7·10¹², µs ~1.7·10¹⁵, ns ~1.7·10¹⁸), and that year; `None`
+/// if it is one in none (a time from the start of the run, a FILETIME).
+pub fn epoch_unit(stamp: f64) -> Option<(TimeUnit, i32)> {
+    [TimeUnit::S, TimeUnit::Ms, TimeUnit::Us, TimeUnit::Ns]
+        .into_iter()
+        .map(|u| (u, stamp * u.seconds()))
+        .find(|(_, s)| (EPOCH_FROM_S..EPOCH_TO_S).contains(s))
+        // The mean Gregorian year: 365.2425 days.
+        .map(|(u, s)| (u, 1970 + (s / 31_556_952.0).floor() as i32))
+}
+
 /// The unit a time column's name gives (`time_ms`, `Time [s]`), if it gives one.
 pub(crate) fn time_unit_of(name: &str) -> Option<TimeUnit> {
     parse_time_name(name).and_then(|(_, u)| u)
 }
 
-/// A time column's name split into its base (`t`, `time`, `timestamp`) and unit suffix
+/// The words a time column is named by, bare or with a unit suffix: English (`timestamp`,
+/// `time`, `t`), German (`Zeit`: LabVIEW and TwinCAT exports in German), French (`temps`),
+/// Spanish (`tiempo`), Italian and Portuguese (`tempo`), Polish (`czas`), Japanese (`時間`) and
+/// Chinese (`时间`); any case.
+pub const TIME_NAMES: [&str; 10] = [
+    "timestamp",
+    "time",
+    "t",
+    "zeit",
+    "temps",
+    "tiempo",
+    "tempo",
+    "czas",
+    "時間",
+    "时间",
+];
+
+/// A time column's name split into its base (one of [`TIME_NAMES`]) and unit suffix
 /// (` [s]`, `(ms)`, `_us`, …), if it is one.
-fn parse_time_name(name: &str) -> Option<(&str, Option<TimeUnit>)> {
+fn parse_time_name(name: &str) -> Option<(&'static str, Option<TimeUnit>)> {
     // PlotJuggler's `__time`.
     let name = name.trim().trim_start_matches('_');
     let lower = name.to_ascii_lowercase();
-    for base in ["timestamp", "time", "t"] {
+    for base in TIME_NAMES {
         let Some(rest) = lower.strip_prefix(base) else {
             continue;
         };
@@ -658,5 +738,43 @@ mod tests {
             Some((0, TimeUnit::S))
         );
         assert_eq!(time_column(&names(&["a"]), Some("t"), None), None);
+        // Other languages.
+        for (name, unit) in [
+            ("Zeit [s]", TimeUnit::S),
+            ("temps (ms)", TimeUnit::Ms),
+            ("Tiempo", TimeUnit::S),
+            ("tempo_us", TimeUnit::Us),
+            ("czas [ns]", TimeUnit::Ns),
+            ("時間", TimeUnit::S),
+            ("时间 [ms]", TimeUnit::Ms),
+        ] {
+            assert_eq!(
+                time_column(&names(&["a", name]), None, None),
+                Some((1, unit)),
+                "{name}"
+            );
+        }
+        assert_eq!(time_column(&names(&["temperature", "a"]), None, None), None);
+        assert_eq!(
+            looks_like_time(&names(&["a", "Timestamp (UTC)"])),
+            Some("Timestamp (UTC)")
+        );
+        assert_eq!(looks_like_time(&names(&["a", "temperature"])), None);
+    }
+
+    #[test]
+    fn stamps_since_1970_say_their_unit() {
+        assert_eq!(epoch_unit(1.764e9), Some((TimeUnit::S, 2025)));
+        assert_eq!(epoch_unit(1.764e12), Some((TimeUnit::Ms, 2025)));
+        assert_eq!(epoch_unit(1.764e15), Some((TimeUnit::Us, 2025)));
+        assert_eq!(epoch_unit(1.764e18), Some((TimeUnit::Ns, 2025)));
+        // 1990 and 2099 in ns; 1989 and 2100 in none.
+        assert_eq!(epoch_unit(6.32e17).map(|(u, _)| u), Some(TimeUnit::Ns));
+        assert_eq!(epoch_unit(4.1e18).map(|(u, _)| u), Some(TimeUnit::Ns));
+        assert_eq!(epoch_unit(6.3e17), None);
+        assert_eq!(epoch_unit(4.2e18), None);
+        // Times from a run's start, and a FILETIME (100 ns ticks since 1601: 1974 in ns).
+        assert_eq!(epoch_unit(12.5), None);
+        assert_eq!(epoch_unit(1.329e17), None);
     }
 }

@@ -10,7 +10,8 @@
 //! 0.001,0.004,0.019,0
 //! ```
 //!
-//! - `t`: time in seconds, finite and strictly increasing from row to row. Required.
+//! - `t`: time in seconds, finite and strictly increasing from row to row (a row repeating the
+//!   one before exactly is dropped as a copy: the `stamps` module). Required.
 //! - `session`: optional integer marking each row's CSRR session; negative for rows outside any
 //!   session.
 //! - every other column is a channel named by its header; readings in the unit given by
@@ -23,8 +24,9 @@
 //!
 //! # Dialects
 //! Lab exports are read too ([`dialect`]): `;` or tab separators, metadata lines before the
-//! header, and a time column named `time`, `timestamp`, `Time [s]`, `t_ms`, … (or any name given
-//! as [`ReadOptions::time_column`](crate::ReadOptions::time_column)) in s, ms, us or ns.
+//! header, and a time column named `time`, `timestamp`, `Time [s]`, `t_ms`, `Zeit [s]`, … (or any
+//! name given as [`ReadOptions::time_column`](crate::ReadOptions::time_column)) in s, ms, us or
+//! ns (stamps since 1970 in a column that names no unit: the unit their magnitude says).
 
 pub mod dialect;
 pub mod direction;

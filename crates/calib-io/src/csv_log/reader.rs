@@ -5,6 +5,7 @@ use super::fields::{self, Decimal, line_of, parse_f64, parse_f64_comma, parse_in
 use super::time_step::{TimeStep, UnitFrom};
 use crate::limits::LineLimit;
 use crate::progress::ReadProgress;
+use crate::stamps::{Backward, StampOrder, Step};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::reference_points::Approach;
 use calib_core::{AngleUnit, Channel, Sample};
@@ -75,10 +76,22 @@ pub struct CsvReader {
     /// The column of each channel, in the order of `channels`.
     value_cols: Vec<usize>,
     rad_per_unit: f64,
-    /// Pass stamps that repeat or go back through (for `inspect`, which reports them).
+    /// Pass stamps that repeat with other readings or go back through (for `inspect`, which
+    /// reports them); exact duplicates are dropped all the same.
     allow_unordered_time: bool,
-    /// The previous row's time stamp and position, for the monotonicity check and its message.
-    prev: Option<(f64, csv::Position)>,
+    /// The rows' stamps so far, keyed by each row's byte offset ([`crate::stamps`]): a row that
+    /// repeats the previous one exactly is dropped, one that conflicts with it or goes back is
+    /// refused.
+    order: StampOrder<f64>,
+    /// A sparse file's: each channel's stamps, where two channels may share a stamp on rows of
+    /// their own.
+    channel_orders: Vec<StampOrder<f64>>,
+    /// Whether each channel is read (all until [`CsvReader::set_needed`]): a cell of a channel
+    /// not read is not parsed, so an empty or unused column does not refuse the file.
+    needed: Vec<bool>,
+    /// The line from which the file was found sparse while reading (rows with empty cells after
+    /// the part [`dialect::sniff`] saw), if it was.
+    sparse_from_line: Option<u64>,
     /// The time column's steps between the first rows (`None` without a time column).
     time_step: Option<TimeStep>,
     diagnostics: ReadDiagnostics,
@@ -277,7 +290,6 @@ impl CsvReader {
                 }
             })
         };
-        let time_step = found.map(|(col, unit, from)| TimeStep::new(&names[col], unit, from));
         let mut point_list = false;
         let time = match (found, &dialect.header) {
             (Some((col, unit, _)), _) => Time::Column {
@@ -303,13 +315,23 @@ impl CsvReader {
                 return Err(err(
                     header_line.max(1),
                     None,
-                    match &opts.time_column {
-                        Some(wanted) => format!(
+                    match (&opts.time_column, dialect::looks_like_time(&names)) {
+                        (Some(wanted), _) => format!(
                             "the header has no column `{wanted}` (it has: {}); give the `time_column` \
                              option one of those names",
                             names.join(", ")
                         ),
-                        None => format!(
+                        (None, Some(like)) => format!(
+                            "the {} has no column calib takes for time by itself (it has: {}); \
+                             column `{like}` looks like one: read it with `time_column = {}` (and \
+                             its unit with `time_unit = ms`, `us` or `ns` if it is not in \
+                             seconds), or name it `t`, `time` or `timestamp` (with a unit such as \
+                             ` [ms]`)",
+                            if header_line == 0 { "file" } else { "header" },
+                            names.join(", "),
+                            quoted(like)
+                        ),
+                        (None, None) => format!(
                             "the {} has no time column (it has: {}); name it `t` (seconds), \
                              `time` or `timestamp` (with a unit such as ` [ms]`), or name it with \
                              the `time_column` option. A file without time is a list of stationary points, \
@@ -385,7 +407,41 @@ impl CsvReader {
                 ),
             });
         }
+        // A column whose unit nothing gave: stamps since 1970 in ms, µs or ns by their magnitude.
+        let mut diagnostics = ReadDiagnostics::default();
+        let mut time = time;
+        let mut found = found;
+        if let Some((col, _, UnitFrom::Default)) = found
+            && let Some(first) = record.get(col).and_then(|f| {
+                if dialect.decimal_comma {
+                    parse_f64_comma(f)
+                } else {
+                    parse_f64(f)
+                }
+            })
+            && let Some((unit, year)) = dialect::epoch_unit(first)
+            && unit != TimeUnit::S
+        {
+            found = Some((col, unit, UnitFrom::Magnitude));
+            time = Time::Column {
+                col,
+                scale: unit.seconds(),
+            };
+            diagnostics.time_unit = Some(calib_core::report::TimeUnitChoice {
+                column: names[col].clone(),
+                unit: unit.suffix().to_string(),
+                reason: format!(
+                    "the column names no unit and its first stamp, {}, is a date in {year} \
+                     counted in {} since 1970 (in seconds it would be beyond the year 2100); \
+                     say `time_unit = s` to read it in seconds",
+                    fields::show(&record[col]),
+                    unit.name()
+                ),
+            });
+        }
+        let time_step = found.map(|(col, unit, from)| TimeStep::new(&names[col], unit, from));
         let size = std::fs::metadata(path).map_or(0, |m| m.len());
+        let needed = vec![true; value_cols.len()];
         Ok(CsvReader {
             progress: ReadProgress::new(size),
             path: path.to_path_buf(),
@@ -408,9 +464,12 @@ impl CsvReader {
             value_cols,
             rad_per_unit: unit.radians_per_unit(),
             allow_unordered_time: opts.allow_unordered_time,
-            prev: None,
+            order: StampOrder::default(),
+            channel_orders: Vec::new(),
+            needed,
+            sparse_from_line: None,
             time_step,
-            diagnostics: ReadDiagnostics::default(),
+            diagnostics,
         })
     }
 
@@ -429,9 +488,30 @@ impl CsvReader {
     }
 
     /// Whether rows leave a channel's cell empty where it has no sample: its samples then hold
-    /// NaN there, and each channel is a series of its own to be aligned ([`crate::align`]).
+    /// NaN there, and each channel is a series of its own to be aligned ([`crate::align`]). A
+    /// file whose first rows ([`dialect::SNIFF_BYTES`]) are all full becomes sparse at its
+    /// first row that leaves a read channel's cell empty and fills another's
+    /// ([`sparse_from_line`](Self::sparse_from_line)).
     pub fn is_sparse(&self) -> bool {
         self.sparse
+    }
+
+    /// The line from which the file was found sparse while reading, if it was found so only
+    /// then (its start was full rows).
+    pub fn sparse_from_line(&self) -> Option<u64> {
+        self.sparse_from_line
+    }
+
+    /// Reads only the channels `channels` (indices into [`channels`](Self::channels)): the cells
+    /// of the others are not parsed (their samples hold NaN there), so that a column the command
+    /// does not use — an empty one, a comment — does not refuse the file.
+    pub fn set_needed(&mut self, channels: &[usize]) {
+        self.needed.iter_mut().for_each(|n| *n = false);
+        for &c in channels {
+            if let Some(n) = self.needed.get_mut(c) {
+                *n = true;
+            }
+        }
     }
 
     /// How the file is laid out.
@@ -460,8 +540,8 @@ impl CsvReader {
         self.progress.clone()
     }
 
-    /// What the reader noticed; a CSV log has nothing to report beyond its errors, so this is
-    /// always the default.
+    /// What the reader noticed so far: rows dropped as exact copies of the one before, the unit
+    /// the time column was read in by its stamps' magnitude.
     pub fn diagnostics(&self) -> &ReadDiagnostics {
         &self.diagnostics
     }
@@ -533,8 +613,8 @@ impl CsvReader {
         }
     }
 
-    /// The sample in `self.record`.
-    fn parse_row(&mut self) -> Result<Sample, Error> {
+    /// The sample in `self.record`; `None` for a row dropped as a copy of the previous one.
+    fn parse_row(&mut self) -> Result<Option<Sample>, Error> {
         let record = &self.record;
         if record.len() != self.names.len() {
             return Err(fields::wrong_width(&self.path, record, &self.names));
@@ -586,40 +666,19 @@ impl CsvReader {
             Time::Index { .. } => 0,
         };
         if let Some(problem) = crate::limits::time_problem(t) {
-            return Err(self.error(Some(t_col), problem));
-        }
-        if let Some((prev_t, prev_pos)) = &self.prev {
-            let prev_t = *prev_t;
-            if t <= prev_t && !self.allow_unordered_time {
-                let what = if t == prev_t {
-                    "repeats"
-                } else {
-                    "goes back before"
-                };
-                let prev_line = fields::line_at(&self.path, prev_pos);
-                // Stamps counted from an origin: the row's as written, the previous one's on the
-                // file's clock (a double there may round their difference away).
-                let origin = self.time_origin_s();
-                let (t, prev_t) = if origin == 0.0 {
-                    (t.to_string(), prev_t.to_string())
-                } else {
-                    (fields::show(field(t_col)), (prev_t + origin).to_string())
-                };
-                return Err(self.error(
-                    Some(t_col),
-                    format!(
-                        "time stamp {t} s {what} the previous row's {prev_t} s (line {prev_line}); \
-                         rows must be in strictly increasing time order: sort the log by `t` and \
-                         remove duplicate rows"
-                    ),
-                ));
-            }
+            return Err(self.error(Some(t_col), self.with_unit_hint(problem, t_col)));
         }
 
         let mut values = Vec::with_capacity(self.value_cols.len());
-        for &c in &self.value_cols {
+        for (k, &c) in self.value_cols.iter().enumerate() {
             let raw = field(c);
-            if self.sparse && raw.trim_ascii().is_empty() {
+            if !self.needed[k] || (self.sparse && raw.trim_ascii().is_empty()) {
+                values.push(f64::NAN);
+                continue;
+            }
+            if raw.trim_ascii().is_empty() && self.turns_sparse(record) {
+                self.sparse = true;
+                self.sparse_from_line = Some(line_of(&self.path, record));
                 values.push(f64::NAN);
                 continue;
             }
@@ -679,6 +738,9 @@ impl CsvReader {
                 }
             }
         };
+        if matches!(self.time, Time::Column { .. }) && !self.keep_stamp(t, t_col, &mut values)? {
+            return Ok(None);
+        }
         self.rows += 1;
         if self.direction_col.is_some() {
             self.directions.push(direction);
@@ -686,15 +748,157 @@ impl CsvReader {
         if let Some(steps) = &mut self.time_step {
             steps.push(t, &values);
         }
-        // The header and the rows always have positions; the default only satisfies the type.
-        self.prev = Some((
-            t,
-            record
-                .position()
-                .cloned()
-                .unwrap_or_else(csv::Position::new),
-        ));
-        Ok(Sample { t, values, session })
+        Ok(Some(Sample { t, values, session }))
+    }
+
+    /// Whether the row in `self.record`, which leaves a read channel's cell empty, makes a file
+    /// sparse that its first rows showed full ([`dialect::sniff`]'s rule: a time and at least
+    /// two channels, and the row fills some read channel's cell).
+    fn turns_sparse(&self, record: &ByteRecord) -> bool {
+        !self.sparse
+            && !self.point_list
+            && self.value_cols.len() >= 2
+            && self
+                .value_cols
+                .iter()
+                .zip(&self.needed)
+                .any(|(&c, &needed)| needed && !record[c].trim_ascii().is_empty())
+    }
+
+    /// Whether the row at `t` with `values` is kept ([`crate::stamps`]): a row that repeats the
+    /// previous one exactly (stamp and readings) is dropped and counted; one that repeats its
+    /// stamp with other readings, or goes back, is refused (passed on for `inspect`). In a
+    /// sparse file each channel's cells are checked on their own, where two channels may share
+    /// a stamp on rows of their own: a cell repeating its channel's previous one is emptied,
+    /// and a row left without any is dropped; rows may repeat a stamp but not go back.
+    fn keep_stamp(&mut self, t: f64, t_col: usize, values: &mut [f64]) -> Result<bool, Error> {
+        let key = self.record.position().map_or(0, |p| p.byte() as i64);
+        let allow = self.allow_unordered_time;
+        if !self.sparse {
+            return match self.order.check(t, key, values) {
+                Ok(Step::New) => Ok(true),
+                Ok(Step::Duplicate) => {
+                    self.diagnostics.duplicates_dropped += 1;
+                    Ok(false)
+                }
+                Err(_) if allow => Ok(true),
+                Err(b) => Err(self.stamp_error(&b, t_col, None)),
+            };
+        }
+        // Rows of any channels: a stamp may repeat (two channels at one time), not go back.
+        match self.order.check(t, key, &[]) {
+            Err(b) if b.conflict.is_none() && !allow => {
+                return Err(self.stamp_error(&b, t_col, None));
+            }
+            _ => {}
+        }
+        if self.channel_orders.len() < values.len() {
+            self.channel_orders
+                .resize_with(values.len(), StampOrder::default);
+        }
+        let (mut new, mut copies) = (false, false);
+        for (c, v) in values.iter_mut().enumerate() {
+            if v.is_nan() {
+                continue;
+            }
+            match self.channel_orders[c].check(t, key, &[*v]) {
+                Ok(Step::New) => new = true,
+                Ok(Step::Duplicate) => {
+                    *v = f64::NAN;
+                    copies = true;
+                }
+                Err(_) if allow => new = true,
+                Err(b) => return Err(self.stamp_error(&b, t_col, Some(c))),
+            }
+        }
+        if copies && !new {
+            self.diagnostics.duplicates_dropped += 1;
+            return Ok(false);
+        }
+        Ok(true)
+    }
+
+    /// The error of a row whose stamp repeats with other readings or goes back, found by
+    /// `self.order` (or, with `channel`, by that channel's order in a sparse file).
+    fn stamp_error(&self, b: &Backward<f64>, t_col: usize, channel: Option<usize>) -> Error {
+        let mut at = csv::Position::new();
+        at.set_byte(u64::try_from(b.previous_message).unwrap_or(0));
+        let prev_line = fields::line_at(&self.path, &at);
+        // Stamps counted from an origin: the row's as written, the previous one's on the
+        // file's clock (a double there may round their difference away).
+        let origin = self.time_origin_s();
+        let (t, prev_t) = if origin == 0.0 {
+            (b.stamp.to_string(), b.previous.to_string())
+        } else {
+            (
+                fields::show(self.record.get(t_col).unwrap_or_default()),
+                (b.previous + origin).to_string(),
+            )
+        };
+        let column = &self.names[t_col];
+        let previous = match channel {
+            Some(c) => format!("channel `{}`'s previous sample", self.channels[c].name),
+            None => "the previous row".to_string(),
+        };
+        let message = if b.conflict.is_some() {
+            let shown = |v: f64| crate::limits::readable(v / self.rad_per_unit);
+            let differences = match channel {
+                Some(c) => b.differences(|_| self.channels[c].name.clone(), shown),
+                None => b.differences(|i| self.channels[i].name.clone(), shown),
+            };
+            format!(
+                "time stamp {t} s repeats {previous}'s {prev_t} s (line {prev_line}) with other \
+                 readings ({differences}); a stamp's readings must be one row: keep the right \
+                 one (a row repeating the one before exactly, a copy, is dropped by itself)"
+            )
+        } else {
+            format!(
+                "time stamp {t} s goes back before {previous}'s {prev_t} s (line {prev_line}); \
+                 rows must be in increasing time order: sort the log by `{column}`"
+            )
+        };
+        self.error(Some(t_col), message)
+    }
+
+    /// A time stamp's problem ([`crate::limits::time_problem`]) with the unit the column would
+    /// be in for its stamps to be dates since 1970 where one makes them so.
+    fn with_unit_hint(&self, problem: String, t_col: usize) -> String {
+        let raw = self.record.get(t_col).unwrap_or_default();
+        match self.number(raw).and_then(dialect::epoch_unit) {
+            Some((unit, year)) => format!(
+                "{problem}; in {}, the column `{}`'s stamps are dates in {year}: say \
+                 `time_unit = {}`",
+                unit.name(),
+                self.names[t_col],
+                unit.suffix()
+            ),
+            None => problem,
+        }
+    }
+}
+
+impl CsvReader {
+    /// Reads the next record into `self.record`: `None` at the end of the file (or its `EOF`
+    /// line), which ends the stream, as an error does.
+    fn read_next(&mut self) -> Option<Result<(), Error>> {
+        match self.reader.read(&self.path, &mut self.record) {
+            Ok(true) if self.is_end_marker() => {
+                self.done = true;
+                None
+            }
+            Ok(true) => {
+                self.progress.set(self.reader.position());
+                Some(Ok(()))
+            }
+            Ok(false) => {
+                self.done = true;
+                None
+            }
+            Err(e) => {
+                self.done = true;
+                Some(Err(e))
+            }
+        }
     }
 }
 
@@ -708,26 +912,39 @@ impl Iterator for CsvReader {
         if self.pending {
             self.pending = false;
         } else {
-            match self.reader.read(&self.path, &mut self.record) {
-                Ok(true) if self.is_end_marker() => {
-                    self.done = true;
-                    return None;
-                }
-                Ok(true) => self.progress.set(self.reader.position()),
-                Ok(false) => {
-                    self.done = true;
-                    return None;
-                }
+            match self.read_next()? {
+                Ok(()) => {}
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        loop {
+            match self.parse_row() {
+                Ok(Some(sample)) => return Some(Ok(sample)),
+                // A copy of the previous row, dropped: on to the next.
+                Ok(None) => {}
                 Err(e) => {
                     self.done = true;
                     return Some(Err(e));
                 }
             }
+            if let Err(e) = self.read_next()? {
+                return Some(Err(e));
+            }
         }
-        let sample = self.parse_row();
-        self.done = sample.is_err();
-        Some(sample)
     }
 }
 
 impl FusedIterator for CsvReader {}
+
+/// A column's name as a command-line argument takes it: in single quotes where it holds
+/// anything a shell would split or expand (`'Timestamp (UTC)'`).
+fn quoted(name: &str) -> String {
+    if name
+        .chars()
+        .all(|c| c.is_alphanumeric() || matches!(c, '_' | '-' | '.' | '/'))
+    {
+        name.to_string()
+    } else {
+        format!("'{}'", name.replace('\'', r"'\''"))
+    }
+}

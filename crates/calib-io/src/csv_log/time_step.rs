@@ -50,6 +50,9 @@ pub enum UnitFrom {
     Name,
     /// The units row under the header.
     UnitsRow,
+    /// The first stamp's magnitude: a date since 1970 in this unit
+    /// ([`epoch_unit`](super::dialect::epoch_unit)).
+    Magnitude,
     /// Nothing said: seconds.
     Default,
 }
@@ -266,6 +269,7 @@ impl TimeStep {
             UnitFrom::Option => "as the `time_unit` option says",
             UnitFrom::Name => "as its name says",
             UnitFrom::UnitsRow => "as the units row says",
+            UnitFrom::Magnitude => "as its stamps' magnitude says: a date since 1970",
             UnitFrom::Default => "the default for a column without a unit",
         }
     }
@@ -305,24 +309,12 @@ fn round3(x: f64) -> String {
 
 /// The unit's name in a sentence.
 fn name(unit: TimeUnit) -> &'static str {
-    match unit {
-        TimeUnit::S => "seconds",
-        TimeUnit::Ms => "milliseconds",
-        TimeUnit::Us => "microseconds",
-        TimeUnit::Ns => "nanoseconds",
-        TimeUnit::Ticks => "100 ns ticks",
-    }
+    unit.name()
 }
 
 /// The unit as the `time_unit` option takes it.
 fn suffix(unit: TimeUnit) -> &'static str {
-    match unit {
-        TimeUnit::S => "s",
-        TimeUnit::Ms => "ms",
-        TimeUnit::Us => "us",
-        TimeUnit::Ns => "ns",
-        TimeUnit::Ticks => "100ns",
-    }
+    unit.suffix()
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use super::registry::{IgnoredTopic, Registry, Resolved, TopicInfo};
 use super::topic::Topic;
 use crate::align::{AlignOptions, Aligner, Alignment};
 use crate::naming::{ChannelName, names_of};
-use crate::stamps::StampOrder;
+use crate::stamps::{Backward, StampOrder, Step};
 use crate::{Error, ReadDiagnostics, ReadOptions, TimeSource};
 
 /// The channels of a log's topics, the selection among them, and the samples in progress.
@@ -38,8 +38,9 @@ pub(crate) struct Samples {
     raw: Vec<f64>,
     /// The raw index of the clock channel (the first selected).
     clock: usize,
-    /// The clock's stamps so far (see [`crate::stamps`]).
-    order: StampOrder,
+    /// Each topic's stamps so far, by topic index (see [`crate::stamps`]): its exact
+    /// duplicates are dropped, and a conflict or a step back of the clock's refused.
+    orders: Vec<StampOrder>,
     /// The stamp, ns, from which samples are timed, set by the first message's (see
     /// [`Samples::time_origin_s`]).
     origin_ns: Option<i64>,
@@ -104,7 +105,7 @@ impl Samples {
             fast_samples: 0,
             raw: vec![f64::NAN; width],
             clock: 0,
-            order: StampOrder::default(),
+            orders: Vec::new(),
             origin_ns: None,
             allow_unordered_time: opts.allow_unordered_time,
             key_name,
@@ -227,8 +228,8 @@ impl Samples {
             // the batch.
             self.raw.fill(f64::NAN);
             let (stamp, full) = decode(topic, message, self.time, &mut self.raw).map_err(failed)?;
-            if !self.raw[self.clock].is_nan() {
-                self.check_stamp(stamp, key)?;
+            if self.check_stamp(k, stamp, key, 0)? == Step::Duplicate {
+                return Ok(());
             }
             let t = self.time_of(stamp);
             if full {
@@ -248,9 +249,10 @@ impl Samples {
         }
         let range = topic.offset..topic.offset + topic.names.len();
         self.raw.fill(f64::NAN);
+        let offset = range.start;
         let (stamp, _) = decode(topic, message, self.time, &mut self.raw[range]).map_err(failed)?;
-        if !self.raw[self.clock].is_nan() {
-            self.check_stamp(stamp, key)?;
+        if self.check_stamp(k, stamp, key, offset)? == Step::Duplicate {
+            return Ok(());
         }
         let t = self.time_of(stamp);
         self.aligner.push(stamp, t, &self.raw, None);
@@ -258,15 +260,49 @@ impl Samples {
         Ok(())
     }
 
-    /// Refuses a clock stamp that does not increase (see [`crate::stamps`]), unless told to
-    /// pass it on.
-    fn check_stamp(&mut self, stamp: i64, key: i64) -> Result<(), Failure> {
-        if self.allow_unordered_time {
-            return Ok(());
+    /// Checks the stamp of a message of topic `k`, known by `key`, whose readings were decoded
+    /// into `self.raw` from `offset` on (see [`crate::stamps`]): an exact duplicate of the topic's previous message is counted and to
+    /// be dropped; a conflict or a step back is refused where the message carries the clock
+    /// channel, unless told to pass it on, and otherwise passed on (the aligner leaves out a
+    /// channel's samples out of order and counts them).
+    fn check_stamp(
+        &mut self,
+        k: usize,
+        stamp: i64,
+        key: i64,
+        offset: usize,
+    ) -> Result<Step, Failure> {
+        if self.orders.len() <= k {
+            self.orders.resize_with(k + 1, StampOrder::default);
         }
-        self.order.check(stamp, key).map_err(|b| {
-            Failure::message(b.describe(&self.names[self.clock].display, self.key_name, self.time))
-        })
+        let width = self.registry.topics[k].names.len();
+        let values = &self.raw[offset..offset + width];
+        match self.orders[k].check(stamp, key, values) {
+            Ok(Step::Duplicate) => {
+                self.diagnostics.duplicates_dropped =
+                    self.orders.iter().map(StampOrder::duplicates).sum();
+                Ok(Step::Duplicate)
+            }
+            Ok(Step::New) => Ok(Step::New),
+            Err(_) if self.allow_unordered_time || self.raw[self.clock].is_nan() => Ok(Step::New),
+            Err(b) => Err(Failure::message(self.describe(&b, offset))),
+        }
+    }
+
+    /// The error of a clock stamp that repeats with other readings or goes back; `offset`: where
+    /// the values `b` compares start among the raw channels.
+    fn describe(&self, b: &Backward, offset: usize) -> String {
+        b.describe(
+            &self.names[self.clock].display,
+            self.key_name,
+            self.time,
+            |i| {
+                self.names
+                    .get(offset + i)
+                    .map_or_else(|| (offset + i).to_string(), |n| n.display.clone())
+            },
+            crate::limits::readable,
+        )
     }
 }
 

@@ -311,8 +311,9 @@ fn extreme_readings_and_times_are_errors_not_numbers() {
     // A billion revolutions, unwrapped.
     let m = error_of("t,a\n0,360000000000\n", 2, Some("a"));
     assert!(m.contains("revolutions from zero"), "{m}");
-    // Nanoseconds written as seconds.
-    let m = error_of("t,a\n1700000000000000000,1\n", 2, Some("t"));
+    // Nanoseconds in a column its name says is in seconds (a column that names no unit is read
+    // in the unit its magnitude says: `csv_stamps`).
+    let m = error_of("t [s],a\n1700000000000000000,1\n", 2, Some("t [s]"));
     assert!(m.contains("nanoseconds"), "{m}");
     let m = error_of("t,a\n-9.2e18,1\n", 2, Some("t"));
     assert!(m.contains("beyond"), "{m}");
@@ -408,7 +409,7 @@ fn decimal_seconds_since_1970_keep_their_nanoseconds() {
     // Stamps a step of one nanosecond apart still increase; their error names them on the
     // file's clock.
     let m = error_of(
-        "t,a\n1700000000.000000001,0\n1700000000.000000002,0\n1700000000.000000002,0\n",
+        "t,a\n1700000000.000000001,0\n1700000000.000000002,0\n1700000000.000000002,1\n",
         4,
         Some("t"),
     );

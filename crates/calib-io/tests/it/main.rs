@@ -5,6 +5,7 @@ mod apply;
 mod common;
 mod controller_firmware;
 mod csv_reader;
+mod csv_stamps;
 mod csv_writer;
 mod fuzz_regressions;
 mod mcap_read;

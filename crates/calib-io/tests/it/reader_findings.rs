@@ -128,9 +128,10 @@ fn mcap_messages_recorded_twice_are_refused_naming_the_message() {
     };
     assert_eq!(*message_index, Some(1), "{err}");
     assert_eq!(channel.as_deref(), Some("/joint_states"), "{err}");
+    // Each copy's readings differ (`x` counts messages): a conflict, named with both readings.
     assert!(
-        message.contains("clock channel `a` repeats the previous one")
-            && message.contains("(message 0)"),
+        message.contains("clock channel `a` repeats that of message 0 with other readings")
+            && message.contains("`a` 0 there, 0.001 here"),
         "{err}"
     );
     // `inspect` passes them on, to count them: all 1000.
@@ -263,6 +264,117 @@ fn bag_rows_recorded_twice_are_refused() {
         err.contains("message id 2: ") && err.contains("repeats"),
         "{err}"
     );
+}
+
+/// Writes a `.db3` bag of one JointState topic (`a`, `b`), a row per `(receive ns, stamp ns,
+/// reading)`: `a` the reading, `b` its negative.
+fn db3_readings(path: &Path, rows: &[(u64, u64, f64)]) {
+    let db = Connection::open(path).unwrap();
+    db.execute_batch(HUMBLE_SCHEMA).unwrap();
+    db.execute(
+        "INSERT INTO topics VALUES (1, '/joint_states', ?1, 'cdr', '')",
+        params![JOINT_STATE],
+    )
+    .unwrap();
+    let tx = db.unchecked_transaction().unwrap();
+    for &(receive, stamp, x) in rows {
+        tx.execute(
+            "INSERT INTO messages (topic_id, timestamp, data) VALUES (1, ?1, ?2)",
+            params![receive as i64, joint_state(stamp, &["a", "b"], &[x, -x])],
+        )
+        .unwrap();
+    }
+    tx.commit().unwrap();
+}
+
+/// Issue 50 item 2: a bag in which every 3rd row was recorded twice (a bridge subscribed
+/// twice): before, refused at the first copy; now the copies are dropped and counted, and the
+/// samples are those of the bag without them, exactly. A copy whose reading differs is still
+/// refused, naming both rows' readings.
+#[test]
+fn bag_rows_recorded_twice_exactly_are_dropped_and_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows: Vec<(u64, u64, f64)> = regular(300)
+        .into_iter()
+        .enumerate()
+        .map(|(i, (r, st))| (r, st, i as f64 * 1e-3))
+        .collect();
+    let twice: Vec<(u64, u64, f64)> = rows
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &row)| std::iter::repeat_n(row, 1 + usize::from(i % 3 == 0)))
+        .collect();
+    let (clean_path, twice_path) = (dir.path().join("clean.db3"), dir.path().join("twice.db3"));
+    db3_readings(&clean_path, &rows);
+    db3_readings(&twice_path, &twice);
+    let mut reader = LogReader::open(&twice_path, &methods()).unwrap();
+    let samples: Vec<Sample> = reader.by_ref().collect::<Result<_, _>>().unwrap();
+    assert_eq!(samples, read(&clean_path, &methods()).unwrap());
+    assert_eq!(reader.diagnostics().duplicates_dropped, 100);
+    assert_eq!(reader.reading().unwrap().duplicates_dropped, 100);
+    let warnings = reader.warnings(&twice_path);
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("twice.db3: 100 duplicated message(s) dropped")),
+        "{warnings:?}"
+    );
+    // The copy of row 4 (id 5) with another reading: refused at id 6, naming id 5's.
+    let mut conflict = rows.clone();
+    conflict.insert(4, (rows[3].0, rows[3].1, 0.5));
+    let path = dir.path().join("conflict.db3");
+    db3_readings(&path, &conflict);
+    let err = read(&path, &methods()).unwrap_err().to_string();
+    assert!(
+        err.contains("message id 5: ")
+            && err.contains("repeats that of message id 4 with other readings")
+            && err.contains("`a` 0.003 there, 0.5 here; `b` -0.003 there, -0.5 here"),
+        "{err}"
+    );
+}
+
+/// The same for an MCAP file whose messages were each recorded twice, readings and all: the
+/// copies dropped and counted, the samples those of the file without them.
+#[test]
+fn mcap_messages_recorded_twice_exactly_are_dropped_and_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |path: &Path, copies: usize| {
+        let file = BufWriter::new(File::create(path).unwrap());
+        let mut w = WriteOptions::new()
+            .profile("ros2")
+            .chunk_size(Some(4096))
+            .create(file)
+            .unwrap();
+        let schema = w
+            .add_schema(JOINT_STATE, "ros2msg", JOINT_STATE_MSGDEF.as_bytes())
+            .unwrap();
+        let ch = w
+            .add_channel(schema, "/joint_states", "cdr", &BTreeMap::new())
+            .unwrap();
+        for (i, (log, stamp)) in regular(200).into_iter().enumerate() {
+            let x = i as f64 * 1e-3;
+            for _ in 0..copies {
+                let header = MessageHeader {
+                    channel_id: ch,
+                    sequence: i as u32,
+                    log_time: log,
+                    publish_time: log,
+                };
+                w.write_to_known_channel(&header, &joint_state(stamp, &["a", "b"], &[x, -x]))
+                    .unwrap();
+            }
+        }
+        w.finish().unwrap();
+    };
+    let (once, twice) = (dir.path().join("once.mcap"), dir.path().join("twice.mcap"));
+    write(&once, 1);
+    write(&twice, 2);
+    for opts in [methods(), inspect()] {
+        let mut reader = LogReader::open(&twice, &opts).unwrap();
+        let samples: Vec<Sample> = reader.by_ref().collect::<Result<_, _>>().unwrap();
+        assert_eq!(samples, read(&once, &opts).unwrap());
+        assert_eq!(reader.diagnostics().duplicates_dropped, 200);
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
