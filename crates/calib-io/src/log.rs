@@ -618,6 +618,7 @@ impl LogReader {
             let what = match &self.inner {
                 Inner::Csv(_) => "row(s)",
                 Inner::Ros2(_) => "message(s)",
+                Inner::Columns(_) => "sample(s)",
             };
             w.push(format!(
                 "{}: {} duplicated {what} dropped: each repeated the one before it exactly, \

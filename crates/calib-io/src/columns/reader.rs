@@ -5,7 +5,9 @@
 //! a CSV time column is (`t`, `time`, `timestamp`, with a unit suffix); the channels' waveform
 //! (TDMS `wf_increment`); else, where the caller reads point lists, the sample's index. Every
 //! other numeric column of the time's length is a channel, in the unit its file states, else
-//! `--unit`, else degrees; columns of another length are left out and listed.
+//! `--unit`, else degrees; columns of another length are left out and listed. Stamps follow
+//! the rule every reader does ([`crate::stamps`]): exact copies of a sample are dropped and
+//! counted, a repeat with other readings or a step back is refused.
 
 use std::path::Path;
 
@@ -13,7 +15,7 @@ use calib_core::{AngleUnit, Channel, SampleBatch};
 
 use super::{Column, ColumnFormat, ColumnSet, ColumnTime, Values};
 use crate::csv_log::dialect::{self, TimeUnit};
-use crate::stamps::{ORIGIN_FROM_S, StampOrder};
+use crate::stamps::{ORIGIN_FROM_S, StampOrder, Step};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 
 const NS_PER_S: i64 = 1_000_000_000;
@@ -76,7 +78,8 @@ impl ColumnReader {
         }
         let axis = TimeAxis::find(&columns, opts).map_err(err)?;
         let len = axis.len(&columns);
-        let (times, origin_s, time_from, point_list) = axis.times(path, &columns, len, opts)?;
+        let mut diagnostics = ReadDiagnostics::default();
+        let timing = axis.times(path, &columns, len, &mut diagnostics)?;
         let mut all = Vec::new();
         let mut readings = Vec::new();
         for (k, column) in columns.iter().enumerate() {
@@ -105,10 +108,21 @@ impl ColumnReader {
         }
         if all.is_empty() {
             return Err(err(format!(
-                "this {format} file holds no channel besides its time `{time_from}`{}",
+                "this {format} file holds no channel besides its time, {}{}",
+                timing.what,
                 listing(&structure)
             )));
         }
+        let times = in_order(
+            path,
+            timing.stamps_ns,
+            timing.origin_ns,
+            &mut readings,
+            &timing.what,
+            opts,
+            &mut diagnostics,
+            &all,
+        )?;
         let selection: Vec<usize> = (0..all.len()).collect();
         let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
         let progress = crate::progress::ReadProgress::new(size);
@@ -119,12 +133,12 @@ impl ColumnReader {
             all,
             readings,
             times,
-            origin_s,
-            time_from,
-            point_list,
+            origin_s: seconds(timing.origin_ns),
+            time_from: timing.what,
+            point_list: timing.point_list,
             selection,
             next: 0,
-            diagnostics: ReadDiagnostics::default(),
+            diagnostics,
             progress,
             scratch: Vec::new(),
         })
@@ -223,10 +237,11 @@ fn to_radians(path: &Path, column: &Column, unit: AngleUnit) -> Result<Vec<f64>,
 
 /// Where a columnar file's time comes from.
 enum TimeAxis {
-    /// The column at this index, in this unit (of stamps since 1970 where `epoch`).
+    /// The column at this index, in this unit (`None`: stated nowhere, seconds unless its
+    /// magnitude says a date in another unit), found as `why` says.
     Column {
         index: usize,
-        unit: TimeUnit,
+        unit: Option<TimeUnit>,
         why: &'static str,
     },
     /// Every channel's waveform: sample `i` at `start_ns + i·increment_s`.
@@ -246,14 +261,13 @@ impl TimeAxis {
                     quoted(&names)
                 ));
             };
-            let unit = opts
-                .time_unit
-                .or(dialect::time_unit_of(wanted))
-                .or(match columns[index].time {
-                    ColumnTime::Stamps(u) => Some(u),
-                    _ => None,
-                })
-                .unwrap_or(TimeUnit::S);
+            let unit =
+                opts.time_unit
+                    .or(dialect::time_unit_of(wanted))
+                    .or(match columns[index].time {
+                        ColumnTime::Stamps(u) => Some(u),
+                        _ => None,
+                    });
             return Ok(TimeAxis::Column {
                 index,
                 unit,
@@ -269,14 +283,14 @@ impl TimeAxis {
             };
             return Ok(TimeAxis::Column {
                 index,
-                unit: opts.time_unit.unwrap_or(unit),
+                unit: Some(opts.time_unit.unwrap_or(unit)),
                 why: "stamps since 1970, as the file types them",
             });
         }
-        if let Some((index, unit)) = dialect::time_column(&names, None, opts.time_unit) {
+        if let Some((index, _)) = dialect::time_column(&names, None, opts.time_unit) {
             return Ok(TimeAxis::Column {
                 index,
-                unit,
+                unit: opts.time_unit.or(dialect::time_unit_of(&names[index])),
                 why: "by its name",
             });
         }
@@ -335,27 +349,24 @@ impl TimeAxis {
         }
     }
 
-    /// Every sample's time in seconds from the origin, the origin in seconds, what the time is
-    /// (for `inspect`), and whether the samples are a point list. Stamps must increase.
+    /// Every sample's stamp, the origin the samples are timed from, and what the time is (for
+    /// `inspect`); a time column whose unit nothing states is read in the unit its magnitude
+    /// implies when its first stamp is a date since 1970 (noted in `diagnostics`).
     fn times(
         &self,
         path: &Path,
         columns: &[Column],
         len: usize,
-        opts: &ReadOptions,
-    ) -> Result<(Vec<f64>, f64, String, bool), Error> {
-        let err = |message: String| Error::Data {
-            path: path.to_path_buf(),
-            message,
-        };
+        diagnostics: &mut ReadDiagnostics,
+    ) -> Result<Timing, Error> {
         let (stamps_ns, what, point_list) = match self {
             TimeAxis::Index => {
-                let times = (0..len).map(|i| i as f64).collect();
                 let what = match steady_hint(columns) {
                     Some(hint) => format!("none: read as a point list, samples in order; {hint}"),
                     None => "none: read as a point list, samples in order".into(),
                 };
-                return Ok((times, 0.0, what, true));
+                let stamps = (0..len as i64).map(|i| i * NS_PER_S).collect();
+                (stamps, what, true)
             }
             TimeAxis::Waveform {
                 start_ns,
@@ -364,21 +375,41 @@ impl TimeAxis {
                 let stamps = (0..len)
                     .map(|i| start_ns.saturating_add((i as f64 * increment_s * 1e9).round() as i64))
                     .collect::<Vec<i64>>();
-                (
-                    stamps,
-                    format!("the channels' waveform, every {} s", increment_s),
-                    false,
-                )
+                let what = format!("the channels' waveform, every {increment_s} s");
+                (stamps, what, false)
             }
             TimeAxis::Column { index, unit, why } => {
                 let column = &columns[*index];
-                let stamps = stamps_ns(column, *unit)
-                    .map_err(|m| err(format!("time channel `{}`: {m}", column.name)))?;
-                (
-                    stamps,
-                    format!("`{}` ({why}), in {}", column.name, unit_name(*unit)),
-                    false,
-                )
+                let unit = unit.unwrap_or_else(|| {
+                    let first = match &column.values {
+                        Values::F64(v) => v.first().copied(),
+                        Values::I64(v) => v.first().map(|&x| x as f64),
+                    };
+                    match first.and_then(dialect::epoch_unit) {
+                        Some((unit, year)) if unit != TimeUnit::S => {
+                            diagnostics.time_unit = Some(calib_core::report::TimeUnitChoice {
+                                column: column.name.clone(),
+                                unit: unit.suffix().to_string(),
+                                reason: format!(
+                                    "the channel names no unit and its first stamp, {}, is a \
+                                     date in {year} counted in {} since 1970 (in seconds it \
+                                     would be beyond the year 2100); say `time_unit = s` to \
+                                     read it in seconds",
+                                    first.unwrap_or_default(),
+                                    unit.name()
+                                ),
+                            });
+                            unit
+                        }
+                        _ => TimeUnit::S,
+                    }
+                });
+                let stamps = stamps_ns(column, unit).map_err(|m| Error::Data {
+                    path: path.to_path_buf(),
+                    message: format!("time channel `{}`: {m}", column.name),
+                })?;
+                let what = format!("`{}` ({why}), in {}", column.name, unit.name());
+                (stamps, what, false)
             }
         };
         let origin_ns = match stamps_ns.first() {
@@ -387,32 +418,94 @@ impl TimeAxis {
             }
             _ => 0,
         };
-        let mut order = StampOrder::default();
-        let mut times = Vec::with_capacity(stamps_ns.len());
-        for (i, &ns) in stamps_ns.iter().enumerate() {
-            if !opts.allow_unordered_time
-                && let Err(back) = order.check(ns, i as i64)
-            {
-                let how = if back.ns == back.previous_ns {
-                    "repeats"
-                } else {
-                    "goes back before"
+        Ok(Timing {
+            stamps_ns,
+            origin_ns,
+            what,
+            point_list,
+        })
+    }
+}
+
+/// Where the samples' time comes from, as [`TimeAxis::times`] found it.
+struct Timing {
+    /// Every sample's stamp, ns.
+    stamps_ns: Vec<i64>,
+    /// The stamp the samples are timed from: the first one's whole second where it is beyond
+    /// [`ORIGIN_FROM_S`], else 0.
+    origin_ns: i64,
+    /// What the time is, for `calib inspect`.
+    what: String,
+    /// Whether the samples are a point list, timed by their index.
+    point_list: bool,
+}
+
+/// The samples' times, seconds from `origin_ns`, after the rule every reader follows
+/// ([`crate::stamps`]): an exact copy of the sample before (the same stamp and readings) is
+/// dropped from `readings` and counted in `diagnostics`; a repeat with other readings or a
+/// stamp that goes back is refused (passed on where `allow_unordered_time`, for `inspect`).
+#[allow(clippy::too_many_arguments)]
+fn in_order(
+    path: &Path,
+    stamps_ns: Vec<i64>,
+    origin_ns: i64,
+    readings: &mut [Vec<f64>],
+    what: &str,
+    opts: &ReadOptions,
+    diagnostics: &mut ReadDiagnostics,
+    channels: &[Channel],
+) -> Result<Vec<f64>, Error> {
+    let err = |message: String| Error::Data {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut order = StampOrder::default();
+    let mut keep = Vec::with_capacity(stamps_ns.len());
+    let mut row = vec![0.0; readings.len()];
+    for (i, &ns) in stamps_ns.iter().enumerate() {
+        for (v, channel) in row.iter_mut().zip(readings.iter()) {
+            *v = channel[i];
+        }
+        match order.check(ns, i as i64, &row) {
+            Ok(Step::New) => keep.push(i),
+            Ok(Step::Duplicate) => {}
+            Err(_) if opts.allow_unordered_time => keep.push(i),
+            Err(back) => {
+                let how = match &back.conflict {
+                    Some(_) => format!(
+                        "repeats that of sample {} with other readings ({}); a time's readings \
+                         must be one sample",
+                        back.previous_message,
+                        back.differences(|c| channels[c].name.clone(), |v| format!("{:.6} rad", v))
+                    ),
+                    None => format!(
+                        "goes back before the previous sample's {} s (sample {}); the samples \
+                         must be in increasing time order",
+                        seconds(back.previous),
+                        back.previous_message
+                    ),
                 };
                 return Err(err(format!(
-                    "the time ({what}) at sample {i}, {} s, {how} the previous sample's {} s \
-                     (sample {}); the samples must be in strictly increasing time order",
-                    seconds(back.ns),
-                    seconds(back.previous_ns),
-                    back.previous_message
+                    "the time ({what}) at sample {i}, {} s, {how}",
+                    seconds(ns)
                 )));
             }
-            times.push(seconds(ns - origin_ns));
         }
-        if let Some(problem) = times.last().and_then(|&t| crate::limits::time_problem(t)) {
-            return Err(err(format!("the time ({what}): {problem}")));
-        }
-        Ok((times, seconds(origin_ns), what, point_list))
     }
+    diagnostics.duplicates_dropped = order.duplicates();
+    if keep.len() < stamps_ns.len() {
+        for channel in readings.iter_mut() {
+            *channel = keep.iter().map(|&i| channel[i]).collect();
+        }
+    }
+    let times: Vec<f64> = keep
+        .iter()
+        .map(|&i| seconds(stamps_ns[i] - origin_ns))
+        .collect();
+    if let Some(problem) = times.last().and_then(|&t| crate::limits::time_problem(t)) {
+        return Err(err(format!("the time ({what}): {problem}")));
+    }
+    Ok(times)
 }
 
 /// A time column's values as ns stamps, in `unit`.
@@ -433,7 +526,7 @@ fn stamps_ns(column: &Column, unit: TimeUnit) -> Result<Vec<i64>, String> {
                     format!(
                         "sample {i}: {x} {} is beyond what 64-bit nanoseconds hold; check the \
                          unit (the `time_unit` option)",
-                        unit_name(unit)
+                        unit.name()
                     )
                 })
             })
@@ -459,17 +552,6 @@ fn stamps_ns(column: &Column, unit: TimeUnit) -> Result<Vec<i64>, String> {
 /// Nanoseconds as seconds.
 fn seconds(ns: i64) -> f64 {
     crate::ros2::decode::seconds(ns)
-}
-
-/// A time unit as `inspect` says it.
-fn unit_name(unit: TimeUnit) -> &'static str {
-    match unit {
-        TimeUnit::S => "seconds",
-        TimeUnit::Ms => "milliseconds",
-        TimeUnit::Us => "microseconds",
-        TimeUnit::Ns => "nanoseconds",
-        TimeUnit::Ticks => "100 ns ticks",
-    }
 }
 
 /// What to say of the first channel that increases steadily, the likely time of a file that
@@ -646,6 +728,55 @@ mod tests {
             err.contains("sample 2") && err.contains("goes back"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn exact_copies_are_dropped_and_counted_and_conflicts_refused() {
+        let set = ColumnSet {
+            columns: vec![
+                column("t", vec![0.0, 1.0, 1.0, 2.0]),
+                column("a", vec![0.0, 1.0, 1.0, 2.0]),
+            ],
+            structure: vec![],
+        };
+        let (r, batch) = read(set, &ReadOptions::default()).unwrap();
+        assert_eq!(batch.len(), 3);
+        assert_eq!(r.diagnostics().duplicates_dropped, 1);
+        let set = ColumnSet {
+            columns: vec![
+                column("t", vec![0.0, 1.0, 1.0, 2.0]),
+                column("a", vec![0.0, 1.0, 1.5, 2.0]),
+            ],
+            structure: vec![],
+        };
+        let err = read(set, &ReadOptions::default())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains("sample 2") && err.contains("other readings"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_time_column_without_a_unit_is_read_in_the_unit_its_magnitude_implies() {
+        let t0 = 1_765_000_000_000_000_000i64;
+        let set = ColumnSet {
+            columns: vec![
+                Column {
+                    values: Values::I64(vec![t0, t0 + 5_000_000]),
+                    ..column("timestamp", vec![])
+                },
+                column("a", vec![0.0, 1.0]),
+            ],
+            structure: vec![],
+        };
+        let (r, batch) = read(set, &ReadOptions::default()).unwrap();
+        assert!((batch.get(1).to_sample().t - 0.005).abs() < 1e-15);
+        let choice = r.diagnostics().time_unit.as_ref().unwrap();
+        assert_eq!(choice.unit, "ns");
+        assert!(r.structure().last().unwrap().contains("nanoseconds"));
     }
 
     #[test]
