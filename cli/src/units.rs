@@ -243,20 +243,20 @@ fn degrees_as_radians(span: &Span, log: &Path) -> Result<(), DegreesAsRadians> {
     let turns = (hi - lo) / TAU;
     let why = if wraps {
         format!(
-            "and step by up to {:.1} between two samples: {:.0} turns in radians between two \
+            " and step by up to {:.1} between two samples: {:.0} turns in radians between two \
              samples, which no rig moves, but a wrap at 360 in degrees",
             span.max_step,
             span.max_step / TAU
         )
     } else {
         format!(
-            "{turns:.0} turns in radians, but a whole turn ({:.1}°) in degrees",
+            ": {turns:.0} turns in radians, but a whole turn ({:.1}°) in degrees",
             hi - lo
         )
     };
     Err(DegreesAsRadians(format!(
         "{}: the readings of `{}`, read in radians (--unit rad or the file's units), lie from \
-         {lo:.4} to {hi:.4} {why}; if they are degrees, give --unit deg",
+         {lo:.4} to {hi:.4}{why}; if they are degrees, give --unit deg",
         crate::ui::shown(log),
         span.name
     )))
@@ -326,6 +326,9 @@ mod tests {
         let text = check(AngleUnit::Rad, &there_and_back)
             .unwrap_err()
             .to_string();
-        assert!(text.contains("whole turn") && text.contains("--unit deg"), "{text}");
+        assert!(
+            text.contains("whole turn") && text.contains("--unit deg"),
+            "{text}"
+        );
     }
 }

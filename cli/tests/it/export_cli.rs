@@ -278,7 +278,12 @@ fn harmonic_form_says_what_it_leaves_and_refuses_an_empty_listing() {
     let err = expect_exit(&run(&["--min-amplitude", "50"]), 1);
     assert_mentions(
         &err,
-        &["t8.csv", "order 8, is 20.0000", "--min-amplitude", "not written"],
+        &[
+            "t8.csv",
+            "order 8, is 20.0000",
+            "--min-amplitude",
+            "not written",
+        ],
     );
     assert!(!out.exists());
     // Order 16 left out: 12/√2 = 8.485″ RMS of √((20² + 12²)/2) = 16.492″, 51.4 %; p-p 24″

@@ -169,7 +169,10 @@ fn twincat_channels(
     for (k, r) in rows.iter().enumerate() {
         let mut fields: Vec<String> = r.iter().map(f64::to_string).collect();
         if filetime {
-            fields.insert(0, (132_900_081_483_250_000u64 + 100_000 * k as u64).to_string());
+            fields.insert(
+                0,
+                (132_900_081_483_250_000u64 + 100_000 * k as u64).to_string(),
+            );
         }
         o.push_str(&fields.join(";"));
         o.push_str("\r\n");
@@ -192,7 +195,11 @@ fn twincat_single_channel_without_time_keeps_every_row() {
         // 300 rows 10 ms apart: 299 intervals.
         assert_mentions(
             &stdout(&o),
-            &["300 samples over 2.990 s", "fActPosition", "time from SampleTime"],
+            &[
+                "300 samples over 2.990 s",
+                "fActPosition",
+                "time from SampleTime",
+            ],
         );
     }
 }
@@ -209,7 +216,15 @@ fn twincat_title_line_is_not_taken_for_the_channel_names() {
     let o = calib(&["inspect", s(&log)]);
     expect_exit(&o, 0);
     let out = stdout(&o);
-    assert_mentions(&out, &["200 samples over 1.990 s", "ref", "dut", "time from SampleTime"]);
+    assert_mentions(
+        &out,
+        &[
+            "200 samples over 1.990 s",
+            "ref",
+            "dut",
+            "time from SampleTime",
+        ],
+    );
     assert!(!out.contains("Encoder test"), "{out}");
 }
 

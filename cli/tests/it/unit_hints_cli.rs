@@ -311,7 +311,13 @@ fn degrees_read_as_radians_are_refused_naming_unit_deg() {
     let err = expect_exit(&run(&log, &["--unit", "rad"]), 1);
     assert_mentions(
         &err,
-        &["run.csv", "`a`", "read in radians", "wrap at 360", "--unit deg"],
+        &[
+            "run.csv",
+            "`a`",
+            "read in radians",
+            "wrap at 360",
+            "--unit deg",
+        ],
     );
     assert_no_output(&out);
     // A units row saying `rad` over the same degrees.

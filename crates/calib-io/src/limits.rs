@@ -249,7 +249,7 @@ pub enum Samples {
 /// Why the array `name` of `values` cannot be used as `kind`, if it cannot: empty, or its first
 /// value that a log's reader would refuse (NaN or infinite, a reading beyond
 /// [`MAX_READING_REV`], a stamp beyond [`MAX_TIME_S`]), named as `name[index]`. The rule is the
-/// readers' ([`reading_problem`], [`time_problem`]), so that arrays and logs are held to one.
+/// readers' (`reading_problem`, `time_problem`), so that arrays and logs are held to one.
 pub fn array_problem(name: &str, values: &[f64], kind: Samples) -> Option<String> {
     if values.is_empty() {
         return Some(format!(
@@ -303,11 +303,18 @@ mod tests {
     fn arrays_are_named_at_their_first_bad_value() {
         let r = Samples::Readings;
         assert_eq!(array_problem("a", &[0.0, 1.0], r), None);
-        assert!(array_problem("a", &[], r).unwrap().starts_with("`a` is empty"));
+        assert!(
+            array_problem("a", &[], r)
+                .unwrap()
+                .starts_with("`a` is empty")
+        );
         let nan = array_problem("a", &[0.0, f64::NAN, f64::INFINITY], r).unwrap();
         assert!(nan.starts_with("`a[1]` is NaN: reading"), "{nan}");
         let far = array_problem("b", &[1e9], r).unwrap();
-        assert!(far.starts_with("`b[0]` is 1.0000e9") && far.contains("revolutions"), "{far}");
+        assert!(
+            far.starts_with("`b[0]` is 1.0000e9") && far.contains("revolutions"),
+            "{far}"
+        );
         let t = array_problem("t", &[0.0, f64::NEG_INFINITY], Samples::Stamps).unwrap();
         assert!(t.starts_with("`t[1]` is -inf"), "{t}");
         let ms = array_problem("t", &[0.0, 2e10], Samples::Stamps).unwrap();

@@ -437,8 +437,7 @@ fn properties(records: &[Fields], separator: u8) -> Option<Dialect> {
     let comma = separator != b',';
     // A property row starts with its name; a data row with a number (a single channel's rows
     // without a time column hold that number alone).
-    let is_data =
-        |r: &Fields| r.first().is_some_and(|f| number(f, comma)) && numeric(r, comma);
+    let is_data = |r: &Fields| r.first().is_some_and(|f| number(f, comma)) && numeric(r, comma);
     for (i, r) in records.iter().enumerate() {
         if key(r) != "Name" {
             continue;

@@ -763,11 +763,7 @@ impl FusedIterator for CsvReader {}
 /// a header row with two columns of one name is refused ([`fields::header_names`]): a channel
 /// option could not say which it means. The message names both columns, their `SymbolName`s
 /// (the PLC variables, which tell them apart) and the `Name` row's line.
-fn twincat_names_are_unique(
-    path: &Path,
-    line: u64,
-    p: &dialect::Properties,
-) -> Result<(), Error> {
+fn twincat_names_are_unique(path: &Path, line: u64, p: &dialect::Properties) -> Result<(), Error> {
     // Columns count the FILETIME column where the rows have one.
     let column = |i: usize| i + 1 + usize::from(p.filetime);
     for (j, name) in p.names.iter().enumerate() {

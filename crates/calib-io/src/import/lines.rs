@@ -173,7 +173,9 @@ fn second_header(row: &str, format: Format) -> bool {
     match row.strip_prefix('#') {
         Some(comment) => {
             let c = comment.trim_start();
-            ["sign:", "grid:", "scale:"].iter().any(|k| c.starts_with(k))
+            ["sign:", "grid:", "scale:"]
+                .iter()
+                .any(|k| c.starts_with(k))
         }
         None => format == Format::Csv && row.starts_with("angle_deg"),
     }

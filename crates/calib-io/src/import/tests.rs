@@ -213,7 +213,11 @@ fn tables_beyond_the_point_limit_are_refused() {
 #[test]
 fn two_tables_in_one_file_are_refused_naming_their_lines() {
     let lut = |codes: &str| format!("uint16_t calibrationLut[2] = {{{codes}}};\n");
-    let text = format!("{}float zero_electric_angle = 2.35;\n{}", lut("1, 2"), lut("3, 4"));
+    let text = format!(
+        "{}float zero_electric_angle = 2.35;\n{}",
+        lut("1, 2"),
+        lut("3, 4")
+    );
     let err = read(&text, &ImportOptions::new(Format::Simplefoc))
         .unwrap_err()
         .to_string();
@@ -230,7 +234,9 @@ fn two_tables_in_one_file_are_refused_naming_their_lines() {
 
     let mut dump = String::new();
     for i in 0..256 {
-        dump.push_str(&format!("motor_position.sources.0.compensation_table.{i} 5\n"));
+        dump.push_str(&format!(
+            "motor_position.sources.0.compensation_table.{i} 5\n"
+        ));
     }
     dump.push_str("motor_position.sources.0.compensation_scale 0.001\n");
     // The same values again (a `conf get` answer, a dump read twice): read once.
@@ -250,7 +256,10 @@ fn two_tables_in_one_file_are_refused_naming_their_lines() {
     let err = read(&scaled, &ImportOptions::new(Format::Moteus))
         .unwrap_err()
         .to_string();
-    assert!(err.contains("line 257") && err.contains("line 258"), "{err}");
+    assert!(
+        err.contains("line 257") && err.contains("line 258"),
+        "{err}"
+    );
 
     // calib's own exports pasted together.
     for format in [Format::Csv, Format::LutI16, Format::LutF32Rad] {
