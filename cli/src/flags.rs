@@ -29,6 +29,7 @@ const FLAGS: &[(&str, &str)] = &[
     ("unit", "--unit"),
     ("faces", "--faces"),
     ("max_gap", "--max-gap"),
+    ("min_amplitude", "--min-amplitude"),
 ];
 
 /// `text` with each option the library names (`the `max_order` option`, `a lower `max_order`

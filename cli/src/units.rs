@@ -15,6 +15,17 @@
 //!   calibration can use.
 //!
 //! An explicit `--unit` (even `--unit deg`) is taken as it is.
+//!
+//! The mirror mistake, **degrees read as radians** (`--unit rad`, or a CSV units row or TwinCAT
+//! `Unit` row saying `rad` over readings in degrees), turns a reading of 359° into 57 turns: a
+//! log of four wrapped turns becomes 229 revolutions and a map of the wrong orders. So each
+//! channel read in radians because the user or the file said so (not a JointState position,
+//! radians by REP 103, unless `--unit rad` was given) is checked the same way
+//! ([`UnitCheck`]): readings within [−180, 360] that either step by [`DEG_WRAP_STEP`] or more
+//! between two samples (a wrap at 360° in degrees; 28 turns between two samples in radians) or
+//! span at least [`DEG_TURN_SPAN`] (a whole turn in degrees; 51 turns in radians, within
+//! [−180, 360] rad only for a joint that turned 51 to 57 times from near zero) are a data
+//! error (exit 1) naming `--unit deg`.
 
 use crate::exit::Usage;
 use calib_core::AngleUnit;
@@ -26,6 +37,14 @@ use std::sync::OnceLock;
 /// Smallest span of readings, in the readings' own numbers, taken as a whole turn in radians:
 /// 0.9 of 2π.
 pub const RAD_TURN_SPAN: f64 = 0.9 * TAU;
+
+/// Smallest span of readings, in the readings' own numbers, taken as a whole turn in degrees:
+/// 0.9 of 360.
+pub const DEG_TURN_SPAN: f64 = 0.9 * 360.0;
+
+/// Smallest step between two consecutive readings, in their own numbers, taken as a wrap at 360
+/// in degrees: half a turn in degrees, 28 turns between two samples in radians.
+pub const DEG_WRAP_STEP: f64 = 180.0;
 
 /// Smallest largest reading taken as encoder counts: 1024 (a 10-bit encoder's turn), almost
 /// three turns in degrees.
@@ -43,9 +62,30 @@ pub fn declare(unit: Option<AngleUnit>) {
 #[derive(Debug, Clone)]
 struct Span {
     name: String,
+    /// The unit the readings were read in: degrees (checked against radians and counts) or
+    /// radians (checked against degrees).
+    unit: AngleUnit,
     lo: f64,
     hi: f64,
     whole: bool,
+    /// The previous reading, in its own numbers (NaN before the first).
+    prev: f64,
+    /// The largest step between two consecutive readings, in their own numbers.
+    max_step: f64,
+}
+
+impl Span {
+    fn new(name: &str, unit: AngleUnit) -> Self {
+        Span {
+            name: name.to_string(),
+            unit,
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+            whole: true,
+            prev: f64::NAN,
+            max_step: 0.0,
+        }
+    }
 }
 
 /// The readings of the channels read in the default unit (degrees), checked against it.
@@ -57,25 +97,36 @@ pub struct UnitCheck {
 
 impl UnitCheck {
     /// A check of the channels of `reader` that were read in degrees because no `--unit` was
-    /// given (none where one was: the user said what the readings are).
+    /// given, and of those read in radians because `--unit rad` or the CSV file's units said so
+    /// (see the [module docs](self)).
     pub fn new(reader: &LogReader) -> Self {
-        if DECLARED.get().copied().flatten().is_some() {
-            return UnitCheck::default();
-        }
-        UnitCheck::of(reader.channels().iter().map(|c| (c.name.as_str(), c.unit)))
+        let declared = DECLARED.get().copied().flatten();
+        // A CSV file's radians come from --unit or its units row; other logs' from --unit, or
+        // from the message type (JointState), which is not checked.
+        let stated_rad = declared == Some(AngleUnit::Rad) || reader.csv_dialect().is_some();
+        UnitCheck::of(
+            reader.channels().iter().map(|c| (c.name.as_str(), c.unit)),
+            declared,
+            stated_rad,
+        )
     }
 
-    /// A check of the channels `(name, unit read in)`: those read in degrees.
-    fn of<'a>(channels: impl Iterator<Item = (&'a str, AngleUnit)>) -> Self {
+    /// A check of the channels `(name, unit read in)`: those read in degrees where no unit was
+    /// `declared`, those read in radians where the radians were stated (`stated_rad`).
+    fn of<'a>(
+        channels: impl Iterator<Item = (&'a str, AngleUnit)>,
+        declared: Option<AngleUnit>,
+        stated_rad: bool,
+    ) -> Self {
         UnitCheck {
             channels: channels
                 .map(|(name, unit)| {
-                    (unit == AngleUnit::Deg).then(|| Span {
-                        name: name.to_string(),
-                        lo: f64::INFINITY,
-                        hi: f64::NEG_INFINITY,
-                        whole: true,
-                    })
+                    let checked = match unit {
+                        AngleUnit::Deg => declared.is_none(),
+                        AngleUnit::Rad => stated_rad,
+                        _ => false,
+                    };
+                    checked.then(|| Span::new(name, unit))
                 })
                 .collect(),
         }
@@ -91,15 +142,21 @@ impl UnitCheck {
         (lo, hi): (f64, f64),
         whole: bool,
     ) -> Self {
-        if declared.is_some() || unit != AngleUnit::Deg {
+        let checked = match unit {
+            AngleUnit::Deg => declared.is_none(),
+            AngleUnit::Rad => true,
+            _ => false,
+        };
+        if !checked {
             return UnitCheck::default();
         }
+        // The range is in the unit read in; the steps between readings are not known here.
         UnitCheck {
             channels: vec![Some(Span {
-                name: name.to_string(),
                 lo,
                 hi,
                 whole,
+                ..Span::new(name, unit)
             })],
         }
     }
@@ -110,19 +167,32 @@ impl UnitCheck {
             if let Some(span) = span
                 && v.is_finite()
             {
-                let x = v.to_degrees();
+                // The reading in its own numbers, as the log writes it.
+                let x = if span.unit == AngleUnit::Deg {
+                    v.to_degrees()
+                } else {
+                    *v
+                };
                 span.lo = span.lo.min(x);
                 span.hi = span.hi.max(x);
                 // Degrees back from radians are whole numbers only to rounding.
                 span.whole &= (x - x.round()).abs() < 1e-9 * x.abs().max(1.0);
+                span.max_step = span.max_step.max((x - span.prev).abs());
+                span.prev = x;
             }
         }
     }
 
-    /// The usage error for the first channel whose readings fit another unit, naming it.
-    pub fn finish(&self, log: &Path) -> Result<(), Usage> {
+    /// The error for the first channel whose readings fit another unit, naming it: a usage
+    /// error for readings read in degrees by default, a data error for degrees read as
+    /// radians ([`DegreesAsRadians`]).
+    pub fn finish(&self, log: &Path) -> anyhow::Result<()> {
         for span in self.channels.iter().flatten() {
             if span.hi < span.lo {
+                continue;
+            }
+            if span.unit == AngleUnit::Rad {
+                degrees_as_radians(span, log)?;
                 continue;
             }
             let (lo, hi) = (span.lo, span.hi);
@@ -139,7 +209,8 @@ impl UnitCheck {
                     r(lo),
                     r(hi),
                     r(turn)
-                )));
+                ))
+                .into());
             }
             if lo >= -PI - 1e-9 && hi <= TAU + 1e-9 && hi - lo >= RAD_TURN_SPAN {
                 return Err(Usage(format!(
@@ -148,19 +219,55 @@ impl UnitCheck {
                      without --unit); if they are radians (as ROS logs them, REP 103), give \
                      --unit rad, or --unit deg if they are degrees",
                     hi - lo
-                )));
+                ))
+                .into());
             }
         }
         Ok(())
     }
 }
 
+/// Readings read in radians that are degrees (see the [module docs](self)): exit 1.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct DegreesAsRadians(pub String);
+
+/// Refuses `span`, read in radians, if its readings are degrees.
+fn degrees_as_radians(span: &Span, log: &Path) -> Result<(), DegreesAsRadians> {
+    let (lo, hi) = (span.lo, span.hi);
+    let within = lo >= -DEG_WRAP_STEP - 1e-9 && hi <= 360.0 + 1e-9;
+    let wraps = span.max_step >= DEG_WRAP_STEP;
+    if !within || !(wraps || hi - lo >= DEG_TURN_SPAN) {
+        return Ok(());
+    }
+    let turns = (hi - lo) / TAU;
+    let why = if wraps {
+        format!(
+            " and step by up to {:.1} between two samples: {:.0} turns in radians between two \
+             samples, which no rig moves, but a wrap at 360 in degrees",
+            span.max_step,
+            span.max_step / TAU
+        )
+    } else {
+        format!(
+            ": {turns:.0} turns in radians, but a whole turn ({:.1}°) in degrees",
+            hi - lo
+        )
+    };
+    Err(DegreesAsRadians(format!(
+        "{}: the readings of `{}`, read in radians (--unit rad or the file's units), lie from \
+         {lo:.4} to {hi:.4}{why}; if they are degrees, give --unit deg",
+        crate::ui::shown(log),
+        span.name
+    )))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn check(unit: AngleUnit, readings: &[f64]) -> Result<(), Usage> {
-        let mut c = UnitCheck::of([("a", unit)].into_iter());
+    fn check(unit: AngleUnit, readings: &[f64]) -> anyhow::Result<()> {
+        let mut c = UnitCheck::of([("a", unit)].into_iter(), None, true);
         for r in readings {
             c.push(&[unit.to_rad(*r)]);
         }
@@ -193,5 +300,35 @@ mod tests {
         assert!(check(AngleUnit::Deg, &accumulated).is_ok());
         let radians: Vec<f64> = (0..1000).map(|k| k as f64 * TAU / 1000.0).collect();
         assert!(check(AngleUnit::Rad, &radians).is_ok());
+        // Radians accumulated over 60 turns (beyond 360 rad), or wrapped to [−π, π).
+        let many: Vec<f64> = (0..60_000).map(|k| k as f64 * TAU / 1000.0).collect();
+        assert!(check(AngleUnit::Rad, &many).is_ok());
+        let wrapped: Vec<f64> = many.iter().map(|x| x.rem_euclid(TAU) - PI).collect();
+        assert!(check(AngleUnit::Rad, &wrapped).is_ok());
+    }
+
+    /// Degrees read as radians: four turns wrapped at 360, and one turn there and back without
+    /// a wrap (a TwinCAT `Unit` row saying `rad`), are a data error naming --unit deg.
+    #[test]
+    fn degrees_read_as_radians_are_named() {
+        let wrapped: Vec<f64> = (0..14_400).map(|k| (k as f64 * 0.1) % 360.0).collect();
+        let err = check(AngleUnit::Rad, &wrapped).unwrap_err();
+        let text = err.to_string();
+        assert!(err.downcast_ref::<DegreesAsRadians>().is_some(), "{text}");
+        assert!(
+            text.contains("--unit deg") && text.contains("`a`") && text.contains("wrap at 360"),
+            "{text}"
+        );
+        let there_and_back: Vec<f64> = (0..=3600)
+            .chain((0..=3600).rev())
+            .map(|k| k as f64 * 0.1)
+            .collect();
+        let text = check(AngleUnit::Rad, &there_and_back)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            text.contains("whole turn") && text.contains("--unit deg"),
+            "{text}"
+        );
     }
 }

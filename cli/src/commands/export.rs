@@ -158,7 +158,9 @@ fn parse_orders(text: &str) -> Result<Orders, String> {
 /// periodic format for a range table), so a usage error (exit 2).
 fn classify(err: ExportError) -> anyhow::Error {
     match err {
-        ExportError::NoBetter { .. } | ExportError::OutOfRange { .. } => err.into(),
+        ExportError::NoBetter { .. }
+        | ExportError::OutOfRange { .. }
+        | ExportError::NothingListed { .. } => err.into(),
         _ => Usage(err.to_string()).into(),
     }
 }

@@ -255,6 +255,64 @@ fn harmonic_form_keeps_the_largest_and_names_the_rest() {
     assert_eq!(d.len(), 4, "{d:?}");
 }
 
+/// `--format harmonic` says what it leaves, as every format does (issue 52): before, a
+/// `--min-amplitude` above every order wrote a header and no row (exit 0), and one that left
+/// half of the RMS said nothing. The table: 20″ at order 8, 12″ at order 16 on 3600 points.
+#[test]
+fn harmonic_form_says_what_it_leaves_and_refuses_an_empty_listing() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("angle_deg,error_arcsec,correction_arcsec\n");
+    for i in 0..3600 {
+        let a = i as f64 * 0.1;
+        let th = a.to_radians();
+        let e = 20.0 * (8.0 * th).cos() + 12.0 * (16.0 * th + 0.5).cos();
+        text.push_str(&format!("{a:.6},{e:.6},{:.6}\n", -e));
+    }
+    let t = write(dir.path(), "t8.csv", &text);
+    let out = dir.path().join("h.txt");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["export", s(&t), "--format", "harmonic", "-o", s(&out)];
+        args.extend_from_slice(extra);
+        calib(&args)
+    };
+    let err = expect_exit(&run(&["--min-amplitude", "50"]), 1);
+    assert_mentions(
+        &err,
+        &[
+            "t8.csv",
+            "order 8, is 20.0000",
+            "--min-amplitude",
+            "not written",
+        ],
+    );
+    assert!(!out.exists());
+    // Order 16 left out: 12/√2 = 8.485″ RMS of √((20² + 12²)/2) = 16.492″, 51.4 %; p-p 24″
+    // less what the 0.1° grid misses of cos(16θ + 0.5)'s peaks (23.99919″). The table's 6
+    // decimals move these by < 10⁻⁵″.
+    let o = run(&["--min-amplitude", "15"]);
+    expect_exit(&o, 0);
+    let summary = stdout(&o);
+    assert_mentions(
+        &summary,
+        &[
+            "leave 23.99919",
+            "8.4852",
+            "16.4924",
+            "(51.45 % of its RMS)",
+            "warning:",
+            "--min-amplitude",
+        ],
+    );
+    let written = std::fs::read_to_string(&out).unwrap();
+    assert!(written.contains("# warning: "), "{written}");
+    // Both orders: nothing left, no warning.
+    let o = run(&["--min-amplitude", "1"]);
+    expect_exit(&o, 0);
+    let summary = stdout(&o);
+    assert!(summary.contains("(0.00 % of its RMS)"), "{summary}");
+    assert!(!summary.contains("warning"), "{summary}");
+}
+
 /// The numbers between the first `= {` and the next `};` of a C snippet.
 fn c_numbers(text: &str) -> Vec<String> {
     let open = text.find("= {").unwrap() + 3;

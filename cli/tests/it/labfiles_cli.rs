@@ -143,6 +143,146 @@ fn twincat_export_calibrates_the_resolver_against_the_counter() {
     assert!(worst < 70.0, "map − truth: {worst}″");
 }
 
+/// A TwinCAT Scope export of the channels `names` (with their `SymbolName`s), the title line
+/// first if `title`, a FILETIME column if `filetime`, and `rows` of readings (one per channel),
+/// 10 ms apart.
+fn twincat_channels(
+    title: bool,
+    names: &[&str],
+    symbols: &[&str],
+    filetime: bool,
+    rows: &[Vec<f64>],
+) -> String {
+    let row = |key: &str, v: &str| format!("{key}{}\r\n", format!(";{v}").repeat(names.len()));
+    let mut o = String::new();
+    if title {
+        o.push_str("Name;Encoder test;\r\nFile;C:\\Scope\\encoder test.csv;\r\n");
+        o.push_str("Starttime of export;132900081483250000;Tuesday;13:55:48.325\r\n\r\n");
+        o.push_str("TriggerGroup;Count;ReleaseTime;Comment;\r\n\r\n");
+    }
+    o.push_str(&format!("Name;{}\r\n", names.join(";")));
+    o.push_str(&row("Data-Type", "REAL64"));
+    o.push_str(&row("SampleTime", "10"));
+    o.push_str(&format!("SymbolName;{}\r\n", symbols.join(";")));
+    o.push_str(&row("Unit", "(None)"));
+    o.push_str("\r\n\r\n");
+    for (k, r) in rows.iter().enumerate() {
+        let mut fields: Vec<String> = r.iter().map(f64::to_string).collect();
+        if filetime {
+            fields.insert(
+                0,
+                (132_900_081_483_250_000u64 + 100_000 * k as u64).to_string(),
+            );
+        }
+        o.push_str(&fields.join(";"));
+        o.push_str("\r\n");
+    }
+    o.push_str("EOF\r\n");
+    o
+}
+
+/// A single channel without a time column: before, its first 57 rows (52 with the title
+/// line) were taken for properties, whatever the file's length; now every row is a sample.
+#[test]
+fn twincat_single_channel_without_time_keeps_every_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows: Vec<Vec<f64>> = (0..300).map(|k| vec![k as f64 * 1.2]).collect();
+    for title in [false, true] {
+        let text = twincat_channels(title, &["fActPosition"], &["MAIN.x"], false, &rows);
+        let log = write(dir.path(), "one.csv", &text);
+        let o = calib(&["inspect", s(&log)]);
+        expect_exit(&o, 0);
+        // 300 rows 10 ms apart: 299 intervals.
+        assert_mentions(
+            &stdout(&o),
+            &[
+                "300 samples over 2.990 s",
+                "fActPosition",
+                "time from SampleTime",
+            ],
+        );
+    }
+}
+
+/// A 2-channel export without time whose file starts with the title line: before, the title
+/// was taken for the `Name` row (one channel `Encoder test`) and the second channel for a
+/// FILETIME column; now the channels are `ref` and `dut`, timed by SampleTime.
+#[test]
+fn twincat_title_line_is_not_taken_for_the_channel_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows: Vec<Vec<f64>> = (0..200).map(|k| vec![k as f64, k as f64 + 0.5]).collect();
+    let text = twincat_channels(true, &["ref", "dut"], &["MAIN.r", "MAIN.d"], false, &rows);
+    let log = write(dir.path(), "two.csv", &text);
+    let o = calib(&["inspect", s(&log)]);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
+    assert_mentions(
+        &out,
+        &[
+            "200 samples over 1.990 s",
+            "ref",
+            "dut",
+            "time from SampleTime",
+        ],
+    );
+    assert!(!out.contains("Encoder test"), "{out}");
+}
+
+/// Two channels of one name (two axes' `fActPosition`): before, accepted and the first used
+/// for the name; now refused as a header row of two columns of one name is, naming both
+/// columns, their SymbolNames and the `Name` row's line.
+#[test]
+fn twincat_channels_of_one_name_are_refused_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows: Vec<Vec<f64>> = (0..50).map(|k| vec![k as f64, k as f64]).collect();
+    let text = twincat_channels(
+        true,
+        &["fActPosition", "fActPosition"],
+        &["MAIN.axis1.fActPosition", "MAIN.axis2.fActPosition"],
+        true,
+        &rows,
+    );
+    let log = write(dir.path(), "same.csv", &text);
+    {
+        let err = expect_exit(&calib(&["inspect", s(&log)]), 1);
+        assert_mentions(
+            &err,
+            &[
+                "same.csv",
+                "line 7",
+                "(columns 2 and 3) are both named `fActPosition`",
+                "MAIN.axis1.fActPosition",
+                "MAIN.axis2.fActPosition",
+                "Name property",
+            ],
+        );
+    }
+}
+
+/// Data rows of neither width (here a time column per channel): before, "columns 2 and 3 are
+/// both named REAL64" (the `Data-Type` row taken for a header); now what was found and what
+/// to do.
+#[test]
+fn twincat_layout_not_read_says_what_it_found() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows: Vec<Vec<f64>> = (0..50)
+        .map(|k| vec![k as f64 * 0.01, k as f64, k as f64 * 0.01, k as f64 + 0.5])
+        .collect();
+    let text = twincat_channels(true, &["ref", "dut"], &["MAIN.r", "MAIN.d"], false, &rows);
+    let log = write(dir.path(), "pairs.csv", &text);
+    let err = expect_exit(&calib(&["inspect", s(&log)]), 1);
+    assert_mentions(
+        &err,
+        &[
+            "pairs.csv",
+            "line 7",
+            "names 2 channels but whose data rows hold 4 fields",
+            "single time column",
+        ],
+    );
+    assert!(!err.contains("REAL64"), "{err}");
+}
+
 /// The amplitude, arcsec, of order `order` in a channel of report.json.
 fn harmonic(ch: &Value, order: u64) -> f64 {
     ch["harmonics"]

@@ -292,3 +292,66 @@ fn apply_checks_the_default_unit_against_the_readings() {
     // Degrees, as the default says: corrected.
     expect_exit(&calib(&["apply", s(&table), s(&log), "-o", s(&out)]), 0);
 }
+
+/// Degrees read as radians (issue 52), the mirror of a log in radians read as degrees: quick's
+/// wrapped degrees given `--unit rad` were taken as 229 revolutions (each wrap at 360 a jump of
+/// 57 turns) and gave a map of the wrong orders, exit 0; a CSV units row saying `rad` over the
+/// same degrees did the same. Now exit 1 naming `--unit deg`, nothing written; with
+/// `--unit deg` the log calibrates. `apply --unit rad` refuses the same log before writing.
+#[test]
+fn degrees_read_as_radians_are_refused_naming_unit_deg() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate_quick(dir.path(), "run.csv", &[]);
+    let out = dir.path().join("out");
+    let run = |log: &Path, extra: &[&str]| {
+        let mut args = vec!["csrr", s(log), "-o", s(&out)];
+        args.extend_from_slice(extra);
+        calib(&args)
+    };
+    let err = expect_exit(&run(&log, &["--unit", "rad"]), 1);
+    assert_mentions(
+        &err,
+        &[
+            "run.csv",
+            "`a`",
+            "read in radians",
+            "wrap at 360",
+            "--unit deg",
+        ],
+    );
+    assert_no_output(&out);
+    // A units row saying `rad` over the same degrees.
+    let text = std::fs::read_to_string(&log).unwrap();
+    let (header, rows) = text.split_once('\n').unwrap();
+    let row: Vec<&str> = header
+        .split(',')
+        .map(|c| match c {
+            "t" => "s",
+            "session" => "",
+            _ => "rad",
+        })
+        .collect();
+    let units = write(
+        dir.path(),
+        "units.csv",
+        &format!("{header}\n{}\n{rows}", row.join(",")),
+    );
+    let err = expect_exit(&run(&units, &[]), 1);
+    assert_mentions(&err, &["units.csv", "--unit deg"]);
+    assert_no_output(&out);
+    expect_exit(&run(&log, &["--unit", "deg"]), 0);
+
+    let table = out.join("a.csv");
+    let corrected = dir.path().join("corrected.csv");
+    let o = calib(&[
+        "apply",
+        s(&table),
+        s(&log),
+        "-o",
+        s(&corrected),
+        "--unit",
+        "rad",
+    ]);
+    assert_mentions(&expect_exit(&o, 1), &["`a`", "--unit deg"]);
+    assert!(!corrected.exists());
+}

@@ -237,6 +237,51 @@ impl std::fmt::Display for Readable {
     }
 }
 
+/// What an array of samples handed in as numbers (calib-py's) holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Samples {
+    /// Readings in radians.
+    Readings,
+    /// Time stamps in seconds.
+    Stamps,
+}
+
+/// Why the array `name` of `values` cannot be used as `kind`, if it cannot: empty, or its first
+/// value that a log's reader would refuse (NaN or infinite, a reading beyond
+/// [`MAX_READING_REV`], a stamp beyond [`MAX_TIME_S`]), named as `name[index]`. The rule is the
+/// readers' (`reading_problem`, `time_problem`), so that arrays and logs are held to one.
+pub fn array_problem(name: &str, values: &[f64], kind: Samples) -> Option<String> {
+    if values.is_empty() {
+        return Some(format!(
+            "`{name}` is empty: give one {} per sample",
+            match kind {
+                Samples::Readings => "reading (radians)",
+                Samples::Stamps => "time stamp (seconds)",
+            }
+        ));
+    }
+    values.iter().enumerate().find_map(|(i, &v)| {
+        let why = match kind {
+            Samples::Readings => reading_problem(Readable(v), v, v),
+            Samples::Stamps if !v.is_finite() => Some(format!(
+                "time stamp `{v}` is not a finite number; remove the sample or repair the \
+                 recording"
+            )),
+            Samples::Stamps => time_problem(v),
+        };
+        why.map(|why| format!("`{name}[{i}]` is {}: {why}", describe(v)))
+    })
+}
+
+/// `v` named as a value of an array: `NaN`, `inf`, `-inf`, or the number.
+fn describe(v: f64) -> String {
+    if v.is_nan() {
+        "NaN".to_string()
+    } else {
+        readable(v)
+    }
+}
+
 /// Why a time stamp of `t` seconds cannot be used, if it cannot.
 pub(crate) fn time_problem(t: f64) -> Option<String> {
     if t.abs() <= MAX_TIME_S {
@@ -253,6 +298,29 @@ pub(crate) fn time_problem(t: f64) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Arrays are held to the readers' rule, named by argument and first bad index.
+    #[test]
+    fn arrays_are_named_at_their_first_bad_value() {
+        let r = Samples::Readings;
+        assert_eq!(array_problem("a", &[0.0, 1.0], r), None);
+        assert!(
+            array_problem("a", &[], r)
+                .unwrap()
+                .starts_with("`a` is empty")
+        );
+        let nan = array_problem("a", &[0.0, f64::NAN, f64::INFINITY], r).unwrap();
+        assert!(nan.starts_with("`a[1]` is NaN: reading"), "{nan}");
+        let far = array_problem("b", &[1e9], r).unwrap();
+        assert!(
+            far.starts_with("`b[0]` is 1.0000e9") && far.contains("revolutions"),
+            "{far}"
+        );
+        let t = array_problem("t", &[0.0, f64::NEG_INFINITY], Samples::Stamps).unwrap();
+        assert!(t.starts_with("`t[1]` is -inf"), "{t}");
+        let ms = array_problem("t", &[0.0, 2e10], Samples::Stamps).unwrap();
+        assert!(ms.contains("beyond"), "{ms}");
+    }
 
     #[test]
     fn a_line_beyond_the_limit_fails_naming_it() {

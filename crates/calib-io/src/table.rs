@@ -310,20 +310,84 @@ fn range_marker(path: &Path) -> Result<Option<(f64, f64, u64)>, Error> {
                 ),
             });
         };
-        if !((-360.0..360.0).contains(&lo) && hi > lo && hi - lo < 360.0) {
+        if let Some(message) = range_problem(lo, hi) {
             return Err(Error::Csv {
                 path: path.to_path_buf(),
                 line: line_no,
                 channel: None,
-                message: format!(
-                    "the range {lo}° to {hi}° is not a range table's: LO must lie in [−360, 360) and HI above LO by \
-                     less than 360° (a whole turn is a whole-turn table, without the range line)"
-                ),
+                message,
             });
         }
         return Ok(Some((lo, hi, line_no)));
     }
     Ok(None)
+}
+
+/// Why `lo` to `hi` (degrees) cannot be a range table's range, if it cannot.
+fn range_problem(lo: f64, hi: f64) -> Option<String> {
+    let fits = lo.is_finite() && hi.is_finite();
+    (!(fits && (-360.0..360.0).contains(&lo) && hi > lo && hi - lo < 360.0)).then(|| {
+        format!(
+            "the range {lo}° to {hi}° is not a range table's: LO must lie in [−360, 360) and HI above LO by \
+             less than 360° (a whole turn is a whole-turn table, without the range line)"
+        )
+    })
+}
+
+/// Why a table of `errors_arcsec` (and `u_arcsec`, over `range_deg` if given, else a whole turn)
+/// cannot be one calib reads, if it cannot: the rules [`read_table`] holds a file to — at least 2
+/// and at most [`MAX_TABLE_POINTS`] points, every error finite and within
+/// [`MAX_TABLE_ARCSEC`], every uncertainty finite and not negative, one per point, and a range
+/// in [−360, 360) less than a turn long — for a table made in memory (calib-py's `Table`). The
+/// grid is `range_deg`'s or the whole turn's, uniform and increasing by construction. Values are
+/// named `error_arcsec[i]`, `u_arcsec[i]`.
+pub fn table_problem(
+    errors_arcsec: &[f64],
+    u_arcsec: Option<&[f64]>,
+    range_deg: Option<(f64, f64)>,
+) -> Option<String> {
+    let n = errors_arcsec.len();
+    if n < 2 {
+        return Some(format!(
+            "the table has {n} point{}; a correction table needs at least 2 grid points",
+            if n == 1 { "" } else { "s" }
+        ));
+    }
+    if n > MAX_TABLE_POINTS {
+        return Some(too_many_rows());
+    }
+    let bad = |name: &str, values: &[f64], non_negative: bool| {
+        values.iter().enumerate().find_map(|(i, &v)| {
+            if !v.is_finite() || (non_negative && v < 0.0) {
+                Some(format!(
+                    "`{name}[{i}]` is {v}, not a finite{} number",
+                    if non_negative { ", non-negative" } else { "" }
+                ))
+            } else {
+                (v.abs() > MAX_TABLE_ARCSEC).then(|| {
+                    format!(
+                        "`{name}[{i}]` is {v:.0}″, beyond half a revolution ({MAX_TABLE_ARCSEC}″): \
+                         no sensor errs by that much"
+                    )
+                })
+            }
+        })
+    };
+    if let Some(why) = bad("error_arcsec", errors_arcsec, false) {
+        return Some(why);
+    }
+    if let Some(u) = u_arcsec {
+        if u.len() != n {
+            return Some(format!(
+                "{} uncertainties for a table of {n} points; give one per grid point",
+                u.len()
+            ));
+        }
+        if let Some(why) = bad("u_arcsec", u, true) {
+            return Some(why);
+        }
+    }
+    range_deg.and_then(|(lo, hi)| range_problem(lo, hi).map(|why| format!("range_deg: {why}")))
 }
 
 /// Reads and validates a correction table of either kind: a range table if it has the
@@ -877,6 +941,20 @@ mod tests {
             err.contains(&format!("line {}", n + 1)) && err.contains("resample it"),
             "{err}"
         );
+    }
+
+    /// A table made in memory is held to the reader's rules.
+    #[test]
+    fn tables_in_memory_are_checked_as_read_ones() {
+        assert_eq!(table_problem(&[1.0, -1.0], Some(&[0.1, 0.1]), None), None);
+        assert!(table_problem(&[], None, None).unwrap().contains("0 points"));
+        let nan = table_problem(&[1.0, f64::NAN], None, None).unwrap();
+        assert!(nan.starts_with("`error_arcsec[1]` is NaN"), "{nan}");
+        let u = table_problem(&[1.0, 2.0], Some(&[0.1, -0.1]), None).unwrap();
+        assert!(u.starts_with("`u_arcsec[1]` is -0.1"), "{u}");
+        let range = table_problem(&[1.0, 2.0], None, Some((10.0, 5.0))).unwrap();
+        assert!(range.starts_with("range_deg: "), "{range}");
+        assert_eq!(table_problem(&[1.0, 2.0], None, Some((-40.0, 95.0))), None);
     }
 
     #[test]

@@ -2,7 +2,10 @@
 
 use pyo3::PyErr;
 use pyo3::create_exception;
-use pyo3::exceptions::PyException;
+use pyo3::exceptions::{PyException, PyValueError};
+use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyDict, PyTuple, PyType};
 
 create_exception!(
     _calib,
@@ -24,6 +27,62 @@ create_exception!(
     "A bad argument: an unknown channel, an option outside its range, a missing file (the CLI's \
      exit status 2)."
 );
+
+/// `ArrayError`: a [`UsageError`] that is also Python's `ValueError` — an array argument that
+/// is empty or holds NaN, an infinity or a value out of range, named with its index. Made once,
+/// from both bases (an exception class of one base is all `create_exception!` makes).
+static ARRAY_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+/// The `ArrayError` class (see [`ARRAY_ERROR`]).
+pub fn array_error_type(py: Python<'_>) -> PyResult<&Bound<'_, PyType>> {
+    ARRAY_ERROR
+        .get_or_try_init(py, || {
+            let bases = PyTuple::new(
+                py,
+                [py.get_type::<UsageError>(), py.get_type::<PyValueError>()],
+            )?;
+            let dict = PyDict::new(py);
+            dict.set_item("__module__", "calib")?;
+            dict.set_item(
+                "__doc__",
+                "An array argument that is empty or holds NaN, an infinity or a value out of \
+                 range (a UsageError and a ValueError): the message names the argument and the \
+                 first bad index.",
+            )?;
+            let class = py
+                .get_type::<PyType>()
+                .call1(("ArrayError", bases, dict))?
+                .cast_into::<PyType>()?;
+            Ok(class.unbind())
+        })
+        .map(|class| class.bind(py))
+}
+
+/// Refuses the array `name` of `values` (`kind`) as the log readers refuse such values
+/// ([`calib_io::limits::array_problem`]): an `ArrayError` naming it and the first bad index.
+pub fn check_array(
+    name: &str,
+    values: &[f64],
+    kind: calib_io::limits::Samples,
+) -> Result<(), PyErr> {
+    match calib_io::limits::array_problem(name, values, kind) {
+        None => Ok(()),
+        Some(message) => Err(array_error(message)),
+    }
+}
+
+/// An `ArrayError` with `message`.
+pub fn array_error(message: String) -> PyErr {
+    Python::attach(|py| match array_error_type(py) {
+        Ok(class) => PyErr::from_type(class.clone(), message),
+        Err(e) => e,
+    })
+}
+
+/// Readings in radians: [`check_array`].
+pub fn check_readings(name: &str, values: &[f64]) -> Result<(), PyErr> {
+    check_array(name, values, calib_io::limits::Samples::Readings)
+}
 
 /// A [`DataError`] with `message`.
 pub fn data(message: impl Into<String>) -> PyErr {

@@ -22,6 +22,7 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("CalibError", py.get_type::<errors::CalibError>())?;
     m.add("DataError", py.get_type::<errors::DataError>())?;
     m.add("UsageError", py.get_type::<errors::UsageError>())?;
+    m.add("ArrayError", errors::array_error_type(py)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(logs::read, m)?)?;
     m.add_function(wrap_pyfunction!(logs::inspect, m)?)?;
@@ -35,6 +36,7 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tdr::tdr, m)?)?;
     m.add_function(wrap_pyfunction!(tdr::tdr_log, m)?)?;
     m.add_function(wrap_pyfunction!(tables::read_table, m)?)?;
+    m.add_function(wrap_pyfunction!(tables::check_table, m)?)?;
     m.add_function(wrap_pyfunction!(tables::write_table, m)?)?;
     m.add_function(wrap_pyfunction!(tables::correct, m)?)?;
     m.add_function(wrap_pyfunction!(tables::export, m)?)?;

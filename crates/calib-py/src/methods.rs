@@ -4,7 +4,9 @@
 //! `command_line`), and `tables`, one per calibrated channel, each its grid (`angle_deg`), errors
 //! (`error_arcsec`) and standard uncertainties (`u_arcsec`, or `None`).
 
-use crate::errors::{check_non_negative, check_points, check_range, data, usage};
+use crate::errors::{
+    check_array, check_non_negative, check_points, check_range, check_readings, data, usage,
+};
 use crate::logs::{LogOptions, LogRead, for_each_sample, log_read, open, reopen};
 use calib_core::Report;
 use calib_core::TableMap;
@@ -91,7 +93,10 @@ fn times(t: Option<&[f64]>, n: usize, rate_hz: f64) -> PyResult<Vec<f64>> {
             "t has {} samples and the readings {n}: give one time stamp per reading",
             t.len()
         ))),
-        Some(t) => Ok(t.to_vec()),
+        Some(t) => {
+            check_array("t", t, calib_io::limits::Samples::Stamps)?;
+            Ok(t.to_vec())
+        }
         None => Ok((0..n).map(|i| i as f64 / rate_hz).collect()),
     }
 }
@@ -284,7 +289,9 @@ pub fn csrr<'py>(
     let latency = latency_of(latency.as_ref())?;
     let (a, b) = (a.as_slice()?, b.as_slice()?);
     let n = a.len();
+    check_readings("a", a)?;
     same_length("b", b, n)?;
+    check_readings("b", b)?;
     let t = times(t.as_ref().map(|t| t.as_slice()).transpose()?, n, rate_hz)?;
     let sessions = sessions.as_ref().map(|s| s.as_slice()).transpose()?;
     if let Some(s) = sessions
@@ -299,6 +306,7 @@ pub fn csrr<'py>(
     let r = r#ref.as_ref().map(|r| r.as_slice()).transpose()?;
     if let Some(r) = r {
         same_length("ref", r, n)?;
+        check_readings("ref", r)?;
     }
     if names.0 == names.1 {
         return Err(usage(format!(
@@ -553,7 +561,9 @@ pub fn reference<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let (d, r) = (dut.as_slice()?, r#ref.as_slice()?);
     let n = d.len();
+    check_readings("dut", d)?;
     same_length("ref", r, n)?;
+    check_readings("ref", r)?;
     let t = times(t.as_ref().map(|t| t.as_slice()).transpose()?, n, rate_hz)?;
     let opts = reference_options(
         ref_u,

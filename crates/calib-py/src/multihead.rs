@@ -1,7 +1,7 @@
 //! Multi-head self-calibration on arrays and on logs: `multihead`, `multihead_log`
 //! (`calib multihead`).
 
-use crate::errors::{check_points, data, usage};
+use crate::errors::{check_points, check_readings, data, usage};
 use crate::logs::{LogOptions, LogRead, for_each_sample, log_read, open};
 use crate::methods::{result, same_length, turn};
 use calib_core::multihead::{Head, Method, Multihead, MultiheadCalibration, MultiheadOptions};
@@ -146,6 +146,7 @@ pub fn multihead<'py>(
     let n = columns.first().map_or(0, |c| c.len());
     for (h, c) in heads.iter().zip(&columns) {
         same_length(&h.name, c, n)?;
+        check_readings(&h.name, c)?;
     }
     let cal = py.detach(|| {
         let mut mh = Multihead::new(heads.clone(), opts).map_err(|e| e.to_string())?;

@@ -5,7 +5,7 @@
 //! first and last grid readings in degrees (`lo + (hi − lo)·i/(N − 1)`, signed across the
 //! reading 0 as the CSV table writes them). Inside, a [`TableMap`] in radians.
 
-use crate::errors::{check_points, data, usage};
+use crate::errors::{array_error, check_points, data, usage};
 use calib_core::RangeMap;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::{ErrorMap, TableMap, compose::compose_uncertainty};
@@ -15,17 +15,34 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::{Path, PathBuf};
 
+/// Refuses a table the CLI's table reader would refuse ([`calib_io::table::table_problem`]):
+/// an `ArrayError` (a `UsageError` and a `ValueError`) naming the argument and index.
+fn check_table_of(
+    errors_arcsec: &[f64],
+    u_arcsec: Option<&[f64]>,
+    range_deg: Option<(f64, f64)>,
+) -> PyResult<()> {
+    match calib_io::table::table_problem(errors_arcsec, u_arcsec, range_deg) {
+        None => Ok(()),
+        Some(why) => Err(array_error(why)),
+    }
+}
+
+/// Checks a table as it is made (`calib.Table`): [`check_table_of`].
+#[pyfunction]
+#[pyo3(signature = (error_arcsec, u_arcsec=None, range_deg=None))]
+pub fn check_table(
+    error_arcsec: PyReadonlyArray1<'_, f64>,
+    u_arcsec: Option<PyReadonlyArray1<'_, f64>>,
+    range_deg: Option<(f64, f64)>,
+) -> PyResult<()> {
+    let u = u_arcsec.as_ref().map(|u| u.as_slice()).transpose()?;
+    check_table_of(error_arcsec.as_slice()?, u, range_deg)
+}
+
 /// The errors given in arcseconds as radians, checked as a table's would be.
 fn radians_of(errors_arcsec: &[f64]) -> PyResult<Vec<f64>> {
-    if errors_arcsec.len() < 2 {
-        return Err(usage("a table needs at least 2 points"));
-    }
-    if let Some(i) = errors_arcsec.iter().position(|e| !e.is_finite()) {
-        return Err(usage(format!(
-            "the error at grid point {i} is {}, not a finite number",
-            errors_arcsec[i]
-        )));
-    }
+    check_table_of(errors_arcsec, None, None)?;
     Ok(errors_arcsec.iter().map(|e| e / ARCSEC_PER_RAD).collect())
 }
 

@@ -1,6 +1,6 @@
 //! The spin-down (TDR) method on arrays and on logs: `tdr`, `tdr_log` (`calib tdr`).
 
-use crate::errors::{check_points, data, usage};
+use crate::errors::{check_array, check_points, check_readings, data, usage};
 use crate::logs::{LogOptions, LogRead, for_each_sample, log_read, open};
 use crate::methods::{result, same_length, turn};
 use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
@@ -88,10 +88,13 @@ pub fn tdr<'py>(
     points: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (t, x) = (t.as_slice()?, readings.as_slice()?);
+    check_array("t", t, calib_io::limits::Samples::Stamps)?;
     same_length("readings", x, t.len())?;
+    check_readings("readings", x)?;
     let r = r#ref.as_ref().map(|r| r.as_slice()).transpose()?;
     if let Some(r) = r {
         same_length("ref", r, t.len())?;
+        check_readings("ref", r)?;
     }
     let opts = options(
         max_order,

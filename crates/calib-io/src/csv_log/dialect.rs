@@ -90,6 +90,17 @@ pub enum Header {
     },
     /// TwinCAT Scope's property block.
     Properties(Properties),
+    /// A TwinCAT Scope property block whose data rows hold neither one field per channel nor a
+    /// FILETIME column and one per channel (a time column per channel, say): refused by the
+    /// reader, which says what it found, rather than read as some other layout.
+    UnknownProperties {
+        /// The channels the `Name` row names.
+        channels: usize,
+        /// Fields of the first data row.
+        fields: usize,
+        /// Records (non-blank lines) before the `Name` row.
+        name_record: usize,
+    },
 }
 
 /// What a TwinCAT Scope export's property block says of its channels.
@@ -103,6 +114,11 @@ pub struct Properties {
     pub sample_time_s: Option<f64>,
     /// The data rows start with a FILETIME column (one field more than there are channels).
     pub filetime: bool,
+    /// The channels' `SymbolName`s (the PLC variables), if the row is there: what tells two
+    /// channels of one name apart.
+    pub symbols: Vec<String>,
+    /// Records (non-blank lines) before the `Name` row, for messages that name its line.
+    pub name_record: usize,
 }
 
 impl Default for Dialect {
@@ -137,6 +153,9 @@ impl Dialect {
                 "TwinCAT Scope's property block, FILETIME time stamps"
             }
             Header::Properties(_) => "TwinCAT Scope's property block, time from SampleTime",
+            Header::UnknownProperties { .. } => {
+                "TwinCAT Scope's property block, data rows of an unknown layout"
+            }
         };
         format!(
             "{separator}-separated{}{}, {layout}",
@@ -443,17 +462,18 @@ fn properties(records: &[Fields], separator: u8) -> Option<Dialect> {
     let text = |f: &[u8]| String::from_utf8_lossy(f.trim_ascii()).into_owned();
     let key = |r: &Fields| r.first().map(|f| text(f)).unwrap_or_default();
     let comma = separator != b',';
-    // A property row starts with its name; a data row with a number.
-    let is_data = |r: &Fields| {
-        r.len() >= 2 && r.first().is_some_and(|f| number(f, comma)) && numeric(r, comma)
-    };
+    // A property row starts with its name; a data row with a number (a single channel's rows
+    // without a time column hold that number alone).
+    let is_data = |r: &Fields| r.first().is_some_and(|f| number(f, comma)) && numeric(r, comma);
     for (i, r) in records.iter().enumerate() {
         if key(r) != "Name" {
             continue;
         }
+        // The block ends at the data or at the next `Name` row: the export's title line
+        // (`Name;<title>;`) heads the file's own metadata, not the channels' properties.
         let block: Vec<&Fields> = records[i + 1..]
             .iter()
-            .take_while(|r| !is_data(r))
+            .take_while(|r| !is_data(r) && key(r) != "Name")
             .take(PROPERTY_ROWS)
             .collect();
         if !block
@@ -473,7 +493,17 @@ fn properties(records: &[Fields], separator: u8) -> Option<Dialect> {
         } else if width == names.len() {
             false
         } else {
-            continue;
+            return Some(Dialect {
+                separator,
+                skip: data,
+                decimal_comma: false,
+                sparse: false,
+                header: Header::UnknownProperties {
+                    channels: names.len(),
+                    fields: width,
+                    name_record: i,
+                },
+            });
         };
         let row = |name: &str| -> Vec<String> {
             block
@@ -497,6 +527,8 @@ fn properties(records: &[Fields], separator: u8) -> Option<Dialect> {
                 units: row("Unit"),
                 sample_time_s,
                 filetime,
+                symbols: row("SymbolName"),
+                name_record: i,
             }),
         });
     }
@@ -709,6 +741,75 @@ mod tests {
         };
         assert!(!p.filetime);
         assert_eq!(p.sample_time_s, Some(0.002));
+    }
+
+    /// The property block and preamble of an export, with `names` on its channel `Name` row and
+    /// the title line first if `title`.
+    fn twincat_head(title: bool, names: &str, columns: usize) -> String {
+        let row = |key: &str, v: &str| format!("{key}{}\r\n", format!(";{v}").repeat(columns));
+        let mut o = String::new();
+        if title {
+            o.push_str("Name;Scope Project;\r\nFile;C:\\scope.csv;\r\n");
+            o.push_str("Starttime of export;132900081483250000;Tuesday;13:55\r\n\r\n");
+        }
+        o.push_str(&format!("Name;{names}\r\n"));
+        o.push_str(&row("Data-Type", "REAL64"));
+        o.push_str(&row("SampleTime", "10"));
+        o.push_str(&row("SymbolName", "MAIN.x"));
+        o.push_str(&row("Unit", "(None)"));
+        o.push_str("\r\n");
+        o
+    }
+
+    /// A single channel without a time column: every row holds one number, and the data start
+    /// right after the property block, however long the file (not 64 rows into the block,
+    /// which took the first data rows for properties), with or without the title line.
+    #[test]
+    fn twincat_single_channel_rows_are_data() {
+        for title in [false, true] {
+            let mut text = twincat_head(title, "fActPosition", 1);
+            for k in 0..300 {
+                text.push_str(&format!("{}\r\n", k as f64 * 0.5));
+            }
+            let d = sniff(text.as_bytes());
+            let Header::Properties(p) = &d.header else {
+                panic!("{d:?}")
+            };
+            assert_eq!(p.names, ["fActPosition"]);
+            assert!(!p.filetime);
+            // Records before the data: the block's 5 (and the title's 3).
+            assert_eq!(d.skip, 5 + 3 * usize::from(title), "title {title}");
+        }
+    }
+
+    /// The export's title line (`Name;<title>;`) is not the channels' `Name` row: a 2-channel
+    /// export without time keeps its channel names and has no FILETIME column.
+    #[test]
+    fn twincat_title_line_is_not_the_channels_name_row() {
+        let mut text = twincat_head(true, "ref;dut", 2);
+        text.push_str("0,5;0,6\r\n1;1,1\r\n");
+        let Header::Properties(p) = sniff(text.as_bytes()).header else {
+            panic!()
+        };
+        assert_eq!(p.names, ["ref", "dut"]);
+        assert!(!p.filetime);
+        assert_eq!(p.name_record, 3);
+    }
+
+    /// Data rows of neither width (a time column per channel) are a TwinCAT layout calib does
+    /// not read, said as such, not a header row `Data-Type;REAL64;REAL64`.
+    #[test]
+    fn twincat_rows_of_another_width_are_an_unknown_layout() {
+        let mut text = twincat_head(true, "a;b", 2);
+        text.push_str("0;1;0;2\r\n0,01;1;0,01;2\r\n");
+        assert_eq!(
+            sniff(text.as_bytes()).header,
+            Header::UnknownProperties {
+                channels: 2,
+                fields: 4,
+                name_record: 3
+            }
+        );
     }
 
     #[test]

@@ -210,8 +210,18 @@ impl CsvReader {
         let (file, dialect) = dialect::open(path).map_err(io)?;
         let mut reader = Records::open(file, &dialect);
         let mut record = ByteRecord::new();
-        for _ in 0..dialect.skip {
+        let name_record = match &dialect.header {
+            Header::Properties(p) => Some(p.name_record),
+            Header::UnknownProperties { name_record, .. } => Some(*name_record),
+            _ => None,
+        };
+        // The line of TwinCAT's `Name` row, for the messages that name it.
+        let mut name_line = 1;
+        for k in 0..dialect.skip {
             reader.read(path, &mut record)?;
+            if Some(k) == name_record {
+                name_line = line_of(path, &record);
+            }
         }
         let err = |line, channel: Option<&str>, message: String| Error::Csv {
             path: path.to_path_buf(),
@@ -257,7 +267,24 @@ impl CsvReader {
                 (names, units.clone(), line)
             }
             Header::None { columns } => ((1..=*columns).map(|i| i.to_string()).collect(), None, 0),
+            Header::UnknownProperties {
+                channels, fields, ..
+            } => {
+                return Err(err(
+                    name_line,
+                    None,
+                    format!(
+                        "this is a TwinCAT Scope export whose `Name` row names {channels} \
+                         channel{} but whose data rows hold {fields} fields; calib reads the \
+                         rows as one field per channel, or a FILETIME time stamp then one field \
+                         per channel. Export the channels again on one time base with a single \
+                         time column (or none), or save them as a plain CSV `t,a,b`",
+                        if *channels == 1 { "" } else { "s" }
+                    ),
+                ));
+            }
             Header::Properties(p) => {
+                twincat_names_are_unique(path, name_line, p)?;
                 let mut names = p.names.clone();
                 if p.filetime {
                     names.insert(0, "FILETIME".to_string());
@@ -947,4 +974,41 @@ fn quoted(name: &str) -> String {
     } else {
         format!("'{}'", name.replace('\'', r"'\''"))
     }
+}
+
+/// Refuses a TwinCAT Scope export naming two channels alike (two axes' `fActPosition`, say), as
+/// a header row with two columns of one name is refused ([`fields::header_names`]): a channel
+/// option could not say which it means. The message names both columns, their `SymbolName`s
+/// (the PLC variables, which tell them apart) and the `Name` row's line.
+fn twincat_names_are_unique(path: &Path, line: u64, p: &dialect::Properties) -> Result<(), Error> {
+    // Columns count the FILETIME column where the rows have one.
+    let column = |i: usize| i + 1 + usize::from(p.filetime);
+    for (j, name) in p.names.iter().enumerate() {
+        let Some(i) = p.names[..j].iter().position(|n| n == name) else {
+            continue;
+        };
+        let symbols = match (p.symbols.get(i), p.symbols.get(j)) {
+            (Some(a), Some(b)) if !a.is_empty() && !b.is_empty() && a != b => {
+                format!(" (SymbolName `{a}` and `{b}`)")
+            }
+            _ => String::new(),
+        };
+        return Err(Error::Csv {
+            path: path.to_path_buf(),
+            line,
+            channel: Some(name.clone()),
+            message: format!(
+                "TwinCAT channels {} and {} (columns {} and {}) are both named `{name}`{symbols}; \
+                 calib would not know which one a channel option means. Give each channel its \
+                 own name in TwinCAT Scope (the channel's Name property, e.g. after its \
+                 SymbolName) and export again, or edit the `Name` row on line {line} so every \
+                 name is unique",
+                i + 1,
+                j + 1,
+                column(i),
+                column(j),
+            ),
+        });
+    }
+    Ok(())
 }

@@ -220,14 +220,23 @@ fn measure(
     }
 }
 
+/// A harmonic listing: its header lines, its rows, and the orders listed.
+pub(super) struct Listing {
+    /// The header lines.
+    pub lines: Vec<String>,
+    /// The rows, under their column names.
+    pub body: String,
+    /// The orders listed, largest first.
+    pub orders: Vec<usize>,
+}
+
 /// `--format harmonic`: the header lines and the rows of the correction's harmonics.
 ///
 /// [`Keep::All`] lists every order of at least `opts.min_amplitude_arcsec`, [`Keep::Largest`]
 /// the largest orders, [`Keep::Orders`] the listed ones; the header gives the RMS of the rest.
-pub(super) fn listing(
-    map: &ErrorMap,
-    opts: &ExportOptions,
-) -> Result<(Vec<String>, String), ExportError> {
+/// A listing of no order (every order below `min_amplitude_arcsec`) is refused
+/// ([`ExportError::NothingListed`]): it would correct nothing.
+pub(super) fn listing(map: &ErrorMap, opts: &ExportOptions) -> Result<Listing, ExportError> {
     let n = map.len();
     // The correction is −error: same amplitudes, phases turned by 180°.
     let mut rows: Vec<(usize, f64, f64)> = map
@@ -242,6 +251,7 @@ pub(super) fn listing(
         .collect();
     let orders = rows.len();
     rows.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let largest = rows.first().map(|h| (h.0, h.1));
     let kept_line = match &opts.keep {
         Keep::All | Keep::Largest(_) => {
             let keep = match opts.keep {
@@ -272,6 +282,14 @@ pub(super) fn listing(
             )
         }
     };
+    if rows.is_empty() {
+        let (order, amplitude_arcsec) = largest.unwrap_or((0, 0.0));
+        return Err(ExportError::NothingListed {
+            min_amplitude_arcsec: opts.min_amplitude_arcsec,
+            order,
+            amplitude_arcsec,
+        });
+    }
     let total_ms = corrections(map).iter().map(|v| v * v).sum::<f64>() / n as f64;
     let kept_ms = rows.iter().map(|h| h.1 * h.1 / 2.0).sum::<f64>();
     let lines = vec![
@@ -289,7 +307,11 @@ pub(super) fn listing(
         // Writing into a String cannot fail.
         let _ = writeln!(body, "{order},{a:.6},{p:.6}");
     }
-    Ok((lines, body))
+    Ok(Listing {
+        lines,
+        body,
+        orders: rows.iter().map(|h| h.0).collect(),
+    })
 }
 
 /// Orders written compactly, runs as ranges: `1-8, 72, 144`.

@@ -33,7 +33,9 @@
 //! The [`Fit`] leaves `RMS(source − table as used)` of the source's `RMS`. A table that leaves
 //! all of it or more (it would make the sensor no better, or worse) is refused
 //! ([`ExportError::NoBetter`]); one that leaves more than [`WARN_LEFT_FRACTION`] of it is written
-//! with a warning ([`Export::warnings`]) that names both figures and what to do.
+//! with a warning ([`Export::warnings`]) that names both figures and what to do. The harmonic
+//! listing is judged alike, its orders summed on the output grid against the source table; a
+//! listing of no order at all is refused ([`ExportError::NothingListed`]).
 //!
 //! # Sign
 //! calib's tables hold `error = reading − true angle`; the correction is `−error`, applied as
@@ -381,6 +383,21 @@ pub enum ExportError {
         /// The highest order the grid holds.
         max: usize,
     },
+    /// `format = harmonic` would list no order: every one is below the threshold.
+    #[error(
+        "no order of the table reaches the `min_amplitude` option's {min_amplitude_arcsec}″ (the \
+         largest, order {order}, is {amplitude_arcsec:.6}″): the file would list no order and \
+         correct nothing, so it was not written; give a lower `min_amplitude` option (at most \
+         {amplitude_arcsec:.6})"
+    )]
+    NothingListed {
+        /// The threshold asked for, arcseconds.
+        min_amplitude_arcsec: f64,
+        /// The table's largest order.
+        order: usize,
+        /// Its amplitude, arcseconds.
+        amplitude_arcsec: f64,
+    },
     /// A chosen order is not in the source table.
     #[error(
         "order {order} is not in the table: a table of {points} points holds orders 1 to \
@@ -593,9 +610,32 @@ pub fn export(table: &TableMap, opts: &ExportOptions) -> Result<Export, ExportEr
         360.0 / points as f64
     ));
     if format == Format::Harmonic {
-        let (lines, body) = harmonic::listing(&resampled(), opts)?;
-        header.extend(lines);
-        return Ok(assemble(format, header, &body, None, Vec::new()));
+        let resampled = resampled();
+        let listing = harmonic::listing(&resampled, opts)?;
+        header.extend(listing.lines);
+        // What the orders listed leave of the source table, judged as every format's table is.
+        let listed = ErrorMap::from_series(&resampled.series().only(&listing.orders), points);
+        let fit = Fit::measure(listed.values(), map);
+        header.push(format!(
+            "fit: the orders listed, summed as the consumer does, leave {:.6} arcsec p-p and \
+             {:.6} arcsec RMS of the table's {:.6} arcsec p-p and {:.6} arcsec RMS ({:.2} % of \
+             its RMS)",
+            fit.left_pp * ARCSEC_PER_RAD,
+            fit.rms * ARCSEC_PER_RAD,
+            fit.source_pp * ARCSEC_PER_RAD,
+            fit.source_rms * ARCSEC_PER_RAD,
+            100.0 * fit.left_fraction()
+        ));
+        let advice = match opts.keep {
+            Keep::All => "List more orders: a lower --min-amplitude.",
+            Keep::Largest(_) => "List more orders: a larger --harmonics N.",
+            Keep::Orders(_) => "List more orders in --orders.",
+        };
+        let warnings: Vec<String> = judge(&fit, format, points, advice.to_string())?
+            .into_iter()
+            .collect();
+        header.extend(warnings.iter().map(|w| format!("warning: {w}")));
+        return Ok(assemble(format, header, &listing.body, Some(fit), warnings));
     }
     // A whole-turn table on a smaller grid keeps the orders the grid holds instead of folding
     // the others onto them.

@@ -3,7 +3,8 @@
 //! #75 (`--format simplefoc-float`), and calib's `c-array`.
 //!
 //! The first array initialised in the file (`TYPE NAME[SIZE] = { v, v, … };`, comments skipped)
-//! is the table; `SIZE` may be a number, a `#define`d name or empty, and must match the entries
+//! is the table, and a second array of the table's type after it is refused, naming the lines of
+//! both (two `printLUT()` outputs pasted together: which one is on the controller?); `SIZE` may be a number, a `#define`d name or empty, and must match the entries
 //! where given. SimpleFOC entries are decoded as the driver does (`decodeOffsetU16` in `f32`,
 //! [`crate::export::simplefoc::decode`]; floats as the `f32` the compiler makes of them) and hold
 //! the error, radians; calib's `c-array` holds the correction, arcseconds.
@@ -38,13 +39,10 @@ pub(super) fn parse(
         ));
     };
     let line = line_at(&code, array.open);
+    let right = is_of(format, &array.declaration);
     let words: Vec<&str> = array.declaration.split_whitespace().collect();
     let is_u16 = words.contains(&"uint16_t");
     let is_float = words.contains(&"float");
-    let right = match format {
-        Format::Simplefoc => is_u16,
-        _ => is_float,
-    };
     if !right {
         let hint = if is_float && format == Format::Simplefoc {
             " — a float table is SimpleFOC's before PR #75: `format = simplefoc-float`"
@@ -63,6 +61,25 @@ pub(super) fn parse(
                 expected(format)
             ),
         ));
+    }
+    // A second table of the same type: refused, whatever its entries.
+    let mut from = array.close + 1;
+    while let Some(next) = first_array(&code[from..]) {
+        if is_of(format, &next.declaration) {
+            return Err(at(
+                path,
+                line_at(&code, from + next.open),
+                format!(
+                    "the file holds two tables, `{}` on line {line} and `{}` on line {}; calib \
+                     cannot tell which one the controller holds (two outputs pasted \
+                     together?): keep one table in the file",
+                    array.declaration.trim(),
+                    next.declaration.trim(),
+                    line_at(&code, from + next.open)
+                ),
+            ));
+        }
+        from += next.close + 1;
     }
     let mut values = Vec::new();
     for (token, offset) in entries(&code, array.open + 1, array.close) {
@@ -135,6 +152,16 @@ pub(super) fn parse(
         }
     }
     Ok((values, notes))
+}
+
+/// Whether an array of `declaration` is of the type `format` reads: `uint16_t` for SimpleFOC's,
+/// `float` for the others.
+fn is_of(format: Format, declaration: &str) -> bool {
+    let words: Vec<&str> = declaration.split_whitespace().collect();
+    match format {
+        Format::Simplefoc => words.contains(&"uint16_t"),
+        _ => words.contains(&"float"),
+    }
 }
 
 /// What `format` reads, for messages.

@@ -5,7 +5,10 @@
 //! (`correction_arcsec = code * S`, or `(code - 32768) * S` for `lut-u16`), or from `--scale`
 //! where the file has no header; a `range:` line marks a range table, which is refused. Every
 //! table holds the correction: calib's error is its negation. `csv` rows must lie on the grid
-//! `i·360/N` (within [`crate::table::GRID_TOLERANCE_DEG`]).
+//! `i·360/N` (within [`crate::table::GRID_TOLERANCE_DEG`]). A header after the entries (a
+//! `# sign:`, `# grid:` or `# scale:` line, or csv's `angle_deg` row: calib writes them above
+//! every table) starts a second table, refused with the lines of both: which one is on the
+//! controller?
 
 use super::{at, check_count, data, refuse_range};
 use crate::Error;
@@ -36,6 +39,20 @@ pub(super) fn parse(
     for (k, raw) in text.lines().enumerate() {
         let line = k + 1;
         let row = raw.trim().trim_start_matches('\u{feff}');
+        if let Some(first) = first_row
+            && second_header(row, format)
+        {
+            return Err(at(
+                path,
+                line,
+                format!(
+                    "the file holds two tables: the first's entries start on line {first} and \
+                     line {line} (`{row}`) starts another's header; calib cannot tell which one \
+                     the controller holds (two exports pasted together?): keep one table in the \
+                     file"
+                ),
+            ));
+        }
         if let Some(comment) = row.strip_prefix('#') {
             let comment = comment.trim();
             if comment.starts_with("range:") {
@@ -148,6 +165,20 @@ pub(super) fn parse(
     };
     let errors = values.iter().map(|v| -v * unit).collect();
     Ok((errors, vec![note]))
+}
+
+/// Whether `row` is a line calib writes in a table's header, above its entries: `# sign:`,
+/// `# grid:`, `# scale:`, or csv's `angle_deg` row.
+fn second_header(row: &str, format: Format) -> bool {
+    match row.strip_prefix('#') {
+        Some(comment) => {
+            let c = comment.trim_start();
+            ["sign:", "grid:", "scale:"]
+                .iter()
+                .any(|k| c.starts_with(k))
+        }
+        None => format == Format::Csv && row.starts_with("angle_deg"),
+    }
 }
 
 /// `S` of ` correction_arcsec = code * S` or ` correction_arcsec = (code - 32768) * S`.

@@ -11,7 +11,11 @@
 //! `#` starts a comment; `conf write`, blank lines and every other key are skipped, so a whole
 //! configuration dump can be read. The keys are `motor_position.sources.N.compensation_table.I`
 //! (`I` in 0–255, int8 codes) and `motor_position.sources.N.compensation_scale` (revolutions);
-//! where a key is set twice, the last value counts, as on the controller.
+//! a key set twice to one value is read once; set twice to different values it is refused
+//! (but for a `compensation_scale` of 0 first, which turns compensation off while the entries
+//! change, as calib's `moteus` output starts),
+//! naming both lines: a file holding two tables (two dumps pasted together, a table edited after
+//! it was read) cannot say which one the controller holds ([`super`]'s rule for every importer).
 //!
 //! # Decoding
 //! As the firmware's `lerp` (mjbots/moteus `fw/motor_position.h`, commit `06a3d52`): an entry is
@@ -225,6 +229,14 @@ fn set(
                     ),
                 ));
             };
+            // A scale of 0 first turns compensation off while the entries change (calib's
+            // `moteus` output starts so): the value set after it is the table's, not another's.
+            if let Some((before, first)) = settings.scale
+                && before != scale
+                && before != 0.0
+            {
+                return Err(twice(path, key, (before, first), (scale, line_no)));
+            }
             settings.scale = Some((scale, line_no));
         }
         Some(index) => {
@@ -252,10 +264,34 @@ fn set(
                     ),
                 ));
             };
+            if let Some((before, first)) = settings.entries[index]
+                && before != code
+            {
+                return Err(twice(path, key, (before, first), (code, line_no)));
+            }
             settings.entries[index] = Some((code, line_no));
         }
     }
     Ok(())
+}
+
+/// Refuses `key` set to two different values, on lines `first.1` and `then.1`.
+fn twice(
+    path: &Path,
+    key: &str,
+    first: (impl std::fmt::Display, usize),
+    then: (impl std::fmt::Display, usize),
+) -> Error {
+    at(
+        path,
+        then.1,
+        format!(
+            "`{key}` is set twice, to {} on line {} and to {} on line {}: the file holds two \
+             tables (two dumps pasted together, or a table changed after it was read) and calib \
+             cannot tell which one the controller holds; keep the lines of one table only",
+            first.0, first.1, then.0, then.1
+        ),
+    )
 }
 
 fn none_found(wanted: Option<u8>) -> String {

@@ -206,3 +206,73 @@ fn tables_beyond_the_point_limit_are_refused() {
         "{err}"
     );
 }
+
+/// One rule for every importer: a file holding two tables is refused, naming the lines of both,
+/// rather than one of them read silently (the first printLUT() table, the last value of each
+/// moteus key); a moteus key repeated with its own value is read once.
+#[test]
+fn two_tables_in_one_file_are_refused_naming_their_lines() {
+    let lut = |codes: &str| format!("uint16_t calibrationLut[2] = {{{codes}}};\n");
+    let text = format!(
+        "{}float zero_electric_angle = 2.35;\n{}",
+        lut("1, 2"),
+        lut("3, 4")
+    );
+    let err = read(&text, &ImportOptions::new(Format::Simplefoc))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("two tables") && err.contains("line 1") && err.contains("line 3"),
+        "{err}"
+    );
+    // An array of another type beside the table is not a table.
+    let text = format!("int pins[2] = {{3, 5}};\n{}", lut("32767, 32767"));
+    let err = read(&text, &ImportOptions::new(Format::Simplefoc));
+    assert!(err.is_err(), "the first array is still the table read");
+    let text = format!("{}int pins[2] = {{3, 5}};\n", lut("32767, 32767"));
+    assert!(read(&text, &ImportOptions::new(Format::Simplefoc)).is_ok());
+
+    let mut dump = String::new();
+    for i in 0..256 {
+        dump.push_str(&format!(
+            "motor_position.sources.0.compensation_table.{i} 5\n"
+        ));
+    }
+    dump.push_str("motor_position.sources.0.compensation_scale 0.001\n");
+    // The same values again (a `conf get` answer, a dump read twice): read once.
+    let again = format!("{dump}{dump}");
+    assert!(read(&again, &ImportOptions::new(Format::Moteus)).is_ok());
+    let other = format!("{dump}{}", dump.replace("table.9 5", "table.9 -7"));
+    let err = read(&other, &ImportOptions::new(Format::Moteus))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("compensation_table.9` is set twice")
+            && err.contains("to 5 on line 10")
+            && err.contains("to -7 on line 267"),
+        "{err}"
+    );
+    let scaled = format!("{dump}motor_position.sources.0.compensation_scale 0.002\n");
+    let err = read(&scaled, &ImportOptions::new(Format::Moteus))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("line 257") && err.contains("line 258"),
+        "{err}"
+    );
+
+    // calib's own exports pasted together.
+    for format in [Format::Csv, Format::LutI16, Format::LutF32Rad] {
+        let out = export::export(
+            &TableMap::from(source(64)),
+            &ExportOptions::new(format, "t"),
+        )
+        .unwrap();
+        let twice = format!("{}{}", out.text, out.text);
+        let err = read(&twice, &ImportOptions::new(format))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("two tables"), "{format:?}: {err}");
+        assert!(read(&out.text, &ImportOptions::new(format)).is_ok());
+    }
+}

@@ -9,7 +9,10 @@ reads) in, correction tables and reports out. Conventions are the command line's
 - options are the CLI's, as keyword arguments with the same names (``-`` written ``_``) and
   defaults, in the CLI's units (degrees, degrees per second, arcseconds);
 - bad data raises :class:`DataError` (the CLI's exit status 1), a bad argument
-  :class:`UsageError` (exit status 2), both with the CLI's messages.
+  :class:`UsageError` (exit status 2), both with the CLI's messages; an array argument that is
+  empty or holds NaN, an infinity or a value no log could hold raises :class:`ArrayError`, a
+  :class:`UsageError` that is also a ``ValueError``, naming the argument and its first bad index
+  (``a[17] is NaN``), as the CLI's readers refuse such a row.
 
 Reading and solving release the GIL: several logs calibrated on threads run in parallel.
 
@@ -31,12 +34,13 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from . import _calib
-from ._calib import CalibError, DataError, UsageError, __version__
+from ._calib import ArrayError, CalibError, DataError, UsageError, __version__
 
 __all__ = [
     "CalibError",
     "DataError",
     "UsageError",
+    "ArrayError",
     "Log",
     "Table",
     "Channel",
@@ -193,20 +197,14 @@ class Table:
     ):
         self.error_arcsec: np.ndarray = _f64("error_arcsec", error_arcsec)
         self.u_arcsec: Optional[np.ndarray] = _optional_f64("u_arcsec", u_arcsec)
-        if self.u_arcsec is not None and len(self.u_arcsec) != len(self.error_arcsec):
-            raise UsageError(
-                f"{len(self.u_arcsec)} uncertainties for a table of {len(self.error_arcsec)} "
-                "points; give one per grid point"
-            )
         self.range_deg: Optional[Tuple[float, float]] = None
         if range_deg is not None:
             lo, hi = (float(x) for x in range_deg)
-            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi and hi - lo < 360.0):
-                raise UsageError(
-                    f"range_deg=({lo}, {hi}) is not a range: give (first, last) grid readings "
-                    "in degrees, first < last, less than a turn apart"
-                )
             self.range_deg = (lo, hi)
+        # The CLI's table reader's rules, checked as the table is made: at least 2 points,
+        # finite errors, finite non-negative uncertainties (one per point), a range less than a
+        # turn long.
+        _calib.check_table(self.error_arcsec, self.u_arcsec, self.range_deg)
 
     @property
     def is_range(self) -> bool:
