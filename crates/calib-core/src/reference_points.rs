@@ -785,7 +785,11 @@ mod tests {
         let TableMap::Range(m) = &cal.map else {
             panic!("two targets 10° apart gave a whole turn")
         };
-        assert!((m.start() - t[0]).abs() < 1e-12, "{}", m.start().to_degrees());
+        assert!(
+            (m.start() - t[0]).abs() < 1e-12,
+            "{}",
+            m.start().to_degrees()
+        );
         assert!((m.end() - t[1]).abs() < 1e-9, "{}", m.end().to_degrees());
         // 10° at the default 0.1° grid: 101 points, from one target's mean to the other's.
         assert_eq!(m.len(), 101);

@@ -117,10 +117,12 @@ pub(super) fn group_warning(group: &[&PassGap], cover: GapCover) -> String {
     let first = group[0];
     let base = first.from.min(first.to);
     let unwrap = |a: f64| base + wrap_pi(a - base);
-    let (lo, hi) = group.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), g| {
-        let (a, b) = (unwrap(g.from), unwrap(g.to));
-        (lo.min(a.min(b)), hi.max(a.max(b)))
-    });
+    let (lo, hi) = group
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), g| {
+            let (a, b) = (unwrap(g.from), unwrap(g.to));
+            (lo.min(a.min(b)), hi.max(a.max(b)))
+        });
     const LISTED: usize = 3;
     let mut passes: Vec<String> = group.iter().take(LISTED).map(|g| pass(g)).collect();
     if group.len() > LISTED {

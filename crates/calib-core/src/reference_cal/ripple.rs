@@ -240,8 +240,7 @@ mod tests {
         let rho = |phi: f64| 3e-4 * (6.0 * phi + 1.0).cos();
         let reference: Vec<f64> = (0..n).map(|i| i as f64 * step).collect();
         let values: Vec<f64> = reference.iter().map(|&c| e(c) + rho(7.0 * c)).collect();
-        let (ripple, value, _) =
-            fit(&values, &vec![true; n], &reference, n, 7, true, 1.0).unwrap();
+        let (ripple, value, _) = fit(&values, &vec![true; n], &reference, n, 7, true, 1.0).unwrap();
         let six = ripple.terms.iter().find(|t| t.harmonic == 6).unwrap();
         assert_eq!(six.order, 42);
         assert!((six.amplitude - 3e-4).abs() < 1e-6, "{}", six.amplitude);
