@@ -23,7 +23,9 @@ use std::path::PathBuf;
 /// encoder's own orders). The pole pairs come from the dump (the phase's travel over the
 /// encoder's, rounded; --pole-pairs overrides), the first 4 rising samples are dropped as moteus
 /// drops them, and the dump's samples, which carry no time, are taken 0.01 s apart (no latency
-/// is estimated).
+/// is estimated). Lines missing from a pass (a step of both readings more than 2.5 times its
+/// neighbours') are not interpolated across: the points there hold the other pass's
+/// measurements, and a warning names the readings.
 ///
 /// Writes DIR/encoder.csv (the calib table with u_arcsec, of the raw encoder reading),
 /// DIR/moteus.txt (the 256-entry compensation table as `conf set` lines, see `calib export

@@ -9,6 +9,7 @@ mod common;
 mod compose_cli;
 mod csrr_cli;
 mod export_cli;
+mod gaps_cli;
 mod import_cli;
 mod inspect_cli;
 mod labfiles_cli;

@@ -26,9 +26,9 @@
 //! The map is the mean bidirectional deviation `x̄_i` of each target, joined by straight lines
 //! between neighbouring targets (nothing else is known between two stops) and sampled on the
 //! table's grid, mean removed. It covers the whole turn when the targets go round it evenly:
-//! no gap between neighbouring targets wider than twice their median spacing (or than the
-//! bridge gap, 5°); else the range from the first to the last target, across the widest gap's
-//! far side. Nothing outside the targets is extrapolated.
+//! no gap between neighbouring targets wider than twice their median spacing (with two targets,
+//! twice the other gap's; or than the bridge gap, 5°); else the range from the first to the
+//! last target, across the widest gap's far side. Nothing outside the targets is extrapolated.
 //!
 //! # Uncertainty
 //! At a target, `u_i² = sem_i² + u_ref²` with the standard error of its mean as in
@@ -313,7 +313,15 @@ pub fn calibrate_points_with_directions(
         .unwrap_or((0, &0.0));
     let mut sorted_gaps = gaps.clone();
     sorted_gaps.sort_by(f64::total_cmp);
-    let whole_turn = widest_gap <= opts.max_gap.max(2.0 * sorted_gaps[m / 2]);
+    // The spacing the widest gap is judged against: the median of all the gaps (the upper one
+    // of an even count), but with two targets that is the widest gap itself, which would pass
+    // any pair as a whole turn: there it is the other gap.
+    let spacing = if m == 2 {
+        sorted_gaps[0]
+    } else {
+        sorted_gaps[m / 2]
+    };
+    let whole_turn = widest_gap <= opts.max_gap.max(2.0 * spacing);
     let first = if whole_turn { 0 } else { (widest + 1) % m };
     let order: Vec<&Target> = (0..m).map(|j| &targets[(first + j) % m]).collect();
     let start = order[0].position;
@@ -483,6 +491,7 @@ pub fn calibrate_points_with_directions(
         revolutions: travel / TAU,
         min_passes,
         gap: None,
+        pass_gaps: Vec::new(),
         repeat_spread,
         // Stationary points have no time: no lag between the channels to estimate.
         latency: None,
@@ -762,6 +771,31 @@ mod tests {
             calibrate_points_with_directions(&p, &given[1..], &PointOptions::default()),
             Err(PointError::Reference(ReferenceError::Options(_)))
         ));
+    }
+
+    /// Two targets 10° apart measured 3 times each way: the table is the range between them
+    /// (the straight line joining their means), not a whole turn whose 350° were never
+    /// measured. Two targets half a turn apart go round it evenly: a whole turn.
+    #[test]
+    fn two_targets_give_a_range() {
+        let t = [10f64.to_radians(), 20f64.to_radians()];
+        let e = |x: f64| 20.0 * ARCSEC * (x * 3.0).sin();
+        let p = iso_run(&t, 3, |x, _, _| e(x));
+        let cal = calibrate_points(&p, &PointOptions::default()).unwrap();
+        let TableMap::Range(m) = &cal.map else {
+            panic!("two targets 10° apart gave a whole turn")
+        };
+        assert!(
+            (m.start() - t[0]).abs() < 1e-12,
+            "{}",
+            m.start().to_degrees()
+        );
+        assert!((m.end() - t[1]).abs() < 1e-9, "{}", m.end().to_degrees());
+        // 10° at the default 0.1° grid: 101 points, from one target's mean to the other's.
+        assert_eq!(m.len(), 101);
+        let half = [0.0, 180f64.to_radians()];
+        let cal = calibrate_points(&iso_run(&half, 3, |x, _, _| e(x)), &PointOptions::default());
+        assert!(matches!(cal.unwrap().map, TableMap::Turn(_)));
     }
 
     #[test]

@@ -19,12 +19,17 @@
 //! - all of them: a whole-turn [`ErrorMap`];
 //! - all but one run of points whose gap (from the last measured point before it to the first
 //!   after it) is at most [`ReferenceOptions::max_gap`] (5°): a whole-turn map with the gap
-//!   bridged by the straight line between its measured ends, across the 360° wrap ([`Gap`],
-//!   with a warning naming its size and place);
+//!   bridged by the straight line between its measured ends, across the 360° wrap, after any
+//!   fitted model is taken out of the measured points, its `u` holding what a gap that wide can
+//!   hide ([`Gap`], module `gaps`; with a warning naming its size and place);
 //! - else the range from the first to the last point crossed, the far side of the largest run
 //!   of points never crossed: a [`RangeMap`] (both directions where the motion had both; at the
 //!   range's ends one direction only, within the approach after each reversal). Nothing outside
 //!   the data is extrapolated; points never crossed inside the range are an error.
+//!
+//! A point counts as crossed where a pass measured it: a step between two samples much wider
+//! than its neighbours (samples lost) is a pass gap whose crossings are not used ([`PassGap`],
+//! module `gaps`, with a warning naming it).
 //!
 //! A range that crosses the reading 0 is held from `start` in `[0, 2π)` to `end` above 2π;
 //! tables and reports write it in the signed form (−40° to 95°), never above 360°.
@@ -106,11 +111,13 @@
 //! spacing of the nodes. No absolute offset (maps are zero-mean, over their range).
 
 mod ends;
+mod gaps;
 mod latency;
 mod quantum;
 mod ripple;
 
 pub use ends::EndCorrection;
+pub use gaps::{GAP_RATIO, PassGap};
 pub use latency::{LatencyFit, MIN_SPEED_SPREAD};
 pub use quantum::Quantization;
 pub use ripple::{Ripple, RippleTerm};
@@ -378,6 +385,10 @@ pub struct Gap {
     pub size: f64,
     /// Grid points inside the gap, whose values are interpolated, not measured.
     pub points: usize,
+    /// The most the error can depart from the straight line across the gap, radians: the
+    /// largest departure of the measured map from the chord of any window as wide (module
+    /// `gaps`), in the bridged points' `u`.
+    pub bound: f64,
 }
 
 /// ISO 230-2's statistics at one target position.
@@ -414,6 +425,8 @@ pub struct ReferenceCalibration {
     pub min_passes: (u32, u32),
     /// The gap bridged in a whole-turn map, if the run left one.
     pub gap: Option<Gap>,
+    /// Where a pass went through readings without a sample (module `gaps`): not measured there.
+    pub pass_gaps: Vec<PassGap>,
     /// The largest spread of the reading difference at one grid point between passes (any
     /// direction), radians: how well the reference followed; `None` if no point was crossed
     /// twice.
@@ -480,6 +493,11 @@ pub struct ReferenceCal {
     run: Option<(bool, f64)>,
     /// The last moving step, whose crossings wait for the next sample (the cubic's outer node).
     pending: Option<Step>,
+    /// The moving step before `pending`, whose crossings wait for the step after `pending`
+    /// (whether `pending` is a pass gap, whose far node is not to be used).
+    held: Option<Step>,
+    /// The pass gaps met (module `gaps`).
+    pass_gaps: Vec<PassGap>,
     /// `(t, unwrapped DUT, unwrapped reference)` of every sample, kept while a lag may have to
     /// be removed (the reference is then re-read at `t − τ`).
     samples: Vec<(f64, f64, f64)>,
@@ -511,6 +529,38 @@ struct Step {
     before: Option<(f64, f64)>,
     /// The sample before `before`, if the run goes on that far back.
     before2: Option<(f64, f64)>,
+    /// A pass gap (module `gaps`), with its travel over its larger neighbour's: its crossings
+    /// are not measurements.
+    gap: Option<f64>,
+}
+
+impl Step {
+    /// The travel of the DUT and of the reference over the step.
+    fn travel(&self) -> (f64, f64) {
+        let du = self.u1 - self.u0;
+        (du.abs(), (du - (self.d1 - self.d0)).abs())
+    }
+
+    /// If this step is a pass gap (module `gaps`), its DUT travel over the larger of its
+    /// neighbours': more than [`GAP_RATIO`] times theirs for both the DUT and the reference.
+    /// `next` is the travel of the step after it in the same run.
+    fn gap_ratio(&self, next: Option<(f64, f64)>) -> Option<f64> {
+        let before = self.before.map(|(u, d)| {
+            let du = self.u0 - u;
+            (du.abs(), (du - (self.d0 - d)).abs())
+        });
+        let (du, dr) = before
+            .into_iter()
+            .chain(next)
+            .reduce(|a, b| (a.0.max(b.0), a.1.max(b.1)))?;
+        let (tu, tr) = self.travel();
+        (tu > GAP_RATIO * du && tr > GAP_RATIO * dr).then(|| tu / du)
+    }
+
+    /// Whether `next` continues this step's run the same way.
+    fn same_way(&self, next: &Step) -> bool {
+        (self.u1 > self.u0) == (next.u1 > next.u0)
+    }
 }
 
 /// The polynomial through points with distinct `x` (two to four of them), evaluated at `at`
@@ -557,6 +607,8 @@ impl ReferenceCal {
             d_max: f64::NEG_INFINITY,
             run: None,
             pending: None,
+            held: None,
+            pass_gaps: Vec::new(),
         }
     }
 
@@ -611,18 +663,30 @@ impl ReferenceCal {
             travelled,
             before: None,
             before2: None,
+            gap: None,
         };
         // Every push either leaves its step pending or flushes, so a pending step ends at this
         // step's start: contiguous, and usable as the other's outer node if it goes the same way.
-        if let Some(p) = self.pending.take() {
-            let same_way = (p.u1 > p.u0) == increasing;
-            if same_way {
+        if let Some(mut p) = self.pending.take() {
+            let same_way = p.same_way(&step);
+            p.gap = p.gap_ratio(same_way.then(|| step.travel()));
+            // The node at a pass gap's start lies across it: not used after it.
+            if same_way && p.gap.is_none() {
                 step.before = Some((p.u0, p.d0));
                 step.before2 = p.before;
             }
-            self.cross(&p, same_way.then_some((u, d)));
+            self.cross_held(&p);
+            self.held = Some(p);
         }
         self.pending = Some(step);
+    }
+
+    /// Crosses the held step, `next` the step after it (now judged a pass gap or not).
+    fn cross_held(&mut self, next: &Step) {
+        if let Some(h) = self.held.take() {
+            let after = (h.same_way(next) && next.gap.is_none()).then_some((next.u1, next.d1));
+            self.cross(&h, after);
+        }
     }
 
     fn keep(&mut self, t: f64, u: f64, r: f64) {
@@ -632,10 +696,19 @@ impl ReferenceCal {
         self.samples.push((t, u, r));
     }
 
-    /// Crossings of a pending step, interpolated linearly (no outer node to use).
+    /// Crossings of the held and the pending step (the latter without an outer node after it).
     fn flush(&mut self) {
-        if let Some(p) = self.pending.take() {
-            self.cross(&p, None);
+        match self.pending.take() {
+            Some(mut p) => {
+                p.gap = p.gap_ratio(None);
+                self.cross_held(&p);
+                self.cross(&p, None);
+            }
+            None => {
+                if let Some(h) = self.held.take() {
+                    self.cross(&h, None);
+                }
+            }
         }
     }
 
@@ -663,9 +736,26 @@ impl ReferenceCal {
         } else {
             ((lo / grid).ceil() as i64, (hi / grid).ceil() as i64 - 1)
         };
+        let past_approach =
+            |k: i64| s.travelled + (k as f64 * grid - s.u0).abs() >= self.opts.approach;
+        if let Some(ratio) = s.gap {
+            // Not measured: only where it was, for the map and the warning.
+            let used: Vec<i64> = (first..=last).filter(|&k| past_approach(k)).collect();
+            if let (Some(&a), Some(&b)) = (used.iter().min(), used.iter().max()) {
+                self.pass_gaps.push(PassGap {
+                    increasing: du > 0.0,
+                    from: wrap_2pi(s.u0),
+                    to: wrap_2pi(s.u1),
+                    t: (s.t0, s.t1),
+                    ratio,
+                    grid: (a, b),
+                });
+            }
+            return;
+        }
         for k in first..=last {
             let theta = k as f64 * grid;
-            if s.travelled + (theta - s.u0).abs() < self.opts.approach {
+            if !past_approach(k) {
                 continue;
             }
             let (p0, p1) = ((s.u0, s.d0), (s.u1, s.d1));
@@ -902,28 +992,8 @@ impl ReferenceCal {
                 e.max_u = e.max_u.max(u);
             }
         }
-        let gap = match layout {
-            Layout::Turn {
-                gap: Some((before, points)),
-            } => {
-                // Linear across the gap, from the measured point before it to the one after.
-                let after = (before + points + 1) % n;
-                let (y0, y1) = (raw[before], raw[after]);
-                for j in 1..=points {
-                    let f = j as f64 / (points + 1) as f64;
-                    raw[(before + j) % n] = y0 + f * (y1 - y0);
-                }
-                let from = before as f64 * step;
-                let size = (points + 1) as f64 * step;
-                Some(Gap {
-                    from,
-                    to: from + size,
-                    size,
-                    points,
-                })
-            }
-            _ => None,
-        };
+        // The map's points some pass measured; the others are a bridged gap's.
+        let measured_at: Vec<bool> = bins.iter().map(|&i| covered[i]).collect();
         let crossings: f64 = bins
             .iter()
             .map(|&i| f64::from(self.up[i].n + self.down[i].n))
@@ -944,7 +1014,13 @@ impl ReferenceCal {
                     .collect();
                 let per_sample = crossings / self.steps.max(1) as f64;
                 let (fit, value, u_fit) = ripple::fit(
-                    &raw, &reference, n, pole_pairs, turn, per_sample,
+                    &raw,
+                    &measured_at,
+                    &reference,
+                    n,
+                    pole_pairs,
+                    turn,
+                    per_sample,
                 )
                 .map_err(|ripple::RippleProblem::TooShort { periods }| {
                     ReferenceError::CommandedTooShort {
@@ -952,11 +1028,12 @@ impl ReferenceCal {
                         pole_pairs,
                     }
                 })?;
-                for j in 0..raw.len() {
+                // Taken out where measured only: a bridged point never held it.
+                for j in (0..raw.len()).filter(|&j| measured_at[j]) {
                     raw[j] -= value[j];
                     extra_u2[j] += u_fit[j] * u_fit[j];
+                    ripple_at[j] = value[j];
                 }
-                ripple_at = value;
                 Some(fit)
             }
         };
@@ -975,6 +1052,41 @@ impl ReferenceCal {
                 }
             }
         }
+        let gap = match layout {
+            Layout::Turn {
+                gap: Some((before, points)),
+            } => {
+                // What a gap of this width can hide (module `gaps`), from the measured map
+                // with any model taken out; else the measured map's peak to peak.
+                let bound = gaps::bridge_bound(&raw, &measured_at, points + 1, true)
+                    .or_else(|| {
+                        range(
+                            raw.iter()
+                                .zip(&measured_at)
+                                .filter(|p| *p.1)
+                                .map(|p| (*p.0, *p.0)),
+                        )
+                    })
+                    .unwrap_or(0.0);
+                // Linear across the gap, from the measured point before it to the one after.
+                let after = (before + points + 1) % n;
+                let (y0, y1) = (raw[before], raw[after]);
+                for j in 1..=points {
+                    let f = j as f64 / (points + 1) as f64;
+                    raw[(before + j) % n] = y0 + f * (y1 - y0);
+                }
+                let from = before as f64 * step;
+                let size = (points + 1) as f64 * step;
+                Some(Gap {
+                    from,
+                    to: from + size,
+                    size,
+                    points,
+                    bound,
+                })
+            }
+            _ => None,
+        };
         let offset = raw.iter().sum::<f64>() / raw.len() as f64;
         let stats = |w: &Welford, ripple: f64| PointStats {
             n: w.n,
@@ -1023,12 +1135,12 @@ impl ReferenceCal {
             .collect();
         if let Some(g) = gap {
             // A bridged point carries the larger uncertainty of the two it is interpolated from
-            // (the interpolation's own error is unknown: the warning says so).
+            // and the most a gap of its width can hide (module `gaps`).
             let before = (g.from / step).round() as usize % n;
             let after = (before + g.points + 1) % n;
             let edge = u[before].unwrap_or(0.0).max(u[after].unwrap_or(0.0));
             for j in 1..=g.points {
-                u[(before + j) % n] = Some(edge);
+                u[(before + j) % n] = Some(edge.hypot(g.bound));
             }
         }
         let u: Vec<f64> = u.into_iter().map(|u| u.unwrap_or(0.0)).collect();
@@ -1108,13 +1220,31 @@ impl ReferenceCal {
         if let Some(g) = gap {
             warnings.push(format!(
                 "the DUT never reached the readings between {:.3}° and {:.3}° (a gap of {:.3}° in the turn, {} grid point(s)): \
-                 the map bridges it by linear interpolation, not by measurement; record the whole turn to measure it \
+                 the map bridges it by linear interpolation, not by measurement{}, its u there holding {:.3}″, the most \
+                 the measured map departs from a straight line over that width; record the whole turn to measure it \
                  (a gap wider than the `bridge_gap` option, {}°, gives a range table instead)",
                 g.from.to_degrees(),
                 wrap_2pi(g.to).to_degrees(),
                 g.size.to_degrees(),
                 g.points,
+                if ripple.is_some() {
+                    " (the motor's ripple, fitted where measured, is not taken out there)"
+                } else {
+                    ""
+                },
+                g.bound * ARCSEC_PER_RAD,
                 self.opts.max_gap.to_degrees()
+            ));
+        }
+        let groups = gaps::groups(&self.pass_gaps, n);
+        const SHOWN: usize = 5;
+        for g in groups.iter().take(SHOWN) {
+            warnings.push(gaps::group_warning(g, self.gap_cover(g, &bins, &up, &down)));
+        }
+        if groups.len() > SHOWN {
+            warnings.push(format!(
+                "passes have no sample over {} more stretches of readings, left out of the map likewise",
+                groups.len() - SHOWN
             ));
         }
         Ok(ReferenceCalibration {
@@ -1127,6 +1257,7 @@ impl ReferenceCal {
             revolutions,
             min_passes,
             gap,
+            pass_gaps: self.pass_gaps,
             repeat_spread: repeat.map(|r| r.0),
             latency,
             ends: end_correction,
@@ -1134,6 +1265,38 @@ impl ReferenceCal {
             quantization,
             warnings,
         })
+    }
+}
+
+impl ReferenceCal {
+    /// What the map holds at the grid points of a group of pass gaps, `bins` the map's bins in
+    /// its order and `up`, `down` its statistics.
+    fn gap_cover(
+        &self,
+        group: &[&PassGap],
+        bins: &[usize],
+        up: &[PointStats],
+        down: &[PointStats],
+    ) -> gaps::GapCover {
+        let n = self.opts.points as i64;
+        let mut crossed: Vec<usize> = group
+            .iter()
+            .flat_map(|g| (g.grid.0..=g.grid.1).map(|k| k.rem_euclid(n) as usize))
+            .collect();
+        crossed.sort_unstable();
+        crossed.dedup();
+        let mut cover = gaps::GapCover::default();
+        for i in crossed {
+            // The map's bins are consecutive (circularly) from the first.
+            let j = (i + self.opts.points - bins[0]) % self.opts.points;
+            match bins.get(j).map(|_| (up[j].n > 0, down[j].n > 0)) {
+                None => cover.outside += 1,
+                Some((true, true)) => cover.both += 1,
+                Some((false, false)) => cover.bridged += 1,
+                Some(_) => cover.one += 1,
+            }
+        }
+        cover
     }
 }
 

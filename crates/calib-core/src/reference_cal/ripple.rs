@@ -17,7 +17,9 @@
 //! are reported as the motor's ripple. `φ` at each grid point is `p` times the reference's own
 //! reading there (the DUT's reading minus the measured difference), so the ripple is fitted in
 //! the motor's angle even where the DUT errs by degrees. On a range, only points whose whole
-//! window lies inside the range enter the fit; the fitted ripple is removed everywhere.
+//! window lies inside the range enter the fit; likewise only points whose window holds no point
+//! left unmeasured (a gap no pass measured, bridged after the ripple is taken out: module
+//! `gaps`). The fitted ripple is removed at every measured point.
 //!
 //! # Uncertainty
 //! Each point's `u` gains the fit's standard error there, `sqrt(φ_iᵀ·C·φ_i)`, `C = s²(ΦᵀΦ)⁻¹·g`,
@@ -67,11 +69,13 @@ pub(super) enum RippleProblem {
     TooShort { periods: f64 },
 }
 
-/// Fits the ripple on the map `values` (a whole turn if `circular`), the reference's reading
-/// `reference` at each point (radians), `points_per_turn` grid points per revolution; returns
-/// the ripple and its value and standard uncertainty at each point.
+/// Fits the ripple on the map `values` (a whole turn if `circular`), measured where `measured`
+/// says, the reference's reading `reference` at each point (radians), `points_per_turn` grid
+/// points per revolution; returns the ripple and its value and standard uncertainty at each
+/// point (the peak-to-peak over the measured ones).
 pub(super) fn fit(
     values: &[f64],
+    measured: &[bool],
     reference: &[f64],
     points_per_turn: usize,
     pole_pairs: u32,
@@ -85,7 +89,19 @@ pub(super) fn fit(
     if !circular && periods < 2.0 {
         return Err(RippleProblem::TooShort { periods });
     }
-    let means = moving_mean(values, window, circular);
+    let mut means = moving_mean(values, window, circular);
+    // The moving mean's reach (as in `moving_mean`) about each unmeasured point.
+    let reach = (window / 2.0).ceil() as usize + 1;
+    for g in (0..n).filter(|&g| !measured[g]) {
+        for k in 0..=2 * reach {
+            let i = (g + k) as i64 - reach as i64;
+            if circular {
+                means[i.rem_euclid(n as i64) as usize] = None;
+            } else if (0..n as i64).contains(&i) {
+                means[i as usize] = None;
+            }
+        }
+    }
     let k_max = (points_per_turn / (4 * pole_pairs as usize)).clamp(1, MAX_HARMONIC);
     let rows: Vec<usize> = (0..n).filter(|&i| means[i].is_some()).collect();
     let basis = |i: usize| -> Vec<f64> {
@@ -139,8 +155,10 @@ pub(super) fn fit(
     for i in 0..n {
         let b = DVector::from_vec(basis(i));
         let v = b.dot(&coef);
-        lo = lo.min(v);
-        hi = hi.max(v);
+        if measured[i] {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
         value.push(v);
         u.push((&cov * &b).dot(&b).max(0.0).sqrt());
     }
@@ -222,7 +240,7 @@ mod tests {
         let rho = |phi: f64| 3e-4 * (6.0 * phi + 1.0).cos();
         let reference: Vec<f64> = (0..n).map(|i| i as f64 * step).collect();
         let values: Vec<f64> = reference.iter().map(|&c| e(c) + rho(7.0 * c)).collect();
-        let (ripple, value, _) = fit(&values, &reference, n, 7, true, 1.0).unwrap();
+        let (ripple, value, _) = fit(&values, &vec![true; n], &reference, n, 7, true, 1.0).unwrap();
         let six = ripple.terms.iter().find(|t| t.harmonic == 6).unwrap();
         assert_eq!(six.order, 42);
         assert!((six.amplitude - 3e-4).abs() < 1e-6, "{}", six.amplitude);
