@@ -215,11 +215,11 @@ pub fn check_non_negative(option: &str, value: f64, unit: &str) -> Result<(), Us
 }
 
 /// Checks that `path` can be a log before it is opened ([`calib_io::log::NotALog::check`]:
-/// missing, a folder that is no rosbag2 bag directory, a ROS 1 bag), each a usage error (exit 2)
+/// missing, or a folder that is no rosbag2 bag directory), each a usage error (exit 2)
 /// naming the path; what the file holds is for the reader to judge.
 pub fn check_log_path(path: &Path) -> Result<(), Usage> {
     let shown = crate::ui::shown(path);
-    match calib_io::log::NotALog::check(path, &shown) {
+    match calib_io::log::NotALog::check(path) {
         Some(not) => Err(Usage(format!("{shown}: {not}"))),
         None => Ok(()),
     }

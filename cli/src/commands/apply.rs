@@ -185,6 +185,15 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
         ))
         .into());
     }
+    if format == LogFormat::Ros1Bag {
+        return Err(Usage(format!(
+            "{} is a ROS 1 bag; calib corrects CSV and MCAP logs: convert the bag to MCAP \
+             (`mcap convert {} run.mcap`) and correct that",
+            args.log.display(),
+            args.log.display()
+        ))
+        .into());
+    }
     if LogFormat::for_output(&args.output).ok() != Some(format) {
         return Err(Usage(format!(
             "{} is a .{} log; name the output with the same extension (e.g. -o corrected.{})",

@@ -14,7 +14,7 @@ pub enum Error {
         source: std::io::Error,
     },
     /// The file's extension names no format calib reads.
-    #[error("{}: unknown log format; calib reads .csv and .mcap files and rosbag2 bags (a bag directory or a .db3 file)", path.display())]
+    #[error("{}: unknown log format; calib reads .csv and .mcap files, rosbag2 bags (a bag directory or a .db3 file) and ROS 1 .bag files", path.display())]
     UnknownFormat {
         /// The file.
         path: PathBuf,
@@ -53,6 +53,20 @@ pub enum Error {
         /// The `id` of the row of `messages` concerned, where one is.
         message_id: Option<i64>,
         /// The topic concerned, where one is.
+        topic: Option<String>,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// A ROS 1 bag has bad content.
+    #[error("{}: {}{}{}{message}", path.display(), byte_offset.map(|b| format!("byte {b}: ")).unwrap_or_default(), message_index.map(|i| format!("message {i}: ")).unwrap_or_default(), topic.as_ref().map(|t| format!("topic `{t}`: ")).unwrap_or_default())]
+    Ros1Bag {
+        /// The bag file.
+        path: PathBuf,
+        /// Where the record concerned starts in the file (for a message, its chunk's record).
+        byte_offset: Option<u64>,
+        /// 0-based index of the message in the order read (time order), where one is concerned.
+        message_index: Option<u64>,
+        /// The topic (or joint) concerned, where one is.
         topic: Option<String>,
         /// What is wrong and what to do.
         message: String,
@@ -103,6 +117,7 @@ impl Error {
             | Error::Csv { path, .. }
             | Error::Mcap { path, .. }
             | Error::Bag { path, .. }
+            | Error::Ros1Bag { path, .. }
             | Error::Write { path, .. }
             | Error::Empty { path }
             | Error::Data { path, .. }

@@ -178,11 +178,24 @@ fn bag_not_rewritten(input: &Path) -> Error {
     }
 }
 
+/// The error of `apply` on a ROS 1 bag, which calib reads but does not write.
+fn ros1_bag_not_rewritten(input: &Path) -> Error {
+    Error::Data {
+        path: input.to_path_buf(),
+        message: "calib corrects CSV and MCAP logs, not ROS 1 bags; convert the bag to MCAP \
+                  (`mcap convert run.bag run.mcap`) and correct that"
+            .into(),
+    }
+}
+
 /// The format of `input`, which `output` must have too; a bag is refused.
 fn formats(input: &Path, output: &Path) -> Result<LogFormat, Error> {
     let format = LogFormat::detect(input)?;
     if format == LogFormat::Rosbag {
         return Err(bag_not_rewritten(input));
+    }
+    if format == LogFormat::Ros1Bag {
+        return Err(ros1_bag_not_rewritten(input));
     }
     let out_format = LogFormat::for_output(output)?;
     if out_format != format {
@@ -224,6 +237,7 @@ pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
             parallel_chunks(opts),
         )?,
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
+        LogFormat::Ros1Bag => return Err(ros1_bag_not_rewritten(input)),
     };
     if range.count == 0 {
         // `TOPIC.field.path` channels are read through their message definition, which `apply`
@@ -279,6 +293,7 @@ pub fn apply_scanned(
             (n, 0, None, f.outside(), Vec::new())
         }
         LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
+        LogFormat::Ros1Bag => return Err(ros1_bag_not_rewritten(input)),
         LogFormat::Mcap => {
             let (joint, json) = (fix(AngleUnit::Rad), fix(unit));
             let done = mcap::rewrite(
