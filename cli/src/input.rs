@@ -13,7 +13,7 @@ use std::path::Path;
 
 /// How channels are named, for the `--help` of every command that reads a log (written once).
 pub const CHANNEL_NAMES: &str = "Channels are named by their CSV column (`1`, `2`, … in a file \
-without a header row); in MCAP and rosbag2 bags by the joint name (JointState, \
+without a header row); in MCAP files and ROS bags (rosbag2, ROS 1) by the joint name (JointState, \
 DynamicJointState) or field (JSON) where no other topic carries that name, by the topic for \
 std_msgs scalars, as TOPIC.field.path for a numeric field of another message whose MCAP file \
 carries its definition (/motor/state.position), and always accepted as TOPIC/NAME \

@@ -813,7 +813,10 @@ mod tests {
             assert!(kind.decode_in(&bytes[..1], "ros1").is_err(), "{kind:?}");
         }
         // The same bytes as CDR lack the encapsulation header's 4 bytes first.
-        assert_ne!(Scalar::Float64.decode_in(&1.25f64.to_le_bytes(), "cdr"), Ok(1.25));
+        assert_ne!(
+            Scalar::Float64.decode_in(&1.25f64.to_le_bytes(), "cdr"),
+            Ok(1.25)
+        );
     }
 
     #[test]

@@ -219,7 +219,10 @@ mod tests {
         // A record that has no place in a chunk.
         let info = record(&[("op", &[6])], b"");
         let (at, m) = entries(&info, true, |_, _| Ok(()), &mut list).unwrap_err();
-        assert!(at == 0 && m.contains("chunk info record inside a chunk"), "{m}");
+        assert!(
+            at == 0 && m.contains("chunk info record inside a chunk"),
+            "{m}"
+        );
     }
 
     #[test]
@@ -241,19 +244,26 @@ mod tests {
             decompress(data.as_slice(), compression, plain.len(), &mut out).unwrap();
             assert_eq!(out, plain, "{compression:?}");
             // Declared one byte short: refused after one byte more, never more memory.
-            let m = decompress(data.as_slice(), compression, plain.len() - 1, &mut out)
-                .unwrap_err();
+            let m =
+                decompress(data.as_slice(), compression, plain.len() - 1, &mut out).unwrap_err();
             assert!(m.contains("more than"), "{compression:?}: {m}");
             assert_eq!(out.len(), plain.len());
             // Cut in half: fewer bytes, and what came out kept.
             let half = &data[..data.len() / 2];
             let m = decompress(half, compression, plain.len(), &mut out).unwrap_err();
             assert!(m.contains("decompressed") || m.contains("fewer"), "{m}");
-            assert!(out.len() < plain.len() && plain.starts_with(&out), "{compression:?}");
+            assert!(
+                out.len() < plain.len() && plain.starts_with(&out),
+                "{compression:?}"
+            );
         }
         assert!(decompress(&b"garbage"[..], Compression::Bz2, 10, &mut out).is_err());
         assert!(decompress(&b"garbage"[..], Compression::Lz4, 10, &mut out).is_err());
         assert!(Compression::of("zstd").unwrap_err().contains("`zstd`"));
-        assert!(declared_size(u32::MAX).unwrap_err().contains("declares 4294967295 bytes"));
+        assert!(
+            declared_size(u32::MAX)
+                .unwrap_err()
+                .contains("declares 4294967295 bytes")
+        );
     }
 }

@@ -166,10 +166,7 @@ pub(crate) fn connection(fields: Fields<'_>, data: &[u8]) -> Result<Connection, 
         .text("type")
         .map_err(|m| format!("connection {id} (`{topic}`): {m}"))?
         .to_string();
-    let definition = more
-        .get("message_definition")
-        .unwrap_or_default()
-        .to_vec();
+    let definition = more.get("message_definition").unwrap_or_default().to_vec();
     Ok(Connection {
         id,
         topic,
@@ -389,7 +386,10 @@ pub(crate) fn load_chunk(
     let bad = |m: String| Failure::At(pos, m);
     let op = fields.op().map_err(bad)?;
     if op != Op::Chunk {
-        return Err(bad(format!("a {} record where a chunk was expected", op.name())));
+        return Err(bad(format!(
+            "a {} record where a chunk was expected",
+            op.name()
+        )));
     }
     let compression = Compression::of(fields.text("compression").map_err(bad)?).map_err(bad)?;
     let size = chunks::declared_size(fields.u32("size").map_err(bad)?).map_err(bad)?;
@@ -403,12 +403,8 @@ pub(crate) fn load_chunk(
     let cut = head.end() > len;
     file.seek(SeekFrom::Start(head.data_at))?;
     let stored = head.data_len.min(len - head.data_at);
-    let decompressed = chunks::decompress(
-        (&mut *file).take(stored),
-        compression,
-        size,
-        &mut into.buf,
-    );
+    let decompressed =
+        chunks::decompress((&mut *file).take(stored), compression, size, &mut into.buf);
     if let Err(m) = decompressed
         && !cut
     {

@@ -356,7 +356,9 @@ impl Ros1BagReader {
         let mut after_all: Option<u64> = None;
         let mut index = 0u64;
         while let Some((s, i)) = self.next_message()? {
-            let message = self.message(s, i).map_err(|m| self.error_at(s, index, None, m))?;
+            let message = self
+                .message(s, i)
+                .map_err(|m| self.error_at(s, index, None, m))?;
             registry
                 .learn(&message, scale)
                 .map_err(|m| self.error_at(s, index, Some(&message.channel.topic), m))?;

@@ -277,9 +277,16 @@ mod tests {
 
     #[test]
     fn every_cut_is_found_and_no_length_is_trusted() {
-        let buf = record(&[("op", &[5]), ("size", &10u32.to_le_bytes())], b"abcdefghij");
+        let buf = record(
+            &[("op", &[5]), ("size", &10u32.to_le_bytes())],
+            b"abcdefghij",
+        );
         for n in 0..buf.len() {
-            assert_eq!(record_at(&buf[..n], 0).unwrap_err(), RecordError::Cut, "{n}");
+            assert_eq!(
+                record_at(&buf[..n], 0).unwrap_err(),
+                RecordError::Cut,
+                "{n}"
+            );
         }
         // A header length of 4 GiB in a few bytes.
         let huge = [0xff, 0xff, 0xff, 0xff, 1, 2, 3];
@@ -314,6 +321,9 @@ mod tests {
         let f = Fields::parse(&h).unwrap();
         assert_eq!(f.u64("index_pos"), Ok(4200));
         assert!(f.text("t").unwrap_err().contains("UTF-8"));
-        assert_eq!(time_ns([0xff; 8]), 4_294_967_295 * 1_000_000_000 + 4_294_967_295);
+        assert_eq!(
+            time_ns([0xff; 8]),
+            4_294_967_295 * 1_000_000_000 + 4_294_967_295
+        );
     }
 }
