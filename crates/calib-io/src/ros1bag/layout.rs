@@ -178,10 +178,12 @@ pub(crate) fn connection(fields: Fields<'_>, data: &[u8]) -> Result<Connection, 
 /// The bag file's layout, from its index where it has a usable one, else from a scan (with a
 /// warning saying why). `path` as messages show it.
 pub(crate) fn read(file: &mut BufReader<File>, len: u64, path: &str) -> Result<Layout, Failure> {
-    let mut magic = [0u8; 13];
-    let got = (&mut *file).take(13).read(&mut magic)?;
-    if got < MAGIC.len() || magic != MAGIC {
-        return Err(Failure::At(0, not_v2(&magic[..got])));
+    let mut magic = Vec::with_capacity(MAGIC.len());
+    (&mut *file)
+        .take(MAGIC.len() as u64)
+        .read_to_end(&mut magic)?;
+    if magic != MAGIC {
+        return Err(Failure::At(0, not_v2(&magic)));
     }
     let at = MAGIC.len() as u64;
     let head = match read_head(file, at, len)? {
@@ -195,21 +197,8 @@ pub(crate) fn read(file: &mut BufReader<File>, len: u64, path: &str) -> Result<L
             ));
         }
     };
-    let fields = head.fields();
-    let bag_header = (|| -> Result<(u64, u32, u32), String> {
-        if fields.op()? != Op::BagHeader {
-            return Err(format!(
-                "the first record is a {} record, not the bag header",
-                fields.op()?.name()
-            ));
-        }
-        Ok((
-            fields.u64("index_pos")?,
-            fields.u32("conn_count")?,
-            fields.u32("chunk_count")?,
-        ))
-    })();
-    let (index_pos, conn_count, chunk_count) = bag_header.map_err(|m| Failure::At(at, m))?;
+    let (index_pos, conn_count, chunk_count) =
+        bag_header(head.fields()).map_err(|m| Failure::At(at, m))?;
     let first = head.end();
     let why_scan = if index_pos == 0 {
         "its bag header gives no index (index_pos 0: a recording that did not close)".to_string()
@@ -233,6 +222,22 @@ pub(crate) fn read(file: &mut BufReader<File>, len: u64, path: &str) -> Result<L
         layout.chunks.len()
     ));
     Ok(layout)
+}
+
+/// `index_pos`, `conn_count` and `chunk_count` of the bag header record's `fields`.
+fn bag_header(fields: Fields<'_>) -> Result<(u64, u32, u32), String> {
+    let op = fields.op()?;
+    if op != Op::BagHeader {
+        return Err(format!(
+            "the first record is a {} record, not the bag header",
+            op.name()
+        ));
+    }
+    Ok((
+        fields.u64("index_pos")?,
+        fields.u32("conn_count")?,
+        fields.u32("chunk_count")?,
+    ))
 }
 
 /// What to say of a file that does not start with the magic of a format 2.0 bag.

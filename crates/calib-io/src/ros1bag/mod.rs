@@ -8,7 +8,7 @@
 //! chunk (its position, first and last message time, messages per connection). A chunk holds
 //! connection and message data records, compressed whole with `bz2` or `lz4` (the LZ4 frame
 //! format) or not at all; a message data record is a connection ID, the receive `time`, and the
-//! message serialized in the ROS 1 wire format. See [`records`] for the record layout.
+//! message serialized in the ROS 1 wire format. (`docs/recordings.md` shows the layout.)
 //!
 //! # What calib reads
 //! Each message becomes the [`mcap::Message`] `mcap convert` makes of it (channel message
@@ -526,5 +526,136 @@ impl Ros2Reader for Ros1BagReader {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::{LogReader, ReadOptions};
+
+    /// Header fields as a bag holds them: each a `u32` length and `name=value`.
+    fn fields(list: &[(&str, &[u8])]) -> Vec<u8> {
+        let mut out = Vec::new();
+        for (name, value) in list {
+            out.extend(((name.len() + 1 + value.len()) as u32).to_le_bytes());
+            out.extend(name.as_bytes());
+            out.push(b'=');
+            out.extend(*value);
+        }
+        out
+    }
+
+    /// A record: `list` as its header, then `data`.
+    fn record(list: &[(&str, &[u8])], data: &[u8]) -> Vec<u8> {
+        let header = fields(list);
+        let mut out = (header.len() as u32).to_le_bytes().to_vec();
+        out.extend(header);
+        out.extend((data.len() as u32).to_le_bytes());
+        out.extend(data);
+        out
+    }
+
+    fn time(s: u32) -> [u8; 8] {
+        let mut t = [0u8; 8];
+        t[..4].copy_from_slice(&s.to_le_bytes());
+        t
+    }
+
+    /// A bag of one `std_msgs/Float64` topic whose uncompressed chunks hold `(time s, value)`
+    /// messages, with its index.
+    fn bag(chunks: &[&[(u32, f64)]]) -> Vec<u8> {
+        let conn = 0u32.to_le_bytes();
+        let connection = record(
+            &[("op", &[7]), ("conn", &conn), ("topic", b"/x")],
+            &fields(&[("topic", b"/x"), ("type", b"std_msgs/Float64")]),
+        );
+        let mut out = b"#ROSBAG V2.0\n".to_vec();
+        let header_at = out.len();
+        out.extend(vec![0u8; 4096]);
+        let mut infos = Vec::new();
+        for messages in chunks {
+            let mut plain = connection.clone();
+            for (t, v) in *messages {
+                let fields: [(&str, &[u8]); 3] =
+                    [("op", &[2]), ("conn", &conn), ("time", &time(*t))];
+                plain.extend(record(&fields, &v.to_le_bytes()));
+            }
+            let pos = (out.len() as u64).to_le_bytes();
+            let size = (plain.len() as u32).to_le_bytes();
+            out.extend(record(
+                &[("op", &[5]), ("compression", b"none"), ("size", &size)],
+                &plain,
+            ));
+            let first = messages.iter().map(|m| m.0).min().unwrap_or(0);
+            let last = messages.iter().map(|m| m.0).max().unwrap_or(0);
+            let mut counts = conn.to_vec();
+            counts.extend((messages.len() as u32).to_le_bytes());
+            infos.push(record(
+                &[
+                    ("op", &[6]),
+                    ("ver", &1u32.to_le_bytes()),
+                    ("chunk_pos", &pos),
+                    ("start_time", &time(first)),
+                    ("end_time", &time(last)),
+                    ("count", &1u32.to_le_bytes()),
+                ],
+                &counts,
+            ));
+        }
+        let index_pos = (out.len() as u64).to_le_bytes();
+        out.extend(&connection);
+        for info in &infos {
+            out.extend(info);
+        }
+        let chunk_count = (infos.len() as u32).to_le_bytes();
+        let list: [(&str, &[u8]); 4] = [
+            ("op", &[3]),
+            ("index_pos", &index_pos),
+            ("conn_count", &1u32.to_le_bytes()),
+            ("chunk_count", &chunk_count),
+        ];
+        // Padded to 4096 bytes, as `rosbag record` writes it.
+        let header = record(&list, &vec![b' '; 4096 - 8 - fields(&list).len()]);
+        out[header_at..header_at + header.len()].copy_from_slice(&header);
+        out
+    }
+
+    /// Values and times (s) of every sample of `bytes` read as a bag, or the error.
+    fn read(bytes: &[u8]) -> Result<Vec<(f64, f64)>, String> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.bag");
+        std::fs::write(&path, bytes).unwrap();
+        let opts = ReadOptions {
+            unit: Some(calib_core::AngleUnit::Rad),
+            ..ReadOptions::default()
+        };
+        let log = LogReader::open(&path, &opts).map_err(|e| e.to_string())?;
+        log.map(|s| s.map(|s| (s.t, s.values[0])).map_err(|e| e.to_string()))
+            .collect()
+    }
+
+    #[test]
+    fn overlapping_chunks_are_merged_in_time_order() {
+        // Chunks overlapping in time, one of them out of order inside, and a later chunk that
+        // starts before the second ends.
+        let a: &[(u32, f64)] = &[(1, 1.0), (5, 5.0), (3, 3.0)];
+        let b: &[(u32, f64)] = &[(2, 2.0), (4, 4.0), (6, 6.0)];
+        let c: &[(u32, f64)] = &[(7, 7.0), (8, 8.0)];
+        let got = read(&bag(&[a, c, b])).unwrap();
+        let want: Vec<(f64, f64)> = (1..=8).map(|k| (f64::from(k), f64::from(k))).collect();
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn an_index_that_miscounts_falls_back_to_a_scan() {
+        let a: &[(u32, f64)] = &[(1, 1.0), (2, 2.0)];
+        let mut bytes = bag(&[a]);
+        // The bag header's chunk_count, 1, made 2: the index is not believed.
+        let at = bytes
+            .windows(12)
+            .position(|w| w == b"chunk_count=")
+            .unwrap();
+        bytes[at + 12] = 2;
+        assert_eq!(read(&bytes).unwrap(), [(1.0, 1.0), (2.0, 2.0)]);
     }
 }
