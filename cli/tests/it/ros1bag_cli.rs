@@ -79,7 +79,8 @@ fn inspect_lists_each_bags_topics_and_channels() {
         ("quick-none", 1651),
     ] {
         let o = calib(&["inspect", s(&bag(name))]);
-        let out = expect_exit(&o, 0);
+        expect_exit(&o, 0);
+        let out = stdout(&o);
         let line = topic_line(&out, "/joint_states");
         assert_mentions(
             line,
@@ -91,9 +92,14 @@ fn inspect_lists_each_bags_topics_and_channels() {
             out.contains("over 16.500 s (1700000000.000 … 1700000016.500 s)"),
             "{out}"
         );
-        assert_eq!(stderr(&o), "", "{name}: no warning for a whole indexed bag");
+        assert!(
+            !out.contains("warning"),
+            "{name}: a whole indexed bag: {out}"
+        );
     }
-    let out = expect_exit(&calib(&["inspect", s(&bag("quick-scalars"))]), 0);
+    let o = calib(&["inspect", s(&bag("quick-scalars"))]);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
     for topic in ["/a", "/b"] {
         assert_mentions(
             topic_line(&out, topic),
@@ -149,10 +155,11 @@ fn a_bag_without_index_is_scanned_with_a_warning_and_reads_the_same() {
     let crashed = dir.path().join("crashed.bag");
     std::fs::write(&crashed, &bytes).unwrap();
     let o = calib(&["inspect", s(&crashed)]);
-    let out = expect_exit(&o, 0);
+    expect_exit(&o, 0);
+    let out = stdout(&o);
     assert_mentions(topic_line(&out, "/joint_states"), &["3301 msg"]);
     assert_mentions(
-        &stderr(&o),
+        &out,
         &[
             "crashed.bag",
             "no index (index_pos 0",
@@ -177,8 +184,9 @@ fn a_bag_cut_inside_a_chunk_gives_the_messages_before_the_break() {
         let path = dir.path().join(format!("{name}-cut.bag"));
         std::fs::write(&path, cut).unwrap();
         let o = calib(&["inspect", s(&path)]);
-        let out = expect_exit(&o, 0);
-        let err = stderr(&o);
+        expect_exit(&o, 0);
+        let out = stdout(&o);
+        let err = out.clone();
         assert_mentions(
             &err,
             &[s(&path), "ends early at byte", "messages before the break"],
@@ -234,7 +242,7 @@ fn hostile_lengths_are_errors_naming_the_file_and_the_byte() {
         &[
             "huge-size.bag: byte 4109: ",
             "declares 4294967295 bytes uncompressed",
-            "256",
+            "the 268435456 calib holds",
         ],
     );
     // A chunk record whose header claims 4 GiB, whose data claims 4 GiB.
@@ -272,14 +280,10 @@ fn hostile_lengths_are_errors_naming_the_file_and_the_byte() {
     let path = dir.path().join("far-index.bag");
     std::fs::write(&path, &far).unwrap();
     let o = calib(&["inspect", s(&path)]);
-    assert_mentions(
-        topic_line(&expect_exit(&o, 0), "/joint_states"),
-        &["1651 msg"],
-    );
-    assert_mentions(
-        &stderr(&o),
-        &["at byte 1099511627776, outside the file's records"],
-    );
+    expect_exit(&o, 0);
+    let out = stdout(&o);
+    assert_mentions(topic_line(&out, "/joint_states"), &["1651 msg"]);
+    assert_mentions(&out, &["at byte 1099511627776, outside the file's records"]);
 }
 
 #[test]
