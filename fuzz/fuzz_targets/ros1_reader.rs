@@ -14,9 +14,10 @@ use calib_io::LogReader;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let [flags, layout, mut rest @ ..] = data else {
+    let [flags, layout, rest @ ..] = data else {
         return;
     };
+    let mut rest: &[u8] = rest;
     let file = match layout & 3 {
         0 => rest.to_vec(),
         mode => {
