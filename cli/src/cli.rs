@@ -24,8 +24,8 @@ fn limits_help() -> String {
 /// Calibrate angular encoders and angle sensors from recorded runs.
 ///
 /// calib reads a log of synchronized sensor samples (CSV, MCAP with ROS 2 JointState or JSON
-/// messages, or a ROS 2 bag: its directory or a .db3 file) and writes each sensor's error map as a
-/// correction table, plus a report.
+/// messages, a ROS 2 bag: its directory or a .db3 file, or a ROS 1 .bag file) and writes each
+/// sensor's error map as a correction table, plus a report.
 ///
 /// Start with `calib inspect LOG` to see what a log holds, then run a method, e.g.
 /// `calib csrr run.mcap -o out/`. Exit status: 0 success, 1 bad or insufficient data, 2 bad usage,

@@ -13,7 +13,7 @@ use std::path::Path;
 
 /// How channels are named, for the `--help` of every command that reads a log (written once).
 pub const CHANNEL_NAMES: &str = "Channels are named by their CSV column (`1`, `2`, … in a file \
-without a header row); in MCAP and rosbag2 bags by the joint name (JointState, \
+without a header row); in MCAP files and ROS bags (rosbag2, ROS 1) by the joint name (JointState, \
 DynamicJointState) or field (JSON) where no other topic carries that name, by the topic for \
 std_msgs scalars, as TOPIC.field.path for a numeric field of another message whose MCAP file \
 carries its definition (/motor/state.position), and always accepted as TOPIC/NAME \
@@ -215,11 +215,11 @@ pub fn check_non_negative(option: &str, value: f64, unit: &str) -> Result<(), Us
 }
 
 /// Checks that `path` can be a log before it is opened ([`calib_io::log::NotALog::check`]:
-/// missing, a folder that is no rosbag2 bag directory, a ROS 1 bag), each a usage error (exit 2)
+/// missing, or a folder that is no rosbag2 bag directory), each a usage error (exit 2)
 /// naming the path; what the file holds is for the reader to judge.
 pub fn check_log_path(path: &Path) -> Result<(), Usage> {
     let shown = crate::ui::shown(path);
-    match calib_io::log::NotALog::check(path, &shown) {
+    match calib_io::log::NotALog::check(path) {
         Some(not) => Err(Usage(format!("{shown}: {not}"))),
         None => Ok(()),
     }

@@ -195,3 +195,202 @@ pub fn payloads(mut rest: &[u8]) -> Vec<&[u8]> {
     }
     payloads
 }
+
+/// How [`ros1_bag`] compresses its chunks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ros1Compression {
+    None,
+    Bz2,
+    Lz4,
+}
+
+/// The topics of [`ros1_bag`]: name, type and message definition.
+pub const ROS1_TOPICS: [(&str, &str, &str); 3] = [
+    (
+        "/joint_states",
+        "sensor_msgs/JointState",
+        "Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n",
+    ),
+    ("/scalar", "std_msgs/Float64", "float64 data\n"),
+    ("/other", "std_msgs/String", "string data\n"),
+];
+
+/// A record of a ROS 1 bag: `fields` as its header, then `data`, each with its length.
+fn ros1_record(fields: &[(&str, &[u8])], data: &[u8]) -> Vec<u8> {
+    let header = ros1_fields(fields);
+    let mut out = (header.len() as u32).to_le_bytes().to_vec();
+    out.extend(header);
+    out.extend((data.len() as u32).to_le_bytes());
+    out.extend(data);
+    out
+}
+
+/// Header fields as a ROS 1 bag holds them: each a `u32` length and `name=value`.
+fn ros1_fields(fields: &[(&str, &[u8])]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for (name, value) in fields {
+        out.extend(((name.len() + 1 + value.len()) as u32).to_le_bytes());
+        out.extend(name.as_bytes());
+        out.push(b'=');
+        out.extend(*value);
+    }
+    out
+}
+
+fn ros1_time(ns: u64) -> [u8; 8] {
+    let mut b = [0u8; 8];
+    b[..4].copy_from_slice(&((ns / 1_000_000_000) as u32).to_le_bytes());
+    b[4..].copy_from_slice(&((ns % 1_000_000_000) as u32).to_le_bytes());
+    b
+}
+
+/// A ROS 1 bag (format 2.0) of `messages` (`(topic, time ns, payload)`, the topic an index into
+/// [`ROS1_TOPICS`]), `per_chunk` messages a chunk, laid out as `rosbag record` writes it: the
+/// bag header padded to 4096 bytes, each chunk (a connection record before a topic's first
+/// message) followed by its index data, then the index (connections, chunk infos) unless
+/// `indexed` is false (then `index_pos` is 0, as in a recording that did not close).
+pub fn ros1_bag(
+    messages: &[(usize, u64, &[u8])],
+    per_chunk: usize,
+    compression: Ros1Compression,
+    indexed: bool,
+) -> Vec<u8> {
+    use std::io::Write;
+    let connection = |k: usize| {
+        let (topic, kind, definition) = ROS1_TOPICS[k];
+        let id = (k as u32).to_le_bytes();
+        let more = ros1_fields(&[
+            ("topic", topic.as_bytes()),
+            ("type", kind.as_bytes()),
+            ("md5sum", b"*"),
+            ("message_definition", definition.as_bytes()),
+        ]);
+        ros1_record(
+            &[("op", &[7]), ("conn", &id), ("topic", topic.as_bytes())],
+            &more,
+        )
+    };
+    let mut out = b"#ROSBAG V2.0\n".to_vec();
+    let header_at = out.len();
+    out.extend(vec![0u8; 4096]);
+    let mut infos = Vec::new();
+    let mut known = [false; 3];
+    for chunk in messages.chunks(per_chunk.max(1)) {
+        let mut plain = Vec::new();
+        let mut index: Vec<Vec<(u64, u32)>> = vec![Vec::new(); 3];
+        for &(k, t, payload) in chunk {
+            let k = k % 3;
+            if !known[k] {
+                known[k] = true;
+                plain.extend(connection(k));
+            }
+            index[k].push((t, plain.len() as u32));
+            let id = (k as u32).to_le_bytes();
+            plain.extend(ros1_record(
+                &[("op", &[2]), ("conn", &id), ("time", &ros1_time(t))],
+                payload,
+            ));
+        }
+        let (name, data): (&str, Vec<u8>) = match compression {
+            Ros1Compression::None => ("none", plain.clone()),
+            Ros1Compression::Bz2 => {
+                let mut e = bzip2::write::BzEncoder::new(Vec::new(), bzip2::Compression::fast());
+                e.write_all(&plain).expect("bz2");
+                ("bz2", e.finish().expect("bz2"))
+            }
+            Ros1Compression::Lz4 => {
+                let mut e = lz4::EncoderBuilder::new().build(Vec::new()).expect("lz4");
+                e.write_all(&plain).expect("lz4");
+                ("lz4", e.finish().0)
+            }
+        };
+        let pos = out.len() as u64;
+        out.extend(ros1_record(
+            &[
+                ("op", &[5]),
+                ("compression", name.as_bytes()),
+                ("size", &(plain.len() as u32).to_le_bytes()),
+            ],
+            &data,
+        ));
+        let mut counts = Vec::new();
+        for (k, entries) in index.iter().enumerate().filter(|(_, e)| !e.is_empty()) {
+            let mut data = Vec::new();
+            for (t, offset) in entries {
+                data.extend(ros1_time(*t));
+                data.extend(offset.to_le_bytes());
+            }
+            out.extend(ros1_record(
+                &[
+                    ("op", &[4]),
+                    ("ver", &1u32.to_le_bytes()),
+                    ("conn", &(k as u32).to_le_bytes()),
+                    ("count", &(entries.len() as u32).to_le_bytes()),
+                ],
+                &data,
+            ));
+            counts.extend((k as u32).to_le_bytes());
+            counts.extend((entries.len() as u32).to_le_bytes());
+        }
+        let start = chunk.iter().map(|m| m.1).min().unwrap_or(0);
+        let end = chunk.iter().map(|m| m.1).max().unwrap_or(0);
+        infos.push(ros1_record(
+            &[
+                ("op", &[6]),
+                ("ver", &1u32.to_le_bytes()),
+                ("chunk_pos", &pos.to_le_bytes()),
+                ("start_time", &ros1_time(start)),
+                ("end_time", &ros1_time(end)),
+                ("count", &((counts.len() / 8) as u32).to_le_bytes()),
+            ],
+            &counts,
+        ));
+    }
+    let index_pos = out.len() as u64;
+    let conns = known.iter().filter(|k| **k).count() as u32;
+    if indexed {
+        for (k, _) in known.iter().enumerate().filter(|(_, k)| **k) {
+            out.extend(connection(k));
+        }
+        for info in &infos {
+            out.extend(info);
+        }
+    }
+    let (index_pos, conns, chunks) = if indexed {
+        (index_pos, conns, infos.len() as u32)
+    } else {
+        (0, 0, 0)
+    };
+    let fields = ros1_fields(&[
+        ("op", &[3]),
+        ("index_pos", &index_pos.to_le_bytes()),
+        ("conn_count", &conns.to_le_bytes()),
+        ("chunk_count", &chunks.to_le_bytes()),
+    ]);
+    let pad = 4096 - 8 - fields.len();
+    let mut header = (fields.len() as u32).to_le_bytes().to_vec();
+    header.extend(&fields);
+    header.extend((pad as u32).to_le_bytes());
+    header.extend(vec![b' '; pad]);
+    out[header_at..header_at + 4096].copy_from_slice(&header);
+    out
+}
+
+/// A `sensor_msgs/JointState` in the ROS 1 wire format.
+pub fn ros1_joint_state(seq: u32, stamp_ns: u64, names: &[&str], position: &[f64]) -> Vec<u8> {
+    let mut out = seq.to_le_bytes().to_vec();
+    out.extend(ros1_time(stamp_ns));
+    out.extend(0u32.to_le_bytes());
+    out.extend((names.len() as u32).to_le_bytes());
+    for n in names {
+        out.extend((n.len() as u32).to_le_bytes());
+        out.extend(n.as_bytes());
+    }
+    out.extend((position.len() as u32).to_le_bytes());
+    for p in position {
+        out.extend(p.to_le_bytes());
+    }
+    out.extend(0u32.to_le_bytes());
+    out.extend(0u32.to_le_bytes());
+    out
+}

@@ -25,7 +25,7 @@ use std::path::PathBuf;
 #[derive(Debug, clap::Args, PartialEq)]
 #[command(after_long_help = crate::input::CHANNEL_NAMES)]
 pub struct Args {
-    /// The log (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file).
+    /// The log (.csv, .mcap, a rosbag2 bag: its directory or a .db3 file, or a ROS 1 .bag).
     pub log: PathBuf,
     /// Unit of CSV, JSON and std_msgs readings: deg (the default), rad, arcsec, rev, counts:N.
     /// JointState positions are radians.

@@ -27,8 +27,8 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, clap::Args, PartialEq)]
 #[command(next_help_heading = "Logs and outputs")]
 pub struct MethodArgs {
-    /// The logs (.csv, .mcap, or a rosbag2 bag: its directory or a .db3 file), calibrated
-    /// independently and in parallel.
+    /// The logs (.csv, .mcap, a rosbag2 bag: its directory or a .db3 file, or a ROS 1 .bag),
+    /// calibrated independently and in parallel.
     #[arg(required = true, value_name = "LOG")]
     pub logs: Vec<PathBuf>,
     /// Output folder (created if missing): the tables, report.json and report.html.

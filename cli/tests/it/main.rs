@@ -23,6 +23,7 @@ mod reference_cli;
 mod reference_setups_cli;
 mod reliability;
 mod report_cli;
+mod ros1bag_cli;
 mod rosbag_cli;
 mod schema_cli;
 mod shift_angle_cli;

@@ -731,29 +731,3 @@ fn apply_corrects_a_qualified_channel_and_keeps_a_csv_dialect() {
     ]);
     assert_ne!(code(&o), 0);
 }
-
-/// A ROS 1 `.bag` file is a usage error (exit 2) saying how to convert it, for every command
-/// that reads a log.
-#[test]
-fn a_ros1_bag_is_refused_with_the_conversion_to_run() {
-    let dir = tempfile::tempdir().unwrap();
-    let bag = dir.path().join("run.bag");
-    std::fs::write(&bag, b"#ROSBAG V2.0\n\x04\x00\x00\x00op=\x03").unwrap();
-    let out = dir.path().join("out");
-    let table = write(
-        dir.path(),
-        "map.csv",
-        "angle_deg,error_arcsec,correction_arcsec\n0,36,-36\n180,-36,36\n",
-    );
-    let fixed = dir.path().join("fixed.mcap");
-    for args in [
-        vec!["inspect", s(&bag)],
-        vec!["csrr", s(&bag), "-o", s(&out)],
-        vec!["apply", s(&table), s(&bag), "-o", s(&fixed)],
-    ] {
-        let err = expect_exit(&calib(&args), 2);
-        assert_mentions(&err, &["run.bag", "ROS 1 bag", "mcap convert"]);
-    }
-    assert_no_output(&out);
-    assert!(!fixed.exists());
-}

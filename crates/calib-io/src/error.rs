@@ -57,6 +57,20 @@ pub enum Error {
         /// What is wrong and what to do.
         message: String,
     },
+    /// A ROS 1 bag has bad content.
+    #[error("{}: {}{}{}{message}", path.display(), byte_offset.map(|b| format!("byte {b}: ")).unwrap_or_default(), message_index.map(|i| format!("message {i}: ")).unwrap_or_default(), topic.as_ref().map(|t| format!("topic `{t}`: ")).unwrap_or_default())]
+    Ros1Bag {
+        /// The bag file.
+        path: PathBuf,
+        /// Where the record concerned starts in the file (for a message, its chunk's record).
+        byte_offset: Option<u64>,
+        /// 0-based index of the message in the order read (time order), where one is concerned.
+        message_index: Option<u64>,
+        /// The topic (or joint) concerned, where one is.
+        topic: Option<String>,
+        /// What is wrong and what to do.
+        message: String,
+    },
     /// What a writer was given cannot be written as a valid file; nothing was written.
     #[error("{}: cannot write: {message}", path.display())]
     Write {
@@ -103,6 +117,7 @@ impl Error {
             | Error::Csv { path, .. }
             | Error::Mcap { path, .. }
             | Error::Bag { path, .. }
+            | Error::Ros1Bag { path, .. }
             | Error::Write { path, .. }
             | Error::Empty { path }
             | Error::Data { path, .. }

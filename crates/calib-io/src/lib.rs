@@ -5,6 +5,7 @@
 //! - [`mcap_log`]: MCAP logs with ROS 2 `sensor_msgs/msg/JointState` or `std_msgs` scalars (CDR),
 //!   or JSON messages.
 //! - [`rosbag`]: rosbag2 bags (a bag directory or a `.db3` file) with the same ROS 2 messages.
+//! - [`ros1bag`]: ROS 1 bags (`.bag`, format 2.0) with `sensor_msgs/JointState` or scalars.
 //! - [`naming`]: channels addressed by joint name or `TOPIC/JOINT`.
 //! - [`align`]: channels on different clocks interpolated onto the first one's stamps.
 //! - [`table`]: correction tables (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`).
@@ -67,6 +68,7 @@ mod prefetch;
 mod progress;
 pub mod readings;
 pub mod report;
+pub mod ros1bag;
 mod ros2;
 pub mod rosbag;
 pub mod scenario;

@@ -64,6 +64,22 @@ pub(crate) fn decompressed_limit(compressed: u64) -> u64 {
 /// may decompress to, bytes (16 MiB: a JointState of [`MAX_JOINTS`] joints is under 1 MiB).
 pub const MAX_PAYLOAD_BYTES: usize = 16 << 20;
 
+/// The longest header of a ROS 1 bag record, and the longest data of a connection or chunk
+/// info record, bytes (16 MiB: a connection's header holds its type's full message definition,
+/// tens of kilobytes for the largest). Checked before the bytes are read.
+pub const MAX_ROS1_HEADER_BYTES: usize = 16 << 20;
+
+/// The largest ROS 1 bag chunk calib decompresses, bytes, compressed or not (256 MiB;
+/// `rosbag record` closes chunks at 768 KiB by default). A chunk header's declared size is
+/// checked against it before anything is allocated, and decompression stops at the declared
+/// size.
+pub const MAX_ROS1_CHUNK_BYTES: usize = 256 << 20;
+
+/// The most decompressed chunk bytes a ROS 1 bag reader holds at once to hand on messages in
+/// time order where chunks overlap in time (1 GiB). Chunks that follow one another in time
+/// are held one at a time.
+pub const MAX_ROS1_HELD_BYTES: usize = 1 << 30;
+
 /// Bytes as a message shows them: printable ASCII as it is, anything else as `\xNN`.
 pub(crate) fn shown_bytes(bytes: &[u8]) -> String {
     let text: String = bytes

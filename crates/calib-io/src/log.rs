@@ -5,6 +5,7 @@ use crate::columns::{self, ColumnFormat, reader::ColumnReader};
 use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
+use crate::ros1bag::{self, Ros1BagReader};
 use crate::ros2::samples::{OneByOne, Ros2Reader};
 use crate::rosbag::{self, BagReader, PreparedStorage, SQLITE_MAGIC};
 use crate::{Error, ReadDiagnostics, ReadOptions};
@@ -25,15 +26,11 @@ pub enum LogFormat {
     /// A file whose channels are whole columns (TDMS, MATLAB, HDF5, Parquet), by the name of its
     /// [`ColumnFormat`]. Read only.
     Columns(&'static str),
+    /// A ROS 1 bag (`.bag`, format 2.0). Read only.
+    Ros1Bag,
 }
 
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
-
-/// The first bytes of a ROS 1 bag (`#ROSBAG V2.0`). calib does not read them: the one Rust
-/// reader (the `rosbag` crate: two releases since 2022, ~150 downloads a month, ROS 1 itself at
-/// end of life) is not one to depend on, and `mcap convert` turns a bag into an MCAP file calib
-/// reads.
-const ROS1_MAGIC: &[u8] = b"#ROSBAG";
 
 /// A path that names no log calib can open, found before anything is read: the mistakes of
 /// naming a path (the command line calls them usage errors), said with what to do.
@@ -48,37 +45,18 @@ pub enum NotALog {
          .db3 files); name the .csv or .mcap file inside it, or the bag directory"
     )]
     Folder,
-    /// A ROS 1 bag, with the path as the message shows it (for the command to run).
-    #[error(
-        "this is a ROS 1 bag, which calib does not read directly; convert it to MCAP with the mcap \
-         CLI (`mcap convert {0} run.mcap`) and give calib the .mcap file: its JointState topics \
-         (ros1 encoding) are read as they are"
-    )]
-    Ros1Bag(String),
 }
 
 impl NotALog {
-    /// Why `path` cannot be a log, if it cannot: missing, a folder other than a rosbag2 bag
-    /// directory, or a ROS 1 bag. Other files are for [`LogFormat::detect`] to judge by their
-    /// content. `shown` is the path as messages show it.
-    pub fn check(path: &Path, shown: &str) -> Option<NotALog> {
+    /// Why `path` cannot be a log, if it cannot: missing, or a folder other than a rosbag2 bag
+    /// directory. Other files are for [`LogFormat::detect`] to judge by their content.
+    pub fn check(path: &Path) -> Option<NotALog> {
         match std::fs::metadata(path) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some(NotALog::Missing),
             Ok(meta) if meta.is_dir() && !rosbag::is_bag_dir(path) => Some(NotALog::Folder),
-            Ok(meta) if meta.is_file() && starts_with(path, ROS1_MAGIC) => {
-                Some(NotALog::Ros1Bag(shown.to_string()))
-            }
             _ => None,
         }
     }
-}
-
-/// Whether the file at `path` starts with `magic`.
-fn starts_with(path: &Path, magic: &[u8]) -> bool {
-    let mut head = vec![0u8; magic.len()];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok_and(|()| head == magic)
 }
 
 impl LogFormat {
@@ -88,6 +66,7 @@ impl LogFormat {
             LogFormat::Csv => "csv",
             LogFormat::Mcap => "mcap",
             LogFormat::Rosbag => "db3",
+            LogFormat::Ros1Bag => "bag",
             LogFormat::Columns(name) => {
                 columns::by_name(name).map_or("bin", |f| f.extensions().first().unwrap_or(&"bin"))
             }
@@ -107,6 +86,11 @@ impl LogFormat {
             LogFormat::Rosbag => Some(
                 "calib corrects CSV and MCAP logs, not rosbag2 bags; convert the bag to MCAP \
                  (`ros2 bag convert`) and correct that"
+                    .into(),
+            ),
+            LogFormat::Ros1Bag => Some(
+                "calib corrects CSV and MCAP logs, not ROS 1 bags; convert the bag to MCAP \
+                 (`mcap convert run.bag run.mcap`) and correct that"
                     .into(),
             ),
             LogFormat::Columns(name) => Some(format!(
@@ -130,10 +114,11 @@ impl LogFormat {
     /// The format of an existing log. A directory is a rosbag2 bag if [`rosbag::is_bag_dir`]
     /// says so (it holds `metadata.yaml` or `.db3` files), else an error. A file is known by its
     /// first bytes whatever its extension: MCAP's magic number, SQLite's (a rosbag2 `.db3`
-    /// file), or another known kind of file (compressed, an archive, a ROS 1 bag, UTF-16 or
+    /// file), a ROS 1 bag's (`#ROSBAG V`, of any version, for the ROS 1 reader to refuse any but
+    /// 2.0 with its reason), or another known kind of file (compressed, an archive, UTF-16 or
     /// binary data), which is an error saying what the file is and what to do. Other content is
-    /// a bag if the extension is `.db3` (for the bag reader to refuse with its reason), CSV if
-    /// the extension says so (or is unknown and the text looks like CSV).
+    /// a bag if the extension is `.db3` or `.bag` (for the bag readers to refuse with their
+    /// reason), CSV if the extension says so (or is unknown and the text looks like CSV).
     /// Devices and sockets are refused: a log is a file (a named pipe, which can be read only
     /// once, is taken by its extension).
     pub fn detect(path: &Path) -> Result<Self, Error> {
@@ -145,9 +130,7 @@ impl LogFormat {
         if meta.is_dir() && rosbag::is_bag_dir(path) {
             return Ok(LogFormat::Rosbag);
         }
-        if let Some(not) =
-            NotALog::check(path, &path.display().to_string()).filter(|not| *not != NotALog::Missing)
-        {
+        if let Some(not) = NotALog::check(path).filter(|not| *not != NotALog::Missing) {
             return Err(Error::Data {
                 path: path.to_path_buf(),
                 message: not.to_string(),
@@ -175,6 +158,9 @@ impl LogFormat {
         if head.starts_with(SQLITE_MAGIC) {
             return Ok(LogFormat::Rosbag);
         }
+        if head.starts_with(ros1bag::records::MAGIC_PREFIX) {
+            return Ok(LogFormat::Ros1Bag);
+        }
         if let Some(format) = columns::FORMATS.iter().find(|f| f.sniff(head)) {
             return Ok(LogFormat::Columns(format.name()));
         }
@@ -192,6 +178,7 @@ impl LogFormat {
             // Text exports: TwinCAT, MATLAB and numpy write `.txt` and `.dat` as often as `.csv`.
             Some("csv" | "txt" | "dat" | "tsv") => Ok(LogFormat::Csv),
             Some("db3") => Ok(LogFormat::Rosbag),
+            Some("bag") => Ok(LogFormat::Ros1Bag),
             Some(ext) => columns::FORMATS
                 .iter()
                 .find(|f| f.extensions().contains(&ext))
@@ -276,7 +263,7 @@ fn foreign_kind(head: &[u8]) -> Option<(&'static str, &'static str)> {
 /// The formats calib reads, as help texts and errors list them: CSV, MCAP, rosbag2 and the
 /// columnar formats of [`columns::FORMATS`].
 pub fn formats_read() -> String {
-    let mut names = vec!["CSV", "MCAP", "rosbag2 bags"];
+    let mut names = vec!["CSV", "MCAP", "rosbag2 bags", "ROS 1 bags"];
     names.extend(columns::FORMATS.iter().map(|f| f.name()));
     names.join(", ")
 }
@@ -354,6 +341,11 @@ impl LogReader {
                         Box::new(McapReader::open(&file, opts).map_err(rename)?)
                     }
                 })
+            }
+            LogFormat::Ros1Bag => {
+                let bag = Ros1BagReader::open(path, opts)?;
+                bag_warnings = bag.warnings().to_vec();
+                Inner::Ros2(Box::new(bag))
             }
             LogFormat::Columns(name) => {
                 let format: &dyn ColumnFormat =
@@ -787,7 +779,7 @@ impl LogWriter {
                 LogWriter::Mcap(Box::new(McapWriter::create(path, channels, DEFAULT_TOPIC)?))
             }
             // `for_output` names no format calib cannot write.
-            LogFormat::Rosbag | LogFormat::Columns(_) => {
+            LogFormat::Rosbag | LogFormat::Ros1Bag | LogFormat::Columns(_) => {
                 return Err(Error::UnknownFormat {
                     path: path.to_path_buf(),
                 });

@@ -64,7 +64,7 @@ impl LogOptions {
 /// ([`calib_io::log::NotALog::check`]): a `UsageError` naming the path if not.
 fn check_log_path(path: &Path) -> PyResult<()> {
     let shown = path.display().to_string();
-    match calib_io::log::NotALog::check(path, &shown) {
+    match calib_io::log::NotALog::check(path) {
         Some(not) => Err(usage(format!("{shown}: {not}"))),
         None => Ok(()),
     }

@@ -191,6 +191,42 @@ fn main() {
         write("msgdef", name, &input);
     }
 
+    // ROS 1 bags: JointState and scalars in chunks of each compression, indexed and not (the
+    // layout byte of `ros1_reader`), and a small whole bag as the raw file.
+    let mut rows = Vec::new();
+    for i in 0..8u64 {
+        let t = 1_700_000_000_000_000_000 + i * 5_000_000;
+        let (topic, payload) = match i % 4 {
+            3 => (1u8, (0.01 * i as f64).to_le_bytes().to_vec()),
+            2 if i == 2 => (2, b"\x02\0\0\0hi".to_vec()),
+            _ => (
+                0,
+                calib_fuzz::ros1_joint_state(i as u32, t, &["a", "b"], &[0.1 * i as f64, -0.2]),
+            ),
+        };
+        rows.push((topic as usize, t, payload));
+    }
+    for (name, layout) in [
+        ("none", 1u8 | (2 << 3)),
+        ("bz2", 2 | (3 << 3)),
+        ("lz4_unindexed", 3 | 4 | (1 << 3)),
+    ] {
+        let mut input = vec![0, layout];
+        for (topic, t, payload) in &rows {
+            input.push(*topic as u8);
+            input.extend(t.to_le_bytes());
+            input.extend((payload.len() as u16).to_le_bytes());
+            input.extend(payload);
+        }
+        write("ros1_reader", name, &input);
+    }
+    let refs: Vec<(usize, u64, &[u8])> = rows
+        .iter()
+        .map(|(k, t, p)| (*k, *t, p.as_slice()))
+        .collect();
+    let bag = calib_fuzz::ros1_bag(&refs, 3, calib_fuzz::Ros1Compression::Lz4, true);
+    write("ros1_reader", "raw_lz4", &[&[0u8, 0][..], &bag].concat());
+
     // Shift-angle readings: the test data, and a small complete set for 3 faces.
     write(
         "readings",

@@ -276,7 +276,7 @@ pub fn apply_scanned(
             beside.extend(keep);
             (n, 0, None, f.outside(), Vec::new())
         }
-        other @ (LogFormat::Rosbag | LogFormat::Columns(_)) => {
+        other @ (LogFormat::Rosbag | LogFormat::Ros1Bag | LogFormat::Columns(_)) => {
             return Err(not_rewritten(input, other));
         }
         LogFormat::Mcap => {

@@ -1,6 +1,6 @@
 //! Hand-written decoders of the joint-state messages calib reads: ROS 2
 //! `sensor_msgs/msg/JointState` and `control_msgs/msg/DynamicJointState` in CDR, ROS 1
-//! `sensor_msgs/JointState` in the ROS 1 wire format, and the `std_msgs` scalars (CDR).
+//! `sensor_msgs/JointState` in the ROS 1 wire format, and the `std_msgs` scalars (CDR or ROS 1).
 //!
 //! **CDR** (OMG CDR as ROS 2 `rmw` writes it): a 4-byte encapsulation header (`00 01`
 //! little-endian, `00 00` big-endian, then two option bytes), then the fields, each aligned to its
@@ -622,15 +622,47 @@ impl Scalar {
         })
     }
 
+    /// The value of a message of this type in `message_encoding`: `ros1` (the ROS 1 wire
+    /// format: the value alone, little-endian) or CDR.
+    pub(crate) fn decode_in(self, data: &[u8], message_encoding: &str) -> Result<f64, CdrError> {
+        if message_encoding != "ros1" {
+            return self.decode(data);
+        }
+        let size = self.size();
+        let mut c = Cursor::cdr(data, 0, false);
+        c.packed = true;
+        let bytes = c.take(size, "data")?;
+        let mut b = [0u8; 8];
+        b[..size].copy_from_slice(bytes);
+        Ok(self.value(b))
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Scalar::Float64 | Scalar::Int64 => 8,
+            Scalar::Float32 | Scalar::Int32 | Scalar::UInt32 => 4,
+            Scalar::UInt16 => 2,
+        }
+    }
+
+    /// The value of little-endian bytes of this type (padded to 8).
+    fn value(self, b: [u8; 8]) -> f64 {
+        let (lo4, lo2) = ([b[0], b[1], b[2], b[3]], [b[0], b[1]]);
+        match self {
+            Scalar::Float64 => f64::from_le_bytes(b),
+            Scalar::Int64 => i64::from_le_bytes(b) as f64,
+            Scalar::Float32 => f64::from(f32::from_le_bytes(lo4)),
+            Scalar::Int32 => f64::from(i32::from_le_bytes(lo4)),
+            Scalar::UInt32 => f64::from(u32::from_le_bytes(lo4)),
+            Scalar::UInt16 => f64::from(u16::from_le_bytes(lo2)),
+        }
+    }
+
     /// The value of a CDR message of this type. The one field lies right after the
     /// encapsulation header, which is aligned for any size; integers are returned exactly as
     /// `f64` (an `int64` beyond 2⁵³ is rounded, far beyond any encoder's count).
     pub(crate) fn decode(self, data: &[u8]) -> Result<f64, CdrError> {
-        let size = match self {
-            Scalar::Float64 | Scalar::Int64 => 8,
-            Scalar::Float32 | Scalar::Int32 | Scalar::UInt32 => 4,
-            Scalar::UInt16 => 2,
-        };
+        let size = self.size();
         let mut c = Cursor::cdr(data, ORIGIN, encapsulation(data)?);
         let bytes = c.take(size, "data")?;
         let mut b = [0u8; 8];
@@ -640,15 +672,7 @@ impl Scalar {
         } else {
             b[..size].copy_from_slice(bytes);
         }
-        let (lo4, lo2) = ([b[0], b[1], b[2], b[3]], [b[0], b[1]]);
-        Ok(match self {
-            Scalar::Float64 => f64::from_le_bytes(b),
-            Scalar::Int64 => i64::from_le_bytes(b) as f64,
-            Scalar::Float32 => f64::from(f32::from_le_bytes(lo4)),
-            Scalar::Int32 => f64::from(i32::from_le_bytes(lo4)),
-            Scalar::UInt32 => f64::from(u32::from_le_bytes(lo4)),
-            Scalar::UInt16 => f64::from(u16::from_le_bytes(lo2)),
-        })
+        Ok(self.value(b))
     }
 }
 
@@ -776,6 +800,25 @@ mod tests {
 
     /// ROS 1: no encapsulation header and no padding (a 3-byte `frame_id` leaves the names
     /// and positions off every boundary), the header with `seq`, unsigned seconds.
+    /// A ROS 1 scalar is its value alone, little-endian: what a bag (or `mcap convert`) holds.
+    #[test]
+    fn ros1_scalars_have_no_header() {
+        let cases: [(Scalar, Vec<u8>, f64); 3] = [
+            (Scalar::Float64, 1.25f64.to_le_bytes().to_vec(), 1.25),
+            (Scalar::Int32, (-7i32).to_le_bytes().to_vec(), -7.0),
+            (Scalar::UInt16, 65535u16.to_le_bytes().to_vec(), 65535.0),
+        ];
+        for (kind, bytes, want) in cases {
+            assert_eq!(kind.decode_in(&bytes, "ros1"), Ok(want), "{kind:?}");
+            assert!(kind.decode_in(&bytes[..1], "ros1").is_err(), "{kind:?}");
+        }
+        // The same bytes as CDR lack the encapsulation header's 4 bytes first.
+        assert_ne!(
+            Scalar::Float64.decode_in(&1.25f64.to_le_bytes(), "cdr"),
+            Ok(1.25)
+        );
+    }
+
     #[test]
     fn ros1_joint_state_is_packed() {
         let mut b = Vec::new();

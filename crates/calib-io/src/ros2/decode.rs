@@ -142,7 +142,7 @@ pub(crate) fn decode(
         Encoding::Scalar(kind) => {
             let stamp = log_time_ns(message.log_time).map_err(|m| (None, m))?;
             let v = kind
-                .decode(&message.data)
+                .decode_in(&message.data, &topic.message_encoding)
                 .map_err(|e| (None, e.to_string()))?;
             let rad = v * topic.scale;
             if let Some(problem) = crate::limits::reading_problem(v, v, rad) {

@@ -11,7 +11,7 @@ pub(crate) enum Encoding {
     /// Joint positions by joint name: JointState (CDR or ROS 1) or DynamicJointState.
     JointState(JointFormat),
     Json,
-    /// A `std_msgs` scalar (CDR): one channel, named after the topic.
+    /// A `std_msgs` scalar (CDR or ROS 1): one channel, named after the topic.
     Scalar(Scalar),
     /// Numeric fields named by path (`TOPIC.field.path`), read through the message definition
     /// (see [`crate::mcap_log::msgdef`]); added by
@@ -42,7 +42,8 @@ impl Encoding {
                 Some(Encoding::JointState(JointFormat::Dynamic))
             }
             "json" => Some(Encoding::Json),
-            "cdr" => Scalar::of_type(schema).map(Encoding::Scalar),
+            // A ROS 1 bag's, or `mcap convert` of one: the value alone, no header.
+            "cdr" | "ros1" => Scalar::of_type(schema).map(Encoding::Scalar),
             _ => None,
         }
     }

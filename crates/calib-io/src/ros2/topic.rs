@@ -200,7 +200,8 @@ pub(super) fn first_message(
             topic.seen = vec![false; topic.names.len()];
         }
         Encoding::Scalar(kind) => {
-            kind.decode(&message.data).map_err(|e| e.to_string())?;
+            kind.decode_in(&message.data, &message.channel.message_encoding)
+                .map_err(|e| e.to_string())?;
             topic.names.push(topic.name.clone());
         }
         // Added by name ([`Registry::read_fields`]), not from a first message.

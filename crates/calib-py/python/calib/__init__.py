@@ -137,7 +137,7 @@ def read(
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
 ) -> Log:
-    """Reads a log (CSV, MCAP, or a rosbag2 bag: its directory or a .db3 file) into arrays.
+    """Reads a log (CSV, MCAP, a rosbag2 bag: its directory or .db3 file, a ROS 1 .bag) into arrays.
 
     Args:
         path: the log.
