@@ -1165,4 +1165,53 @@ mod tests {
             let _ = read(&good[..n]);
         }
     }
+
+    /// The files `testdata/mat/make_fixture.py` wrote with scipy.
+    fn fixture(name: &str) -> ColumnSet {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../testdata/mat")
+            .join(name);
+        Mat.read(&path, &ReadOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn the_scipy_fixtures_read_as_written() {
+        let v4 = fixture("quick_v4.mat");
+        let v5 = fixture("quick_v5.mat");
+        for set in [&v4, &v5] {
+            for (i, name) in ["t", "a", "b"].into_iter().enumerate() {
+                let vector = f64s(set, name);
+                assert_eq!(vector.len(), 3301);
+                // The matrix's row i is the vector: rows are channels along the long side.
+                assert_eq!(f64s(set, &format!("data_1[{i}]")), vector, "{name}");
+            }
+            assert_eq!(f64s(set, "t")[1], 0.005);
+            assert_eq!(f64s(set, "a")[0], 0.29229999999999995);
+        }
+        for name in ["t", "a", "b"] {
+            assert_eq!(f64s(&v4, name), f64s(&v5, name));
+        }
+        assert_eq!(f64s(&v5, "info.index")[3300], 3300.0);
+        assert_eq!(
+            v4.structure,
+            [
+                "MATLAB v4 MAT-file (Level 1.0), little-endian, 5 matrices",
+                "`data_1`: 3 × 3301 double → rows `data_1[0]` … `data_1[2]`, 3301 samples each",
+                "`t`: 1 × 3301 double → `t`, 3301 samples",
+                "`a`: 1 × 3301 double → `a`, 3301 samples",
+                "`b`: 1 × 3301 double → `b`, 3301 samples",
+                "`note`: 1 × 23 uint8: not taken: text is not readings",
+            ]
+        );
+        let text = v5.structure.join("\n");
+        for line in [
+            "`data_1`: 3 × 3301 double, compressed → rows `data_1[0]` … `data_1[2]`",
+            "`note`: 1 × 23 char, compressed: not taken: text is not readings",
+            "`info`: 1 × 1 struct, compressed of fields rate_hz, index",
+            "`info.rate_hz`: 1 × 1 double: not taken: one value or none",
+            "`info.index`: 1 × 3301 int32 → `info.index`, 3301 samples",
+        ] {
+            assert!(text.contains(line), "{line} not in\n{text}");
+        }
+    }
 }

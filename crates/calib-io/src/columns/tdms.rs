@@ -582,9 +582,11 @@ fn stamp(c: &mut Cursor) -> Result<(i64, u64), String> {
     })
 }
 
-/// A TDMS time stamp in ns since 1970, if an `i64` holds it (1678 to 2262).
+/// A TDMS time stamp in ns since 1970, to the nearest ns, if an `i64` holds it (1678 to 2262).
+/// Rounded, not truncated: writers store a whole number of µs or ns as the fraction below it
+/// (nptdms writes 15 ms as 0.01499999999… s).
 fn stamp_ns(secs: i64, frac: u64) -> Option<i64> {
-    let ns_of_frac = ((u128::from(frac) * 1_000_000_000) >> 64) as i64;
+    let ns_of_frac = ((u128::from(frac) * 1_000_000_000 + (1 << 63)) >> 64) as i64;
     secs.checked_sub(EPOCH_1904_S)?
         .checked_mul(1_000_000_000)?
         .checked_add(ns_of_frac)
@@ -1452,5 +1454,74 @@ mod tests {
         for bad in ["", "g", "/'g", "/'g'x", "/'g'/", "/'a'/'b'/'c'"] {
             assert_eq!(parse_path(bad), None, "{bad}");
         }
+    }
+
+    /// The files `testdata/tdms/make_fixture.py` wrote with nptdms.
+    fn fixture(name: &str) -> ColumnSet {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../testdata/tdms")
+            .join(name);
+        Tdms.read(&path, &ReadOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn the_nptdms_fixtures_read_as_written() {
+        let wave = fixture("waveform.tdms");
+        let timed = fixture("timed.tdms");
+        let names = |set: &ColumnSet| {
+            set.columns
+                .iter()
+                .map(|c| c.name.clone())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(names(&wave), ["Encoders/a", "Encoders/b"]);
+        assert_eq!(names(&timed), ["Run/t", "Run/a", "Run/b"]);
+        for name in ["a", "b"] {
+            let w = column(&wave, &format!("Encoders/{name}"));
+            let t = column(&timed, &format!("Run/{name}"));
+            assert_eq!(w.values.len(), 3301);
+            // The same numbers, read from one file's three segments and the other's two.
+            assert_eq!(w.values, t.values);
+            assert_eq!(
+                (w.unit.as_deref(), t.unit.as_deref()),
+                (Some("deg"), Some("deg"))
+            );
+            assert_eq!(
+                w.time,
+                ColumnTime::Waveform {
+                    start_ns: 1_700_000_000_000_000_000,
+                    increment_s: 0.005
+                }
+            );
+        }
+        let Values::F64(a) = &column(&wave, "Encoders/a").values else {
+            panic!("a is f64")
+        };
+        // quick.csv's first reading of a, 0.2923°, as the CSV wrote it.
+        assert_eq!(a[0], 0.29229999999999995);
+        // t = 0, 0.005, … s after 2023-11-14 22:13:20 UTC, as ns since 1970.
+        let t = column(&timed, "Run/t");
+        assert_eq!(t.time, ColumnTime::Stamps(TimeUnit::Ns));
+        let Values::I64(stamps) = &t.values else {
+            panic!("stamps are i64")
+        };
+        assert_eq!(stamps.len(), 3301);
+        for (i, &s) in stamps.iter().enumerate() {
+            assert_eq!(
+                s,
+                1_700_000_000_000_000_000 + i as i64 * 5_000_000,
+                "sample {i}"
+            );
+        }
+        assert_eq!(
+            wave.structure,
+            [
+                "TDMS version 4712, 3 segments, little-endian",
+                "group `Encoders`: `a` (f64, 3301 values, unit `deg`, waveform at 200 Hz), \
+                 `b` (f64, 3301 values, unit `deg`, waveform at 200 Hz)",
+                "group `Notes`: `operator` (string, not taken)",
+                "`Notes/operator`: not taken: strings are not readings",
+            ]
+        );
     }
 }
