@@ -33,8 +33,8 @@ def load(path):
     return tuple(np.array([float(r[k]) for r in rows]) for k in ("t", "a", "b"))
 
 
-def main():
-    t, a, b = load(sys.argv[1] if len(sys.argv) > 1 else "quick.csv")
+def write(v4, v5, t, a, b, compress=True):
+    """quick_v4.mat at `v4` and quick_v5.mat at `v5`."""
     variables = {
         "data_1": np.vstack([t, a, b]),
         "t": t,
@@ -42,9 +42,25 @@ def main():
         "b": b,
         "note": "quick.toml run, degrees",
     }
-    savemat(os.path.join(HERE, "quick_v4.mat"), variables, format="4")
+    savemat(v4, variables, format="4")
     variables["info"] = {"rate_hz": 200.0, "index": np.arange(len(t), dtype=np.int32)}
-    savemat(os.path.join(HERE, "quick_v5.mat"), variables, format="5", do_compression=True)
+    savemat(v5, variables, format="5", do_compression=compress)
+
+
+def main():
+    t, a, b = load(sys.argv[1] if len(sys.argv) > 1 else "quick.csv")
+    write(os.path.join(HERE, "quick_v4.mat"), os.path.join(HERE, "quick_v5.mat"), t, a, b)
+    seeds = os.path.join(HERE, "..", "..", "fuzz", "corpus", "mat_reader")
+    os.makedirs(seeds, exist_ok=True)
+    names = [os.path.join(seeds, n) for n in ("v4", "v5", "v5_uncompressed")]
+    write(names[0], names[1], t[:16], a[:16], b[:16])
+    write(os.path.join(seeds, "unused"), names[2], t[:16], a[:16], b[:16], compress=False)
+    os.remove(os.path.join(seeds, "unused"))
+    for name in names:
+        with open(name, "rb") as f:
+            data = f.read()
+        with open(name, "wb") as f:
+            f.write(b"\0" + data)
 
 
 if __name__ == "__main__":

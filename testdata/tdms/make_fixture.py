@@ -16,6 +16,9 @@ CSV; given as each channel's `unit_string`).
   `Notes` with a string channel `operator` (which calib lists and does not take).
 - timed.tdms: group `Run`, channels `t` (TDMS time stamps: 2023-11-14 22:13:20 UTC + t) and
   `a`, `b` (float64, `unit_string` deg), in two segments.
+
+It also writes the fuzz seeds fuzz/corpus/tdms_reader/{waveform,timed}: the same files of the
+first 16 samples, after the fuzz target's one byte of read options (0).
 """
 
 import csv
@@ -35,8 +38,8 @@ def load(path):
     return tuple(np.array([float(r[k]) for r in rows]) for k in ("t", "a", "b"))
 
 
-def main():
-    t, a, b = load(sys.argv[1] if len(sys.argv) > 1 else "quick.csv")
+def write(path, t, a, b, parts):
+    """waveform.tdms (`parts` segments) or timed.tdms (two segments) at `path`."""
     root = RootObject(properties={"title": "calib quick.toml run", "author": "make_fixture.py"})
     waveform = {
         "unit_string": "deg",
@@ -45,8 +48,8 @@ def main():
         "wf_start_offset": 0.0,
         "wf_samples": len(t),
     }
-    with TdmsWriter(os.path.join(HERE, "waveform.tdms")) as w:
-        for k, part in enumerate(np.array_split(np.arange(len(t)), 3)):
+    with TdmsWriter(path["waveform"]) as w:
+        for k, part in enumerate(np.array_split(np.arange(len(t)), parts)):
             objects = [
                 root,
                 GroupObject("Encoders", properties={"description": "quick.toml, 200 Hz"}),
@@ -62,7 +65,7 @@ def main():
 
     stamps = START + (np.round(t * 1e6)).astype("timedelta64[us]")
     deg = {"unit_string": "deg"}
-    with TdmsWriter(os.path.join(HERE, "timed.tdms")) as w:
+    with TdmsWriter(path["timed"]) as w:
         for part in np.array_split(np.arange(len(t)), 2):
             w.write_segment(
                 [
@@ -73,6 +76,21 @@ def main():
                     ChannelObject("Run", "b", b[part], properties=deg),
                 ]
             )
+
+
+def main():
+    t, a, b = load(sys.argv[1] if len(sys.argv) > 1 else "quick.csv")
+    write({k: os.path.join(HERE, f"{k}.tdms") for k in ("waveform", "timed")}, t, a, b, 3)
+    seeds = os.path.join(HERE, "..", "..", "fuzz", "corpus", "tdms_reader")
+    os.makedirs(seeds, exist_ok=True)
+    tmp = {k: os.path.join(seeds, f"{k}.tdms") for k in ("waveform", "timed")}
+    write(tmp, t[:16], a[:16], b[:16], 2)
+    for k, file in tmp.items():
+        with open(file, "rb") as f:
+            data = f.read()
+        os.remove(file)
+        with open(os.path.join(seeds, k), "wb") as f:
+            f.write(b"\0" + data)
 
 
 if __name__ == "__main__":
