@@ -763,24 +763,15 @@ mod tests {
             .collect()
     }
 
-    /// A v4 matrix: header, name (with its NUL if `nul`), values.
-    fn v4(
-        big: bool,
-        p: i32,
-        t: i32,
-        rows: i32,
-        cols: i32,
-        name: &str,
-        nul: bool,
-        data: &[u8],
-    ) -> Vec<u8> {
-        let name_len = name.len() as i32 + i32::from(nul);
+    /// A v4 matrix: header, name (as given: with its NUL, or without as some writers leave it),
+    /// values.
+    fn v4(big: bool, p: i32, t: i32, rows: i32, cols: i32, name: &str, data: &[u8]) -> Vec<u8> {
         let m = i32::from(big);
-        let mut out = bytes32(big, &[m * 1000 + p * 10 + t, rows, cols, 0, name_len]);
+        let mut out = bytes32(
+            big,
+            &[m * 1000 + p * 10 + t, rows, cols, 0, name.len() as i32],
+        );
         out.extend(name.as_bytes());
-        if nul {
-            out.push(0);
-        }
         out.extend(data);
         out
     }
@@ -803,21 +794,20 @@ mod tests {
         let m: Vec<f64> = (0..4)
             .flat_map(|j| (0..3).map(move |i| (10 * i + j) as f64))
             .collect();
-        let mut file = v4(false, 0, 0, 3, 4, "data_1", false, &doubles(false, &m));
+        let mut file = v4(false, 0, 0, 3, 4, "data_1", &doubles(false, &m));
         // 4 × 2 int16: columns are channels.
         let ints: Vec<u8> = [1i16, 2, 3, 4, -1, -2, -3, -4]
             .iter()
             .flat_map(|x| x.to_le_bytes())
             .collect();
-        file.extend(v4(false, 3, 0, 4, 2, "k", true, &ints));
+        file.extend(v4(false, 3, 0, 4, 2, "k\0", &ints));
         file.extend(v4(
             false,
             0,
             0,
             1,
             4,
-            "t",
-            true,
+            "t\0",
             &doubles(false, &[0.0, 0.1, 0.2, 0.3]),
         ));
         file.extend(v4(
@@ -826,20 +816,10 @@ mod tests {
             1,
             1,
             2,
-            "note",
-            true,
+            "note\0",
             &doubles(false, &[104.0, 105.0]),
         ));
-        file.extend(v4(
-            false,
-            0,
-            0,
-            1,
-            1,
-            "fs",
-            true,
-            &doubles(false, &[1000.0]),
-        ));
+        file.extend(v4(false, 0, 0, 1, 1, "fs\0", &doubles(false, &[1000.0])));
         let set = read(&file).unwrap();
         assert_eq!(f64s(&set, "data_1[0]"), [0.0, 1.0, 2.0, 3.0]);
         assert_eq!(f64s(&set, "data_1[2]"), [20.0, 21.0, 22.0, 23.0]);
@@ -861,28 +841,10 @@ mod tests {
 
     #[test]
     fn v4_big_endian_and_every_precision() {
-        let mut file = v4(
-            true,
-            1,
-            0,
-            2,
-            1,
-            "s",
-            true,
-            &[0x3F, 0xC0, 0, 0, 0xC0, 0, 0, 0],
-        );
-        file.extend(v4(
-            true,
-            2,
-            0,
-            1,
-            2,
-            "i",
-            true,
-            &bytes32(true, &[-7, 70_000]),
-        ));
-        file.extend(v4(true, 4, 0, 1, 2, "u", true, &[0xFF, 0xFF, 0, 1]));
-        file.extend(v4(true, 5, 0, 1, 2, "b", true, &[255, 3]));
+        let mut file = v4(true, 1, 0, 2, 1, "s\0", &[0x3F, 0xC0, 0, 0, 0xC0, 0, 0, 0]);
+        file.extend(v4(true, 2, 0, 1, 2, "i\0", &bytes32(true, &[-7, 70_000])));
+        file.extend(v4(true, 4, 0, 1, 2, "u\0", &[0xFF, 0xFF, 0, 1]));
+        file.extend(v4(true, 5, 0, 1, 2, "b\0", &[255, 3]));
         let set = read(&file).unwrap();
         assert_eq!(f64s(&set, "s"), [1.5, -2.0]);
         assert_eq!(f64s(&set, "i"), [-7.0, 70_000.0]);
@@ -1070,9 +1032,9 @@ mod tests {
 
     #[test]
     fn sniffing_takes_v4_and_v5_but_not_v7_3_or_text() {
-        let v4_head = v4(false, 0, 0, 5, 26213, "data_1", false, &[]);
+        let v4_head = v4(false, 0, 0, 5, 26213, "data_1", &[]);
         assert!(Mat.sniff(&v4_head));
-        assert!(Mat.sniff(&v4(true, 0, 0, 1, 2, "x", true, &[])));
+        assert!(Mat.sniff(&v4(true, 0, 0, 1, 2, "x\0", &[])));
         assert!(Mat.sniff(&header(false)));
         let mut v73 = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".to_vec();
         v73.resize(116, b' ');
@@ -1083,20 +1045,20 @@ mod tests {
         assert!(err.contains("v7.3") && err.contains("HDF5"), "{err}");
         assert!(!Mat.sniff(b"t,a,b\n0,1,2\n0.005,1,2\n"));
         assert!(!Mat.sniff(&[0; 128]));
-        assert!(!Mat.sniff(&v4(false, 0, 0, 1, 2, "a b", true, &[])));
+        assert!(!Mat.sniff(&v4(false, 0, 0, 1, 2, "a b\0", &[])));
     }
 
     #[test]
     fn hostile_sizes_fail_naming_the_variable() {
         // A v4 matrix of 2^31 − 1 × 2^31 − 1 values in a 30-byte file.
-        let huge = v4(false, 0, 0, i32::MAX, i32::MAX, "big", true, &[0; 8]);
+        let huge = v4(false, 0, 0, i32::MAX, i32::MAX, "big\0", &[0; 8]);
         let err = read(&huge).unwrap_err();
         assert!(
             err.contains("matrix 0 `big`") && err.contains("only 8 are left"),
             "{err}"
         );
         // A v4 name longer than the file.
-        let mut name = v4(false, 0, 0, 1, 2, "x", true, &[]);
+        let mut name = v4(false, 0, 0, 1, 2, "x\0", &[]);
         name[16..20].copy_from_slice(&4000i32.to_le_bytes());
         assert!(read(&name).unwrap_err().contains("name is 4000 bytes long"));
         // A v5 element longer than the file.
@@ -1157,8 +1119,7 @@ mod tests {
             0,
             2,
             2,
-            "m",
-            true,
+            "m\0",
             &doubles(false, &[1.0, 2.0, 3.0, 4.0]),
         );
         for n in 0..good.len() {
