@@ -60,11 +60,6 @@ impl<'a> Cursor<'a> {
         self.endian
     }
 
-    /// Bytes read so far.
-    pub(crate) fn pos(&self) -> usize {
-        self.pos
-    }
-
     /// Bytes left.
     pub(crate) fn left(&self) -> usize {
         self.bytes.len() - self.pos
@@ -103,7 +98,6 @@ impl<'a> Cursor<'a> {
     read_number!(i32, i32);
     read_number!(u64, u64);
     read_number!(i64, i64);
-    read_number!(f32, f32);
     read_number!(f64, f64);
 }
 

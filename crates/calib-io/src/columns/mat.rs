@@ -286,19 +286,12 @@ fn read_v4(r: &mut (impl Read + Seek), len: u64) -> Result<ColumnSet, Fail> {
             out.refuse(&name, &shape, why);
             r.seek(SeekFrom::Current(bytes as i64))?;
         } else {
-            buf.clear();
-            r.by_ref().take(bytes).read_to_end(&mut buf)?;
-            let mut v = h.kind.empty(values as usize);
-            extend(
-                &mut v,
-                h.kind,
-                h.endian,
-                &buf,
-                h.kind.size(),
-                values as usize,
-            )
-            .map_err(|e| bad(format!("its values cannot be decoded ({e:?})")))?;
-            out.matrix(&name, &shape, h.rows, h.cols, v);
+            // Within the file (checked above), so no larger than what it holds.
+            buf.resize(bytes as usize, 0);
+            r.read_exact(&mut buf)?;
+            let stored = (h.kind, h.endian, buf.as_slice());
+            out.matrix(&name, &shape, (h.rows, h.cols), stored, false)
+                .map_err(bad)?;
         }
         at += 20 + h.name_len + bytes;
         k += 1;
@@ -362,8 +355,9 @@ fn read_v5(
                 "it says it is {n} bytes long, but only {left} are left"
             )));
         }
-        buf.clear();
-        r.by_ref().take(u64::from(n)).read_to_end(&mut buf)?;
+        // Within the file (checked above), so no larger than what it holds.
+        buf.resize(n as usize, 0);
+        r.read_exact(&mut buf)?;
         match ty {
             MI_MATRIX => matrix(&buf, endian, None, 0, &mut out, "").map_err(&bad)?,
             MI_COMPRESSED => {
@@ -574,10 +568,14 @@ fn matrix(
                 return Ok(());
             }
             let (rows, cols) = (dims[0], stored / dims[0].max(1));
-            let mut v = kind.empty(stored as usize);
-            extend(&mut v, kind, endian, real, size, stored as usize)
-                .map_err(|e| within(format!("its values cannot be decoded ({e:?})")))?;
-            out.matrix(&name, &shape, rows, cols, as_variant(v, class >= 14));
+            out.matrix(
+                &name,
+                &shape,
+                (rows, cols),
+                (kind, endian, real),
+                class >= 14,
+            )
+            .map_err(within)?;
         }
         2 => {
             let (ty, len) = element(&mut c, "field name length").map_err(within)?;
@@ -655,43 +653,66 @@ impl Out {
             .push(format!("`{name}`: {shape}: not taken: {why}"));
     }
 
-    /// A `rows × cols` array's values (column-major) as channels: a vector as `name`, a matrix
-    /// as `name[i]` along its short side.
-    fn matrix(&mut self, name: &str, shape: &str, rows: u64, cols: u64, values: Values) {
-        if values.len() < 2 {
+    /// A `rows × cols` array of `kind` stored column-major in `bytes` as channels: a vector
+    /// as `name`, a matrix as `name[i]` along its short side; `wide` keeps them as 64-bit
+    /// integers (a MATLAB `int64` or `uint64` array, whatever type stores it). Each channel is
+    /// decoded straight from the bytes, with no copy of the whole matrix.
+    fn matrix(
+        &mut self,
+        name: &str,
+        shape: &str,
+        (rows, cols): (u64, u64),
+        (kind, endian, bytes): (Kind, Endian, &[u8]),
+        wide: bool,
+    ) -> Result<(), String> {
+        let size = kind.size();
+        let count = (rows * cols) as usize;
+        if count < 2 {
             self.refuse(name, shape, "one value or none, not a channel");
-            return;
+            return Ok(());
         }
         let (rows, cols) = (rows as usize, cols as usize);
-        if rows == 1 || cols == 1 {
-            self.structure.push(format!(
-                "`{name}`: {shape} → `{name}`, {} samples",
-                values.len()
-            ));
-            self.push(name.to_owned(), values);
-            return;
-        }
-        let (channels, samples) = (rows.min(cols), rows.max(cols));
+        let (channels, samples) = if rows == 1 || cols == 1 {
+            (1, count)
+        } else {
+            (rows.min(cols), rows.max(cols))
+        };
         if self.columns.len() + channels > MAX_CSV_COLUMNS {
             self.refuse(
                 name,
                 shape,
                 &format!("{channels} channels, more than the {MAX_CSV_COLUMNS} of any log"),
             );
-            return;
+            return Ok(());
         }
-        let along = if rows >= cols { "columns" } else { "rows" };
-        self.structure.push(format!(
-            "`{name}`: {shape} → {along} `{name}[0]` … `{name}[{}]`, {samples} samples each",
-            channels - 1
-        ));
+        if channels == 1 {
+            self.structure
+                .push(format!("`{name}`: {shape} → `{name}`, {samples} samples"));
+        } else {
+            self.structure.push(format!(
+                "`{name}`: {shape} → {} `{name}[0]` … `{name}[{}]`, {samples} samples each",
+                if rows >= cols { "columns" } else { "rows" },
+                channels - 1
+            ));
+        }
         for i in 0..channels {
-            let column = match &values {
-                Values::F64(v) => Values::F64(line(v, rows, cols, i)),
-                Values::I64(v) => Values::I64(line(v, rows, cols, i)),
+            // Value (i, j) is at j·rows + i: a column is contiguous, a row strided.
+            let (start, stride) = if channels == 1 || rows >= cols {
+                (i * samples * size, size)
+            } else {
+                (i * size, rows * size)
             };
-            self.push(format!("{name}[{i}]"), column);
+            let mut values = kind.empty(samples);
+            extend(&mut values, kind, endian, &bytes[start..], stride, samples)
+                .map_err(|e| format!("its values cannot be decoded ({e:?})"))?;
+            let channel = if channels == 1 {
+                name.to_owned()
+            } else {
+                format!("{name}[{i}]")
+            };
+            self.push(channel, as_variant(values, wide));
         }
+        Ok(())
     }
 
     fn push(&mut self, name: String, values: Values) {
@@ -708,16 +729,6 @@ impl Out {
             columns: self.columns,
             structure: self.structure,
         })
-    }
-}
-
-/// Channel `i` of a column-major `rows × cols` matrix: its column `i` if it has at least as many
-/// rows as columns, else its row `i` (value (i, j) is at `j·rows + i`).
-fn line<T: Copy>(v: &[T], rows: usize, cols: usize, i: usize) -> Vec<T> {
-    if rows >= cols {
-        v[i * rows..(i + 1) * rows].to_vec()
-    } else {
-        v.iter().skip(i).step_by(rows).copied().collect()
     }
 }
 

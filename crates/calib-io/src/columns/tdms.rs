@@ -719,6 +719,11 @@ fn read_raw(
         }
     }
     let chunk_len = usize::try_from(chunk).map_err(|_| seg.bad("a chunk larger than memory"))?;
+    // An interleaved row: one value of each channel.
+    let row: usize = chans
+        .iter()
+        .map(|ch| ch.ty.size().unwrap_or(0) as usize)
+        .sum();
     let per_batch = (BATCH_BYTES / chunk).max(1);
     r.seek(SeekFrom::Start(start))?;
     let mut buf = Vec::new();
@@ -729,10 +734,6 @@ fn read_raw(
         r.read_exact(&mut buf)?;
         for bytes in buf.chunks_exact(chunk_len) {
             let mut off = 0;
-            let row = chans
-                .iter()
-                .map(|ch| ch.ty.size().unwrap_or(0) as usize)
-                .sum();
             for ch in &chans {
                 let count = ch.count as usize;
                 let obj = &mut st.objects[ch.id];
