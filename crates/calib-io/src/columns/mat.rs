@@ -368,7 +368,7 @@ fn read_v5(
                          variable: left out"
                     ));
                 } else {
-                    matrix(&data, endian, None, 0, &mut out, ", compressed").map_err(bad)?;
+                    matrix(&data, endian, None, 0, &mut out, " (compressed)").map_err(bad)?;
                 }
             }
             _ => out.structure.push(format!(
@@ -1023,7 +1023,7 @@ mod tests {
             assert_eq!(names, ["t", "n[0]", "n[1]", "run.a", "run.deep.x"]);
             let text = set.structure.join("\n");
             for line in [
-                "`n`: 2 × 3 int64, compressed → rows `n[0]` … `n[1]`, 3 samples each",
+                "`n`: 2 × 3 int64 (compressed) → rows `n[0]` … `n[1]`, 3 samples each",
                 "`run`: 1 × 1 struct of fields a, deep, s",
                 "`run.s`: 1 × 2 char: not taken: text is not readings",
                 "`c`: 1 × 0 cell: not taken: cell arrays are not read",
@@ -1177,9 +1177,9 @@ mod tests {
         );
         let text = v5.structure.join("\n");
         for line in [
-            "`data_1`: 3 × 3301 double, compressed → rows `data_1[0]` … `data_1[2]`",
-            "`note`: 1 × 23 char, compressed: not taken: text is not readings",
-            "`info`: 1 × 1 struct, compressed of fields rate_hz, index",
+            "`data_1`: 3 × 3301 double (compressed) → rows `data_1[0]` … `data_1[2]`",
+            "`note`: 1 × 23 char (compressed): not taken: text is not readings",
+            "`info`: 1 × 1 struct (compressed) of fields rate_hz, index",
             "`info.rate_hz`: 1 × 1 double: not taken: one value or none",
             "`info.index`: 1 × 3301 int32 → `info.index`, 3301 samples",
         ] {

@@ -953,7 +953,7 @@ fn finish(st: State) -> ColumnSet {
                 groups[at]
                     .1
                     .push(format!("`{short}` ({})", about.join(", ")));
-                if !values.is_empty() {
+                if values.len() > 0 {
                     columns.push(Column {
                         name: obj.name,
                         unit,
