@@ -4,6 +4,7 @@
 //! method's runs, …); a test file imports those it uses, e.g. `use crate::common::ros;`.
 
 pub mod coast;
+pub mod columns;
 pub mod compare;
 pub mod inspect;
 pub mod json;

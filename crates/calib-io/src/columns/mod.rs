@@ -9,7 +9,10 @@ use std::path::Path;
 use crate::csv_log::dialect::TimeUnit;
 use crate::{Error, ReadOptions};
 
+pub(crate) mod binary;
+pub(crate) mod mat;
 pub(crate) mod reader;
+pub(crate) mod tdms;
 
 /// A log format whose channels are whole columns. One type per format, listed in [`FORMATS`];
 /// detection, `calib inspect` and the help texts take the formats from there.
@@ -34,7 +37,7 @@ pub(crate) trait ColumnFormat: Sync {
 pub(crate) const SNIFF_BYTES: usize = 128;
 
 /// Every columnar format calib reads, in the order detection tries them.
-pub(crate) static FORMATS: &[&dyn ColumnFormat] = &[];
+pub(crate) static FORMATS: &[&dyn ColumnFormat] = &[&tdms::Tdms, &mat::Mat];
 
 /// The format whose [`ColumnFormat::name`] is `name`.
 pub(crate) fn by_name(name: &str) -> Option<&'static dyn ColumnFormat> {
