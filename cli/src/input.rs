@@ -11,14 +11,25 @@ use calib_io::{LogReader, ReadOptions, TimeSource};
 use std::fmt::Write;
 use std::path::Path;
 
-/// How channels are named, for the `--help` of every command that reads a log (written once).
-pub const CHANNEL_NAMES: &str = "Channels are named by their CSV column (`1`, `2`, … in a file \
-without a header row); in MCAP files and ROS bags (rosbag2, ROS 1) by the joint name (JointState, \
-DynamicJointState) or field (JSON) where no other topic carries that name, by the topic for \
-std_msgs scalars, as TOPIC.field.path for a numeric field of another message whose MCAP file \
-carries its definition (/motor/state.position), and always accepted as TOPIC/NAME \
-(/sensor_a/joint_states/encoder; `calib inspect LOG` lists them). A qualified channel's table is \
-named without the leading `/` and with `/` as `_`.";
+/// How channels are named, for the `--help` of every command that reads a log (written once):
+/// CSV, MCAP and bags, then a line per columnar format from calib-io's list of them.
+pub fn channel_names() -> String {
+    let mut text =
+        "Channels are named by their CSV column (`1`, `2`, … in a file without a header \
+row); in MCAP and ROS bags by the joint name (JointState, DynamicJointState) or field (JSON) where \
+no other topic carries that name, by the topic for std_msgs scalars, as TOPIC.field.path for a \
+numeric field of another message whose MCAP file carries its definition (/motor/state.position), \
+and always accepted as TOPIC/NAME (/sensor_a/joint_states/encoder; `calib inspect LOG` lists \
+them). A qualified channel's table is named without the leading `/` and with `/` as `_`. Files of \
+whole columns are read whole, their time from --time-column, a time-stamp column, a column named \
+t/time/timestamp, or a waveform:"
+            .to_string();
+    for line in calib_io::log::column_formats_help() {
+        text.push_str("\n  ");
+        text.push_str(&line);
+    }
+    text
+}
 
 /// Which stamps a message is read at.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

@@ -23,7 +23,7 @@ use std::path::PathBuf;
 /// Channels on separate topics are aligned on the stamps of the pair's first channel (or the log's
 /// first channel), as the methods do.
 #[derive(Debug, clap::Args, PartialEq)]
-#[command(after_long_help = crate::input::CHANNEL_NAMES)]
+#[command(after_long_help = crate::input::channel_names())]
 pub struct Args {
     /// The log (.csv, .mcap, a rosbag2 bag: its directory or a .db3 file, or a ROS 1 .bag).
     pub log: PathBuf,

@@ -268,6 +268,22 @@ pub fn formats_read() -> String {
     names.join(", ")
 }
 
+/// One line per columnar format calib reads (TDMS, MATLAB, …): what it is, who writes it and
+/// how its channels are named, from [`columns::FORMATS`], for the help texts.
+pub fn column_formats_help() -> Vec<String> {
+    columns::FORMATS
+        .iter()
+        .map(|f| {
+            format!(
+                "{} (.{}): {}",
+                f.name(),
+                f.extensions().join(", ."),
+                f.about()
+            )
+        })
+        .collect()
+}
+
 fn extension(path: &Path) -> Option<String> {
     path.extension()
         .and_then(|e| e.to_str())

@@ -51,7 +51,7 @@ pub enum MethodArg {
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
-#[command(after_long_help = crate::input::CHANNEL_NAMES)]
+#[command(after_long_help = crate::input::channel_names())]
 pub struct Args {
     /// Channel of sensor A (the rotor turned between sessions).
     #[arg(long, default_value = "a")]

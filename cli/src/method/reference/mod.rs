@@ -58,7 +58,7 @@ use summary::render_summary;
 /// Exit status: 0 all logs calibrated and passed the gates, 1 a log could not be calibrated
 /// (bad or insufficient data), 2 bad usage, 3 a gate failed (outputs written all the same).
 #[derive(Debug, clap::Args, PartialEq)]
-#[command(after_long_help = crate::input::CHANNEL_NAMES)]
+#[command(after_long_help = crate::input::channel_names())]
 pub struct Args {
     /// Channel of the encoder to calibrate (device under test).
     #[arg(long)]

@@ -579,7 +579,7 @@ fn steadily_increasing(values: &Values) -> bool {
         return false;
     }
     let mut steps: Vec<f64> = v.windows(2).map(|w| w[1] - w[0]).collect();
-    if steps.iter().any(|s| !(*s > 0.0)) {
+    if !steps.iter().all(|s| *s > 0.0) {
         return false;
     }
     steps.sort_by(f64::total_cmp);
