@@ -9,6 +9,10 @@ use std::path::Path;
 use crate::csv_log::dialect::TimeUnit;
 use crate::{Error, ReadOptions};
 
+#[cfg(feature = "hdf5")]
+pub(crate) mod hdf5;
+#[cfg(feature = "parquet")]
+pub(crate) mod parquet;
 pub(crate) mod reader;
 
 /// A log format whose channels are whole columns. One type per format, listed in [`FORMATS`];
@@ -34,7 +38,14 @@ pub(crate) trait ColumnFormat: Sync {
 pub(crate) const SNIFF_BYTES: usize = 128;
 
 /// Every columnar format calib reads, in the order detection tries them.
-pub(crate) static FORMATS: &[&dyn ColumnFormat] = &[];
+pub(crate) static FORMATS: &[&dyn ColumnFormat] = &[
+    #[cfg(feature = "hdf5")]
+    &hdf5::MatV73,
+    #[cfg(feature = "hdf5")]
+    &hdf5::Hdf5,
+    #[cfg(feature = "parquet")]
+    &parquet::Parquet,
+];
 
 /// The format whose [`ColumnFormat::name`] is `name`.
 pub(crate) fn by_name(name: &str) -> Option<&'static dyn ColumnFormat> {
