@@ -177,13 +177,8 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
     )?;
     crate::output::prepare_file(&args.output, "-o")?;
     let format = LogFormat::detect(&args.log)?;
-    if format == LogFormat::Rosbag {
-        return Err(Usage(format!(
-            "{} is a rosbag2 bag; calib corrects CSV and MCAP logs: convert the bag to MCAP \
-             (`ros2 bag convert`) and correct that",
-            args.log.display()
-        ))
-        .into());
+    if let Some(why) = format.not_rewritten() {
+        return Err(Usage(format!("{}: {why}", args.log.display())).into());
     }
     if LogFormat::for_output(&args.output).ok() != Some(format) {
         return Err(Usage(format!(

@@ -79,10 +79,14 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         _ => None,
     };
     let point_list = reader.is_point_list();
+    // How the file was read: a CSV dialect other than the plain one, or what a columnar file
+    // holds and where its time came from.
+    let structure = reader.structure();
     let layout = reader
         .csv_dialect()
         .filter(|d| !d.is_plain())
-        .map(|d| d.describe());
+        .map(|d| d.describe())
+        .or_else(|| (!structure.is_empty()).then(|| structure.join("\n    ")));
     // Every channel, the pair's first (or the log's first) leading: it sets the clock.
     let clock = pair.map_or(0, |(a, _)| a);
     let order: Vec<usize> = std::iter::once(clock)
@@ -129,6 +133,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             point_list,
             points: point_list.then_some(result.samples),
             stated_directions: stated,
+            structure,
             topics,
             alignment,
             inspection: result,
@@ -208,6 +213,11 @@ pub struct InspectJson {
     /// Points of a point list whose direction of approach its `direction` column states (a
     /// non-empty cell); `null` without such a column.
     pub stated_directions: Option<u64>,
+    /// What a columnar file (TDMS, MATLAB, HDF5, Parquet) holds: its format, then its groups,
+    /// variables, datasets or columns, a line each, and where the time was taken from; absent
+    /// for the other formats.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub structure: Vec<String>,
     /// The log's topics (MCAP and rosbag2; none for CSV), read or not.
     pub topics: Vec<TopicInfo>,
     /// How the channels were aligned on one clock (`null` for one channel or CSV).

@@ -1,6 +1,7 @@
 //! Any log calib reads, behind one interface: [`LogReader`] and [`LogWriter`].
 
 use crate::align::{AlignOptions, Aligner, Alignment};
+use crate::columns::{self, ColumnFormat, reader::ColumnReader};
 use crate::csv_log::{CsvReader, CsvWriter};
 use crate::mcap_log::{DEFAULT_TOPIC, McapReader, McapWriter, TopicInfo};
 use crate::naming::{self, ChannelLookup, ChannelName};
@@ -21,6 +22,9 @@ pub enum LogFormat {
     /// A rosbag2 bag: a bag directory (`metadata.yaml`, `.db3` or `.mcap` splits) or a `.db3`
     /// file. Read only.
     Rosbag,
+    /// A file whose channels are whole columns (TDMS, MATLAB, HDF5, Parquet), by the name of its
+    /// [`ColumnFormat`]. Read only.
+    Columns(&'static str),
 }
 
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
@@ -84,6 +88,31 @@ impl LogFormat {
             LogFormat::Csv => "csv",
             LogFormat::Mcap => "mcap",
             LogFormat::Rosbag => "db3",
+            LogFormat::Columns(name) => {
+                columns::by_name(name).map_or("bin", |f| f.extensions().first().unwrap_or(&"bin"))
+            }
+        }
+    }
+
+    /// Whether `calib apply` writes a corrected log of this format (CSV and MCAP).
+    pub fn rewritable(self) -> bool {
+        matches!(self, LogFormat::Csv | LogFormat::Mcap)
+    }
+
+    /// Why `calib apply` does not rewrite a log of this format, and what to do instead; `None`
+    /// for the formats it rewrites.
+    pub fn not_rewritten(self) -> Option<String> {
+        match self {
+            LogFormat::Csv | LogFormat::Mcap => None,
+            LogFormat::Rosbag => Some(
+                "calib corrects CSV and MCAP logs, not rosbag2 bags; convert the bag to MCAP \
+                 (`ros2 bag convert`) and correct that"
+                    .into(),
+            ),
+            LogFormat::Columns(name) => Some(format!(
+                "calib corrects CSV and MCAP logs, not {name} files; save the run as CSV and \
+                 correct that (or correct readings from Python with `calib.apply_table`)"
+            )),
         }
     }
 
@@ -136,20 +165,26 @@ impl LogFormat {
             // reads them. Its extension decides.
             return Self::for_output(path);
         }
-        let mut head = [0u8; 16];
+        let mut head = [0u8; columns::SNIFF_BYTES];
         let mut file = std::fs::File::open(path).map_err(io)?;
-        let n = (&mut file).take(16).read(&mut head).map_err(io)?;
+        let n = read_head(&mut file, &mut head).map_err(io)?;
         let head = &head[..n];
         if head.starts_with(MCAP_MAGIC) {
             return Ok(LogFormat::Mcap);
         }
-        if head == SQLITE_MAGIC {
+        if head.starts_with(SQLITE_MAGIC) {
             return Ok(LogFormat::Rosbag);
+        }
+        if let Some(format) = columns::FORMATS.iter().find(|f| f.sniff(head)) {
+            return Ok(LogFormat::Columns(format.name()));
         }
         if let Some((kind, todo)) = foreign_kind(head) {
             return Err(Error::Data {
                 path: path.to_path_buf(),
-                message: format!("this is {kind}, not a CSV or MCAP log; {todo}"),
+                message: format!(
+                    "this is {kind}, not a log calib reads ({}); {todo}",
+                    formats_read()
+                ),
             });
         }
         match extension(path).as_deref() {
@@ -157,11 +192,33 @@ impl LogFormat {
             // Text exports: TwinCAT, MATLAB and numpy write `.txt` and `.dat` as often as `.csv`.
             Some("csv" | "txt" | "dat" | "tsv") => Ok(LogFormat::Csv),
             Some("db3") => Ok(LogFormat::Rosbag),
-            _ => Err(Error::UnknownFormat {
+            Some(ext) => columns::FORMATS
+                .iter()
+                .find(|f| f.extensions().contains(&ext))
+                .map(|f| LogFormat::Columns(f.name()))
+                .ok_or_else(|| Error::UnknownFormat {
+                    path: path.to_path_buf(),
+                }),
+            None => Err(Error::UnknownFormat {
                 path: path.to_path_buf(),
             }),
         }
     }
+}
+
+/// Reads the first `head.len()` bytes of `file` into `head` (fewer only at its end): their
+/// number.
+fn read_head(file: &mut impl Read, head: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < head.len() {
+        match file.read(&mut head[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
 }
 
 #[cfg(unix)]
@@ -213,7 +270,15 @@ fn foreign_kind(head: &[u8]) -> Option<(&'static str, &'static str)> {
     }
     // Text has no NUL bytes (UTF-16 aside, caught above).
     head.contains(&0)
-        .then_some(("binary data", "name the log file (CSV text or MCAP)"))
+        .then_some(("binary data", "name the log file"))
+}
+
+/// The formats calib reads, as help texts and errors list them: CSV, MCAP, rosbag2 and the
+/// columnar formats of [`columns::FORMATS`].
+pub fn formats_read() -> String {
+    let mut names = vec!["CSV", "MCAP", "rosbag2 bags"];
+    names.extend(columns::FORMATS.iter().map(|f| f.name()));
+    names.join(", ")
 }
 
 fn extension(path: &Path) -> Option<String> {
@@ -252,6 +317,8 @@ enum Inner {
     Csv(Box<CsvReader>),
     /// An MCAP file or a bag: either reader, through the ROS 2 layer they share.
     Ros2(Box<dyn Ros2Reader>),
+    /// A columnar file (TDMS, MATLAB, HDF5, Parquet), read whole.
+    Columns(Box<ColumnReader>),
 }
 
 impl LogReader {
@@ -285,6 +352,11 @@ impl LogReader {
                     }
                 })
             }
+            LogFormat::Columns(name) => {
+                let format: &dyn ColumnFormat =
+                    columns::by_name(name).expect("detect names a listed format");
+                Inner::Columns(Box::new(ColumnReader::open(path, format, opts)?))
+            }
         };
         let names = match &inner {
             Inner::Csv(r) => r
@@ -293,6 +365,11 @@ impl LogReader {
                 .map(|c| ChannelName::plain(&c.name))
                 .collect(),
             Inner::Ros2(r) => r.samples().names().to_vec(),
+            Inner::Columns(r) => r
+                .all_channels()
+                .iter()
+                .map(|c| ChannelName::plain(&c.name))
+                .collect(),
         };
         Ok(LogReader {
             inner,
@@ -331,6 +408,7 @@ impl LogReader {
                 self.selection = Some((channels.to_vec(), chosen));
             }
             Inner::Ros2(r) => r.samples_mut().select(channels, opts),
+            Inner::Columns(r) => r.select(channels),
         }
     }
 
@@ -340,6 +418,7 @@ impl LogReader {
             (_, Some((_, chosen))) => chosen,
             (Inner::Csv(r), None) => r.channels(),
             (Inner::Ros2(r), None) => r.samples().channels(),
+            (Inner::Columns(r), None) => r.channels(),
         }
     }
 
@@ -347,7 +426,11 @@ impl LogReader {
     /// column, read with [`ReadOptions::allow_point_list`]): its samples are its rows in order,
     /// timed by their index.
     pub fn is_point_list(&self) -> bool {
-        matches!(&self.inner, Inner::Csv(r) if r.is_point_list())
+        match &self.inner {
+            Inner::Csv(r) => r.is_point_list(),
+            Inner::Columns(r) => r.is_point_list(),
+            Inner::Ros2(_) => false,
+        }
     }
 
     /// The direction of approach each point of a point list states (`None` where its cell is
@@ -356,7 +439,7 @@ impl LogReader {
     pub fn point_directions(&self) -> Option<&[Option<calib_core::reference_points::Approach>]> {
         match &self.inner {
             Inner::Csv(r) => r.directions(),
-            Inner::Ros2(_) => None,
+            Inner::Ros2(_) | Inner::Columns(_) => None,
         }
     }
 
@@ -371,7 +454,7 @@ impl LogReader {
     pub fn csv_dialect(&self) -> Option<&crate::csv_log::dialect::Dialect> {
         match &self.inner {
             Inner::Csv(r) => Some(r.dialect()),
-            Inner::Ros2(_) => None,
+            Inner::Ros2(_) | Inner::Columns(_) => None,
         }
     }
 
@@ -381,7 +464,7 @@ impl LogReader {
     pub fn time_unit_hint(&self) -> Option<String> {
         match &self.inner {
             Inner::Csv(r) => r.time_step().and_then(|s| s.unit_hint()),
-            Inner::Ros2(_) => None,
+            Inner::Ros2(_) | Inner::Columns(_) => None,
         }
     }
 
@@ -394,7 +477,7 @@ impl LogReader {
             Inner::Csv(r) => r
                 .time_step()
                 .and_then(|s| s.unit_hint_when_still(min_speed)),
-            Inner::Ros2(_) => None,
+            Inner::Ros2(_) | Inner::Columns(_) => None,
         }
     }
 
@@ -405,6 +488,7 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(r) => r.progress(),
             Inner::Ros2(r) => r.progress(),
+            Inner::Columns(r) => r.progress(),
         }
     }
 
@@ -424,6 +508,7 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(r) => r.time_origin_s(),
             Inner::Ros2(r) => r.samples().time_origin_s(),
+            Inner::Columns(r) => r.time_origin_s(),
         }
     }
 
@@ -432,6 +517,7 @@ impl LogReader {
         match &self.inner {
             Inner::Csv(r) => r.diagnostics(),
             Inner::Ros2(r) => &r.samples().diagnostics,
+            Inner::Columns(r) => r.diagnostics(),
         }
     }
 
@@ -444,6 +530,7 @@ impl LogReader {
                 a.report(&names)
             }),
             Inner::Ros2(r) => Some(r.samples().alignment()),
+            Inner::Columns(_) => None,
         }
     }
 
@@ -451,8 +538,22 @@ impl LogReader {
     /// skipped too); empty for a CSV log.
     pub fn topics(&self) -> Vec<TopicInfo> {
         match &self.inner {
-            Inner::Csv(_) => Vec::new(),
+            Inner::Csv(_) | Inner::Columns(_) => Vec::new(),
             Inner::Ros2(r) => r.samples().topics(),
+        }
+    }
+
+    /// What a columnar file holds (its format, then groups, variables, datasets or columns, a
+    /// line each, and where the time was taken from), as `calib inspect` lists it; empty for the
+    /// other formats, whose [`topics`](Self::topics) say it.
+    pub fn structure(&self) -> Vec<String> {
+        match &self.inner {
+            Inner::Columns(r) => {
+                let mut lines = vec![format!("{} file", r.format())];
+                lines.extend(r.structure());
+                lines
+            }
+            Inner::Csv(_) | Inner::Ros2(_) => Vec::new(),
         }
     }
 
@@ -545,8 +646,13 @@ impl LogReader {
     /// `batch`; the error ends the log. `batch` holds one reading per selected channel
     /// ([`channels`](Self::channels)).
     pub fn fill(&mut self, batch: &mut SampleBatch, max: usize) -> Result<(), Error> {
-        if let Inner::Ros2(r) = &mut self.inner {
-            return r.fill(batch, max).map_err(|e| e.renamed(&self.renames));
+        match &mut self.inner {
+            Inner::Ros2(r) => return r.fill(batch, max).map_err(|e| e.renamed(&self.renames)),
+            Inner::Columns(r) => {
+                r.fill(batch, max);
+                return Ok(());
+            }
+            Inner::Csv(_) => {}
         }
         while batch.len() < max {
             match self.next_csv() {
@@ -632,7 +738,7 @@ impl LogWriter {
                 LogWriter::Mcap(Box::new(McapWriter::create(path, channels, DEFAULT_TOPIC)?))
             }
             // `for_output` names no format calib cannot write.
-            LogFormat::Rosbag => {
+            LogFormat::Rosbag | LogFormat::Columns(_) => {
                 return Err(Error::UnknownFormat {
                     path: path.to_path_buf(),
                 });

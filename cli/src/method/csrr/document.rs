@@ -58,7 +58,7 @@ pub fn document(
     );
     doc.warnings = report.warnings.clone();
     doc.push(summary(names, cal, report));
-    doc.push(sessions(names, cal, report, trace));
+    doc.push(sessions(names, cal, trace));
     for (name, map, a) in [(na, &cal.a, true), (nb, &cal.b, false)] {
         let mut layers = MapLayers::of(map);
         let u = cal
@@ -196,9 +196,9 @@ fn summary(names: (&str, &str), cal: &Calibration, report: &Report) -> Section {
     Section::new("Summary").table(t).table(channels)
 }
 
-/// The session timeline (on the trace's clock) and the sessions' table (on the log's, as
-/// report.json gives them).
-fn sessions(names: (&str, &str), cal: &Calibration, report: &Report, trace: &Trace) -> Section {
+/// The session timeline and the sessions' table, both on the trace's clock (report.json gives
+/// the sessions on the log's own clock, stamps since 1970 where the log has them).
+fn sessions(names: (&str, &str), cal: &Calibration, trace: &Trace) -> Section {
     let spans: Vec<Span> = cal
         .sessions
         .iter()
@@ -229,9 +229,9 @@ fn sessions(names: (&str, &str), cal: &Calibration, report: &Report, trace: &Tra
         ],
         &spans,
     );
-    let table = cal.sessions.iter().zip(&report.sessions).fold(
+    let table = cal.sessions.iter().fold(
         Table::new(
-            "Sessions",
+            "Sessions (times on the timeline's clock)",
             &[
                 "#",
                 "start (s)",
@@ -241,11 +241,11 @@ fn sessions(names: (&str, &str), cal: &Calibration, report: &Report, trace: &Tra
                 "relative rotation Δ (°)",
             ],
         ),
-        |t, (s, logged)| {
+        |t, s| {
             t.row([
                 s.index.to_string(),
-                num(logged.start_s, 3),
-                num(logged.end_s, 3),
+                num(s.start_s, 3),
+                num(s.end_s, 3),
                 num(s.revolutions, 2),
                 s.samples.to_string(),
                 num(s.relative_rotation.to_degrees(), 4),

@@ -62,11 +62,11 @@ pub fn document(
         ])
         .row([
             "map".to_string(),
-            match (cal.map.range(), cal.gap) {
+            match (cal.map.range_deg(), cal.gap) {
                 (Some((lo, hi)), _) => format!(
                     "range table, {}° to {}° of the DUT's reading",
-                    num(lo.to_degrees(), 3),
-                    num(hi.to_degrees(), 3)
+                    num(lo, 3),
+                    num(hi, 3)
                 ),
                 (None, Some(g)) => format!(
                     "whole turn; {}° never reached from {}°, bridged by interpolation",
@@ -94,18 +94,21 @@ pub fn document(
     );
     doc.push(Section::new("Summary").table(facts).table(iso));
 
+    // A range's readings as its table writes them (−39.8° to 94.7° for a range across 0, not
+    // 320.2° to 454.7°): its angles shifted by the whole turns between the two.
+    let shift = match (cal.map.range_deg(), cal.map.range()) {
+        (Some((lo, _)), Some((start, _))) => lo - start.to_degrees(),
+        _ => 0.0,
+    };
     let points: Vec<(f64, f64)> = (0..cal.map.len())
         .map(|i| {
             (
-                cal.map.grid_angle(i).to_degrees(),
+                cal.map.grid_angle(i).to_degrees() + shift,
                 cal.map.values()[i] * ARCSEC_PER_RAD,
             )
         })
         .collect();
-    let span = cal
-        .map
-        .range()
-        .map(|(lo, hi)| (lo.to_degrees(), hi.to_degrees()));
+    let span = cal.map.range_deg();
     let band: Vec<(f64, f64)> = points
         .iter()
         .zip(&cal.u)
@@ -127,12 +130,13 @@ pub fn document(
             }
         }
         TableMap::Range(m) => {
+            let (lo, hi) = m.ends_deg();
             s = s.figure(plots::range_error_map(
                 &format!("map-{dut}"),
                 dut,
                 &layers,
-                m.start().to_degrees(),
-                m.end().to_degrees(),
+                lo,
+                hi,
             ));
         }
     }
@@ -147,7 +151,7 @@ pub fn document(
         doc.push(ripple(reference, r));
     }
     if !cal.targets.is_empty() {
-        doc.push(targets(dut, cal, span));
+        doc.push(targets(dut, cal, span, shift));
     }
     if let TableMap::Turn(map) = &cal.map {
         let orders = (map.len() / 2).saturating_sub(1).clamp(1, 200);
@@ -200,7 +204,8 @@ fn ripple(reference: &str, r: &Ripple) -> Section {
 }
 
 /// ISO 230-2's section: the deviation chart over the targets and the per-target table.
-fn targets(dut: &str, cal: &ReferenceCalibration, span: Option<(f64, f64)>) -> Section {
+/// `shift` (degrees) places the targets' angles in the table's convention, as the map's.
+fn targets(dut: &str, cal: &ReferenceCalibration, span: Option<(f64, f64)>, shift: f64) -> Section {
     let side = |p: &PointStats| {
         (p.n > 0).then(|| Direction {
             mean: p.mean * ARCSEC_PER_RAD,
@@ -211,7 +216,7 @@ fn targets(dut: &str, cal: &ReferenceCalibration, span: Option<(f64, f64)>) -> S
         .targets
         .iter()
         .map(|t| Target {
-            angle: t.angle.to_degrees(),
+            angle: t.angle.to_degrees() + shift,
             up: side(&t.up),
             down: side(&t.down),
         })

@@ -168,21 +168,19 @@ pub fn apply(
     apply_scanned(input, output, map, opts, &range)
 }
 
-/// The error of `apply` on a rosbag2 bag, which calib reads but does not write.
-fn bag_not_rewritten(input: &Path) -> Error {
+/// The error of `apply` on a log calib reads but does not write (a bag, a columnar file).
+fn not_rewritten(input: &Path, format: LogFormat) -> Error {
     Error::Data {
         path: input.to_path_buf(),
-        message: "calib corrects CSV and MCAP logs, not rosbag2 bags; convert the bag to MCAP \
-                  (`ros2 bag convert`) and correct that"
-            .into(),
+        message: format.not_rewritten().unwrap_or_default(),
     }
 }
 
 /// The format of `input`, which `output` must have too; a bag is refused.
 fn formats(input: &Path, output: &Path) -> Result<LogFormat, Error> {
     let format = LogFormat::detect(input)?;
-    if format == LogFormat::Rosbag {
-        return Err(bag_not_rewritten(input));
+    if !format.rewritable() {
+        return Err(not_rewritten(input, format));
     }
     let out_format = LogFormat::for_output(output)?;
     if out_format != format {
@@ -223,7 +221,7 @@ pub fn scan(input: &Path, opts: &ApplyOptions) -> Result<Readings, Error> {
             opts.skip_damaged,
             parallel_chunks(opts),
         )?,
-        LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
+        other => return Err(not_rewritten(input, other)),
     };
     if range.count == 0 {
         // `TOPIC.field.path` channels are read through their message definition, which `apply`
@@ -278,7 +276,9 @@ pub fn apply_scanned(
             beside.extend(keep);
             (n, 0, None, f.outside(), Vec::new())
         }
-        LogFormat::Rosbag => return Err(bag_not_rewritten(input)),
+        other @ (LogFormat::Rosbag | LogFormat::Columns(_)) => {
+            return Err(not_rewritten(input, other));
+        }
         LogFormat::Mcap => {
             let (joint, json) = (fix(AngleUnit::Rad), fix(unit));
             let done = mcap::rewrite(

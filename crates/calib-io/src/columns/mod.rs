@@ -97,11 +97,6 @@ impl Values {
             Values::I64(v) => v.len(),
         }
     }
-
-    /// Whether there is none.
-    pub(crate) fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
 }
 
 /// What a file says of a column's time.
