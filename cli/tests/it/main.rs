@@ -9,11 +9,15 @@ mod common;
 mod compose_cli;
 mod csrr_cli;
 mod export_cli;
+#[cfg(feature = "hdf5")]
+mod hdf5_cli;
 mod import_cli;
 mod inspect_cli;
 mod labfiles_cli;
 mod multihead_cli;
 mod outputs_cli;
+#[cfg(feature = "parquet")]
+mod parquet_cli;
 mod point_lists_cli;
 mod range_cli;
 mod readme;

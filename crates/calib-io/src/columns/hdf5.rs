@@ -83,10 +83,10 @@ fn is_v73_header(head: &[u8]) -> bool {
     if head.len() < 128 || !head.starts_with(b"MATLAB") {
         return false;
     }
-    match &head[124..128] {
-        [0x00, 0x02, b'I', b'M'] | [0x02, 0x00, b'M', b'I'] => true,
-        _ => false,
-    }
+    matches!(
+        &head[124..128],
+        [0x00, 0x02, b'I', b'M'] | [0x02, 0x00, b'M', b'I']
+    )
 }
 
 /// An [`Error::Data`] naming `path`, and `dataset` where one is concerned.
@@ -230,13 +230,22 @@ fn plan(ds: &H5Dataset, matlab: bool) -> Result<Plan, String> {
                 other => return Err(format!("MATLAB class `{other}`, not numbers")),
             }
         }
-        if ds.attr_names().unwrap_or_default().iter().any(|a| a == "MATLAB_empty") {
+        if ds
+            .attr_names()
+            .unwrap_or_default()
+            .iter()
+            .any(|a| a == "MATLAB_empty")
+        {
             return Err("an empty MATLAB array".to_string());
         }
     }
     let (size, integer64) = match datatype {
-        DatatypeMessage::FloatingPoint { size: 4 | 8, .. } => (u64::from(size_of(&datatype)), false),
-        DatatypeMessage::FixedPoint { size: 1 | 2 | 4, .. } => (u64::from(size_of(&datatype)), false),
+        DatatypeMessage::FloatingPoint { size: 4 | 8, .. } => {
+            (u64::from(size_of(&datatype)), false)
+        }
+        DatatypeMessage::FixedPoint {
+            size: 1 | 2 | 4, ..
+        } => (u64::from(size_of(&datatype)), false),
         DatatypeMessage::FixedPoint { size: 8, .. } => (8, true),
         DatatypeMessage::FloatingPoint { size, .. } => {
             return Err(format!("{}-bit floating point", size * 8));
@@ -417,7 +426,9 @@ mod tests {
     use std::path::PathBuf;
 
     fn fixture(name: &str) -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/hdf5").join(name)
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../testdata/hdf5")
+            .join(name)
     }
 
     fn read(format: &dyn ColumnFormat, name: &str) -> ColumnSet {
@@ -451,7 +462,11 @@ mod tests {
         let set = read(&Hdf5, "quick.h5");
         let names: Vec<&str> = set.columns.iter().map(|c| c.name.as_str()).collect();
         assert_eq!(names, ["enc/a", "enc/b", "t"]);
-        let (a, b, t) = (column(&set, "enc/a"), column(&set, "enc/b"), column(&set, "t"));
+        let (a, b, t) = (
+            column(&set, "enc/a"),
+            column(&set, "enc/b"),
+            column(&set, "t"),
+        );
         assert_eq!(a.unit.as_deref(), Some("deg"), "attribute `unit`");
         assert_eq!(b.unit.as_deref(), Some("deg"), "attribute `units`");
         assert_eq!(t.unit.as_deref(), Some("s"));
@@ -460,15 +475,24 @@ mod tests {
         assert_eq!(f64s(t)[3300], 16.5);
         assert!(set.columns.iter().all(|c| c.time == ColumnTime::Unknown));
         let structure = set.structure.join("\n");
-        assert!(structure.contains("`enc/a`: float64 [3301], shuffle+deflate → channel `enc/a`"), "{structure}");
-        assert!(structure.contains("`notes`: string [2] — not taken: not numbers"), "{structure}");
+        assert!(
+            structure.contains("`enc/a`: float64 [3301], shuffle+deflate → channel `enc/a`"),
+            "{structure}"
+        );
+        assert!(
+            structure.contains("`notes`: string [2] — not taken: not numbers"),
+            "{structure}"
+        );
     }
 
     #[test]
     fn matlab_v73_rows_of_a_matrix_are_channels() {
         let head = std::fs::read(fixture("quick_v73.mat")).expect("fixture");
         assert!(MatV73.sniff(&head[..SNIFF]));
-        assert!(!Hdf5.sniff(&head[..SNIFF]), "the signature is at 512, past the sniffed bytes");
+        assert!(
+            !Hdf5.sniff(&head[..SNIFF]),
+            "the signature is at 512, past the sniffed bytes"
+        );
         let set = read(&MatV73, "quick_v73.mat");
         let names: Vec<&str> = set.columns.iter().map(|c| c.name.as_str()).collect();
         assert_eq!(names, ["enc[0]", "enc[1]", "t"]);
@@ -476,9 +500,14 @@ mod tests {
         assert_eq!(f64s(column(&set, "enc[0]")), f64s(column(&h5, "enc/a")));
         assert_eq!(f64s(column(&set, "enc[1]")), f64s(column(&h5, "enc/b")));
         assert_eq!(f64s(column(&set, "t")), f64s(column(&h5, "t")));
-        assert!(set.structure[0].starts_with("MATLAB v7.3 MAT-file (HDF5 after a 512-byte header)"));
+        assert!(
+            set.structure[0].starts_with("MATLAB v7.3 MAT-file (HDF5 after a 512-byte header)")
+        );
         let structure = set.structure.join("\n");
-        assert!(structure.contains("`label`: uint16 [5×1] — not taken: MATLAB class `char`"), "{structure}");
+        assert!(
+            structure.contains("`label`: uint16 [5×1] — not taken: MATLAB class `char`"),
+            "{structure}"
+        );
     }
 
     const SNIFF: usize = super::super::SNIFF_BYTES;
@@ -500,7 +529,10 @@ mod tests {
             "64-bit integers stay integers"
         );
         for i in 0..12 {
-            assert_eq!(f64s(column(&set, &format!("many/c{i:02}")))[2], 2.0 * i as f64);
+            assert_eq!(
+                f64s(column(&set, &format!("many/c{i:02}")))[2],
+                2.0 * i as f64
+            );
         }
         let structure = set.structure.join("\n");
         for left in [

@@ -5,8 +5,8 @@
 //! (`pose.x`). Floats and integers of up to 32 bits become doubles, 64-bit integers stay
 //! integers; a `TIMESTAMP` column (and the legacy `INT96` stamps Spark and Impala write) is a
 //! column of stamps since 1970 ([`ColumnTime::Stamps`]), which the reader takes as the time. A
-//! null in a float or integer column is a NaN (no reading at that row); in a time column it is
-//! an error. Strings, booleans, decimals, dates, times of day and lists are listed in
+//! column with nulls is listed and not taken (calib needs a reading in every row: a file of many
+//! columns often has a sparse one besides the channels); a null stamp is an error. Strings, booleans, decimals, dates, times of day and lists are listed in
 //! [`ColumnSet::structure`] with why they were not taken.
 
 use std::fs::File;
@@ -100,6 +100,10 @@ struct Taken {
     max_def: i16,
     /// The values so far.
     values: Values,
+    /// Its rows without a value so far.
+    nulls: u64,
+    /// Its line in [`ColumnSet::structure`].
+    line: usize,
 }
 
 /// Reads every numeric column of the Parquet file at `path`.
@@ -148,6 +152,8 @@ fn read_file(path: &Path) -> Result<ColumnSet, Error> {
                 set.structure
                     .push(format!("`{name}`: {described} → channel `{name}`"));
                 taken.push(Taken {
+                    nulls: 0,
+                    line: set.structure.len() - 1,
                     leaf,
                     name,
                     kind,
@@ -215,8 +221,19 @@ fn read_file(path: &Path) -> Result<ColumnSet, Error> {
             }
         }
     }
+    for t in taken.iter().filter(|t| t.nulls > 0) {
+        let line = &mut set.structure[t.line];
+        if let Some(at) = line.find(" → channel") {
+            line.truncate(at);
+        }
+        line.push_str(&format!(
+            " — not taken: {} of {rows} rows are null (calib needs a reading in every row)",
+            t.nulls
+        ));
+    }
     set.columns = taken
         .into_iter()
+        .filter(|t| t.nulls == 0)
         .map(|t| Column {
             time: match t.kind {
                 Kind::I64(Some(unit)) => ColumnTime::Stamps(unit),
@@ -331,11 +348,9 @@ fn describe(column: &ColumnDescriptor) -> String {
             },
             if t.is_adjusted_to_u_t_c { ", UTC" } else { "" }
         ),
-        Some(LogicalType::Integer(i)) => format!(
-            " {}INT{}",
-            if i.is_signed { "" } else { "U" },
-            i.bit_width
-        ),
+        Some(LogicalType::Integer(i)) => {
+            format!(" {}INT{}", if i.is_signed { "" } else { "U" }, i.bit_width)
+        }
         Some(other) => format!(" {other:?}").to_uppercase(),
         None => String::new(),
     };
@@ -348,36 +363,58 @@ fn describe(column: &ColumnDescriptor) -> String {
 }
 
 /// Reads one column chunk of `rows` rows onto `column`'s values.
+/// A null is counted in `column.nulls` and held as NaN or 0 (the column is then not taken); in a
+/// column of stamps it is an error.
 fn read_chunk(chunk: ColumnReader, column: &mut Taken, rows: usize) -> Result<(), String> {
     let max_def = column.max_def;
-    let name_is_time = matches!(column.kind, Kind::I64(Some(_)) | Kind::Int96);
+    let kind = column.kind;
+    let nulls = &mut column.nulls;
+    let mut problem = None;
+    let mut null = |row: usize| {
+        if matches!(kind, Kind::I64(Some(_)) | Kind::Int96) {
+            problem.get_or_insert(format!(
+                "row {row} has no time stamp (null); every row needs one"
+            ));
+        }
+        *nulls += 1;
+    };
     match (chunk, &mut column.values) {
         (ColumnReader::DoubleColumnReader(r), Values::F64(out)) => {
-            read_values(r, rows, max_def, |_, present| {
-                out.push(present.unwrap_or(f64::NAN))
-            })
+            read_values(r, rows, max_def, |i, present| {
+                out.push(present.unwrap_or_else(|| {
+                    null(i);
+                    f64::NAN
+                }))
+            })?;
         }
         (ColumnReader::FloatColumnReader(r), Values::F64(out)) => {
-            read_values(r, rows, max_def, |_, present| {
-                out.push(present.map_or(f64::NAN, f64::from))
-            })
+            read_values(r, rows, max_def, |i, present| {
+                out.push(present.map_or_else(
+                    || {
+                        null(i);
+                        f64::NAN
+                    },
+                    f64::from,
+                ))
+            })?;
         }
         (ColumnReader::Int32ColumnReader(r), Values::F64(out)) => {
-            let unsigned = column.kind == Kind::U32;
-            read_values(r, rows, max_def, |_, present| {
+            read_values(r, rows, max_def, |i, present| {
                 out.push(match present {
-                    Some(v) if unsigned => f64::from(v as u32),
+                    Some(v) if kind == Kind::U32 => f64::from(v as u32),
                     Some(v) => f64::from(v),
-                    None => f64::NAN,
+                    None => {
+                        null(i);
+                        f64::NAN
+                    }
                 })
-            })
+            })?;
         }
         (ColumnReader::Int64ColumnReader(r), Values::I64(out)) => {
-            let unsigned = column.kind == Kind::U64;
-            let mut problem = None;
+            let mut beyond = None;
             read_values(r, rows, max_def, |i, present| match present {
-                Some(v) if unsigned && v < 0 => {
-                    problem.get_or_insert(format!(
+                Some(v) if kind == Kind::U64 && v < 0 => {
+                    beyond.get_or_insert(format!(
                         "value {} at row {i} is beyond the range calib reads (an unsigned 64-bit \
                          integer above 2⁶³)",
                         v as u64
@@ -385,32 +422,26 @@ fn read_chunk(chunk: ColumnReader, column: &mut Taken, rows: usize) -> Result<()
                 }
                 Some(v) => out.push(v),
                 None => {
-                    problem.get_or_insert(null_message(i, name_is_time));
+                    null(i);
+                    out.push(0);
                 }
             })?;
-            problem.map_or(Ok(()), Err)
+            if let Some(beyond) = beyond {
+                return Err(beyond);
+            }
         }
         (ColumnReader::Int96ColumnReader(r), Values::I64(out)) => {
-            let mut problem = None;
             read_values(r, rows, max_def, |i, present| match present {
                 Some(v) => out.push(v.to_nanos()),
                 None => {
-                    problem.get_or_insert(null_message(i, true));
+                    null(i);
+                    out.push(0);
                 }
             })?;
-            problem.map_or(Ok(()), Err)
         }
-        _ => Err("its stored type does not match its schema".to_string()),
+        _ => return Err("its stored type does not match its schema".to_string()),
     }
-}
-
-/// What to say of a null at `row` of a column of integers (a time column if `time`).
-fn null_message(row: usize, time: bool) -> String {
-    if time {
-        format!("row {row} has no time stamp (null); every row needs one")
-    } else {
-        format!("row {row} is null; a 64-bit integer column must have a value in every row")
-    }
+    problem.map_or(Ok(()), Err)
 }
 
 /// Reads `rows` records of a flat column through `reader`, calling `each(row, value)` for every
@@ -447,7 +478,11 @@ fn read_values<T: DataType>(
         } else {
             let mut next = values.iter().take(read);
             for &d in defs.iter().take(records) {
-                let value = if d == max_def { next.next().cloned() } else { None };
+                let value = if d == max_def {
+                    next.next().cloned()
+                } else {
+                    None
+                };
                 each(row, value);
                 row += 1;
             }
@@ -462,7 +497,9 @@ mod tests {
     use std::path::PathBuf;
 
     fn fixture(name: &str) -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata").join(name)
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../testdata")
+            .join(name)
     }
 
     fn read(name: &str) -> ColumnSet {
@@ -534,19 +571,24 @@ mod tests {
         assert_eq!(i64s(t)[49], START_NS / 1000 + 49_000);
         assert_eq!(f64s(column(&set, "f32"))[3], 1.5);
         assert_eq!(f64s(column(&set, "u16"))[49], 49.0);
-        assert_eq!(f64s(column(&set, "u32"))[1], 2_147_483_649.0, "uint32 above 2^31");
+        assert_eq!(
+            f64s(column(&set, "u32"))[1],
+            2_147_483_649.0,
+            "uint32 above 2^31"
+        );
         assert_eq!(i64s(column(&set, "i64"))[0], -25);
         assert_eq!(i64s(column(&set, "u64"))[1], (1 << 40) + 1);
-        let gaps = f64s(column(&set, "gaps"));
-        assert_eq!(gaps.len(), 50);
-        for (k, g) in gaps.iter().enumerate() {
-            assert_eq!(g.is_nan(), k % 7 == 0, "row {k}: {g}");
-        }
-        assert_eq!(gaps[1], 1.0);
-        assert_eq!(f64s(column(&set, "pose.x"))[30], 30.0, "a struct's field by path");
+        assert!(set.columns.iter().all(|c| c.name != "gaps"));
+        assert_eq!(
+            f64s(column(&set, "pose.x"))[30],
+            30.0,
+            "a struct's field by path"
+        );
         assert_eq!(i64s(column(&set, "pose.n"))[30], 30);
         let structure = set.structure.join("\n");
         for left in [
+            "`gaps`: double, optional — not taken: 8 of 50 rows are null (calib needs a reading \
+             in every row)",
             "`xs.list.element`: double, optional — not taken: a list (repeated values per row)",
             "`label`: byte_array STRING, optional — not taken: strings or bytes",
             "`ok`: boolean, optional — not taken: booleans",
@@ -580,8 +622,16 @@ mod tests {
         }
         let cases: Vec<(&str, Vec<u8>, Option<&str>)> = vec![
             ("magic only", b"PAR1".to_vec(), Some("4 bytes long")),
-            ("cut short", bytes[..n / 2].to_vec(), Some("does not end in `PAR1`")),
-            ("huge footer", huge_footer, Some("footer states 4294967295 bytes")),
+            (
+                "cut short",
+                bytes[..n / 2].to_vec(),
+                Some("does not end in `PAR1`"),
+            ),
+            (
+                "huge footer",
+                huge_footer,
+                Some("footer states 4294967295 bytes"),
+            ),
             ("bytes flipped", flipped, None),
         ];
         for (what, data, says) in cases {
