@@ -401,6 +401,7 @@ fn describe(ds: &H5Dataset) -> String {
             4 => "szip",
             5 => "nbit",
             6 => "scaleoffset",
+            32000 => "lzf",
             _ => "filter",
         })
         .collect();
