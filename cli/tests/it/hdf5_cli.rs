@@ -77,7 +77,7 @@ fn csrr_of_h5py_and_matlab_v73_files_gives_the_mcap_maps() {
         &stdout(&o),
         &[
             "MATLAB v7.3 MAT-file (HDF5 after a 512-byte header)",
-            "`enc`: float64 [3301×2] → 2 channels `enc[0]` … `enc[1]`",
+            "`enc`: float64 [3301×2], shuffle+deflate+fletcher32 → 2 channels `enc[0]` … `enc[1]`",
             "`label`: uint16 [5×1] — not taken: MATLAB class `char`",
         ],
     );
