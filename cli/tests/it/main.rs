@@ -10,12 +10,16 @@ mod compose_cli;
 mod csrr_cli;
 mod export_cli;
 mod gaps_cli;
+#[cfg(feature = "hdf5")]
+mod hdf5_cli;
 mod import_cli;
 mod inspect_cli;
 mod labfiles_cli;
 mod mat_cli;
 mod multihead_cli;
 mod outputs_cli;
+#[cfg(feature = "parquet")]
+mod parquet_cli;
 mod point_lists_cli;
 mod range_cli;
 mod readme;

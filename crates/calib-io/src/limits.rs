@@ -311,6 +311,20 @@ pub(crate) fn time_problem(t: f64) -> Option<String> {
     ))
 }
 
+/// The most datasets an HDF5 (or MATLAB v7.3) file may hold for calib to read it (10,000: a DAQ
+/// export holds a dataset per channel, tens or hundreds). Checked from the file's index of
+/// datasets before any is read.
+pub const MAX_HDF5_DATASETS: usize = 10_000;
+
+/// The most columns a Parquet file's schema may have for calib to read it (10,000, as for CSV).
+/// Checked from the footer before any row group is read.
+pub const MAX_PARQUET_COLUMNS: usize = 10_000;
+
+/// The longest Parquet footer (the file's metadata) calib reads, bytes (64 MiB: a file of 10,000
+/// columns and a thousand row groups has a few MiB). The footer states its own length; a larger
+/// one is a damaged file.
+pub const MAX_PARQUET_FOOTER_BYTES: u64 = 64 << 20;
+
 #[cfg(test)]
 mod tests {
     use super::*;

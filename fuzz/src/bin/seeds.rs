@@ -260,4 +260,13 @@ fn main() {
         "reordered",
         b"correction_arcsec,angle_deg,error_arcsec\n-1,0.000000,1\n1,180.000000,-1\n",
     );
+
+    // HDF5 (byte 1: 0 = a `.h5` file) and MATLAB v7.3 (byte 1: 1 = the input after a v7.3
+    // header), and Parquet: the small fixtures h5py and pyarrow wrote.
+    let shapes = read("hdf5/shapes.h5");
+    write("hdf5_reader", "shapes_h5", &with_flags(0, &with_flags(0, &shapes)));
+    let mat = read("hdf5/quick_v73.mat");
+    write("hdf5_reader", "v73_body", &with_flags(0, &with_flags(1, &mat[512..])));
+    write("parquet_reader", "shapes", &with_flags(0, &read("parquet/shapes.parquet")));
+    write("parquet_reader", "int96", &with_flags(0, &read("parquet/legacy.parquet")));
 }

@@ -10,7 +10,11 @@ use crate::csv_log::dialect::TimeUnit;
 use crate::{Error, ReadOptions};
 
 pub(crate) mod binary;
+#[cfg(feature = "hdf5")]
+pub(crate) mod hdf5;
 pub(crate) mod mat;
+#[cfg(feature = "parquet")]
+pub(crate) mod parquet;
 pub(crate) mod reader;
 pub(crate) mod tdms;
 
@@ -37,7 +41,17 @@ pub(crate) trait ColumnFormat: Sync {
 pub(crate) const SNIFF_BYTES: usize = 128;
 
 /// Every columnar format calib reads, in the order detection tries them.
-pub(crate) static FORMATS: &[&dyn ColumnFormat] = &[&tdms::Tdms, &mat::Mat];
+pub(crate) static FORMATS: &[&dyn ColumnFormat] = &[
+    &tdms::Tdms,
+    // Before `mat::Mat`: a v7.3 file (HDF5 inside) is known by its header's text.
+    #[cfg(feature = "hdf5")]
+    &hdf5::MatV73,
+    &mat::Mat,
+    #[cfg(feature = "hdf5")]
+    &hdf5::Hdf5,
+    #[cfg(feature = "parquet")]
+    &parquet::Parquet,
+];
 
 /// The format whose [`ColumnFormat::name`] is `name`.
 pub(crate) fn by_name(name: &str) -> Option<&'static dyn ColumnFormat> {

@@ -100,7 +100,16 @@ impl ColumnReader {
                 .and_then(dialect::angle_unit)
                 .or(opts.unit)
                 .unwrap_or(AngleUnit::Deg);
-            readings.push(to_radians(path, column, unit)?);
+            // A channel with a reading no method could use (NaN, a fill value, a counter beyond
+            // the range an angle is held to) is left out and listed, not the whole file refused:
+            // files carry such columns beside the encoders.
+            match to_radians(column, unit) {
+                Ok(rad) => readings.push(rad),
+                Err(problem) => {
+                    structure.push(format!("`{}`: left out, {problem}", column.name));
+                    continue;
+                }
+            }
             all.push(Channel {
                 name: column.name.clone(),
                 unit,
@@ -214,8 +223,9 @@ impl ColumnReader {
     }
 }
 
-/// A column's readings in radians, each checked as a CSV reading is.
-fn to_radians(path: &Path, column: &Column, unit: AngleUnit) -> Result<Vec<f64>, Error> {
+/// A column's readings in radians, each checked as a CSV reading is; what is wrong with the
+/// first that is not a reading otherwise.
+fn to_radians(column: &Column, unit: AngleUnit) -> Result<Vec<f64>, String> {
     let per_unit = unit.radians_per_unit();
     let values: Vec<f64> = match &column.values {
         Values::F64(v) => v.clone(),
@@ -225,10 +235,7 @@ fn to_radians(path: &Path, column: &Column, unit: AngleUnit) -> Result<Vec<f64>,
     for (i, &v) in values.iter().enumerate() {
         let r = v * per_unit;
         if let Some(problem) = crate::limits::reading_problem(v, v, r) {
-            return Err(Error::Data {
-                path: path.to_path_buf(),
-                message: format!("channel `{}`, sample {i}: {problem}", column.name),
-            });
+            return Err(format!("sample {i}: {problem}"));
         }
         rad.push(r);
     }
@@ -792,6 +799,25 @@ mod tests {
         let (r, _) = read(set, &ReadOptions::default()).unwrap();
         assert_eq!(r.all_channels().len(), 1);
         assert!(r.structure().iter().any(|l| l.contains("`b`: left out")));
+    }
+
+    #[test]
+    fn a_channel_with_a_missing_reading_is_left_out_and_listed() {
+        let set = ColumnSet {
+            columns: vec![
+                column("t", vec![0.0, 1.0, 2.0]),
+                column("a", vec![0.0, 1.0, 2.0]),
+                column("fill", vec![0.0, f64::NAN, 2.0]),
+            ],
+            structure: vec![],
+        };
+        let (r, _) = read(set, &ReadOptions::default()).unwrap();
+        assert_eq!(r.all_channels().len(), 1);
+        assert!(
+            r.structure()
+                .iter()
+                .any(|l| l.contains("`fill`: left out, sample 1"))
+        );
     }
 
     #[test]
