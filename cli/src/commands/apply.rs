@@ -185,12 +185,25 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
         ))
         .into());
     }
-    if LogFormat::for_output(&args.output).ok() != Some(format) {
+    if !calib_io::apply::fits_output(format, &args.output) {
+        let extensions = calib_io::apply::output_extensions(format);
+        let example = args
+            .log
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .filter(|e| extensions.contains(&e.as_str()))
+            .unwrap_or_else(|| extensions[0].to_string());
+        let listed: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
+        let listed = match listed.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+            _ => listed.join(""),
+        };
         return Err(Usage(format!(
-            "{} is a .{} log; name the output with the same extension (e.g. -o corrected.{})",
+            "{} is a {} log; name the output {listed}, in the same format (e.g. -o \
+             corrected.{example})",
             args.log.display(),
-            format.name(),
-            format.name()
+            format.name().to_uppercase(),
         ))
         .into());
     }

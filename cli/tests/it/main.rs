@@ -12,6 +12,7 @@ mod export_cli;
 mod import_cli;
 mod inspect_cli;
 mod labfiles_cli;
+mod messages_cli;
 mod multihead_cli;
 mod outputs_cli;
 mod point_lists_cli;
