@@ -54,9 +54,11 @@ pub struct Args {
     /// The correction table (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`), e.g. from
     /// `calib csrr`.
     pub table: PathBuf,
-    /// The log to correct (.csv or .mcap).
+    /// The log to correct (.csv or .mcap; a CSV log in any dialect the methods read, also as
+    /// .tsv, .txt or .dat).
     pub log: PathBuf,
-    /// The corrected log to write, in the same format as LOG (and not LOG itself).
+    /// The corrected log to write, in the same format as LOG (a CSV log as .csv, .tsv, .txt or
+    /// .dat, in LOG's dialect; an MCAP log as .mcap) and not LOG itself.
     #[arg(short, long = "output", value_name = "FILE")]
     pub output: PathBuf,
     /// The channel to correct (default: the table's file name without extension, so
@@ -200,10 +202,10 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
             _ => listed.join(""),
         };
         return Err(Usage(format!(
-            "{} is a {} log; name the output {listed}, in the same format (e.g. -o \
+            "{} is a .{} log; name the output {listed}, in the same format (e.g. -o \
              corrected.{example})",
             args.log.display(),
-            format.name().to_uppercase(),
+            format.name(),
         ))
         .into());
     }
