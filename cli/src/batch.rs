@@ -222,7 +222,7 @@ pub fn run<F>(
 where
     F: Fn(&Path, &Path) -> anyhow::Result<Outcome> + Sync,
 {
-    crate::output::prepare_folder(output)?;
+    crate::output::prepare_folder(output, "-o")?;
     // Held until the run returns: a second run into the folder refuses at once.
     let _lock = crate::output::lock_folder(output, "-o")?;
     if !opts.force {
@@ -237,9 +237,12 @@ where
             &format!("-o {}", crate::ui::shown(output)),
         )?;
     }
+    if let Some(plots) = &opts.plots {
+        check_plots_folder(plots, output)?;
+    }
     let _plots_lock = match &opts.plots {
         Some(plots) => {
-            crate::output::prepare_folder(plots)?;
+            crate::output::prepare_folder(plots, "--plots")?;
             Some(crate::output::lock_folder(plots, "--plots")?)
         }
         None => None,
@@ -342,6 +345,28 @@ where
         }
         .into()),
     }
+}
+
+/// Refuses a `--plots` path that names a file of the `-o` folder (`-o out --plots
+/// out/report.html`): the plots' folder would be made where a table or report goes.
+fn check_plots_folder(plots: &Path, output: &Path) -> anyhow::Result<()> {
+    let in_output = plots
+        .parent()
+        .is_some_and(|parent| crate::output::same_path(parent, output));
+    let file_like = plots.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+        ["html", "json", "csv", "svg", "png"].contains(&e.to_ascii_lowercase().as_str())
+    });
+    if in_output && file_like {
+        return Err(exit::Usage(format!(
+            "--plots {}: this names a file in the -o folder {}, where the tables and reports \
+             go; --plots takes a folder for the plot files (SVG and PNG), e.g. --plots {}",
+            plots.display(),
+            output.display(),
+            output.join("plots").display()
+        ))
+        .into());
+    }
+    Ok(())
 }
 
 /// The output folder of each log: its file stem made safe as a file name, with `-2`, `-3`, …

@@ -10,16 +10,22 @@ use std::path::{Path, PathBuf};
 /// Checks, before any reading, that `dir` can be an output folder (an existing folder, or one
 /// that can be created where an existing folder is writable), and removes the temporary files
 /// and folders that killed calib runs left in it and beside it, telling the user how many.
-pub fn prepare_folder(dir: &Path) -> anyhow::Result<()> {
+/// `option` (`-o`, `--plots`) is the option that named it, for messages.
+pub fn prepare_folder(dir: &Path, option: &str) -> anyhow::Result<()> {
     if dir.exists() && !dir.is_dir() {
         return Err(Usage(format!(
-            "-o {}: this is a file, not a folder; name a folder for the outputs (created if \
+            "{option} {}: this is a file, not a folder; name a folder for the {} (created if \
              missing)",
-            dir.display()
+            dir.display(),
+            if option == "--plots" {
+                "plot files"
+            } else {
+                "outputs"
+            }
         ))
         .into());
     }
-    check_writable(dir, "-o")?;
+    check_writable(dir, option)?;
     report_stale(dir);
     if let Some(parent) = std::fs::canonicalize(dir)
         .ok()
@@ -318,7 +324,7 @@ fn previous_run(dir: &Path) -> Option<PreviousRun> {
 
 /// Whether two paths name the same file: by their canonical paths where both exist, else as
 /// written.
-fn same_path(a: &Path, b: &Path) -> bool {
+pub(crate) fn same_path(a: &Path, b: &Path) -> bool {
     match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
         (Ok(a), Ok(b)) => a == b,
         _ => a == b,

@@ -54,9 +54,11 @@ pub struct Args {
     /// The correction table (`angle_deg,error_arcsec,correction_arcsec[,u_arcsec]`), e.g. from
     /// `calib csrr`.
     pub table: PathBuf,
-    /// The log to correct (.csv or .mcap).
+    /// The log to correct (.csv or .mcap; a CSV log in any dialect the methods read, also as
+    /// .tsv, .txt or .dat).
     pub log: PathBuf,
-    /// The corrected log to write, in the same format as LOG (and not LOG itself).
+    /// The corrected log to write, in the same format as LOG (a CSV log as .csv, .tsv, .txt or
+    /// .dat, in LOG's dialect; an MCAP log as .mcap) and not LOG itself.
     #[arg(short, long = "output", value_name = "FILE")]
     pub output: PathBuf,
     /// The channel to correct (default: the table's file name without extension, so
@@ -185,12 +187,25 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
     if let Some(why) = format.not_rewritten() {
         return Err(Usage(format!("{}: {why}", args.log.display())).into());
     }
-    if LogFormat::for_output(&args.output).ok() != Some(format) {
+    if !calib_io::apply::fits_output(format, &args.output) {
+        let extensions = calib_io::apply::output_extensions(format);
+        let example = args
+            .log
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .filter(|e| extensions.contains(&e.as_str()))
+            .unwrap_or_else(|| extensions[0].to_string());
+        let listed: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
+        let listed = match listed.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+            _ => listed.join(""),
+        };
         return Err(Usage(format!(
-            "{} is a .{} log; name the output with the same extension (e.g. -o corrected.{})",
+            "{} is a .{} log; name the output {listed}, in the same format (e.g. -o \
+             corrected.{example})",
             args.log.display(),
             format.name(),
-            format.name()
         ))
         .into());
     }

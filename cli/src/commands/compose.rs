@@ -7,6 +7,7 @@ use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::compose::{CHECK_POINTS_PER_STEP, compose, compose_uncertainty};
 use calib_core::{ErrorMap, TableMap};
 use calib_io::export::require_whole_revolution;
+use calib_io::limits::readable;
 use calib_io::table::{Table, read_table};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -62,7 +63,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if !(args.factor.is_finite() && args.factor > 0.0 && args.factor <= 2.0) {
         return Err(Usage(format!(
             "--factor {} is not in (0, 2]: 1 takes the whole residual, less a part of it",
-            args.factor
+            readable(args.factor)
         ))
         .into());
     }
@@ -134,7 +135,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         "composed {} then {} (factor {})",
         describe(&first, &args.first),
         describe(&residual, &args.residual),
-        args.factor
+        readable(args.factor)
     );
     let _ = writeln!(
         o,

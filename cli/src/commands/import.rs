@@ -94,6 +94,20 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             Usage("--scale must be a positive number of arcseconds per code".into()).into(),
         );
     }
+    if let Some(scale) = args
+        .scale
+        .filter(|s| !calib_io::export::SCALE_ARCSEC_RANGE.contains(s))
+    {
+        let range = calib_io::export::SCALE_ARCSEC_RANGE;
+        return Err(Usage(format!(
+            "--scale {} is outside the scales calib's tables have, {:e} to {:e} arcseconds a \
+             code; give the scale the table was exported with (calib writes it in the header)",
+            calib_io::limits::readable(scale),
+            range.start(),
+            range.end()
+        ))
+        .into());
+    }
     if !args.file.exists() {
         return Err(Usage(format!(
             "{}: no such file; check the path",

@@ -221,6 +221,18 @@ fn bad_usage_is_refused_and_nothing_is_written() {
         let o = calib(&["compose", s(&first), s(&first), "-o", s(&out), &factor]);
         assert_mentions(&expect_exit(&o, 2), &["--factor"]);
     }
+    // A factor far out of range is shown as a number, not its 309 digits, beside the range.
+    let o = calib(&[
+        "compose",
+        s(&first),
+        s(&first),
+        "-o",
+        s(&out),
+        "--factor=1e308",
+    ]);
+    let err = expect_exit(&o, 2);
+    assert_mentions(&err, &["--factor 1.0000e308", "(0, 2]"]);
+    assert!(err.len() < 200, "{err}");
     let o = calib(&["compose", s(&first), s(&d.join("none.csv")), "-o", s(&out)]);
     assert_mentions(&expect_exit(&o, 2), &["none.csv", "no such table"]);
     let broken = write(

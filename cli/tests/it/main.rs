@@ -16,6 +16,7 @@ mod import_cli;
 mod inspect_cli;
 mod labfiles_cli;
 mod mat_cli;
+mod messages_cli;
 mod multihead_cli;
 mod outputs_cli;
 #[cfg(feature = "parquet")]

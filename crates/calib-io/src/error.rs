@@ -130,6 +130,20 @@ impl Error {
     }
 }
 
+/// Why a named pipe (or another stream: a terminal, `/dev/stdin`) cannot be read as a `what`
+/// (`log`, `table`): calib reads its first lines to find its layout, then reads it again from
+/// the start, and a stream gives its bytes only once.
+pub(crate) fn read_twice(what: &str) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        format!(
+            "this is a named pipe or another stream, which can be read only once, and calib \
+             reads a {what} twice (its first lines to find its layout, then the whole); save it \
+             to a file first (`cat PIPE > FILE`) and give that"
+        ),
+    )
+}
+
 /// An [`Error::Csv`] for `path` at a 1-based `line`, naming `column` where one is concerned.
 pub(crate) fn csv_error(
     path: &std::path::Path,

@@ -71,7 +71,9 @@ pub fn read_cal_dump(path: &Path, pole_pairs: Option<u32>) -> Result<CalDump, Er
         source,
     })?;
     let text = String::from_utf8_lossy(&bytes);
+    // A byte order mark (a dump saved by a Windows editor) is not part of `CAL start`.
     let lines: Vec<(u64, &str)> = text
+        .trim_start_matches('\u{feff}')
         .lines()
         .enumerate()
         .map(|(k, l)| (k as u64 + 1, l.trim()))
@@ -232,7 +234,7 @@ mod tests {
             text += &format!("2 {phase} {encoder} i1=1 i2=2\n");
         }
         text += "CAL done\n";
-        std::fs::write(&path, text).unwrap();
+        std::fs::write(&path, &text).unwrap();
         let d = read_cal_dump(&path, None).unwrap();
         assert_eq!(d.pole_pairs, 7);
         assert!(d.encoder_reversed);
@@ -243,6 +245,10 @@ mod tests {
         std::fs::write(&path, "CAL start\n1 2 x\nCAL done\n").unwrap();
         let e = read_cal_dump(&path, None).unwrap_err().to_string();
         assert!(e.contains("line 2") && e.contains("encoder"), "{e}");
+        // A byte order mark before `CAL start` is read past (a dump saved by a Windows editor).
+        let with_bom = format!("\u{feff}{text}");
+        std::fs::write(&path, with_bom).unwrap();
+        assert_eq!(read_cal_dump(&path, None).unwrap(), d);
         std::fs::write(&path, "CAL start\n1 2 3\n").unwrap();
         assert!(
             read_cal_dump(&path, None)

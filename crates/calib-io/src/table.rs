@@ -395,6 +395,15 @@ pub fn table_problem(
 /// as [`read_turn_table`] says. A range table's rows must be its grid from `lo` to `hi` (both
 /// included, within [`RANGE_GRID_TOLERANCE_DEG`]); the other checks are the same.
 pub fn read_table(path: &Path) -> Result<Table, Error> {
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    // The range marker is looked for first, then the file read again from its start.
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() && !meta.is_dir() {
+        return Err(io(crate::error::read_twice("table")));
+    }
     let marker = range_marker(path)?;
     let file = std::fs::File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),

@@ -4,6 +4,7 @@
 use crate::exit::Usage;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
+use calib_core::plan::MAX_PLANNED_ANGLES;
 use calib_core::plan::csrr::{CsrrPlan, CsrrPlanOptions, CsrrRig};
 use calib_core::plan::multihead::MultiheadPlan;
 use serde_json::json;
@@ -240,7 +241,8 @@ fn positive(name: &str, v: f64) -> anyhow::Result<()> {
         Ok(())
     } else {
         Err(anyhow::Error::new(Usage(format!(
-            "{name} must be a positive number, not {v}"
+            "{name} must be a positive number, not {}",
+            calib_io::limits::readable(v)
         ))))
     }
 }
@@ -251,9 +253,21 @@ fn non_negative(name: &str, v: f64, unit: &str) -> anyhow::Result<()> {
         Ok(())
     } else {
         Err(anyhow::Error::new(Usage(format!(
-            "{name} must be ≥ 0 {unit}, not {v}"
+            "{name} must be ≥ 0 {unit}, not {}",
+            calib_io::limits::readable(v)
         ))))
     }
+}
+
+/// Refuses more than [`MAX_PLANNED_ANGLES`] of `what` given with `option`.
+fn angles_within(option: &str, count: usize, what: &str) -> anyhow::Result<()> {
+    if count > MAX_PLANNED_ANGLES {
+        return Err(anyhow::Error::new(Usage(format!(
+            "{option}: {count} {what}, more than the {MAX_PLANNED_ANGLES} calib plans (far more \
+             than a rig mounts); give at most {MAX_PLANNED_ANGLES}"
+        ))));
+    }
+    Ok(())
 }
 
 /// A number as typed: at most six decimals, no trailing zeros (30, 0.05, 111.9).
@@ -308,6 +322,8 @@ fn csrr(args: &CsrrArgs) -> anyhow::Result<String> {
         noise_arcsec: args.noise,
         quantization_arcsec: args.resolution,
     };
+    angles_within("--sessions", args.sessions, "sessions")?;
+    angles_within("--deltas", args.deltas.len(), "relative rotations")?;
     let proposed = args.deltas.is_empty();
     let plan = if proposed {
         let opts = CsrrPlanOptions {
@@ -400,6 +416,8 @@ fn multihead(args: &MultiheadArgs) -> anyhow::Result<String> {
     }
     let samples = args.revolutions * args.rate * 60.0 / args.rpm;
     let sigma = (args.noise.powi(2) + args.resolution.powi(2) / 12.0).sqrt() / ARCSEC_PER_RAD;
+    angles_within("--heads", args.heads.unwrap_or(0), "heads")?;
+    angles_within("--positions", args.positions.len(), "head angles")?;
     let proposed = args.positions.is_empty();
     let plan = if proposed {
         let heads = args.heads.unwrap_or(0);

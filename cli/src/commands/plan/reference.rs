@@ -29,7 +29,8 @@ pub struct ReferenceArgs {
     /// after each reversal is twice it, at least calib reference's 1°.
     #[arg(long, default_value_t = 0.0, value_name = "ARCSEC")]
     pub backlash: f64,
-    /// Sample rate of both channels, Hz.
+    /// Sample rate of both channels, Hz: at least --speed ÷ the approach (30 Hz at the default
+    /// 30°/s and 1°), a sample within the approach to each target.
     #[arg(long, default_value_t = 500.0, value_name = "HZ")]
     pub rate: f64,
     /// Cruise speed of the faster passes, degrees per second (the others at a third of it, so
@@ -85,6 +86,21 @@ pub fn run(args: &ReferenceArgs) -> anyhow::Result<String> {
     };
     let plan = calib_core::plan::reference::plan(rig, &args.orders, args.targets)
         .map_err(|e| anyhow::Error::new(Usage(e.to_string())))?;
+    // Below one sample per approach a pass can reach a target with no sample on the way.
+    let approach_deg = plan.approach.to_degrees();
+    let min_rate = args.speed / approach_deg;
+    if args.rate < min_rate {
+        return Err(anyhow::Error::new(Usage(format!(
+            "--rate {} Hz is below {} Hz, the least at which the faster passes (--speed {}°/s) \
+             take a sample within the {}° approach to each target; give --rate {} or more (or a \
+             lower --speed)",
+            calib_io::limits::readable(args.rate),
+            num(min_rate),
+            num(args.speed),
+            num(approach_deg),
+            num(min_rate.ceil())
+        ))));
+    }
     let mut written = Vec::new();
     if let Some(path) = &args.procedure {
         let scenario = plan.scenario(

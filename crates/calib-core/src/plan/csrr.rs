@@ -26,6 +26,7 @@
 //! The variance `v_h` assumes readings spread uniformly over the circle and equal noise in every
 //! session, as the method's own `u` does; orders above `N` are not planned for.
 
+use super::MAX_PLANNED_ANGLES;
 use super::search::Search;
 use crate::angle::ARCSEC_PER_RAD;
 use crate::csrr::{CsrrOptions, coefficient_variance, observability};
@@ -280,17 +281,11 @@ pub fn plan(opts: &CsrrPlanOptions, run: CsrrRun) -> Result<CsrrPlan, PlanError>
     }
     let free = opts.sessions - fixed.len();
     let k = opts.sessions as f64;
-    let search = Search {
-        fixed: &fixed,
-        max_order: opts.max_order,
-        step: opts.step,
-        measure: |p: &[(f64, f64)]| {
-            let (c, s) = p.iter().fold((0.0, 0.0), |(c, s), p| (c + p.0, s + p.1));
-            let q = 1.0 - c.hypot(s) / k;
-            let spread = (1.0 - c / k) / 2.0;
-            q.min(SPREAD_WEIGHT * spread)
-        },
-    };
+    let search = Search::new(&fixed, opts.max_order, opts.step, |c: f64, s: f64| {
+        let q = 1.0 - c.hypot(s) / k;
+        let spread = (1.0 - c / k) / 2.0;
+        q.min(SPREAD_WEIGHT * spread)
+    });
     let deltas: Vec<f64> = fixed.iter().copied().chain(search.best(free)).collect();
     Ok(CsrrPlan::of(&deltas, opts.max_order, run))
 }
@@ -306,8 +301,12 @@ fn check(opts: &CsrrPlanOptions, run: CsrrRun) -> Result<(), PlanError> {
     if opts.max_order == 0 || opts.max_order > MAX_PLANNED_ORDER {
         return invalid("the highest order", opts.max_order as f64, "in 1..=20000");
     }
-    if opts.sessions < 2 {
-        return invalid("the number of sessions", opts.sessions as f64, "at least 2");
+    if !(2..=MAX_PLANNED_ANGLES).contains(&opts.sessions) {
+        return invalid(
+            "the number of sessions",
+            opts.sessions as f64,
+            "in 2..=1000",
+        );
     }
     if let Some(step) = opts.step
         && !(step.is_finite() && step > 0.0 && step <= TAU / 2.0)

@@ -16,3 +16,8 @@ pub mod reference;
 pub(crate) mod search;
 pub mod shift_angle;
 pub mod tdr;
+
+/// The most angles a CSRR or multi-head plan proposes or evaluates (`--sessions`, `--heads`,
+/// the lists of `--deltas` and `--positions`): far more than any rig mounts. Below it a
+/// proposal's time grows linearly with the angles (see `search`'s cost).
+pub const MAX_PLANNED_ANGLES: usize = 1000;

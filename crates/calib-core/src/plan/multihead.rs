@@ -11,7 +11,8 @@
 //! its eq. 3 and `G_jk` the covariance of the differences' Fourier coefficients; for a planned
 //! run of `M` samples spread evenly over the circle and equal noise `σ` per head and sample,
 //! `G_jk = σ²(1 + δ_jk)/M` (every difference holds the first head's noise). The planner calls the
-//! method's weight and propagation functions with that `G`.
+//! method's weight function, and its propagation in the closed form that `G` gives
+//! ([`planned_variance`], linear in the heads).
 //!
 //! # The search
 //! [`plan`] maximizes the worst `o_h` over `h ≤ N` by the search of `super::search` (the first
@@ -21,8 +22,10 @@
 //! EDA (eq. 9) is not planned: its sets are equally spaced by construction, so its blind orders are
 //! the multiples of each set's size. Orders above `N` are not planned for.
 
+use super::MAX_PLANNED_ANGLES;
 use super::search::Search;
-use crate::multihead::{MultiheadOptions, joint_weights, order_variance};
+use crate::multihead::{MultiheadOptions, joint_weights};
+use realfft::num_complex::Complex;
 
 /// A placement of heads and what the joint method will see with it.
 #[derive(Debug, Clone, PartialEq)]
@@ -56,14 +59,6 @@ impl MultiheadPlan {
     pub fn of(positions: &[f64], max_order: usize, samples: f64, sigma: f64) -> MultiheadPlan {
         let heads = positions.len();
         let psi: Vec<f64> = positions[1..].iter().map(|p| p - positions[0]).collect();
-        let others = psi.len();
-        let g: Vec<Vec<f64>> = (0..others)
-            .map(|j| {
-                (0..others)
-                    .map(|k| sigma * sigma * if j == k { 2.0 } else { 1.0 } / samples)
-                    .collect()
-            })
-            .collect();
         let threshold = MultiheadOptions::default().min_observability;
         let orders: Vec<HeadOrderPlan> = (1..=max_order)
             .map(|h| {
@@ -71,7 +66,7 @@ impl MultiheadPlan {
                 let u = if o < threshold {
                     f64::INFINITY
                 } else {
-                    order_variance(&g, &joint_weights(h, &psi)).sqrt()
+                    planned_variance(&joint_weights(h, &psi), sigma * sigma / samples).sqrt()
                 };
                 HeadOrderPlan {
                     order: h,
@@ -112,6 +107,15 @@ impl MultiheadPlan {
     }
 }
 
+/// The method's [`crate::multihead::order_variance`] of weights `w` for the planned covariance
+/// `G_jk = g·(1 + δ_jk)` (every difference holds the first head's noise): `2 Σ_jk Re(w_j w̄_k)
+/// G_jk = 2g·(Σ_j |w_j|² + |Σ_j w_j|²)`, in `O(J)` where `G` written out takes `O(J²)` (a plan of
+/// 1000 heads held a million-entry `G` and summed it at every order).
+pub fn planned_variance(w: &[Complex<f64>], g: f64) -> f64 {
+    let total: Complex<f64> = w.iter().sum();
+    2.0 * g * (w.iter().map(|w| w.norm_sqr()).sum::<f64>() + total.norm_sqr())
+}
+
 /// `o_h = Σ_j |e^{ihψ_j} − 1|²/(2J)` over the heads after the first (`ψ` relative to it).
 pub fn observability(order: usize, psi: &[f64], heads: usize) -> f64 {
     psi.iter()
@@ -134,8 +138,8 @@ pub fn plan(
         value,
         expected,
     };
-    if heads < 2 {
-        return Err(invalid("the number of heads", heads as f64, "at least 2"));
+    if !(2..=MAX_PLANNED_ANGLES).contains(&heads) {
+        return Err(invalid("the number of heads", heads as f64, "in 2..=1000"));
     }
     if max_order == 0 || max_order > super::csrr::MAX_PLANNED_ORDER {
         return Err(invalid(
@@ -157,12 +161,7 @@ pub fn plan(
     }
     let fixed = [0.0];
     let j = heads as f64;
-    let search = Search {
-        fixed: &fixed,
-        max_order,
-        step,
-        measure: |p: &[(f64, f64)]| p.iter().map(|p| 1.0 - p.0).sum::<f64>() / j,
-    };
+    let search = Search::new(&fixed, max_order, step, |c: f64, _| (j - c) / j);
     let positions: Vec<f64> = fixed
         .iter()
         .copied()
@@ -177,6 +176,7 @@ pub fn plan(
 mod tests {
     use super::*;
     use crate::angle::ARCSEC_PER_RAD;
+    use crate::multihead::order_variance;
 
     fn rad(d: &[f64]) -> Vec<f64> {
         d.iter().map(|d| d.to_radians()).collect()
@@ -326,6 +326,29 @@ mod tests {
             // The method estimates the noise from the bins' residuals and its bins hold the
             // ramps' samples too: agreement to tens of percent, the bar is 1.5.
             assert!((1.0 / 1.5..1.5).contains(&ratio), "ratio {ratio}");
+        }
+    }
+
+    /// The closed form of the planned variance is the method's propagation through the
+    /// written-out `G_jk = g·(1 + δ_jk)` (to rounding).
+    #[test]
+    fn planned_variance_is_the_methods_propagation() {
+        let psi = rad(&[17.0, 95.5, 143.0, 211.2, 300.9]);
+        let g = 3e-14;
+        let full: Vec<Vec<f64>> = (0..psi.len())
+            .map(|j| {
+                (0..psi.len())
+                    .map(|k| g * if j == k { 2.0 } else { 1.0 })
+                    .collect()
+            })
+            .collect();
+        for h in [1, 2, 7, 84, 199] {
+            let w = joint_weights(h, &psi);
+            let (closed, method) = (planned_variance(&w, g), order_variance(&full, &w));
+            assert!(
+                (closed - method).abs() <= 1e-12 * method,
+                "{h}: {closed} {method}"
+            );
         }
     }
 }

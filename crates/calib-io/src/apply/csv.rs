@@ -4,16 +4,19 @@
 //! quotes) so that each record's raw bytes, and the raw span of each field, are known: the
 //! `csv` crate hands out unquoted fields, from which the original bytes cannot be rebuilt. The
 //! field syntax accepted is the [`CsvReader`](crate::csv_log::CsvReader)'s: surrounding spaces,
-//! a UTF-8 byte order mark, blank lines, quoted fields, and its dialects
-//! ([`crate::csv_log::dialect`]): the separator (`,` `;` tab) and the lines before the header are
-//! found as the reader finds them, and copied as they are, so the output keeps the input's
-//! dialect.
+//! a UTF-8 byte order mark, blank lines, quoted fields, line ends `\n`, `\r\n` or `\r` alone
+//! (old Mac files), and its dialects ([`crate::csv_log::dialect`]): the separator (`,` `;` tab),
+//! the lines before the header, a units row, decimal commas, sparse rows and TwinCAT Scope's
+//! property block are found as the reader finds them, and copied as they are, so the output keeps
+//! the input's dialect. Two layouts are refused, each saying why: columns aligned by runs of
+//! spaces (a rewritten field would shift the columns after it) and files without a header (no
+//! column names the channel).
 
 use super::Readings;
 use crate::Error;
 use crate::atomic::AtomicFile;
-use crate::csv_log::dialect::{self, Dialect};
-use crate::csv_log::parse_f64;
+use crate::csv_log::dialect::{self, Dialect, Header, WHITESPACE};
+use crate::csv_log::{parse_f64, parse_f64_comma};
 use crate::error::csv_error;
 use crate::limits::{LineLimit, line_too_long};
 use calib_core::AngleUnit;
@@ -40,6 +43,28 @@ struct Records {
     lines: u64,
     /// The field separator.
     separator: u8,
+    /// The byte that ends a line: `\n`, or `\r` in a file whose lines end with it alone.
+    line_end: u8,
+    /// Numbers are written with a decimal comma.
+    decimal_comma: bool,
+}
+
+/// The bytes looked at to tell a file whose lines end with `\r` alone.
+const LINE_END_SNIFF: u64 = 1 << 16;
+
+/// The byte that ends `path`'s lines: `\r` where its start has a `\r` and no `\n` (old Mac
+/// line ends, which the methods read), else `\n` (`\r\n` lines end at their `\n`).
+fn line_end(path: &Path) -> std::io::Result<u8> {
+    use std::io::Read as _;
+    let mut head = Vec::new();
+    File::open(path)?
+        .take(LINE_END_SNIFF)
+        .read_to_end(&mut head)?;
+    Ok(if head.contains(&b'\r') && !head.contains(&b'\n') {
+        b'\r'
+    } else {
+        b'\n'
+    })
 }
 
 impl Records {
@@ -50,19 +75,29 @@ impl Records {
             source,
         };
         let (file, dialect) = dialect::open(path).map_err(io)?;
-        if !dialect.is_plain() {
+        let refused = if dialect.separator == WHITESPACE {
+            Some(
+                "its columns are aligned by runs of spaces, which a corrected field of another width would shift",
+            )
+        } else if matches!(dialect.header, Header::None { .. }) {
+            Some("it has no header row naming the channel's column")
+        } else {
+            None
+        };
+        if let Some(why) = refused {
             return Err(csv_error(
                 path,
                 1,
                 None,
                 format!(
-                    "this file is laid out as {}: the methods read it, but `apply` rewrites only \
-                     CSV logs with one header row and `,` `;` or tab separators; apply the table \
-                     to a copy in that layout (as `calib simulate` writes)",
+                    "this file is laid out as {}: the methods read it, but `apply` does not \
+                     rewrite it ({why}); apply the table to a copy with a header row and `,` `;` \
+                     or tab separators (as `calib simulate` writes)",
                     dialect.describe()
                 ),
             ));
         }
+        let line_end = line_end(path).map_err(io)?;
         let records = Records {
             path: path.to_path_buf(),
             input: BufReader::with_capacity(1 << 16, LineLimit::new(file)),
@@ -71,6 +106,8 @@ impl Records {
             line: 0,
             lines: 1,
             separator: dialect.separator,
+            line_end,
+            decimal_comma: dialect.decimal_comma,
         };
         Ok((records, dialect))
     }
@@ -84,7 +121,7 @@ impl Records {
         loop {
             let n = self
                 .input
-                .read_until(b'\n', &mut self.record)
+                .read_until(self.line_end, &mut self.record)
                 .map_err(|source| match line_too_long(&source) {
                     Some(long) => Error::Csv {
                         path: self.path.clone(),
@@ -176,19 +213,36 @@ enum Row {
     Other,
     /// The header, and the channel's column in it.
     Header(usize),
+    /// The units row after the header, and the channel's column in it.
+    Units(usize),
+    /// A sparse row without a reading of the channel (its field empty), and the channel's column.
+    Empty(usize),
     /// A data row: the channel's column and its value (in the file's unit).
     Data(usize, f64),
 }
 
-/// A pass over the log: `each(records, row)` for every record, in order (see [`Row`]).
+/// A pass over the log: `each(records, row)` for every record, in order (see [`Row`]). With
+/// `keep` (a column to be added beside the channel's), a layout that has no header row to add
+/// it to (TwinCAT Scope's property block) is refused.
 fn walk(
     path: &Path,
     channel: &str,
+    keep: bool,
     mut each: impl FnMut(&Records, Row) -> Result<(), Error>,
 ) -> Result<(), Error> {
     let (mut records, dialect) = Records::open(path)?;
-    // The lines before the header (instrument, date, …) are copied as they are: `skip`
-    // records, not counting blank lines (which the dialect's reader passes over).
+    if keep && matches!(dialect.header, Header::Properties(_)) {
+        return Err(records.error(
+            None,
+            "this TwinCAT Scope export names its channels in a block of property rows, where \
+             the `keep` option cannot add a column; leave the `keep` option out (the channel is \
+             corrected in place)"
+                .into(),
+        ));
+    }
+    // The lines before the header (instrument, date, …; TwinCAT's property block) are copied as
+    // they are: `skip` records, not counting blank lines (which the dialect's reader passes
+    // over).
     let mut skipped = 0;
     while skipped < dialect.skip {
         if !records.next()? {
@@ -199,31 +253,27 @@ fn walk(
         }
         each(&records, Row::Other)?;
     }
-    // The header is the first record that is not a blank line.
-    loop {
-        if !records.next()? {
-            return Err(records.error(
-                None,
-                "the file is empty; a CSV log needs a header row such as `t,a,b`".into(),
-            ));
-        }
-        if !records.fields.is_empty() {
-            break;
-        }
-        each(&records, Row::Other)?;
-    }
-    let names: Vec<String> = (0..records.fields.len())
-        .map(|i| {
-            let f = records.field(i);
-            let f = if i == 0 {
-                f.strip_prefix(UTF8_BOM).unwrap_or(&f).to_vec()
+    let (names, time) = match &dialect.header {
+        Header::Properties(p) => {
+            let names: Vec<String> = p
+                .filetime
+                .then(|| "FILETIME".to_string())
+                .into_iter()
+                .chain(p.names.iter().cloned())
+                .collect();
+            let time = if p.filetime {
+                Some(0)
             } else {
-                f.into_owned()
+                dialect::time_column(&names, None, None).map(|(i, _)| i)
             };
-            String::from_utf8_lossy(f.trim_ascii()).into_owned()
-        })
-        .collect();
-    let time = dialect::time_column(&names, None, None).map(|(i, _)| i);
+            (names, time)
+        }
+        _ => {
+            let names = header_names(&mut records, &mut each)?;
+            let time = dialect::time_column(&names, None, None).map(|(i, _)| i);
+            (names, time)
+        }
+    };
     let is_channel = |i: usize| Some(i) != time && names[i] != "session";
     let column = (0..names.len())
         .find(|&i| names[i] == channel && is_channel(i))
@@ -240,9 +290,27 @@ fn walk(
                 ),
             )
         })?;
-    each(&records, Row::Header(column))?;
+    if let Header::Row { units } = &dialect.header {
+        each(&records, Row::Header(column))?;
+        if units.is_some() {
+            // The units row: the first record after the header that is not a blank line.
+            while records.next()? {
+                if !records.fields.is_empty() {
+                    each(&records, Row::Units(column))?;
+                    break;
+                }
+                each(&records, Row::Other)?;
+            }
+        }
+    }
+    let twincat = matches!(dialect.header, Header::Properties(_));
     while records.next()? {
         if records.fields.is_empty() {
+            each(&records, Row::Other)?;
+            continue;
+        }
+        // TwinCAT Scope ends its exports with a line `EOF`.
+        if twincat && records.fields.len() == 1 && &*records.field(0) == b"EOF" {
             each(&records, Row::Other)?;
             continue;
         }
@@ -259,7 +327,16 @@ fn walk(
             ));
         }
         let raw = records.field(column);
-        let value = parse_f64(&raw).filter(|v| v.is_finite()).ok_or_else(|| {
+        if dialect.sparse && raw.trim_ascii().is_empty() {
+            each(&records, Row::Empty(column))?;
+            continue;
+        }
+        let number = if dialect.decimal_comma {
+            parse_f64_comma(&raw)
+        } else {
+            parse_f64(&raw)
+        };
+        let value = number.filter(|v| v.is_finite()).ok_or_else(|| {
             records.error(
                 Some(channel),
                 format!(
@@ -273,10 +350,41 @@ fn walk(
     Ok(())
 }
 
+/// Reads up to the header (the first record that is not a blank line, the blank lines handed to
+/// `each` as they come) and returns its names.
+fn header_names(
+    records: &mut Records,
+    each: &mut impl FnMut(&Records, Row) -> Result<(), Error>,
+) -> Result<Vec<String>, Error> {
+    loop {
+        if !records.next()? {
+            return Err(records.error(
+                None,
+                "the file is empty; a CSV log needs a header row such as `t,a,b`".into(),
+            ));
+        }
+        if !records.fields.is_empty() {
+            break;
+        }
+        each(records, Row::Other)?;
+    }
+    Ok((0..records.fields.len())
+        .map(|i| {
+            let f = records.field(i);
+            let f = if i == 0 {
+                f.strip_prefix(UTF8_BOM).unwrap_or(&f).to_vec()
+            } else {
+                f.into_owned()
+            };
+            String::from_utf8_lossy(f.trim_ascii()).into_owned()
+        })
+        .collect())
+}
+
 /// The range of the channel's readings.
 pub(super) fn scan(path: &Path, channel: &str, unit: AngleUnit) -> Result<Readings, Error> {
     let mut range = Readings::new(unit);
-    walk(path, channel, |_, row| {
+    walk(path, channel, false, |_, row| {
         if let Row::Data(_, x) = row {
             range.add(x, unit);
         }
@@ -295,23 +403,57 @@ fn resolving_decimals(unit: AngleUnit) -> usize {
 }
 
 /// `value` written as the file writes the reading it replaces (`field`'s raw bytes): as many
-/// decimals (at least [`resolving_decimals`]) and the same decimal mark, so the corrected column
-/// reads like the others. `None` for a field in another notation (an exponent, quotes), which
-/// gets the shortest form that reads back exactly.
-fn as_written(value: f64, field: &[u8], unit: AngleUnit) -> Option<String> {
+/// decimals (at least [`resolving_decimals`]) and the same decimal mark (`,` where
+/// `decimal_comma` or the field has one), in the same notation (an exponent if the field has
+/// one, as many mantissa decimals, at least those that resolve 0.001″) and within the same
+/// quotes, so the corrected column reads like the others. `None` for a field that is none of
+/// these (`inf`, text), which gets the shortest form that reads back exactly.
+fn as_written(value: f64, field: &[u8], unit: AngleUnit, decimal_comma: bool) -> Option<String> {
     let field = std::str::from_utf8(field).ok()?.trim();
-    if !field
-        .bytes()
-        .all(|b| b.is_ascii_digit() || matches!(b, b'-' | b'+' | b'.' | b','))
-    {
-        return None;
+    if let Some(inner) = field.strip_prefix('"').and_then(|f| f.strip_suffix('"')) {
+        return Some(format!(
+            "\"{}\"",
+            as_written(value, inner.as_bytes(), unit, decimal_comma)?
+        ));
     }
-    let mark = if field.contains(',') { ',' } else { '.' };
-    let decimals = field
-        .rsplit_once(mark)
-        .map_or(0, |(_, d)| d.len())
-        .max(resolving_decimals(unit));
-    Some(format!("{value:.decimals$}").replace('.', &mark.to_string()))
+    let plain = |f: &str| {
+        !f.is_empty()
+            && f.bytes()
+                .all(|b| b.is_ascii_digit() || matches!(b, b'-' | b'+' | b'.' | b','))
+    };
+    let mark = if decimal_comma || field.contains(',') {
+        ','
+    } else {
+        '.'
+    };
+    let decimals_of = |mantissa: &str| mantissa.rsplit_once(mark).map_or(0, |(_, d)| d.len());
+    let resolving = resolving_decimals(unit);
+    let text = if let Some((mantissa, exponent)) = field.split_once(['e', 'E']) {
+        if !plain(mantissa) || exponent.parse::<i32>().is_err() {
+            return None;
+        }
+        // Mantissa decimals that resolve 0.001″ at this value's magnitude.
+        let magnitude = if value == 0.0 {
+            0
+        } else {
+            value.abs().log10().floor() as i64
+        };
+        let needed = (resolving as i64 + magnitude).clamp(0, 17) as usize;
+        let decimals = decimals_of(mantissa).max(needed);
+        let written = format!("{value:.decimals$e}");
+        if field.contains('E') {
+            written.replace('e', "E")
+        } else {
+            written
+        }
+    } else {
+        if !plain(field) {
+            return None;
+        }
+        let decimals = decimals_of(field).max(resolving);
+        format!("{value:.decimals$}")
+    };
+    Some(text.replace('.', &mark.to_string()))
 }
 
 /// Writes `output` with the channel's readings corrected; returns how many. With `keep`, the
@@ -331,9 +473,27 @@ pub(super) fn rewrite(
     };
     let mut count = 0u64;
     let mut number = ryu::Buffer::new();
-    walk(input, channel, |records, row| {
+    walk(input, channel, keep.is_some(), |records, row| {
         let (column, x) = match row {
             Row::Other => return out.write_all(&records.record).map_err(io),
+            // The added column's unit is the channel's; a row without the channel's reading has
+            // none of the corrected one either.
+            Row::Units(column) | Row::Empty(column) => {
+                if keep.is_none() {
+                    return out.write_all(&records.record).map_err(io);
+                }
+                let span = records.fields[column].clone();
+                let added: &[u8] = match row {
+                    Row::Units(_) => &records.record[span.clone()],
+                    _ => b"",
+                };
+                return out
+                    .write_all(&records.record[..span.end])
+                    .and_then(|()| out.write_all(&[records.separator]))
+                    .and_then(|()| out.write_all(added))
+                    .and_then(|()| out.write_all(&records.record[span.end..]))
+                    .map_err(io);
+            }
             Row::Header(column) => {
                 let Some(name) = keep else {
                     return out.write_all(&records.record).map_err(io);
@@ -360,7 +520,7 @@ pub(super) fn rewrite(
         let span = records.fields[column].clone();
         let field = &records.record[span.clone()];
         let corrected = fix.apply(x);
-        let text = as_written(corrected, field, fix.unit())
+        let text = as_written(corrected, field, fix.unit(), records.decimal_comma)
             .unwrap_or_else(|| number.format_finite(corrected).to_string());
         if keep.is_some() {
             out.write_all(&records.record[..span.end])
@@ -384,23 +544,52 @@ mod tests {
 
     #[test]
     fn corrected_readings_are_written_as_the_file_writes_them() {
+        let deg = AngleUnit::Deg;
         // As many decimals as the reading replaced…
         assert_eq!(
-            as_written(1.234_567_890_123, b"1.230000000", AngleUnit::Rad).as_deref(),
+            as_written(1.234_567_890_123, b"1.230000000", AngleUnit::Rad, false).as_deref(),
             Some("1.234567890")
         );
         // …but never so few that the correction rounds away (0.001″ in degrees: 7 decimals).
         assert_eq!(
-            as_written(12.500_277_8, b"12.5", AngleUnit::Deg).as_deref(),
+            as_written(12.500_277_8, b"12.5", deg, false).as_deref(),
             Some("12.5002778")
         );
-        // A decimal comma stays a comma.
+        // A decimal comma stays a comma, also in a field that has none (`12` in a file of
+        // decimal commas).
         assert_eq!(
-            as_written(-0.25, b" -0,2500000 ", AngleUnit::Deg).as_deref(),
+            as_written(-0.25, b" -0,2500000 ", deg, false).as_deref(),
             Some("-0,2500000")
         );
-        // Other notations get the shortest exact form.
-        assert_eq!(as_written(1.0, b"1e-3", AngleUnit::Rad), None);
-        assert_eq!(as_written(1.0, b"\"1.0\"", AngleUnit::Rad), None);
+        assert_eq!(
+            as_written(12.000_277_8, b"12", deg, true).as_deref(),
+            Some("12,0002778")
+        );
+        // Text is not a reading's notation: the shortest exact form.
+        assert_eq!(as_written(1.0, b"inf", AngleUnit::Rad, false), None);
+    }
+
+    /// A quoted field stays quoted, with its decimals (it was written in full precision,
+    /// `4.242966911843782e-9`, unquoted); a field in exponent notation keeps it, with its
+    /// mantissa's decimals or those that resolve 0.001″ (radians: 4.8e-9).
+    #[test]
+    fn quoted_and_exponent_fields_keep_their_notation() {
+        let rad = AngleUnit::Rad;
+        assert_eq!(
+            as_written(0.123_456_789_04, b"\"0.123400000\"", rad, false).as_deref(),
+            Some("\"0.123456789\"")
+        );
+        assert_eq!(
+            as_written(1.234_567_8e-3, b"1.2e-3", rad, false).as_deref(),
+            Some("1.234568e-3")
+        );
+        assert_eq!(
+            as_written(1.234_567_8e-3, b"1.200000000E-03", rad, false).as_deref(),
+            Some("1.234567800E-3")
+        );
+        assert_eq!(
+            as_written(-2.5, b"\"-2,50e0\"", AngleUnit::Deg, true).as_deref(),
+            Some("\"-2,5000000e0\"")
+        );
     }
 }

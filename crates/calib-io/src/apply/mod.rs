@@ -152,7 +152,7 @@ impl Readings {
 /// [module docs](self)): a whole-turn map corrects every reading; a range map the readings inside
 /// its range, the others copied unchanged and counted in [`Applied::outside`].
 ///
-/// `output` must have the input's format (`.csv` or `.mcap`) and must not be `input` itself,
+/// `output` must have the input's format ([`output_extensions`]) and must not be `input` itself,
 /// which the caller checks (the rename would replace the log being read). Errors name the file,
 /// the line or message, and the channel: a channel the log does not have (listing those it has),
 /// a reading that is not a finite number, a JointState message with fewer positions than names,
@@ -182,19 +182,41 @@ fn formats(input: &Path, output: &Path) -> Result<LogFormat, Error> {
     if !format.rewritable() {
         return Err(not_rewritten(input, format));
     }
-    let out_format = LogFormat::for_output(output)?;
-    if out_format != format {
+    if !fits_output(format, output) {
         return Err(Error::Write {
             path: output.to_path_buf(),
             message: format!(
-                "the input {} is {}; write the corrected log in the same format (a .{} file)",
+                "the input {} is {}; write the corrected log in the same format (a {} file)",
                 input.display(),
                 format.name(),
-                format.name()
+                output_extensions(format)
+                    .iter()
+                    .map(|e| format!(".{e}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         });
     }
     Ok(format)
+}
+
+/// The extensions a corrected log of `format` may be written under: a CSV log under any of the
+/// extensions calib reads CSV from (`.tsv`, `.txt` and `.dat` are the same text, in the input's
+/// dialect), an MCAP log as `.mcap`.
+pub fn output_extensions(format: LogFormat) -> &'static [&'static str] {
+    match format {
+        LogFormat::Csv => &["csv", "tsv", "txt", "dat"],
+        LogFormat::Mcap => &["mcap"],
+        LogFormat::Rosbag => &[],
+    }
+}
+
+/// Whether `output`'s extension is one of [`output_extensions`]`(format)` (case aside).
+pub fn fits_output(format: LogFormat, output: &Path) -> bool {
+    output
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| output_extensions(format).contains(&e.to_ascii_lowercase().as_str()))
 }
 
 /// The chunks an MCAP log needs for them to be read in parallel and the output written on

@@ -273,8 +273,14 @@ pub(crate) fn unbracket(text: &str) -> &str {
 }
 
 /// Opens `path` and finds its dialect from its first [`SNIFF_BYTES`]; the file is handed back
-/// rewound to its start.
+/// rewound to its start. A named pipe (or another stream that cannot be rewound) is refused
+/// with [`crate::error::read_twice`], not left to fail with the system's "Illegal seek".
 pub fn open(path: &Path) -> io::Result<(File, Dialect)> {
+    // Looked at before opening: opening a pipe waits for a writer.
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() && !meta.is_dir() {
+        return Err(crate::error::read_twice("log"));
+    }
     let mut file = File::open(path)?;
     let mut head = Vec::with_capacity(SNIFF_BYTES);
     (&mut file)

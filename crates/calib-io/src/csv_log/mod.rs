@@ -36,7 +36,8 @@ pub mod time_step;
 mod writer;
 
 pub(crate) use fields::{
-    csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, wrong_width,
+    csv_reader, from_csv, header_names, line_at, line_of, not_a_number, parse_f64, parse_f64_comma,
+    wrong_width,
 };
 pub use reader::CsvReader;
 pub use writer::CsvWriter;

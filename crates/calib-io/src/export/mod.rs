@@ -318,6 +318,19 @@ pub enum ExportError {
         /// Where the fixed quantum comes from.
         why: &'static str,
     },
+    /// A scale outside [`SCALE_ARCSEC_RANGE`], whatever the table.
+    #[error(
+        "`scale_arcsec = {shown}` ″/LSB is outside the scales calib writes, {lo:e} to {hi:e} \
+         ″/LSB (a microarcsecond to a whole turn a code); give a scale in that range, or leave \
+         the `scale_arcsec` option out for the finest that holds the table",
+        shown = crate::limits::readable(*scale_arcsec),
+        lo = SCALE_ARCSEC_RANGE.start(),
+        hi = SCALE_ARCSEC_RANGE.end()
+    )]
+    ScaleRange {
+        /// The scale asked for, arcseconds per LSB.
+        scale_arcsec: f64,
+    },
     /// A value beyond what the format can encode.
     #[error(
         "the error at reading {angle_deg:.6}° is {arcsec:.3}″, beyond the ±{limit_arcsec:.0}″ \
@@ -673,6 +686,7 @@ pub fn export(table: &TableMap, opts: &ExportOptions) -> Result<Export, ExportEr
                     "export more --points (a table of N entries holds the orders below N/2)"
                 }
             ),
+            _ if format == Format::Simplefoc => simplefoc_advice(fit),
             _ => "Check the fit line of the header: the table's quantum (--scale) or its size \
                   (--points) is too coarse for this table."
                 .to_string(),
@@ -681,6 +695,28 @@ pub fn export(table: &TableMap, opts: &ExportOptions) -> Result<Export, ExportEr
     }
     header.extend(warnings.iter().map(|w| format!("warning: {w}")));
     Ok(assemble(format, header, &rendered.body, fit, warnings))
+}
+
+/// What to do about a SimpleFOC table that leaves `fit`: its code is fixed by the driver
+/// (19.78″, no `--scale`), so where what is left is about the rounding to it (at most 0.6 of a
+/// code RMS; rounding alone leaves 0.29), the cause is the format's quantum, which no option
+/// changes; else the table's size.
+fn simplefoc_advice(fit: &Fit) -> String {
+    let quantum = simplefoc::QUANTUM_RAD * ARCSEC_PER_RAD;
+    if fit.rms <= 0.6 * simplefoc::QUANTUM_RAD {
+        format!(
+            "The cause is the format's quantum: SimpleFOC's uint16 table holds the error in \
+             codes of {quantum:.2} arcsec, fixed by the driver (CalibratedSensor's LUT_SCALE; \
+             the `scale_arcsec` option does not apply), coarse against this table's error, and the \
+             `points` option cannot change that. Load it as it is if that is good enough, or \
+             correct this error with a finer table: `format = simplefoc-float` (SimpleFOC \
+             releases before PR #75) or a `format = lut-*` table in your own firmware."
+        )
+    } else {
+        "Check the fit line of the header: the table's size (the `points` option) is too coarse \
+         for this table (its code, 19.78 arcsec, is fixed by the driver)."
+            .to_string()
+    }
 }
 
 /// The verdict on a table that leaves `fit` of its source (see [Tables that would not
@@ -748,6 +784,11 @@ fn assemble(
     }
 }
 
+/// The scales an integer table may be given, arcseconds per LSB: from a microarcsecond (a
+/// thousand times finer than any encoder resolves) to a whole turn a code. Beyond them a scale
+/// is a typing error, and its messages would print its hundreds of digits.
+pub const SCALE_ARCSEC_RANGE: std::ops::RangeInclusive<f64> = 1e-6..=1_296_000.0;
+
 /// Integer codes for `values` (arcseconds) of at most `max_code` in magnitude: the scale
 /// (arcseconds per LSB) given, or the smallest that holds the largest value, and
 /// `round(value / scale)` for each. A scale too small for the values is refused, never
@@ -757,6 +798,11 @@ fn quantize(
     max_code: i64,
     scale: Option<f64>,
 ) -> Result<(f64, Vec<i64>), ExportError> {
+    if let Some(scale) = scale.filter(|s| !SCALE_ARCSEC_RANGE.contains(s)) {
+        return Err(ExportError::ScaleRange {
+            scale_arcsec: scale,
+        });
+    }
     let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     // The smallest scale that fits: the largest value on the largest code.
     let fits = largest / max_code as f64;
@@ -867,6 +913,24 @@ mod tests {
             ..fit(0.0)
         };
         assert_eq!(flat.left_fraction(), 0.0);
+    }
+
+    /// A scale far out of range is refused with the range, in a line, not with the 300-digit
+    /// code it would need (`--scale 1e-300`) or its own 300 digits (`--scale 1e300`).
+    #[test]
+    fn a_scale_out_of_range_is_refused_with_the_range() {
+        for scale in [1e-300, 1e300, 5e-7, 1.3e6] {
+            let err = quantize(&[12.0, -3.0], 127, Some(scale)).unwrap_err();
+            assert!(matches!(err, ExportError::ScaleRange { .. }), "{err}");
+            let text = err.to_string();
+            assert!(
+                text.contains("1e-6 to 1.296e6") && text.len() < 300,
+                "{text}"
+            );
+        }
+        // Its ends are accepted.
+        assert!(quantize(&[12.0, -3.0], 32767, Some(1e-3)).is_ok());
+        assert!(quantize(&[1e6, -3.0], 127, Some(1_296_000.0)).is_ok());
     }
 
     #[test]

@@ -81,28 +81,7 @@ pub(super) fn parse(
         }
         from += next.close + 1;
     }
-    let mut values = Vec::new();
-    for (token, offset) in entries(&code, array.open + 1, array.close) {
-        let line = line_at(&code, offset);
-        check_count(path, line, values.len())?;
-        let value = match format {
-            Format::Simplefoc => token
-                .parse::<u16>()
-                .map(|c| f64::from(decode(c)))
-                .map_err(|_| format!("`{token}` is not a uint16_t code (0 to 65535)")),
-            _ => token
-                .trim_end_matches(['f', 'F'])
-                .parse::<f32>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .map(|v| match format {
-                    Format::CArray => -f64::from(v) / ARCSEC_PER_RAD,
-                    _ => f64::from(v),
-                })
-                .ok_or_else(|| format!("`{token}` is not a finite float")),
-        };
-        values.push(value.map_err(|m| at(path, line, m))?);
-    }
+    let values = read_entries(&code, &array, format, path, &mut Lines::new(&code))?;
     if let Some(size) = declared_size(&code, &array.declaration) {
         match size {
             Ok(n) if n == values.len() => {}
@@ -162,6 +141,41 @@ fn is_of(format: Format, declaration: &str) -> bool {
         Format::Simplefoc => words.contains(&"uint16_t"),
         _ => words.contains(&"float"),
     }
+}
+
+/// The entries of `array` decoded as `format` reads them (see the module docs), each checked
+/// against [`crate::limits::MAX_TABLE_POINTS`] as it is counted. `lines` gives each entry's line
+/// for messages.
+fn read_entries(
+    code: &str,
+    array: &Array,
+    format: Format,
+    path: &Path,
+    lines: &mut Lines<'_>,
+) -> Result<Vec<f64>, Error> {
+    let mut values = Vec::new();
+    for (token, offset) in entries(code, array.open + 1, array.close) {
+        let line = lines.at(offset);
+        check_count(path, line, values.len())?;
+        let value = match format {
+            Format::Simplefoc => token
+                .parse::<u16>()
+                .map(|c| f64::from(decode(c)))
+                .map_err(|_| format!("`{token}` is not a uint16_t code (0 to 65535)")),
+            _ => token
+                .trim_end_matches(['f', 'F'])
+                .parse::<f32>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .map(|v| match format {
+                    Format::CArray => -f64::from(v) / ARCSEC_PER_RAD,
+                    _ => f64::from(v),
+                })
+                .ok_or_else(|| format!("`{token}` is not a finite float")),
+        };
+        values.push(value.map_err(|m| at(path, line, m))?);
+    }
+    Ok(values)
 }
 
 /// What `format` reads, for messages.
@@ -257,6 +271,39 @@ fn line_at(code: &str, offset: usize) -> usize {
     code[..offset].matches('\n').count() + 1
 }
 
+/// The lines of the entries, counted as they are walked: each byte between two entries is
+/// looked at once, so a table of `n` entries costs `O(n)` however they are laid out. (Counting
+/// from the file's start for each entry cost `O(n²)`: 100,000 entries one a line took over a
+/// minute.)
+struct Lines<'a> {
+    code: &'a str,
+    /// The offset counted up to, and its 1-based line.
+    offset: usize,
+    line: usize,
+    /// Bytes looked at so far (what the tests bound).
+    scanned: usize,
+}
+
+impl<'a> Lines<'a> {
+    fn new(code: &'a str) -> Self {
+        Lines {
+            code,
+            offset: 0,
+            line: 1,
+            scanned: 0,
+        }
+    }
+
+    /// The 1-based line of byte `offset`, which is at or after the previous call's.
+    fn at(&mut self, offset: usize) -> usize {
+        let passed = &self.code[self.offset..offset];
+        self.scanned += passed.len();
+        self.line += passed.matches('\n').count();
+        self.offset = offset;
+        self.line
+    }
+}
+
 /// `text` with `//` and `/* */` comments replaced by spaces (line ends kept, so offsets and
 /// lines stay those of the file).
 fn strip_comments(text: &str) -> String {
@@ -290,4 +337,54 @@ fn strip_comments(text: &str) -> String {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A SimpleFOC table of `n` codes, one a line, as printLUT() prints it.
+    fn one_a_line(n: usize) -> String {
+        let mut text = format!("uint16_t calibrationLut[{n}] = {{\n");
+        for k in 0..n {
+            text += &format!("  {},\n", 32767 + (k % 7) as u16);
+        }
+        text + "};\n"
+    }
+
+    /// The lines of the entries are counted by looking at each byte once: the work grows as the
+    /// table, not as its square (a count from the start for each entry made 100,000 entries
+    /// take over a minute).
+    #[test]
+    fn entry_lines_cost_one_look_at_each_byte() {
+        for n in [1_000, 10_000] {
+            let code = strip_comments(&one_a_line(n));
+            let array = first_array(&code).unwrap();
+            let mut lines = Lines::new(&code);
+            let values = read_entries(
+                &code,
+                &array,
+                Format::Simplefoc,
+                Path::new("t.h"),
+                &mut lines,
+            )
+            .unwrap();
+            assert_eq!(values.len(), n);
+            assert!(
+                lines.scanned <= code.len(),
+                "{} of {}",
+                lines.scanned,
+                code.len()
+            );
+            // The last entry is on line n + 1 (the declaration on line 1).
+            assert_eq!(lines.line, n + 1);
+        }
+        // Errors still name the entry's line.
+        let mut text = one_a_line(5);
+        text = text.replace("  32770,", "  x,");
+        let e = parse(&text, Path::new("t.h"), Format::Simplefoc)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 5") && e.contains("`x`"), "{e}");
+    }
 }
