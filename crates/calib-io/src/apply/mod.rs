@@ -207,7 +207,7 @@ pub fn output_extensions(format: LogFormat) -> &'static [&'static str] {
     match format {
         LogFormat::Csv => &["csv", "tsv", "txt", "dat"],
         LogFormat::Mcap => &["mcap"],
-        LogFormat::Rosbag => &[],
+        LogFormat::Rosbag | LogFormat::Ros1Bag | LogFormat::Columns(_) => &[],
     }
 }
 
