@@ -231,7 +231,7 @@ pub struct InspectJson {
     /// What a columnar file (TDMS, MATLAB, HDF5, Parquet) holds: its format, then its groups,
     /// variables, datasets or columns, a line each, and where the time was taken from; absent
     /// for the other formats.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub structure: Vec<String>,
     /// The log's topics (MCAP and rosbag2; none for CSV), read or not.
     pub topics: Vec<TopicInfo>,

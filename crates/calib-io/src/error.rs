@@ -14,7 +14,7 @@ pub enum Error {
         source: std::io::Error,
     },
     /// The file's extension names no format calib reads.
-    #[error("{}: unknown log format; calib reads {} (a rosbag2 bag as its directory or a .db3 file)", path.display(), crate::log::formats_read())]
+    #[error("{}: unknown log format; calib reads {}", path.display(), crate::log::formats_read())]
     UnknownFormat {
         /// The file.
         path: PathBuf,

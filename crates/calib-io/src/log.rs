@@ -255,16 +255,29 @@ fn foreign_kind(head: &[u8]) -> Option<(&'static str, &'static str)> {
     if let Some((_, kind, todo)) = KINDS.iter().find(|(magic, _, _)| head.starts_with(magic)) {
         return Some((kind, todo));
     }
-    // Text has no NUL bytes (UTF-16 aside, caught above).
-    head.contains(&0)
+    // Text has no NUL bytes (UTF-16 aside, caught above). Only the first 16 bytes judge: a text
+    // log with a stray NUL further on is refused by its reader, naming the line.
+    head[..head.len().min(16)]
+        .contains(&0)
         .then_some(("binary data", "name the log file"))
 }
 
 /// The formats calib reads, as help texts and errors list them: CSV, MCAP, rosbag2 and the
 /// columnar formats of [`columns::FORMATS`].
 pub fn formats_read() -> String {
-    let mut names = vec!["CSV", "MCAP", "rosbag2 bags", "ROS 1 bags"];
-    names.extend(columns::FORMATS.iter().map(|f| f.name()));
+    let mut names: Vec<String> = [
+        "CSV (.csv)",
+        "MCAP (.mcap)",
+        "rosbag2 bags (a bag directory or .db3)",
+        "ROS 1 bags (.bag)",
+    ]
+    .map(String::from)
+    .to_vec();
+    names.extend(
+        columns::FORMATS
+            .iter()
+            .map(|f| format!("{} (.{})", f.name(), f.extensions().join(", ."))),
+    );
     names.join(", ")
 }
 

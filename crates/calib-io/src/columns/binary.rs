@@ -260,6 +260,42 @@ pub(crate) fn as_variant(values: Values, wide: bool) -> Values {
     }
 }
 
+/// Why a columnar file could not be read: the system, or its content (a message naming where).
+#[derive(Debug)]
+pub(crate) enum Fail {
+    /// Reading the file failed.
+    Io(std::io::Error),
+    /// Its content is not what its format says.
+    Bad(String),
+}
+
+impl From<std::io::Error> for Fail {
+    fn from(e: std::io::Error) -> Self {
+        Fail::Io(e)
+    }
+}
+
+/// Opens `path` and reads it with `read` (given the file and its length), its failures as the
+/// crate's errors naming the file.
+pub(crate) fn read_file<T>(
+    path: &std::path::Path,
+    read: impl FnOnce(&mut std::fs::File, u64) -> Result<T, Fail>,
+) -> Result<T, crate::Error> {
+    let io = |source| crate::Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    read(&mut file, len).map_err(|e| match e {
+        Fail::Io(source) => io(source),
+        Fail::Bad(message) => crate::Error::Data {
+            path: path.to_path_buf(),
+            message,
+        },
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -29,13 +29,12 @@
 //! variable's header states; here every length is checked against the file, and compressed
 //! variables are inflated with a cap on their size, before anything is allocated.
 
-use std::fs::File;
-use std::io::{self, Read, Seek, SeekFrom};
+use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
 use flate2::read::ZlibDecoder;
 
-use super::binary::{Cursor, Endian, Kind, as_variant, extend};
+use super::binary::{Cursor, Endian, Fail, Kind, as_variant, extend, read_file};
 use super::{Column, ColumnFormat, ColumnSet, ColumnTime, Values};
 use crate::limits::{self, MAX_CSV_COLUMNS, MAX_DECOMPRESSION_RATIO};
 use crate::{Error, ReadOptions};
@@ -62,32 +61,7 @@ impl ColumnFormat for Mat {
     }
 
     fn read(&self, path: &Path, _opts: &ReadOptions) -> Result<ColumnSet, Error> {
-        let io = |source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let mut file = File::open(path).map_err(io)?;
-        let len = file.metadata().map_err(io)?.len();
-        read_mat(&mut file, len).map_err(|e| match e {
-            Fail::Io(source) => io(source),
-            Fail::Bad(message) => Error::Data {
-                path: path.to_path_buf(),
-                message,
-            },
-        })
-    }
-}
-
-/// Why a file could not be read: the system, or its content (a message naming where).
-#[derive(Debug)]
-enum Fail {
-    Io(io::Error),
-    Bad(String),
-}
-
-impl From<io::Error> for Fail {
-    fn from(e: io::Error) -> Self {
-        Fail::Io(e)
+        read_file(path, read_mat)
     }
 }
 
@@ -742,7 +716,7 @@ mod tests {
     use super::*;
 
     fn read(bytes: &[u8]) -> Result<ColumnSet, String> {
-        read_mat(&mut io::Cursor::new(bytes), bytes.len() as u64).map_err(|e| match e {
+        read_mat(&mut std::io::Cursor::new(bytes), bytes.len() as u64).map_err(|e| match e {
             Fail::Io(e) => format!("io: {e}"),
             Fail::Bad(m) => m,
         })

@@ -568,9 +568,19 @@ fn steady_hint(columns: &[Column]) -> Option<String> {
         .iter()
         .find(|c| steadily_increasing(&c.values))
         .map(|c| {
+            // Quoted where a shell would expand it (`data_1[0]` is a glob).
+            let value = if c
+                .name
+                .chars()
+                .all(|ch| ch.is_alphanumeric() || matches!(ch, '_' | '-' | '.' | '/'))
+            {
+                c.name.clone()
+            } else {
+                format!("'{}'", c.name)
+            };
             format!(
-                "`{0}` increases steadily: if it is the time, give `time_column = {0}` (and the \
-                 `time_unit` option if it is not in seconds)",
+                "`{}` increases steadily: if it is the time, give `time_column = {value}` (and \
+                 the `time_unit` option if it is not in seconds)",
                 c.name
             )
         })
@@ -711,7 +721,7 @@ mod tests {
             .err()
             .unwrap()
             .to_string();
-        assert!(err.contains("`time_column = data_1[0]`"), "{err}");
+        assert!(err.contains("`time_column = 'data_1[0]'`"), "{err}");
         let opts = ReadOptions {
             time_column: Some("data_1[0]".into()),
             ..ReadOptions::default()

@@ -26,11 +26,10 @@
 //! names the segment and the channel.
 
 use std::collections::HashMap;
-use std::fs::File;
-use std::io::{self, Read, Seek, SeekFrom};
+use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
-use super::binary::{Cursor, DecodeError, Endian, Kind, extend};
+use super::binary::{Cursor, DecodeError, Endian, Fail, Kind, extend, read_file};
 use super::{Column, ColumnFormat, ColumnSet, ColumnTime, Values};
 use crate::csv_log::dialect::TimeUnit;
 use crate::limits::{self, MAX_CSV_COLUMNS, readable};
@@ -57,32 +56,7 @@ impl ColumnFormat for Tdms {
     }
 
     fn read(&self, path: &Path, _opts: &ReadOptions) -> Result<ColumnSet, Error> {
-        let io = |source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let mut file = File::open(path).map_err(io)?;
-        let len = file.metadata().map_err(io)?.len();
-        read_tdms(&mut file, len).map_err(|e| match e {
-            Fail::Io(source) => io(source),
-            Fail::Bad(message) => Error::Data {
-                path: path.to_path_buf(),
-                message,
-            },
-        })
-    }
-}
-
-/// Why a file could not be read: the system, or its content (a message naming where).
-#[derive(Debug)]
-enum Fail {
-    Io(io::Error),
-    Bad(String),
-}
-
-impl From<io::Error> for Fail {
-    fn from(e: io::Error) -> Self {
-        Fail::Io(e)
+        read_file(path, read_tdms)
     }
 }
 
@@ -1115,7 +1089,7 @@ mod tests {
     }
 
     fn read(bytes: &[u8]) -> Result<ColumnSet, String> {
-        read_tdms(&mut io::Cursor::new(bytes), bytes.len() as u64).map_err(|e| match e {
+        read_tdms(&mut std::io::Cursor::new(bytes), bytes.len() as u64).map_err(|e| match e {
             Fail::Io(e) => format!("io: {e}"),
             Fail::Bad(m) => m,
         })

@@ -334,7 +334,11 @@ fn csv_rewrites_the_channel_field_only() {
     for (k, head, tail, deg) in expect {
         let line = lines[k];
         assert!(line.starts_with(head) && line.ends_with(tail), "{line}");
-        let v: f64 = line[head.len()..line.len() - tail.len()].parse().unwrap();
+        // A quoted field stays quoted (issue 52: the input's formatting is kept).
+        let field = &line[head.len()..line.len() - tail.len()];
+        let quoted = field.starts_with('"') && field.ends_with('"') && field.len() > 1;
+        assert_eq!(quoted, k == 3, "{line}");
+        let v: f64 = field.trim_matches('"').parse().unwrap();
         assert!((v - want_deg(deg)).abs() <= HALF_DECIMAL, "{line}");
     }
     // 0° reads 30″ high: corrected into [0, 360) from below.
