@@ -24,7 +24,7 @@ pub enum LogFormat {
     /// file. Read only.
     Rosbag,
     /// A file whose channels are whole columns (TDMS, MATLAB, HDF5, Parquet), by the name of its
-    /// [`ColumnFormat`]. Read only.
+    /// `ColumnFormat`. Read only.
     Columns(&'static str),
     /// A ROS 1 bag (`.bag`, format 2.0). Read only.
     Ros1Bag,
@@ -263,7 +263,7 @@ fn foreign_kind(head: &[u8]) -> Option<(&'static str, &'static str)> {
 }
 
 /// The formats calib reads, as help texts and errors list them: CSV, MCAP, rosbag2 and the
-/// columnar formats of [`columns::FORMATS`].
+/// columnar formats calib-io lists (TDMS, MATLAB, HDF5, Parquet).
 pub fn formats_read() -> String {
     let mut names: Vec<String> = [
         "CSV (.csv)",
@@ -282,7 +282,7 @@ pub fn formats_read() -> String {
 }
 
 /// One line per columnar format calib reads (TDMS, MATLAB, …): what it is, who writes it and
-/// how its channels are named, from [`columns::FORMATS`], for the help texts.
+/// how its channels are named, from calib-io's list of them, for the help texts.
 pub fn column_formats_help() -> Vec<String> {
     columns::FORMATS
         .iter()

@@ -274,7 +274,7 @@ pub(crate) fn unbracket(text: &str) -> &str {
 
 /// Opens `path` and finds its dialect from its first [`SNIFF_BYTES`]; the file is handed back
 /// rewound to its start. A named pipe (or another stream that cannot be rewound) is refused
-/// with [`crate::error::read_twice`], not left to fail with the system's "Illegal seek".
+/// with `read_twice`'s message, not left to fail with the system's "Illegal seek".
 pub fn open(path: &Path) -> io::Result<(File, Dialect)> {
     // Looked at before opening: opening a pipe waits for a writer.
     let meta = std::fs::metadata(path)?;
