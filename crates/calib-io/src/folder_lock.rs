@@ -84,8 +84,18 @@ impl FolderLock {
                 .open(&path)
                 .map_err(io_err(&path))?;
             if !try_lock(&file).map_err(io_err(&path))? {
+                // The holder writes who it is right after it locks: a run that lost the race by
+                // microseconds gives it up to 100 ms to, so that the message names it.
                 let mut holder = String::new();
-                let _ = file.read_to_string(&mut holder);
+                for _ in 0..20 {
+                    holder.clear();
+                    let _ = std::io::Seek::rewind(&mut file);
+                    let _ = file.read_to_string(&mut holder);
+                    if !holder.trim().is_empty() {
+                        break;
+                    }
+                    std::thread::sleep(std::time::Duration::from_millis(5));
+                }
                 return Err(LockError::Held {
                     folder,
                     lock: path,
