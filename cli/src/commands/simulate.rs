@@ -27,6 +27,10 @@ use std::path::{Path, PathBuf};
 ///   [[sensor]]           one channel: name, mount = "a" | "b" (rotor A or the shaft),
 ///                        harmonics = [{ order, amplitude_arcsec, phase_deg }] (its error,
 ///                        amplitude·cos(order·θ + phase)), quantization_arcsec, noise_arcsec;
+///                        delay_s (latency), backlash_arcsec (play of its coupling),
+///                        commanded = true (reads the drive's commanded angle), ratio = 50.0
+///                        (behind a gear: turns 50 times per turn of its rotor, its error a
+///                        function of its own angle, as an actuator's motor encoder);
 ///                        or a head on a shared scale: scale = "NAME", head_deg,
 ///                        head_error_arcsec
 ///   [[scale]]            a graduated scale read by several heads: name, harmonics, mount

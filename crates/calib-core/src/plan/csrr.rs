@@ -118,6 +118,7 @@ impl CsrrRig {
             delay_s: 0.0,
             backlash_arcsec: 0.0,
             commanded: false,
+            ratio: 1.0,
         };
         Scenario {
             rate_hz: self.rate_hz,

@@ -276,6 +276,7 @@ mod tests {
                         delay_s: 0.0,
                         backlash_arcsec: 0.0,
                         commanded: false,
+                        ratio: 1.0,
                     })
                     .collect(),
                 procedure: Procedure {

@@ -139,6 +139,7 @@ impl ReferencePlan {
             delay_s: 0.0,
             backlash_arcsec: backlash,
             commanded: false,
+            ratio: 1.0,
         };
         Scenario {
             rate_hz: self.rig.rate_hz,

@@ -179,6 +179,7 @@ impl TdrPlan {
                 delay_s: 0.0,
                 backlash_arcsec: 0.0,
                 commanded: false,
+                ratio: 1.0,
             }],
             ..Scenario::default()
         }

@@ -245,6 +245,7 @@ impl Scenario {
                     half_play: 0.5 * s.backlash_arcsec / ARCSEC_PER_RAD,
                     follower: None,
                     commanded: s.commanded,
+                    ratio: s.ratio,
                 }
             })
             .collect();
@@ -331,7 +332,7 @@ impl Scenario {
     /// it swept, as a range map on a grid of step at most `2π/points` from its lowest to its
     /// highest reading (mean removed over the range), `(channel name, map)` in channel order.
     /// `None` for other procedures, and for a channel whose readings cover a whole revolution
-    /// (its truth is then [`Scenario::truth`]'s).
+    /// or that sits behind a gear (its truth is then [`Scenario::truth`]'s).
     ///
     /// The shaft's true angle `θ = φ + ε_θ(φ)` and every reading `θ + e(θ)` increase with the
     /// nominal angle `φ` (validation bounds both slopes), so the swept readings run from the
@@ -356,7 +357,12 @@ impl Scenario {
         Ok(Some(
             truths
                 .into_iter()
-                .map(|t| {
+                .zip(&self.sensors)
+                .map(|(t, s)| {
+                    // A sensor behind a gear: its truth is a whole turn of its own angle.
+                    if s.ratio != 1.0 {
+                        return (t.name, None);
+                    }
                     let r_lo = t_lo + t.error_at_true(t_lo);
                     let r_hi = t_hi + t.error_at_true(t_hi);
                     let span = r_hi - r_lo;
@@ -501,6 +507,8 @@ struct ChannelSim {
     follower: Option<f64>,
     /// Reads the commanded angle `φ`, not the rotor.
     commanded: bool,
+    /// Turns per turn of the rotor (a sensor behind a gear).
+    ratio: f64,
 }
 
 /// What moves the rotors: the CSRR procedure or a free coast-down.
@@ -557,7 +565,8 @@ pub struct Samples {
     need_b: usize,
     powers_a: Powers,
     powers_b: Powers,
-    /// Powers for a channel that is not at its rotor's angle (delayed, with play, commanded).
+    /// Powers for a channel that is not at its rotor's angle (delayed, with play, commanded,
+    /// geared).
     powers_scratch: Powers,
     /// The last relative rotation Δ and its `(sin Δ, cos Δ)`: Δ changes only during turns.
     rotation: Option<(f64, (f64, f64))>,
@@ -577,7 +586,8 @@ pub struct SampleWithTruth {
     /// The sample as a log would hold it.
     pub sample: Sample,
     /// Per channel, the true angle of its rotor at the sampling instant, radians, accumulated
-    /// (never wrapped): `θ_B` for mount `b` and heads on a `b` scale, `θ_B + Δ` for mount `a`.
+    /// (never wrapped): `θ_B` for mount `b` and heads on a `b` scale, `θ_B + Δ` for mount `a`;
+    /// for a sensor behind a gear, its own angle (`ratio` times its rotor's).
     pub true_angles: Vec<f64>,
     /// The relative rotation `Δ = θ_A − θ_B` at the sampling instant, radians.
     pub relative: f64,
@@ -638,7 +648,7 @@ impl Samples {
         let mut values = Vec::with_capacity(self.channels.len());
         let motion = &mut self.motion;
         for ch in &mut self.channels {
-            let special = ch.delay != 0.0 || ch.half_play > 0.0 || ch.commanded;
+            let special = ch.delay != 0.0 || ch.half_play > 0.0 || ch.commanded || ch.ratio != 1.0;
             let at = |s: &State| match ch.mount {
                 _ if ch.commanded => s.phi,
                 Mount::A => s.theta_b + s.delta,
@@ -655,6 +665,8 @@ impl Samples {
                 *f = f.clamp(theta - ch.half_play, theta + ch.half_play);
                 theta = *f;
             }
+            // Behind a gear the sensor turns `ratio` times the rotor.
+            theta *= ch.ratio;
             if let Some(truth) = truth.as_deref_mut() {
                 truth.push(theta);
             }

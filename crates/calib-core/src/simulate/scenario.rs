@@ -173,6 +173,20 @@ pub struct Sensor {
     /// pairs). Not allowed with `scale`.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub commanded: bool,
+    /// Turns of this sensor per turn of its rotor (default 1): a sensor behind a gear, as an
+    /// actuator's motor encoder is behind the gear whose output the rotor is (`ratio = 50.0`;
+    /// negative where it turns the other way). Its error `harmonics` are a function of its own
+    /// angle `ratio·θ`, and it reads `ratio·θ + e(ratio·θ)`. Not allowed with `scale`.
+    #[serde(default = "unit_ratio", skip_serializing_if = "is_unit_ratio")]
+    pub ratio: f64,
+}
+
+fn unit_ratio() -> f64 {
+    1.0
+}
+
+fn is_unit_ratio(v: &f64) -> bool {
+    *v == 1.0
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -597,8 +611,19 @@ impl Scenario {
                 sensor: s.name.clone(),
                 problem,
             };
+            check(
+                || field("ratio"),
+                s.ratio,
+                s.ratio != 0.0 && s.ratio.abs() <= 1e4,
+                "a real number other than 0, at most 10⁴ in size",
+            )?;
             match &s.scale {
                 Some(scale) => {
+                    if s.ratio != 1.0 {
+                        return Err(conflict(
+                            "`ratio` is not allowed with `scale`: a head turns with its scale",
+                        ));
+                    }
                     if s.commanded {
                         return Err(conflict(
                             "`commanded` is not allowed with `scale`: a commanded angle is the drive's, not a head's",
