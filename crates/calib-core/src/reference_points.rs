@@ -499,6 +499,7 @@ pub fn calibrate_points_with_directions(
         ripple: None,
         quantization: None,
         warnings,
+        gear: None,
     })
 }
 

@@ -112,12 +112,18 @@
 
 mod ends;
 mod gaps;
+mod gear;
 mod latency;
 mod quantum;
 mod ripple;
 
 pub use ends::EndCorrection;
 pub use gaps::{GAP_RATIO, PassGap};
+pub use gear::{
+    Coincidence, DEFAULT_REFERENCE_ORDERS, Gear, GearResult, GearedCal, MAX_FIT_SAMPLES,
+    MIN_RANGE_REFERENCE_TURNS, MIN_REFERENCE_TURNS, Ratio, RatioSource, ReferenceMap, ReferenceRun,
+    ReferenceTerm,
+};
 pub use latency::{LatencyFit, MIN_SPEED_SPREAD};
 pub use quantum::Quantization;
 pub use ripple::{Ripple, RippleTerm};
@@ -290,6 +296,18 @@ pub enum ReferenceError {
         /// Pole pairs given.
         pole_pairs: u32,
     },
+    /// The reference turns at another ratio than the one given.
+    #[error(
+        "the reference turned {measured:.4} times per turn of the DUT, but the `ref_ratio` option says {given}: check the \
+         gear's ratio and its sign (negative where the reference turns the other way), or let calib estimate it with \
+         `ref_ratio = auto`"
+    )]
+    RatioMismatch {
+        /// The ratio given.
+        given: f64,
+        /// The ratio the run shows (least-squares slope of the reference's reading on the DUT's).
+        measured: f64,
+    },
     /// The options cannot work.
     #[error("invalid options: {0}")]
     Options(String),
@@ -443,6 +461,8 @@ pub struct ReferenceCalibration {
     pub quantization: Option<Quantization>,
     /// What the user should know about the result.
     pub warnings: Vec<String>,
+    /// A reference through a gear: the ratio and the reference's own map (module `gear`).
+    pub gear: Option<GearResult>,
 }
 
 /// The time offset between the channels in a calibration.
@@ -1264,6 +1284,7 @@ impl ReferenceCal {
             ripple,
             quantization,
             warnings,
+            gear: None,
         })
     }
 }

@@ -2,7 +2,9 @@
 
 use super::{AfterCorrection, ChannelReport, Details, ReportSection, arcsec, table_name};
 use crate::TableMap;
-use crate::reference_cal::{LatencySource, PointStats, ReferenceCalibration};
+use crate::reference_cal::{
+    GearResult, LatencySource, PointStats, RatioSource, ReferenceCalibration,
+};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -69,6 +71,63 @@ pub struct ReferenceDetails {
     /// not take out, in every point's u (absent where the readings are not quantized).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub quantization: Option<QuantizationReport>,
+    /// Turns of the reference per turn of the DUT, through a gear (`--ref-ratio`; absent on one
+    /// shaft).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ratio: Option<f64>,
+    /// The ratio's standard uncertainty, where it was estimated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ratio_u: Option<f64>,
+    /// The gear: where the ratio comes from, the reference's own map, what cannot be separated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gear: Option<Box<GearReport>>,
+}
+
+/// A reference through a gear (module `reference_cal::gear`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GearReport {
+    /// `given` or `estimated`.
+    pub ratio_source: String,
+    /// Turns of the reference over the DUT's travel.
+    pub reference_turns: f64,
+    /// The reference's table (its error over one of its turns), where its map was separated.
+    pub reference_table: Option<String>,
+    /// Largest standard uncertainty of the reference's table, arcsec of its own angle.
+    pub reference_max_u_arcsec: Option<f64>,
+    /// The terms of the reference's map, `amplitude·cos(k·r + phase)` in its own angle.
+    pub reference_terms: Vec<ReferenceTermReport>,
+    /// Orders of the DUT that are the reference's over this run: in the reference's map.
+    pub coincident: Vec<CoincidenceReport>,
+    /// What this run cannot tell apart, and where it was put.
+    pub not_separable: Vec<String>,
+}
+
+/// One term of the reference's map.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceTermReport {
+    /// Cycles per turn of the reference.
+    pub order: u32,
+    /// Amplitude, arcsec of the reference's angle.
+    pub amplitude_arcsec: f64,
+    /// Its standard uncertainty, arcsec.
+    pub u_amplitude_arcsec: f64,
+    /// Phase, degrees.
+    pub phase_deg: f64,
+    /// Passed the significance rule: in the reference's table (else left out, its variance in
+    /// the table's u).
+    pub kept: bool,
+}
+
+/// A DUT order that is a reference order over the run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CoincidenceReport {
+    /// Cycles per turn of the DUT.
+    pub dut_order: u32,
+    /// Cycles per turn of the reference.
+    pub reference_order: u32,
 }
 
 /// The DUT's quantization in a reference calibration's u.
@@ -422,17 +481,110 @@ impl ReferenceCalibration {
                         .collect(),
                 })
             }),
+            ratio: None,
+            ratio_u: None,
+            gear: None,
         };
+        let gear = self.gear.as_ref().map(|g| gear_report(g, reference));
+        let details = ReferenceDetails {
+            ratio: self.gear.as_ref().map(|g| g.ratio),
+            ratio_u: self.gear.as_ref().and_then(|g| g.ratio_u),
+            gear: gear.map(Box::new),
+            ..details
+        };
+        let mut channels = BTreeMap::from([(dut.to_string(), ch)]);
+        if let Some(m) = self.gear.as_ref().and_then(|g| g.reference_map.as_ref()) {
+            channels.insert(
+                reference.to_string(),
+                ChannelReport::of_map(&table_name(reference), &m.map, 10),
+            );
+        }
         let mut warnings = self.warnings.clone();
         if reference_u_arcsec.is_none() {
             warnings.push(U_EXCLUDES_REFERENCE.to_string());
         }
         ReportSection {
             method: "reference",
-            channels: BTreeMap::from([(dut.to_string(), ch)]),
+            channels,
             sessions: Vec::new(),
             warnings,
             details: Details::Reference(details),
         }
+    }
+}
+
+/// The report of a reference through a gear, `reference` its channel.
+fn gear_report(g: &GearResult, reference: &str) -> GearReport {
+    let mut not_separable = Vec::new();
+    if g.reference_map.is_none() {
+        not_separable.push(format!(
+            "the reference turned {:.2} time(s) over the DUT's travel, too few to separate: its own error is in \
+             the DUT's map",
+            g.reference_turns
+        ));
+    }
+    if !g.coincident.is_empty() {
+        not_separable.push(format!(
+            "the DUT's orders {} are the reference's over this run: both in the reference's map",
+            g.coincident
+                .iter()
+                .map(|c| c.dut_order.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    if g.range && g.reference_map.is_some() {
+        not_separable.push(format!(
+            "over a range, what repeats every turn of the reference (the DUT's error at {:.3}, {:.3}, … cycles per turn) \
+             is in the reference's map",
+            g.ratio.abs(),
+            2.0 * g.ratio.abs()
+        ));
+    }
+    if g.line_in_ratio {
+        not_separable.push(
+            "over a range with the ratio estimated, the DUT's straight-line part (a scale error) is in the ratio: the \
+             map has none"
+                .to_string(),
+        );
+    }
+    not_separable.push(
+        "a gear's transmission error periodic in the reference's angle is in the reference's map, periodic in the \
+         DUT's angle in the DUT's map"
+            .to_string(),
+    );
+    GearReport {
+        ratio_source: match g.source {
+            RatioSource::Given => "given",
+            RatioSource::Estimated => "estimated",
+        }
+        .to_string(),
+        reference_turns: g.reference_turns,
+        reference_table: g.reference_map.as_ref().map(|_| table_name(reference)),
+        reference_max_u_arcsec: g
+            .reference_map
+            .as_ref()
+            .map(|m| arcsec(m.u.iter().fold(0.0f64, |a, &u| a.max(u)))),
+        reference_terms: g
+            .reference_map
+            .iter()
+            .flat_map(|m| &m.terms)
+            .map(|t| ReferenceTermReport {
+                order: t.order,
+                amplitude_arcsec: arcsec(t.amplitude),
+                u_amplitude_arcsec: arcsec(t.u_amplitude),
+                phase_deg: t.phase.to_degrees(),
+                kept: t.kept,
+            })
+            .collect(),
+        coincident: g
+            .coincident
+            .iter()
+            .map(|c| CoincidenceReport {
+                dut_order: c.dut_order,
+                reference_order: c.reference_order,
+            })
+            .collect(),
+        not_separable,
     }
 }
