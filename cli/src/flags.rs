@@ -19,6 +19,8 @@ const FLAGS: &[(&str, &str)] = &[
     ("ref", "--ref"),
     ("time_unit", "--time-unit"),
     ("time_column", "--time-column"),
+    ("ref_ratio", "--ref-ratio"),
+    ("ref_orders", "--ref-orders"),
     ("time", "--time"),
     ("skip_damaged", "--skip-damaged"),
     ("keep", "--keep"),

@@ -201,9 +201,10 @@ fn render_next(log: &std::path::Path, suggestions: &[calib_core::purpose::Sugges
             ),
             _ => c.join(" "),
         };
+        let extra: String = s.options.iter().map(|x| format!(" {x}")).collect();
         let _ = writeln!(
             o,
-            "  calib {} {} {options}\n    ({})",
+            "  calib {} {} {options}{extra}\n    ({})",
             s.method,
             log.display(),
             s.why

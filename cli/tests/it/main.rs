@@ -10,6 +10,7 @@ mod compose_cli;
 mod csrr_cli;
 mod export_cli;
 mod gaps_cli;
+mod gear_cli;
 #[cfg(feature = "hdf5")]
 mod hdf5_cli;
 mod import_cli;

@@ -29,6 +29,9 @@ pub struct Suggestion {
     pub channels: Vec<String>,
     /// What in the log suits it.
     pub why: String,
+    /// Options beyond the channels (`--ref-ratio auto` for an actuator).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub options: Vec<String>,
 }
 
 /// The methods `inspection`'s log suits, the likeliest first; none when it suits none.
@@ -43,6 +46,7 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
             why: format!(
                 "`{a}` and `{b}` turn together in sessions at {angles} different relative angles"
             ),
+            options: Vec::new(),
         });
     }
     let turning: Vec<&ChannelStats> = ch.iter().filter(|c| c.travel_revolutions >= 1.0).collect();
@@ -58,9 +62,22 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
                 turning.len(),
                 turning[0].travel_revolutions
             ),
+            options: Vec::new(),
         });
     }
-    if ch.len() >= 2
+    let geared = geared(ch);
+    if let Some((output, motor, ratio)) = geared {
+        out.push(Suggestion {
+            method: "reference".into(),
+            channels: vec![output.name.clone(), motor.name.clone()],
+            why: format!(
+                "`{}` travels {ratio:.2} times as far as `{}`: an actuator, its motor's encoder behind a gear of \
+                 about {ratio:.2}:1 and its output's encoder; both maps come from the run",
+                motor.name, output.name
+            ),
+            options: vec!["--ref-ratio".into(), "auto".into()],
+        });
+    } else if ch.len() >= 2
         && let Some(joint) = ch.iter().find(|c| span_revolutions(c) < 0.999)
     {
         let other = other_than(ch, &joint.name);
@@ -79,6 +96,7 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
                 joint.name,
                 span_revolutions(joint) * 360.0
             ),
+            options: Vec::new(),
         });
     } else if let (Some((a, b)), 1, false) = (&inspection.pair, angles, heads) {
         let (dut, reference) = if is_reference(a) { (b, a) } else { (a, b) };
@@ -89,6 +107,7 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
                 "`{a}` and `{b}` turn together at one relative angle: an encoder and a reference \
                  on one shaft"
             ),
+            options: Vec::new(),
         });
     }
     if angles < 2
@@ -97,11 +116,14 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
             .find(|c| c.travel_revolutions >= COAST_REVOLUTIONS)
     {
         let mut channels = vec![shaft.name.clone()];
+        // Through a gear the other channel is no reference of this shaft.
         channels.extend(
-            ch.iter()
-                .filter(|c| c.name != shaft.name)
-                .find(|c| c.travel_revolutions >= COAST_REVOLUTIONS)
-                .map(|c| c.name.clone()),
+            geared.is_none().then_some(()).and(
+                ch.iter()
+                    .filter(|c| c.name != shaft.name)
+                    .find(|c| c.travel_revolutions >= COAST_REVOLUTIONS)
+                    .map(|c| c.name.clone()),
+            ),
         );
         out.push(Suggestion {
             method: "tdr".into(),
@@ -111,10 +133,31 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
                  calibrates it alone",
                 shaft.name, shaft.travel_revolutions
             ),
+            options: Vec::new(),
         });
     }
     out
 }
+
+/// Two channels of which one travels at least [`GEAR_RATIO`] times as far as the other: an
+/// actuator's output encoder, its motor's encoder and the ratio of their travels.
+fn geared(channels: &[ChannelStats]) -> Option<(&ChannelStats, &ChannelStats, f64)> {
+    let [a, b] = channels else {
+        return None;
+    };
+    let (slow, fast) = if a.travel_revolutions <= b.travel_revolutions {
+        (a, b)
+    } else {
+        (b, a)
+    };
+    let ratio = fast.travel_revolutions / slow.travel_revolutions;
+    (slow.travel_revolutions > 0.0 && ratio.is_finite() && ratio >= GEAR_RATIO)
+        .then_some((slow, fast, ratio))
+}
+
+/// The ratio of two channels' travels from which they are taken for an actuator's two encoders
+/// (far from 1: two encoders on one shaft travel alike, whatever their errors).
+const GEAR_RATIO: f64 = 1.5;
 
 /// Relative angles, 1° apart or more, of the sessions of at least one revolution the pair's
 /// segmentation found: CSRR needs two or more.

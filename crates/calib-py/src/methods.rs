@@ -12,7 +12,9 @@ use calib_core::Report;
 use calib_core::TableMap;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::csrr::{Csrr, CsrrError, CsrrOptions, Method};
-use calib_core::reference_cal::{Latency, ReferenceCal, ReferenceKind, ReferenceOptions, Targets};
+use calib_core::reference_cal::{
+    Gear, Latency, Ratio, ReferenceKind, ReferenceOptions, ReferenceRun, Targets,
+};
 use calib_core::report::ReportSection;
 use calib_core::segment::SegmentOptions;
 use numpy::{PyArray1, PyReadonlyArray1};
@@ -509,6 +511,36 @@ fn reference_options(
     })
 }
 
+/// The gear of `ref_ratio` (a number or `"auto"`; `None`: one shaft) and `ref_orders`, as
+/// `calib reference --ref-ratio --ref-orders` takes them.
+fn gear_of(
+    ref_ratio: Option<&Bound<'_, PyAny>>,
+    ref_orders: usize,
+    ref_kind: &str,
+) -> PyResult<Option<Gear>> {
+    let Some(value) = ref_ratio else {
+        return Ok(None);
+    };
+    let ratio = match value.extract::<f64>() {
+        Ok(r) => r.to_string().parse::<Ratio>(),
+        Err(_) => value
+            .extract::<String>()
+            .map_err(|_| usage("ref_ratio: give a number or \"auto\""))?
+            .parse::<Ratio>(),
+    }
+    .map_err(|e| usage(format!("ref_ratio: {e}")))?;
+    if ref_kind != "encoder" {
+        return Err(usage(
+            "ref_ratio is for a reference encoder through a gear, not a commanded reference: drop one of ref_ratio and ref_kind",
+        ));
+    }
+    check_range("ref_orders", ref_orders as f64, 0.0, 200.0, "orders")?;
+    Ok(Some(Gear {
+        ratio,
+        reference_orders: ref_orders,
+    }))
+}
+
 /// The result dictionary of a reference calibration.
 fn reference_result<'py>(
     py: Python<'py>,
@@ -527,19 +559,28 @@ fn reference_result<'py>(
         TableMap::Turn(m) => (0.0, std::f64::consts::TAU / m.len() as f64),
         TableMap::Range(m) => (m.start(), (m.end() - m.start()) / (m.len() - 1) as f64),
     };
-    let table = OutTable {
+    let mut tables = vec![OutTable {
         name: dut,
         start,
         step,
         errors: values,
         u: Some(&cal.u),
-    };
-    result(py, section, inputs, warnings, &[table])
+    }];
+    if let Some(m) = cal.gear.as_ref().and_then(|g| g.reference_map.as_ref()) {
+        tables.push(OutTable {
+            name: reference,
+            start: 0.0,
+            step: std::f64::consts::TAU / m.map.len() as f64,
+            errors: m.map.values(),
+            u: Some(&m.u),
+        });
+    }
+    result(py, section, inputs, warnings, &tables)
 }
 
 /// Cross-calibration against a reference encoder from arrays (see `calib.reference`).
 #[pyfunction]
-#[pyo3(signature = (dut, r#ref, t=None, *, names=("dut".to_string(), "ref".to_string()), rate_hz=1000.0, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, latency=None, ref_kind="encoder", pole_pairs=None))]
+#[pyo3(signature = (dut, r#ref, t=None, *, names=("dut".to_string(), "ref".to_string()), rate_hz=1000.0, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, latency=None, ref_kind="encoder", pole_pairs=None, ref_ratio=None, ref_orders=16))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference<'py>(
     py: Python<'py>,
@@ -558,7 +599,10 @@ pub fn reference<'py>(
     latency: Option<Bound<'py, PyAny>>,
     ref_kind: &str,
     pole_pairs: Option<u32>,
+    ref_ratio: Option<Bound<'py, PyAny>>,
+    ref_orders: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let gear = gear_of(ref_ratio.as_ref(), ref_orders, ref_kind)?;
     let (d, r) = (dut.as_slice()?, r#ref.as_slice()?);
     let n = d.len();
     check_readings("dut", d)?;
@@ -576,7 +620,7 @@ pub fn reference<'py>(
         (latency.as_ref(), ref_kind, pole_pairs),
     )?;
     let cal = py.detach(|| {
-        let mut cal = ReferenceCal::new(opts);
+        let mut cal = ReferenceRun::new(opts, gear);
         for i in 0..n {
             cal.push(t[i], d[i], r[i]);
         }
@@ -601,7 +645,7 @@ pub fn reference<'py>(
 /// Cross-calibration of a log's DUT channel against its reference channel (see
 /// `calib.reference_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, dut, r#ref, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, latency=None, ref_kind="encoder", pole_pairs=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, dut, r#ref, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, latency=None, ref_kind="encoder", pole_pairs=None, ref_ratio=None, ref_orders=16, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference_log<'py>(
     py: Python<'py>,
@@ -618,6 +662,8 @@ pub fn reference_log<'py>(
     latency: Option<Bound<'py, PyAny>>,
     ref_kind: &str,
     pole_pairs: Option<u32>,
+    ref_ratio: Option<Bound<'py, PyAny>>,
+    ref_orders: usize,
     unit: Option<&str>,
     time: &str,
     max_gap: Option<f64>,
@@ -629,6 +675,7 @@ pub fn reference_log<'py>(
             "dut and ref both name `{dut}`: name the encoder to calibrate and the reference"
         )));
     }
+    let gear = gear_of(ref_ratio.as_ref(), ref_orders, ref_kind)?;
     let opts = reference_options(
         ref_u,
         points,
@@ -644,7 +691,7 @@ pub fn reference_log<'py>(
     let what = path.display().to_string();
     let (cal, reader) = py
         .detach(|| {
-            let mut cal = ReferenceCal::new(opts);
+            let mut cal = ReferenceRun::new(opts, gear);
             let reader =
                 for_each_sample(&path, reader, |s| cal.push(s.t, s.values[0], s.values[1]))?;
             let cal = cal

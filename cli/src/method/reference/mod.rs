@@ -12,7 +12,8 @@ use crate::reference_table::ReferenceTable;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::reference_cal::{
-    Latency, ReferenceCal, ReferenceError, ReferenceKind, ReferenceOptions, Targets,
+    DEFAULT_REFERENCE_ORDERS, Gear, Latency, Ratio, ReferenceError, ReferenceKind,
+    ReferenceOptions, ReferenceRun, Targets,
 };
 use calib_core::reference_points::{Approach, PointOptions, calibrate_points_with_directions};
 use calib_io::{LogReader, ReadOptions};
@@ -123,6 +124,23 @@ pub struct Args {
     /// Pole pairs of the motor of a commanded reference (needs --ref-kind commanded).
     #[arg(long)]
     pub pole_pairs: Option<u32>,
+    /// The reference turns R times per turn of the DUT: an actuator's motor encoder before a
+    /// gear of ratio R, the DUT its output encoder (any real number, negative where the motor
+    /// turns the other way; 50 for a 50:1 harmonic drive). `auto` estimates R from the run, with
+    /// its u (details.ratio, details.ratio_u). The reference may count turns or wrap at one.
+    /// Both encoders' maps come from the one run: the reference's error, periodic in its own
+    /// turn, is fitted (--ref-orders) and written as DIR/<ref>.csv over one of its turns (the
+    /// table its controller wants), and the DUT's map is made against the corrected reference.
+    /// What repeats with both turns cannot be split and is put in the reference's map: DUT
+    /// orders that are multiples of a whole-number R, and over a range everything that repeats
+    /// every turn of the reference (named in the summary and report). Over a range with `auto`,
+    /// a scale error of the DUT is the ratio's: the map then has no straight-line part.
+    #[arg(long, value_name = "R|auto", value_parser = str::parse::<Ratio>, allow_negative_numbers = true)]
+    pub ref_ratio: Option<Ratio>,
+    /// Orders of the reference's own error fitted through a gear (--ref-ratio), per turn of the
+    /// reference.
+    #[arg(long, value_name = "K", default_value_t = DEFAULT_REFERENCE_ORDERS, requires = "ref_ratio")]
+    pub ref_orders: usize,
     /// Point lists: the reference's readings are in this file, one row per point in the same
     /// order as the log's rows (a protractor's readings noted beside the encoder's); --ref names
     /// its column (`1` in a file without a header row). The two must have as many points.
@@ -264,6 +282,24 @@ fn prepare(args: &Args) -> anyhow::Result<Option<ReferenceTable>> {
         .into());
     }
     reference_kind(args)?;
+    if args.ref_ratio.is_some() {
+        if args.ref_kind == RefKind::Commanded {
+            return Err(Usage(
+                "--ref-ratio is for a reference encoder through a gear; a commanded reference is the drive's angle: \
+                 drop one of --ref-ratio and --ref-kind commanded"
+                    .to_string(),
+            )
+            .into());
+        }
+        if args.ref_file.is_some() {
+            return Err(Usage(
+                "--ref-ratio needs a timed log with both encoders; --ref-file pairs point lists"
+                    .to_string(),
+            )
+            .into());
+        }
+        crate::input::check_range("--ref-orders", args.ref_orders as f64, 0.0, 200.0, "orders")?;
+    }
     Ok(reference)
 }
 
@@ -395,7 +431,7 @@ fn calibrate(
             ))
             .into());
         }
-        let mut cal = ReferenceCal::new(ReferenceOptions {
+        let opts = ReferenceOptions {
             points: args.points,
             min_speed: args.min_speed.to_radians(),
             reference_u: reference_u.unwrap_or(0.0),
@@ -405,7 +441,12 @@ fn calibrate(
             targets: args.targets.clone(),
             latency: args.latency,
             reference_kind: reference_kind(args)?,
+        };
+        let gear = args.ref_ratio.map(|ratio| Gear {
+            ratio,
+            reference_orders: args.ref_orders,
         });
+        let mut cal = ReferenceRun::new(opts, gear);
         // The sample's values are the DUT's reading, then the reference's.
         let reader = for_each_sample(log, reader, |s| {
             cal.push(s.t, s.values[0], sign * corrected(s.values[1]))
@@ -424,14 +465,23 @@ fn calibrate(
     };
     let table = calib_io::table::render_table(&cal.map, Some(&cal.u))
         .with_context(|| format!("the table of channel `{}`", args.dut))?;
+    let mut tables = vec![(table_name(&args.dut), table.into_bytes())];
+    let mut channels = vec![args.dut.clone()];
+    if let Some(m) = cal.gear.as_ref().and_then(|g| g.reference_map.as_ref()) {
+        let map = calib_core::TableMap::Turn(m.map.clone());
+        let table = calib_io::table::render_table(&map, Some(&m.u))
+            .with_context(|| format!("the table of channel `{}`", args.reference))?;
+        tables.push((table_name(&args.reference), table.into_bytes()));
+        channels.push(args.reference.clone());
+    }
     let results = Results {
         section: cal.report_section(
             &args.dut,
             &args.reference,
             reference_u.map(|u| u * ARCSEC_PER_RAD),
         ),
-        tables: vec![(table_name(&args.dut), table.into_bytes())],
-        channels: vec![args.dut.clone()],
+        tables,
+        channels,
         residual_rms_arcsec: None,
         document: Box::new(|report| document::document(&args.dut, &args.reference, &cal, report)),
         summary: Box::new(|report| render_summary(args, out, &cal, report, points)),

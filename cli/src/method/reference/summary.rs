@@ -5,7 +5,7 @@ use super::Args;
 use crate::summary::{TextTable, ending, key_values};
 use calib_core::Report;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::reference_cal::{LatencySource, ReferenceCalibration};
+use calib_core::reference_cal::{GearResult, LatencySource, RatioSource, ReferenceCalibration};
 use std::fmt::Write;
 use std::path::Path;
 
@@ -89,6 +89,9 @@ pub(super) fn render_summary(
             ),
         ),
     ]);
+    if let Some(g) = &cal.gear {
+        o += &key_values(&[("gear", gear_text(g))]);
+    }
     if let Some(e) = cal.ends {
         o += &key_values(&[(
             "one direction",
@@ -155,16 +158,36 @@ pub(super) fn render_summary(
             top.join(", ")
         },
     ]);
+    let mut tables = vec![ch.table.clone()];
+    if let Some(m) = cal.gear.as_ref().and_then(|g| g.reference_map.as_ref()) {
+        let r = &report.channels[&args.reference];
+        let u = m.u.iter().fold(0.0f64, |a, &u| a.max(u)) * ARCSEC_PER_RAD;
+        let top: Vec<String> = r
+            .harmonics
+            .iter()
+            .take(3)
+            .map(|h| format!("{}: {:.3}″", h.order, h.amplitude_arcsec))
+            .collect();
+        t.row(vec![
+            format!("{} (own turn)", args.reference),
+            format!("{:.3}″", r.peak_to_peak_arcsec),
+            format!("{:.3}″", r.rms_arcsec),
+            format!("{u:.3}″"),
+            top.join(", "),
+        ]);
+        tables.push(r.table.clone());
+    }
     let _ = writeln!(o, "\n{}", t.render().trim_end());
     let _ = writeln!(
         o,
         "  (error = {} − {}, zero mean; every ISO 230-2 figure is in report.json and report.html)",
         args.dut, args.reference
     );
+    tables.push("report.json".to_string());
     o += &ending(
         &report.warnings,
         out,
-        &[ch.table.clone(), "report.json".to_string()],
+        &tables,
         if cal.map.range().is_some() {
             "error map over the range with its uncertainty band, each direction"
         } else {
@@ -192,6 +215,55 @@ pub(super) fn range_text(lo: f64, hi: f64) -> String {
             "range table from {lo:.3}° to {hi:.3}° ({span:.3}° of the DUT's reading; no whole turn)"
         )
     }
+}
+
+/// The summary's line on a reference through a gear: the ratio, and what the run cannot split.
+fn gear_text(g: &GearResult) -> String {
+    let ratio = match (g.source, g.ratio_u) {
+        (RatioSource::Estimated, Some(u)) => format!("ratio {:.6} ± {:.6} (estimated)", g.ratio, u),
+        _ => format!("ratio {} (given)", g.ratio),
+    };
+    let map = match &g.reference_map {
+        Some(m) => {
+            let kept: Vec<String> = m
+                .terms
+                .iter()
+                .filter(|t| t.kept)
+                .map(|t| t.order.to_string())
+                .collect();
+            format!(
+                "the reference's own error fitted to order {} over {:.1} of its turns, orders {} significant",
+                m.terms.len(),
+                g.reference_turns,
+                if kept.is_empty() {
+                    "none".to_string()
+                } else {
+                    kept.join(", ")
+                }
+            )
+        }
+        None => format!(
+            "the reference turned {:.2} time(s): its error is not separated",
+            g.reference_turns
+        ),
+    };
+    let mut text = format!("{ratio}; {map}");
+    if !g.coincident.is_empty() {
+        let orders: Vec<String> = g
+            .coincident
+            .iter()
+            .map(|c| c.dut_order.to_string())
+            .collect();
+        let _ = write!(
+            text,
+            "; the DUT's orders {} are the reference's: in its map",
+            orders.join(", ")
+        );
+    }
+    if g.line_in_ratio {
+        text += "; over a range the DUT's straight-line part is in the ratio (the map has none)";
+    }
+    text
 }
 
 /// The summary's line on the lag between the channels.

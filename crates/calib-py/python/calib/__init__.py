@@ -545,6 +545,8 @@ def reference(
     latency: Union[str, float] = "auto",
     ref_kind: str = "encoder",
     pole_pairs: Optional[int] = None,
+    ref_ratio: Union[str, float, None] = None,
+    ref_orders: int = 16,
 ) -> Result:
     """Cross-calibration of an encoder (the DUT) against a better reference encoder on the
     same shaft, from arrays (``calib reference``); ISO 230-2 figures in ``report["details"]``.
@@ -571,10 +573,16 @@ def reference(
             motor's open-loop commanded angle: the motor's ripple, periodic in the electrical
             angle, is taken out of the map and reported).
         pole_pairs: the motor's pole pairs, with ``ref_kind="commanded"``.
+        ref_ratio: the reference turns this many times per turn of the DUT (an actuator's
+            motor encoder before a gear, the DUT its output encoder; negative where it turns the
+            other way), or ``"auto"`` to estimate it (``report["details"]["ratio"]`` and
+            ``["ratio_u"]``). Both encoders' maps come from the run: the reference's, over one
+            of its turns, is a second table named ``names[1]``. None (the default): one shaft.
+        ref_orders: orders of the reference's own error fitted through a gear.
 
     Returns:
         A :class:`Result` with one channel, ``names[0]`` (a range table where the DUT never
-        turned a whole revolution).
+        turned a whole revolution), and ``names[1]``'s table through a gear.
     """
     return Result(
         _calib.reference(
@@ -593,6 +601,8 @@ def reference(
             latency=latency,
             ref_kind=ref_kind,
             pole_pairs=pole_pairs,
+            ref_ratio=ref_ratio,
+            ref_orders=ref_orders,
         )
     )
 
@@ -612,6 +622,8 @@ def reference_log(
     latency: Union[str, float] = "auto",
     ref_kind: str = "encoder",
     pole_pairs: Optional[int] = None,
+    ref_ratio: Union[str, float, None] = None,
+    ref_orders: int = 16,
     unit: Optional[str] = None,
     time: str = "header",
     max_gap: Optional[float] = None,
@@ -635,6 +647,8 @@ def reference_log(
             latency=latency,
             ref_kind=ref_kind,
             pole_pairs=pole_pairs,
+            ref_ratio=ref_ratio,
+            ref_orders=ref_orders,
             unit=unit,
             time=time,
             max_gap=max_gap,

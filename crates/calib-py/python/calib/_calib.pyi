@@ -80,6 +80,8 @@ def reference(
     latency: Union[str, float, None] = None,
     ref_kind: str = "encoder",
     pole_pairs: Optional[int] = None,
+    ref_ratio: Union[str, float, None] = None,
+    ref_orders: int = 16,
 ) -> Dict[str, Any]: ...
 def reference_log(
     path: str,
@@ -96,6 +98,8 @@ def reference_log(
     latency: Union[str, float, None] = None,
     ref_kind: str = "encoder",
     pole_pairs: Optional[int] = None,
+    ref_ratio: Union[str, float, None] = None,
+    ref_orders: int = 16,
     unit: Optional[str] = None,
     time: str = "header",
     max_gap: Optional[float] = None,
