@@ -331,3 +331,24 @@ fn a_wrong_ratio_is_refused_with_the_ratio_the_run_shows() {
     );
     expect_exit(&o, 2);
 }
+
+/// `calib inspect` on an actuator's log says what it is — one channel travels about R times
+/// the other — and proposes `calib reference … --ref-ratio auto` with the slower channel as
+/// the DUT (and no spin-down against the other channel as a reference).
+#[test]
+fn inspect_recognises_an_actuator() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, _) = logs(dir.path(), "actuator-turns", 11.35);
+    let o = calib(&["inspect", s(&log)]);
+    expect_exit(&o, 0);
+    let text = stdout(&o);
+    assert_mentions(
+        &text,
+        &[
+            "--dut out --ref motor --ref-ratio auto",
+            "an actuator",
+            "gear of about 11.",
+        ],
+    );
+    assert!(!text.contains("--channel out --ref motor"), "{text}");
+}

@@ -66,8 +66,9 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
         });
     }
     let geared = geared(ch);
-    if let Some((output, motor, ratio)) = geared {
-        out.push(Suggestion {
+    if !geared.is_empty() {
+        for &(output, motor, ratio) in &geared {
+            out.push(Suggestion {
             method: "reference".into(),
             channels: vec![output.name.clone(), motor.name.clone()],
             why: format!(
@@ -77,6 +78,7 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
             ),
             options: vec!["--ref-ratio".into(), "auto".into()],
         });
+        }
     } else if ch.len() >= 2
         && let Some(joint) = ch.iter().find(|c| span_revolutions(c) < 0.999)
     {
@@ -118,7 +120,7 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
         let mut channels = vec![shaft.name.clone()];
         // Through a gear the other channel is no reference of this shaft.
         channels.extend(
-            geared.is_none().then_some(()).and(
+            geared.is_empty().then_some(()).and(
                 ch.iter()
                     .filter(|c| c.name != shaft.name)
                     .find(|c| c.travel_revolutions >= COAST_REVOLUTIONS)
@@ -139,20 +141,42 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
     out
 }
 
-/// Two channels of which one travels at least [`GEAR_RATIO`] times as far as the other: an
-/// actuator's output encoder, its motor's encoder and the ratio of their travels.
-fn geared(channels: &[ChannelStats]) -> Option<(&ChannelStats, &ChannelStats, f64)> {
-    let [a, b] = channels else {
-        return None;
-    };
-    let (slow, fast) = if a.travel_revolutions <= b.travel_revolutions {
-        (a, b)
-    } else {
-        (b, a)
-    };
-    let ratio = fast.travel_revolutions / slow.travel_revolutions;
-    (slow.travel_revolutions > 0.0 && ratio.is_finite() && ratio >= GEAR_RATIO)
-        .then_some((slow, fast, ratio))
+/// Pairs of channels of which one travels at least [`GEAR_RATIO`] times as far as the other:
+/// an actuator's output encoder, its motor's encoder and the ratio of their travels. With more
+/// than two channels (several joints in one log), each channel is paired once, the pairs whose
+/// names share the longest prefix and suffix first (`abs_enc1` with `motor_enc1`).
+fn geared(channels: &[ChannelStats]) -> Vec<(&ChannelStats, &ChannelStats, f64)> {
+    let mut pairs: Vec<(usize, &ChannelStats, &ChannelStats, f64)> = channels
+        .iter()
+        .flat_map(|slow| channels.iter().map(move |fast| (slow, fast)))
+        .filter_map(|(slow, fast)| {
+            let ratio = fast.travel_revolutions / slow.travel_revolutions;
+            (slow.travel_revolutions > 0.0 && ratio.is_finite() && ratio >= GEAR_RATIO)
+                .then(|| (shared_affixes(&slow.name, &fast.name), slow, fast, ratio))
+        })
+        .collect();
+    pairs.sort_by_key(|p| std::cmp::Reverse(p.0));
+    let mut used: Vec<&str> = Vec::new();
+    let mut out = Vec::new();
+    for (_, slow, fast, ratio) in pairs {
+        if !used.contains(&slow.name.as_str()) && !used.contains(&fast.name.as_str()) {
+            used.extend([slow.name.as_str(), fast.name.as_str()]);
+            out.push((slow, fast, ratio));
+        }
+    }
+    out
+}
+
+/// Characters two names share at their start and at their end.
+fn shared_affixes(a: &str, b: &str) -> usize {
+    let prefix = a.chars().zip(b.chars()).take_while(|(x, y)| x == y).count();
+    let suffix = a
+        .chars()
+        .rev()
+        .zip(b.chars().rev())
+        .take_while(|(x, y)| x == y)
+        .count();
+    prefix + suffix
 }
 
 /// The ratio of two channels' travels from which they are taken for an actuator's two encoders

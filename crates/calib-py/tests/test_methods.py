@@ -244,3 +244,21 @@ def test_reference_takes_a_commanded_reference_and_its_pole_pairs():
     assert 126 not in orders[:3], orders
     with pytest.raises(calib.UsageError, match="pole_pairs"):
         calib.reference(sim["encoder"], sim["commanded"], t=sim.t, ref_kind="commanded")
+
+
+def test_reference_through_a_gear_estimates_the_ratio_and_both_maps():
+    # An 11.35:1 actuator over two whole output turns each way (cli/tests/it/gear_cli.rs, same
+    # scenario: ratio within 2e-5, the motor's map within 17″ of its truth at 1200″/500″/120″).
+    sim = calib.simulate(TESTDATA / "scenarios" / "actuator-turns.toml", points=3600)
+    res = calib.reference(
+        sim["out"], sim["motor"], t=sim.t, names=("out", "motor"), ref_ratio="auto"
+    )
+    details = res.report["details"]
+    assert abs(details["ratio"] - 11.35) < 2e-5, details["ratio"]
+    assert details["ratio_u"] > 0
+    motor = res.channels["motor"]
+    assert not motor.is_range
+    err = max_abs_diff(motor.table, sim.truth["motor"])
+    assert err < 17.0, f"max |motor map − truth| {err:.3f}″"
+    with pytest.raises(calib.UsageError, match="ref_ratio"):
+        calib.reference(sim["out"], sim["motor"], t=sim.t, ref_ratio=0)
