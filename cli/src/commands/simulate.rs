@@ -42,7 +42,8 @@ use std::path::{Path, PathBuf};
 ///   [spin_down]          a free coast-down (for tdr): speed_rpm, duration_s,
 ///                        friction = { coulomb, viscous, quadratic }, drag_harmonics
 ///   [sweep]              a joint swept back and forth (for reference over a range): from_deg,
-///                        to_deg, cycles, speeds_deg_s, ramp_s, pause_s
+///                        to_deg, cycles, speeds_deg_s, ramp_s, pause_s; random = true: moved
+///                        by hand (reversals at random points, random speeds and rests)
 ///
 /// One example per method (print the whole file with --example):
 ///

@@ -256,12 +256,15 @@ fn a_non_integer_ratio_over_whole_turns_is_estimated_with_both_maps() {
     );
 }
 
-/// A capstan joint (`capstan.toml`): ratio 7.3 estimated, the output lagging by 1 ms at up to
-/// 500°/s and 600″ of lost motion in the cable. The lag is found within 0.05 ms (it moves the
-/// difference by 0.5″ per ms at 500°/s, measured over four speeds), the reversal within 30″ of
-/// the 600″ of play, the ratio within 3 u and 2·10⁻⁵, the DUT's map within 12″ smoothed (the
-/// motor's 4096-count quantum is 43″ at the output, ~4″ per point over 8 crossings) and the
-/// motor's within 11″ (1.5″ at the output) and 2.5 u.
+/// A capstan joint moved by hand (`capstan.toml`: twelve strokes reversing at random points,
+/// 60–500°/s, random rests): ratio 7.3 estimated, the output lagging by 1 ms and 600″ of lost
+/// motion in the cable. The lag is found within 0.05 ms (it moves the difference by 0.5″ per ms
+/// at 500°/s, at many speeds), the reversal within 30″ of the 600″ of play, the ratio within
+/// 3 u and 2·10⁻⁵, the DUT's map within 12″ smoothed (the motor's 4096-count quantum is 43″ at
+/// the output, ~4″ per point over its passes), and the motor's within 2.5 u everywhere and 22″
+/// (3″ at the output): its 4096-count quantum, 12.5″ RMS per sample at the output over ~19,000
+/// samples unevenly spread by the hand's motion, leaves each of its terms a few arcseconds (its
+/// own angle) of noise, which the u of its table holds.
 #[test]
 fn a_capstan_with_lag_and_lost_motion_gives_ratio_lag_and_both_maps() {
     let dir = tempfile::tempdir().unwrap();
@@ -284,7 +287,7 @@ fn a_capstan_with_lag_and_lost_motion_gives_ratio_lag_and_both_maps() {
     );
     assert!(f.dut < 12.0, "DUT map {:.3}″ off (bar 12″)", f.dut);
     assert!(f.by_hand > 3.0 * f.dut, "by hand {:.3}″", f.by_hand);
-    assert!(f.motor < 11.0, "motor map {:.3}″ off (bar 11″)", f.motor);
+    assert!(f.motor < 22.0, "motor map {:.3}″ off (bar 22″)", f.motor);
     assert!(f.motor_worst_in_u < 2.5, "{}", f.motor_worst_in_u);
 }
 

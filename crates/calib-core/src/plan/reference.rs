@@ -155,6 +155,7 @@ impl ReferencePlan {
                 speeds_deg_s: self.speeds().iter().map(|v| v.to_degrees()).collect(),
                 ramp_s: RAMP_S,
                 pause_s: PAUSE_S,
+                random: false,
             }),
             ..Scenario::default()
         }

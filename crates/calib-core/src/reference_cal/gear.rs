@@ -41,8 +41,9 @@
 //!
 //! # Uncertainty
 //! The fit's covariance `s²·(XᵀX)⁺·(1 + ρ)/(1 − ρ)`, `ρ` the lag-1 autocorrelation of its
-//! residuals in time (correlated residuals hold less information than their count says). The
-//! fit also holds probes at the reference's orders `k + ½`, where neither encoder errs: where
+//! residuals in time (correlated residuals hold less information than their count says); an
+//! estimated ratio's `u` is at least half the difference of the ratios the two halves of the
+//! run give alone (what the motion's own structure can bias). The fit also holds probes at the reference's orders `k + ½`, where neither encoder errs: where
 //! their mean square exceeds the variance the fit gives the reference's coefficients (residual
 //! structure the noise model misses, such as the DUT's quantization, a function of its angle),
 //! the reference's covariance is scaled up to it. The reference's map's `u` at each of its
@@ -353,6 +354,27 @@ impl GearedCal {
                     break;
                 }
             }
+        }
+        if auto && used.len() >= 64 {
+            // The ratio from each half of the run: what they differ by is what the fit's noise
+            // model may miss (the motion's own structure, a lag not quite constant).
+            let half = |part: &[usize]| {
+                let basis = Basis::new(
+                    &samples,
+                    part,
+                    ratio,
+                    whole,
+                    (lo, hi),
+                    &gear,
+                    separable,
+                    auto,
+                );
+                let b = basis.solve(&samples, part, ratio).line.map_or(0.0, |l| l.0);
+                ratio * (1.0 - b)
+            };
+            let (first, second) = used.split_at(used.len() / 2);
+            let spread = 0.5 * (half(first) - half(second)).abs();
+            ratio_u = ratio_u.map(|u| u.max(spread));
         }
         let reference_map = fit
             .as_ref()

@@ -165,6 +165,8 @@ fn terms(harmonics: &[HarmonicSpec]) -> Vec<Term> {
 
 /// The RNG stream of the sampling-time jitter; channel `i` uses stream `i + 1`.
 const JITTER_STREAM: u64 = 0;
+/// The RNG stream of a random sweep's strokes.
+const MOTION_STREAM: u64 = u64::MAX;
 
 impl Scenario {
     /// The log's channels, one per `[[sensor]]` in file order, readings in radians.
@@ -325,6 +327,7 @@ impl Scenario {
             sw.ramp_s,
             sw.pause_s,
             &self.modulation(),
+            sw.random.then(|| Rng::new(self.seed, MOTION_STREAM)),
         )
     }
 

@@ -54,7 +54,7 @@ impl Rng {
     }
 
     /// Uniform in `[0, 1)` with 53 random bits.
-    fn uniform(&mut self) -> f64 {
+    pub(crate) fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 

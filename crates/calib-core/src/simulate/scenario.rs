@@ -295,6 +295,11 @@ pub struct Sweep {
     /// Rest before the first stroke and after each, seconds (default 1).
     #[serde(default = "one_s")]
     pub pause_s: f64,
+    /// A joint moved by hand (default `false`): each stroke reverses at a point drawn in the far
+    /// half of the range, at a speed drawn between the smallest and largest of `speeds_deg_s`,
+    /// and rests for a time drawn up to `pause_s` (seeded by `seed`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub random: bool,
 }
 
 fn one() -> u32 {

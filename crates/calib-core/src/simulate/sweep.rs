@@ -7,7 +7,13 @@
 //! stroke too short for two full ramps gets shorter ramps (`ramp = |to − from|/v`, no cruise).
 //! The true angle adds the speed modulation of eq. (9), `θ = φ + ε_θ(φ)`, as for the CSRR
 //! procedure.
+//!
+//! A random sweep (a joint moved by hand) makes its strokes alternately toward `to` and toward
+//! `from`, each ending at a point drawn uniformly in the far half of the range (so that every
+//! stroke crosses the middle and the reversals scatter), at a speed drawn uniformly between the
+//! smallest and largest of the list, each followed by a pause drawn uniformly up to `pause_s`.
 
+use super::rng::Rng;
 use super::sensor::{FastSeries, Powers, Term};
 use std::f64::consts::PI;
 
@@ -59,6 +65,7 @@ pub(crate) struct SweepTimeline {
 impl SweepTimeline {
     /// `from`, `to` in radians; `speeds` in rad/s (non-empty, positive); `cycles` there-and-back
     /// strokes pairs; `ramp_s`, `pause_s` seconds.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
         from: f64,
         to: f64,
@@ -67,18 +74,32 @@ impl SweepTimeline {
         ramp_s: f64,
         pause_s: f64,
         modulation: &[Term],
+        mut random: Option<Rng>,
     ) -> Self {
         let mut strokes = Vec::new();
         let mut t = pause_s;
-        let distance = (to - from).abs();
+        let (slowest, fastest) = speeds
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |a, &v| (a.0.min(v), a.1.max(v)));
+        let middle = 0.5 * (from + to);
+        let mut at = from;
         for k in 0..2 * cycles as usize {
-            let speed = speeds[k % speeds.len()];
+            let end = if k % 2 == 0 { to } else { from };
+            let (target, speed) = match random.as_mut() {
+                Some(rng) => (
+                    middle + rng.uniform() * (end - middle),
+                    slowest + rng.uniform() * (fastest - slowest),
+                ),
+                None => (end, speeds[k % speeds.len()]),
+            };
+            let distance = (target - at).abs();
             let ramp = ramp_s.min(distance / speed);
             let cruise = (distance - speed * ramp) / speed;
-            let (phi0, sign) = if k % 2 == 0 {
-                (from, (to - from).signum())
-            } else {
-                (to, (from - to).signum())
+            let (phi0, sign) = (at, (target - at).signum());
+            at = target;
+            let pause = match random.as_mut() {
+                Some(rng) => rng.uniform() * pause_s,
+                None => pause_s,
             };
             let stroke = Stroke {
                 t0: t,
@@ -88,7 +109,7 @@ impl SweepTimeline {
                 ramp,
                 cruise: cruise.max(0.0),
             };
-            t += stroke.duration() + pause_s;
+            t += stroke.duration() + pause;
             strokes.push(stroke);
         }
         SweepTimeline {
@@ -142,7 +163,16 @@ mod tests {
     #[test]
     fn strokes_reach_their_ends_and_return() {
         let d = |x: f64| x.to_radians();
-        let mut s = SweepTimeline::new(d(15.0), d(135.0), 2, &[d(20.0), d(40.0)], 0.5, 1.0, &[]);
+        let mut s = SweepTimeline::new(
+            d(15.0),
+            d(135.0),
+            2,
+            &[d(20.0), d(40.0)],
+            0.5,
+            1.0,
+            &[],
+            None,
+        );
         // Stroke 1 at 20°/s: 0.5 s ramps cover 10°, cruise 110° in 5.5 s → 6.5 s. Stroke 2 at
         // 40°/s: ramps 20°, cruise 100° in 2.5 s → 3.5 s. Total 1 + 2·(6.5 + 1) + 2·(3.5 + 1).
         assert!((s.duration() - 25.0).abs() < 1e-12);
@@ -160,10 +190,53 @@ mod tests {
 
     #[test]
     fn short_strokes_shorten_their_ramps() {
-        let mut s = SweepTimeline::new(0.0, 0.1, 1, &[1.0], 1.0, 0.0, &[]);
+        let mut s = SweepTimeline::new(0.0, 0.1, 1, &[1.0], 1.0, 0.0, &[], None);
         // Ramp 0.1 s each, no cruise: 0.1 rad covered in 0.2 s.
         assert!((s.duration() - 0.4).abs() < 1e-12);
         assert!((s.theta(0.2) - 0.1).abs() < 1e-12);
         assert!((s.theta(0.1) - 0.05).abs() < 1e-12);
+    }
+
+    #[test]
+    fn random_strokes_reverse_in_the_far_halves_at_speeds_within_the_list() {
+        let d = |x: f64| x.to_radians();
+        let s = SweepTimeline::new(
+            0.0,
+            d(540.0),
+            6,
+            &[d(60.0), d(500.0)],
+            0.4,
+            0.3,
+            &[],
+            Some(Rng::new(73, u64::MAX)),
+        );
+        assert_eq!(s.strokes.len(), 12);
+        let mut at = 0.0;
+        for (k, stroke) in s.strokes.iter().enumerate() {
+            assert!(
+                (stroke.phi0 - at).abs() < 1e-12,
+                "stroke {k} starts where the last ended"
+            );
+            let end = stroke.phi0 + stroke.sign * stroke.travelled(stroke.duration());
+            let far_half = if k % 2 == 0 {
+                (d(270.0)..=d(540.0)).contains(&end)
+            } else {
+                (0.0..=d(270.0)).contains(&end)
+            };
+            assert!(far_half, "stroke {k} ends at {}°", end.to_degrees());
+            assert!((d(60.0)..=d(500.0)).contains(&stroke.speed), "{stroke:?}");
+            at = end;
+        }
+        let again = SweepTimeline::new(
+            0.0,
+            d(540.0),
+            6,
+            &[d(60.0), d(500.0)],
+            0.4,
+            0.3,
+            &[],
+            Some(Rng::new(73, u64::MAX)),
+        );
+        assert_eq!(s.strokes, again.strokes, "the same seed, the same strokes");
     }
 }
