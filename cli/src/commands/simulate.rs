@@ -40,7 +40,9 @@ use std::path::{Path, PathBuf};
 ///   [procedure]          CSRR sessions: relative_deg = [0.0, 7.3, ...] (Δ_k), revolutions,
 ///                        ramp_s, pause_s, turn_s (or [[procedure.sessions]] one by one)
 ///   [spin_down]          a free coast-down (for tdr): speed_rpm, duration_s,
-///                        friction = { coulomb, viscous, quadratic }, drag_harmonics
+///                        friction = { coulomb, viscous, quadratic }, drag_harmonics; with
+///                        drive = { time_constant_s, steps = [{ from_s, speed_rpm }] } a motor
+///                        at constant voltage drives it (a driven run, for tdr --run driven)
 ///   [sweep]              a joint swept back and forth (for reference over a range): from_deg,
 ///                        to_deg, cycles, speeds_deg_s, ramp_s, pause_s; random = true: moved
 ///                        by hand (reversals at random points, random speeds and rests)

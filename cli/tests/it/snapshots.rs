@@ -162,6 +162,28 @@ fn tdr() {
     );
 }
 
+/// A driven run at two speeds (issue 48): the motor's orders separated by their 1/ω²
+/// dependence.
+#[test]
+fn tdr_driven() {
+    let s = Scratch::new();
+    let log = s.simulate("driven-two-speeds.toml", "driven.mcap");
+    let out = s.path("tdr_driven");
+    insta::assert_snapshot!(
+        "tdr_driven",
+        s.run(&[
+            "tdr",
+            &log,
+            "--channel",
+            "enc",
+            "--pole-pairs",
+            "7",
+            "-o",
+            &out
+        ])
+    );
+}
+
 #[test]
 fn multihead() {
     let s = Scratch::new();

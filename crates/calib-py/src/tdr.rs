@@ -3,7 +3,7 @@
 use crate::errors::{check_array, check_points, check_readings, data, usage};
 use crate::logs::{LogOptions, LogRead, for_each_sample, log_read, open};
 use crate::methods::{result, same_length, turn};
-use calib_core::tdr::{Tdr, TdrCalibration, TdrOptions};
+use calib_core::tdr::{MotorOrders, RunKind, Tdr, TdrCalibration, TdrOptions};
 use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -54,6 +54,49 @@ fn options(
     })
 }
 
+/// The driven run's options (`run`, `pole_pairs`, `cogging_orders`), checked as `calib tdr`
+/// checks `--run`, `--pole-pairs` and `--cogging-orders`.
+fn driven_options(
+    run: &str,
+    pole_pairs: Option<usize>,
+    cogging_orders: Option<Vec<usize>>,
+) -> PyResult<(RunKind, MotorOrders)> {
+    let run = match run {
+        "auto" => RunKind::Auto,
+        "coast" => RunKind::Coast,
+        "driven" => RunKind::Driven,
+        other => {
+            return Err(usage(format!(
+                "run={other:?} is not one of \"auto\", \"coast\", \"driven\""
+            )));
+        }
+    };
+    let motor = match (pole_pairs, cogging_orders) {
+        (Some(_), Some(_)) => {
+            return Err(usage(
+                "pole_pairs and cogging_orders both given: name the motor's orders one way",
+            ));
+        }
+        (Some(p), None) if !(1..=MAX_ORDER / 6).contains(&p) => {
+            return Err(usage(format!(
+                "pole_pairs={p} is outside its range, 1 to {}",
+                MAX_ORDER / 6
+            )));
+        }
+        (Some(p), None) => MotorOrders::PolePairs(p),
+        (None, Some(list)) => {
+            if let Some(k) = list.iter().find(|k| !(1..=MAX_ORDER).contains(*k)) {
+                return Err(usage(format!(
+                    "cogging_orders holds {k}, outside 1 to {MAX_ORDER}"
+                )));
+            }
+            MotorOrders::Orders(list)
+        }
+        (None, None) => MotorOrders::None,
+    };
+    Ok((run, motor))
+}
+
 /// The result dictionary of a TDR calibration.
 fn tdr_result<'py>(
     py: Python<'py>,
@@ -73,7 +116,7 @@ fn tdr_result<'py>(
 
 /// Spin-down self-calibration of one encoder from arrays (see `calib.tdr`).
 #[pyfunction]
-#[pyo3(signature = (t, readings, r#ref=None, *, name="encoder".to_string(), max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=None))]
+#[pyo3(signature = (t, readings, r#ref=None, *, name="encoder".to_string(), max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=None, run="auto", pole_pairs=None, cogging_orders=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn tdr<'py>(
     py: Python<'py>,
@@ -86,6 +129,9 @@ pub fn tdr<'py>(
     motion_degree: Option<usize>,
     min_revolutions: f64,
     points: Option<usize>,
+    run: &str,
+    pole_pairs: Option<usize>,
+    cogging_orders: Option<Vec<usize>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (t, x) = (t.as_slice()?, readings.as_slice()?);
     check_array("t", t, calib_io::limits::Samples::Stamps)?;
@@ -96,13 +142,18 @@ pub fn tdr<'py>(
         same_length("ref", r, t.len())?;
         check_readings("ref", r)?;
     }
-    let opts = options(
-        max_order,
-        max_drag_order,
-        motion_degree,
-        min_revolutions,
-        points,
-    )?;
+    let (run, motor) = driven_options(run, pole_pairs, cogging_orders)?;
+    let opts = TdrOptions {
+        run,
+        motor,
+        ..options(
+            max_order,
+            max_drag_order,
+            motion_degree,
+            min_revolutions,
+            points,
+        )?
+    };
     let cal = py.detach(|| {
         let mut tdr = Tdr::new(opts);
         for i in 0..t.len() {
@@ -127,7 +178,7 @@ pub fn tdr<'py>(
 
 /// Spin-down self-calibration of a log's channel (see `calib.tdr_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, channel, r#ref=None, max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, channel, r#ref=None, max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None, run="auto", pole_pairs=None, cogging_orders=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn tdr_log<'py>(
     py: Python<'py>,
@@ -144,6 +195,9 @@ pub fn tdr_log<'py>(
     max_gap: Option<f64>,
     time_column: Option<String>,
     time_unit: Option<&str>,
+    run: &str,
+    pole_pairs: Option<usize>,
+    cogging_orders: Option<Vec<usize>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     if r#ref.as_ref() == Some(&channel) {
         return Err(usage(format!(
@@ -151,13 +205,18 @@ pub fn tdr_log<'py>(
              reference"
         )));
     }
-    let opts = options(
-        max_order,
-        max_drag_order,
-        motion_degree,
-        min_revolutions,
-        points,
-    )?;
+    let (run, motor) = driven_options(run, pole_pairs, cogging_orders)?;
+    let opts = TdrOptions {
+        run,
+        motor,
+        ..options(
+            max_order,
+            max_drag_order,
+            motion_degree,
+            min_revolutions,
+            points,
+        )?
+    };
     let log = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
     let mut names = vec![channel.clone()];
     names.extend(r#ref.clone());

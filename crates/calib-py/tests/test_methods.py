@@ -180,6 +180,25 @@ def test_tdr_recovers_the_encoder_map_from_a_free_coast():
     assert "after_correction" in ch.report
 
 
+def test_tdr_takes_a_driven_run_and_names_the_motor_orders():
+    # calib-core's tests/it/tdr.rs (a_driven_run_recovers_the_map_off_the_motor_orders), same
+    # scenario: one speed, so the motor's orders 42, 84, 126 are left out of the map and listed;
+    # the map's orders 1 and 2 (600″, 250″) come back within the noise of each coefficient
+    # (0.17″) and the cross terms below the detection limit (0.75″).
+    sim = calib.simulate(TESTDATA / "scenarios" / "driven.toml", points=3600)
+    res = calib.tdr(sim.t, sim["enc"], name="enc", pole_pairs=7)
+    driven = res.report["details"]["driven"]
+    assert [m["order"] for m in driven["motor_orders"]] == [42, 84, 126]
+    assert not any(m["in_map"] for m in driven["motor_orders"])
+    top = {h["order"]: h["amplitude_arcsec"] for h in res.channels["enc"].report["harmonics"]}
+    assert abs(top[1] - 600.0) < 1.0 and abs(top[2] - 250.0) < 1.0
+    # A coast is what run="coast" asks for; this run holds none.
+    with pytest.raises(calib.DataError, match="release the drive"):
+        calib.tdr(sim.t, sim["enc"], run="coast")
+    with pytest.raises(calib.UsageError, match="one way"):
+        calib.tdr(sim.t, sim["enc"], pole_pairs=7, cogging_orders=[42])
+
+
 def test_multihead_twelve_heads_meet_the_bar():
     # calib-core's tests/it/multihead.rs (selfa_twelve_heads_joint_meets_the_bar): 0.05″ (measured
     # there: 0.0075″).

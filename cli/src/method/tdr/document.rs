@@ -18,8 +18,13 @@ pub fn document(
     cal: &TdrCalibration,
     report: &Report,
 ) -> Document {
+    let kind = if cal.driven.is_some() {
+        "Driven-run"
+    } else {
+        "Spin-down"
+    };
     let mut doc = Document::new(
-        &format!("Spin-down self-calibration of `{channel}` (TDR)"),
+        &format!("{kind} self-calibration of `{channel}` (TDR)"),
         provenance(report),
     );
     doc.warnings = report.warnings.clone();

@@ -1,4 +1,5 @@
-//! `calib tdr`: self-calibration of one encoder from a free spin-down (coast-down) log.
+//! `calib tdr`: self-calibration of one encoder from a free spin-down (coast-down) log, or from
+//! a run driven at steady speed.
 
 mod document;
 mod summary;
@@ -9,7 +10,7 @@ use crate::method::{MethodArgs, Results, finish_log, for_each_sample, in_log};
 use crate::output::turn_table;
 use anyhow::Context;
 use calib_core::angle::ARCSEC_PER_RAD;
-use calib_core::tdr::{Tdr, TdrError, TdrOptions};
+use calib_core::tdr::{MotorOrders, RunKind, Tdr, TdrError, TdrOptions};
 use std::path::Path;
 use summary::render_summary;
 
@@ -20,8 +21,22 @@ const MAX_ORDER: usize = 1000;
 const MAX_DRAG_ORDER: usize = 100;
 /// Largest `--motion-degree` accepted (Chebyshev series of higher degree can follow the error).
 const MAX_DEGREE: usize = 60;
+/// Largest `--pole-pairs` accepted (its first motor order, 6 × it, is then at `MAX_ORDER`).
+const MAX_POLE_PAIRS: usize = MAX_ORDER / 6;
 
-/// Self-calibrate one encoder from a spin-down: the shaft coasting freely (TDR, Lu & Trumper).
+/// What the log holds (`--run`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Run {
+    /// A coast where the log has one, else a driven run.
+    Auto,
+    /// A free coast-down only.
+    Coast,
+    /// Passes at steady speed, a motor driving the shaft.
+    Driven,
+}
+
+/// Self-calibrate one encoder from a spin-down or a driven run: the shaft coasting freely, or
+/// driven at a steady speed (TDR, Lu & Trumper).
 ///
 /// Spin the shaft up, release the drive (or cut the motor current) and log the encoder while the
 /// shaft coasts down: 10 revolutions at the least, a few hundred is better, with the speed
@@ -40,6 +55,15 @@ const MAX_DEGREE: usize = 60;
 /// fitted jointly and separated from the map, and reported. Over a narrower coast it cannot be,
 /// and the warnings say how far the shaft must coast down. With --ref, the map is also checked
 /// against a reference encoder on the same shaft.
+///
+/// A driven run works too (--run driven, or auto where the log holds no coast): a motor at
+/// constant voltage, its inertia keeping the speed smooth (moteus' "inertial" calibration: ~300
+/// r/min for ~20 s). Each stretch at steady speed is a pass, fitted as a coast is. At one speed the
+/// motor's cogging and torque ripple (orders k × 6 × --pole-pairs, or --cogging-orders) cannot be
+/// told from the encoder's error: those orders are named, left out of the map, and their measured
+/// amplitude enters the map's u. With passes at two or more speeds (e.g. the voltage doubled
+/// halfway) each is separated as e + D/ω²: the encoder's part goes into the map, the cogging is
+/// reported (report.json details.driven).
 ///
 /// Writes DIR/<channel>.csv (angle_deg, error_arcsec, correction_arcsec; error = reading − true
 /// angle, correction = −error, a function of the encoder's own reading, zero mean) and
@@ -70,9 +94,20 @@ pub struct Args {
     /// Bayesian information criterion, at most 30 and at most half the revolutions.
     #[arg(long)]
     pub motion_degree: Option<usize>,
-    /// Fewest revolutions of coast accepted.
+    /// Fewest revolutions of coast (or of each driven pass) accepted.
     #[arg(long, default_value_t = 10.0)]
     pub min_revolutions: f64,
+    /// What the log holds: a free coast-down, passes driven at steady speed, or auto (a coast
+    /// where there is one, else a driven run).
+    #[arg(long, value_enum, default_value_t = Run::Auto)]
+    pub run: Run,
+    /// Pole pairs of the motor of a driven run: its cogging and torque ripple are at orders
+    /// k × 6 × pole pairs (42, 84, … for 7).
+    #[arg(long, conflicts_with = "cogging_orders")]
+    pub pole_pairs: Option<usize>,
+    /// The motor's orders of a driven run as a list (e.g. 42,84), instead of --pole-pairs.
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub cogging_orders: Vec<usize>,
     /// Points of the output table (default: enough for linear interpolation to 0.01″, ≥ 3600,
     /// as csrr and multihead choose them: the map is a sum of the harmonics kept).
     #[arg(long)]
@@ -122,6 +157,12 @@ fn prepare(args: &Args) -> anyhow::Result<()> {
     if let Some(p) = args.motion_degree {
         crate::input::check_count("--motion-degree", p, 1, Some(MAX_DEGREE))?;
     }
+    if let Some(p) = args.pole_pairs {
+        crate::input::check_count("--pole-pairs", p, 1, Some(MAX_POLE_PAIRS))?;
+    }
+    for &k in &args.cogging_orders {
+        crate::input::check_count("--cogging-orders", k, 1, Some(MAX_ORDER))?;
+    }
     if !(args.min_revolutions.is_finite() && args.min_revolutions >= 1.0) {
         return Err(Usage(format!(
             "--min-revolutions {} is outside its range: a finite number of at least 1",
@@ -143,6 +184,16 @@ fn calibrate(args: &Args, log: &Path, out: &Path) -> anyhow::Result<Outcome> {
         motion_degree: args.motion_degree,
         points: args.points,
         min_revolutions: args.min_revolutions,
+        run: match args.run {
+            Run::Auto => RunKind::Auto,
+            Run::Coast => RunKind::Coast,
+            Run::Driven => RunKind::Driven,
+        },
+        motor: match (args.pole_pairs, args.cogging_orders.is_empty()) {
+            (Some(p), _) => MotorOrders::PolePairs(p),
+            (None, false) => MotorOrders::Orders(args.cogging_orders.clone()),
+            (None, true) => MotorOrders::None,
+        },
         ..TdrOptions::default()
     });
     // The sample's values are the channels in the order opened: the encoder, then the reference.

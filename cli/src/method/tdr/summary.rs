@@ -1,4 +1,5 @@
-//! The summary `calib tdr` prints: the coast, the motion fit, the map and the drag.
+//! The summary `calib tdr` prints: the coast (or the driven run's passes), the motion fit, the
+//! map and the drag (or the motor's orders).
 
 use super::Args;
 use calib_core::Report;
@@ -21,16 +22,46 @@ pub(super) fn render_summary(
         calib_core::report::Details::Tdr(d) => (d.motion.start_s, d.motion.end_s),
         _ => (m.t_start, m.t_end),
     };
-    let _ = writeln!(
-        o,
-        "Spin-down (TDR) self-calibration of `{}` — coast {:.3}–{:.3} s, {:.1} revolutions, {:.1} → {:.1} r/min",
-        args.channel,
-        coast.0,
-        coast.1,
-        cal.revolutions,
-        rpm(cal.speed_start),
-        rpm(cal.speed_end)
-    );
+    match &cal.driven {
+        None => {
+            let _ = writeln!(
+                o,
+                "Spin-down (TDR) self-calibration of `{}` — coast {:.3}–{:.3} s, {:.1} revolutions, {:.1} → {:.1} r/min",
+                args.channel,
+                coast.0,
+                coast.1,
+                cal.revolutions,
+                rpm(cal.speed_start),
+                rpm(cal.speed_end)
+            );
+        }
+        Some(d) => {
+            // The passes on the log's clock, as report.json gives them.
+            let shift = coast.0 - m.t_start;
+            let passes: Vec<String> = d
+                .passes
+                .iter()
+                .map(|p| {
+                    format!(
+                        "{:.3}–{:.3} s at {:.1} r/min ({:.1} revolutions)",
+                        p.t_start + shift,
+                        p.t_end + shift,
+                        rpm(p.speed()),
+                        p.revolutions
+                    )
+                })
+                .collect();
+            let _ = writeln!(
+                o,
+                "Driven-run (TDR) self-calibration of `{}` — {} pass{}: {}; the map from pass {}",
+                args.channel,
+                d.passes.len(),
+                if d.passes.len() == 1 { "" } else { "es" },
+                passes.join(", "),
+                d.main_pass + 1
+            );
+        }
+    }
     let _ = writeln!(
         o,
         "motion: Chebyshev series of degree {} in time; residual rms {:.4}″ over {} samples (the readings' noise, \
@@ -89,7 +120,9 @@ pub(super) fn render_summary(
         }
     );
     let sep = &cal.drag_separation;
-    if sep.separated && !cal.drag.is_empty() {
+    if let Some(d) = &cal.driven {
+        o += &motor_orders(d);
+    } else if sep.separated && !cal.drag.is_empty() {
         let list: Vec<String> = cal
             .drag
             .iter()
@@ -133,4 +166,42 @@ pub(super) fn render_summary(
         "the map, its spectrum with the drag orders marked, the drag, the coast",
     );
     o
+}
+
+/// The summary's paragraph on a driven run's motor orders.
+fn motor_orders(d: &calib_core::tdr::DrivenRun) -> String {
+    if d.motor_orders.is_empty() {
+        return "\nmotor orders: none named (--pole-pairs or --cogging-orders); any cogging is in the map\n"
+            .to_string();
+    }
+    let list: Vec<String> = d
+        .motor_orders
+        .iter()
+        .map(|m| {
+            let measured: Vec<String> = m
+                .measured
+                .iter()
+                .map(|p| format!("{:.2}″", p.harmonic.amplitude * ARCSEC_PER_RAD))
+                .collect();
+            match &m.separated {
+                Some(s) => format!(
+                    "order {}: measured {} → encoder {:.3}″ ± {:.3}″ (in the map), cogging {:.4} rad/s²",
+                    m.order,
+                    measured.join(" / "),
+                    s.encoder.amplitude * ARCSEC_PER_RAD,
+                    s.u_encoder * ARCSEC_PER_RAD,
+                    s.deceleration.amplitude
+                ),
+                None => format!(
+                    "order {}: {} (left out of the map)",
+                    m.order,
+                    measured.join(" / ")
+                ),
+            }
+        })
+        .collect();
+    format!(
+        "\nmotor orders (cogging, torque ripple; each pass measures encoder error and shake together): {}\n",
+        list.join("; ")
+    )
 }

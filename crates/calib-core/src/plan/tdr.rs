@@ -166,6 +166,7 @@ impl TdrPlan {
                 duration_s: self.duration_s,
                 friction,
                 drag_harmonics: Vec::new(),
+                drive: None,
             }),
             sensors: vec![Sensor {
                 name: "enc".into(),

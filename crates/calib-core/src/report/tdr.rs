@@ -4,7 +4,7 @@ use super::{
     AfterCorrection, ChannelReport, Details, ReportSection, UncertaintyReport, arcsec, table_name,
 };
 use crate::harmonics::HarmonicReport;
-use crate::tdr::{FALSE_ORDER_PROBABILITY, TdrCalibration, significance_threshold};
+use crate::tdr::{DrivenRun, FALSE_ORDER_PROBABILITY, TdrCalibration, significance_threshold};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -36,6 +36,9 @@ pub struct TdrDetails {
     /// The check against a reference channel, where one was given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference: Option<TdrReferenceReport>,
+    /// A driven run's passes and the motor's orders; absent for a coast.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub driven: Option<DrivenReport>,
     /// How the channels were aligned on one clock, where anything was interpolated or dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<super::Alignment>,
@@ -137,6 +140,86 @@ pub struct SpeedDependentOrder {
     /// Its phase, degrees.
     pub phase_deg: f64,
     /// Standard uncertainty of the amplitude, arcsec.
+    pub u_arcsec: f64,
+}
+
+/// A driven run (`calib_core::tdr`'s module docs, "Driven runs").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DrivenReport {
+    /// The passes at steady speed, in time order.
+    pub passes: Vec<PassReport>,
+    /// The pass (from 0) whose fit gives the map outside the motor's orders, and `motion`.
+    pub main_pass: usize,
+    /// The motor's orders (cogging, torque ripple): what each pass measured there, and the
+    /// encoder's part where passes at different speeds separate it.
+    pub motor_orders: Vec<MotorOrderReport>,
+    /// Where the motor's orders go.
+    pub rule: String,
+}
+
+/// One pass of a driven run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PassReport {
+    /// Start, seconds.
+    pub start_s: f64,
+    /// End, seconds.
+    pub end_s: f64,
+    /// Speed `1/√⟨ω⁻²⟩`, r/min.
+    pub speed_rpm: f64,
+    /// ⟨ω⁻²⟩ over the pass, s².
+    pub mean_inverse_square_speed_s2: f64,
+    /// Revolutions.
+    pub revolutions: f64,
+    /// Samples.
+    pub samples: usize,
+    /// RMS of the pass's fit residual, arcsec.
+    pub residual_rms_arcsec: f64,
+}
+
+/// One of the motor's orders.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MotorOrderReport {
+    /// The order.
+    pub order: usize,
+    /// Whether the map holds it (the encoder's part, separated by speed).
+    pub in_map: bool,
+    /// What each pass measured there (encoder error and shake together), arcsec.
+    pub measured: Vec<PassHarmonic>,
+    /// The encoder's error at this order, where separated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub encoder: Option<HarmonicReport>,
+    /// Standard uncertainty of the encoder's part (each coefficient), arcsec.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub u_encoder_arcsec: Option<f64>,
+    /// Amplitude of the deceleration that shakes the shaft at this order, where separated,
+    /// rad/s².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deceleration_rad_s2: Option<f64>,
+    /// Its phase, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deceleration_phase_deg: Option<f64>,
+    /// Standard uncertainty of the deceleration, rad/s².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub u_deceleration_rad_s2: Option<f64>,
+    /// Factor by which separating multiplies the noise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub separation_noise_gain: Option<f64>,
+}
+
+/// What one pass measured at a motor order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PassHarmonic {
+    /// The pass (from 0).
+    pub pass: usize,
+    /// Amplitude, arcsec.
+    pub amplitude_arcsec: f64,
+    /// Phase, degrees.
+    pub phase_deg: f64,
+    /// Standard uncertainty of each coefficient, arcsec.
     pub u_arcsec: f64,
 }
 
@@ -260,6 +343,7 @@ impl TdrCalibration {
                     max_difference_arcsec: r.max_abs_diff_arcsec,
                     rms_difference_arcsec: r.rms_diff_arcsec,
                 }),
+            driven: self.driven.as_ref().map(driven_report),
             alignment: None,
             reading: None,
         };
@@ -272,3 +356,59 @@ impl TdrCalibration {
         }
     }
 }
+
+/// The report of a driven run.
+fn driven_report(d: &DrivenRun) -> DrivenReport {
+    DrivenReport {
+        passes: d
+            .passes
+            .iter()
+            .map(|p| PassReport {
+                start_s: p.t_start,
+                end_s: p.t_end,
+                speed_rpm: rpm(p.speed()),
+                mean_inverse_square_speed_s2: p.mean_inverse_square_speed,
+                revolutions: p.revolutions,
+                samples: p.samples,
+                residual_rms_arcsec: arcsec(p.residual_rms),
+            })
+            .collect(),
+        main_pass: d.main_pass,
+        motor_orders: d
+            .motor_orders
+            .iter()
+            .map(|m| {
+                let s = m.separated.as_ref();
+                let decel = s.map(|s| s.deceleration.to_report());
+                MotorOrderReport {
+                    order: m.order,
+                    in_map: s.is_some(),
+                    measured: m
+                        .measured
+                        .iter()
+                        .map(|p| {
+                            let h = p.harmonic.to_report();
+                            PassHarmonic {
+                                pass: p.pass,
+                                amplitude_arcsec: h.amplitude_arcsec,
+                                phase_deg: h.phase_deg,
+                                u_arcsec: arcsec(p.u),
+                            }
+                        })
+                        .collect(),
+                    encoder: s.map(|s| s.encoder.to_report()),
+                    u_encoder_arcsec: s.map(|s| arcsec(s.u_encoder)),
+                    // The deceleration's amplitude is in rad/s², not an angle.
+                    deceleration_rad_s2: s.map(|s| s.deceleration.amplitude),
+                    deceleration_phase_deg: decel.map(|h| h.phase_deg),
+                    u_deceleration_rad_s2: s.map(|s| s.u_deceleration),
+                    separation_noise_gain: s.map(|s| s.noise_gain),
+                }
+            })
+            .collect(),
+        rule: DRIVEN_RULE.to_string(),
+    }
+}
+
+/// Where a driven run's motor orders go, for reports.
+const DRIVEN_RULE: &str = "at one speed the motor's orders are left out of the map (their measured amplitude enters the map's u); with passes at two or more speeds each is fitted as e + D/ω² over the passes, the encoder's e put into the map with its u and the deceleration a = |D|·k² reported";

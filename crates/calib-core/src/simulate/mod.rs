@@ -32,6 +32,9 @@
 //!   friction = { coulomb = 0.0, viscous = 0.02, quadratic = 1e-4 }  # rad/s², 1/s, 1/rad
 //!   drag_harmonics = [{ order = 2, amplitude = 0.05, phase_deg = 30.0 }]  # rad/s²
 //!   ```
+//!   With `drive` (a motor at constant voltage, [`Drive`]) the acceleration gains
+//!   `(ω_v − ω)/τ`: a driven run at steady speed, for `calib tdr` on a driven motor
+//!   (`testdata/scenarios/driven.toml`).
 //! - **Sweep** (`[sweep]`, replacing `[procedure]`, for a joint that never turns a whole
 //!   revolution): strokes `from_deg → to_deg → from_deg …` at a list of speeds with
 //!   raised-cosine ramps and pauses ([`Sweep`]); [`Scenario::range_truth`] gives each channel's
@@ -136,8 +139,8 @@ mod spindown;
 mod sweep;
 
 pub use scenario::{
-    DragHarmonic, Friction, HarmonicSpec, Mount, Procedure, Scale, Scenario, ScenarioError, Sensor,
-    SessionSpec, Speed, SpinDown, Sweep,
+    DragHarmonic, Drive, DriveStep, Friction, HarmonicSpec, Mount, Procedure, Scale, Scenario,
+    ScenarioError, Sensor, SessionSpec, Speed, SpinDown, Sweep,
 };
 pub use sensor::SensorTruth;
 
@@ -148,7 +151,7 @@ use crate::sample::{Channel, Sample};
 use motion::{SessionPlan, State, Timeline, Timing};
 use rng::Rng;
 use sensor::{ErrorModel, FastSeries, Powers, Term};
-use spindown::Coast;
+use spindown::{Coast, ConstantVoltage};
 use std::f64::consts::TAU;
 use sweep::SweepTimeline;
 
@@ -395,11 +398,21 @@ impl Scenario {
             })
             .collect();
         let f = &sd.friction;
+        let rpm = TAU / 60.0;
+        let drive = sd.drive.as_ref().map(|d| ConstantVoltage {
+            time_constant: d.time_constant_s,
+            steps: d
+                .steps
+                .iter()
+                .map(|s| (s.from_s, s.speed_rpm * rpm))
+                .collect(),
+        });
         Coast::new(
-            sd.speed_rpm * TAU / 60.0,
+            sd.speed_rpm * rpm,
             sd.duration_s,
             [f.coulomb, f.viscous, f.quadratic],
             &drag,
+            drive,
             self.rate_hz,
         )
     }

@@ -258,6 +258,40 @@ pub struct SpinDown {
     /// Angle-dependent drag: terms `a_h·cos(h·θ + φ_h)` of angular deceleration (default none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub drag_harmonics: Vec<DragHarmonic>,
+    /// A motor driving the shaft at constant voltage (default none: the shaft coasts).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive: Option<Drive>,
+}
+
+/// A DC (or field-oriented) motor at constant voltage: its torque falls linearly with speed
+/// (back-EMF), so it adds `(ω_v − ω)/τ` to the shaft's acceleration, `ω_v` the no-load speed of
+/// the voltage applied and `τ` the mechanical time constant. The shaft then settles
+/// exponentially to the speed where the drive balances the friction, and its inertia keeps it
+/// smooth; cogging and torque ripple are [`SpinDown::drag_harmonics`] at the motor's orders
+/// (`k·6·pole pairs`). For example, a run at ~300 r/min then one at ~600 r/min:
+/// ```toml
+/// drive = { time_constant_s = 1.5, steps = [
+///   { from_s = 0.0, speed_rpm = 305.0 }, { from_s = 20.0, speed_rpm = 610.0 },
+/// ] }
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Drive {
+    /// `τ`, seconds (> 0).
+    pub time_constant_s: f64,
+    /// The voltage steps in time order; before the first the shaft coasts.
+    pub steps: Vec<DriveStep>,
+}
+
+/// From `from_s` on (until the next step) the motor's voltage gives a no-load speed of
+/// `speed_rpm`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveStep {
+    /// When the voltage is applied, seconds (≥ 0, increasing from step to step).
+    pub from_s: f64,
+    /// No-load speed of that voltage, revolutions per minute (≥ 0).
+    pub speed_rpm: f64,
 }
 
 /// A joint swept back and forth over part of a revolution: at rest at `from_deg` for `pause_s`,
@@ -810,6 +844,31 @@ fn validate_spin_down(scenario: &Scenario, sd: &SpinDown) -> Result<(), Scenario
         check(|| at("order"), f64::from(d.order), d.order >= 1, "≥ 1")?;
         check(|| at("amplitude"), d.amplitude, true, "finite")?;
         check(|| at("phase_deg"), d.phase_deg, true, "finite")?;
+    }
+    if let Some(drive) = &sd.drive {
+        check(
+            || "spin_down.drive.time_constant_s".into(),
+            drive.time_constant_s,
+            drive.time_constant_s > 0.0,
+            "> 0",
+        )?;
+        let mut last = 0.0;
+        for (i, step) in drive.steps.iter().enumerate() {
+            let at = |key: &str| format!("spin_down drive step {} {key}", i + 1);
+            check(
+                || at("from_s"),
+                step.from_s,
+                step.from_s >= last,
+                "≥ 0 and ≥ the step before",
+            )?;
+            check(
+                || at("speed_rpm"),
+                step.speed_rpm,
+                step.speed_rpm >= 0.0,
+                "≥ 0",
+            )?;
+            last = step.from_s;
+        }
     }
     Ok(())
 }

@@ -1,9 +1,13 @@
 //! The free coast-down of the shaft ([`super::SpinDown`]): the friction ODE integrated by
 //! classical Runge–Kutta (RK4) on a fine fixed grid.
 //!
-//! State `(θ, ω)`, `θ' = ω`, `ω' = −(c₀ + c₁ω + c₂ω²) − Σ a_h cos(hθ + φ_h)` while `ω > 0`.
-//! The grid step is `min(1/rate, 0.005/(ω₀·h_max))`, `h_max` the highest drag order (1 without
-//! drag): a step turns the fastest drag term by at most 0.005 rad. RK4's local error is then
+//! State `(θ, ω)`, `θ' = ω`, `ω' = −(c₀ + c₁ω + c₂ω²) − Σ a_h cos(hθ + φ_h)` while `ω > 0`,
+//! plus `(ω_v − ω)/τ` while a motor drives it at constant voltage ([`super::Drive`]). The
+//! drive's `ω_v` is taken at the start of each grid step: a voltage step acts from the first
+//! grid point at or after its time, and RK4 never integrates across its jump.
+//! The grid step is `min(1/rate, 0.005/(ω_max·h_max))`, `h_max` the highest drag order (1
+//! without drag) and `ω_max` the larger of `ω₀` and the drive's no-load speeds: a step turns
+//! the fastest drag term by at most 0.005 rad. RK4's local error is then
 //! ~`δ·(0.005)⁵` for a drag response of amplitude δ (≤ 1e-4 rad), about 1e-15 rad per step, and
 //! the global error over 10⁶ steps stays below 1e-9 rad (2e-4″); the tests check the result
 //! against closed forms and against a quarter-step integration. A sample between grid points
@@ -33,11 +37,31 @@ fn two_sum(a: f64, b: f64) -> (f64, f64) {
     (s, (a - (s - bb)) + (b - bb))
 }
 
-/// The coasting shaft: the ODE's parameters and the integration's current grid point.
+/// A motor at constant voltage: `τ` (s) and the steps `(from, ω_v)` (s, rad/s) in time order.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ConstantVoltage {
+    pub time_constant: f64,
+    pub steps: Vec<(f64, f64)>,
+}
+
+impl ConstantVoltage {
+    /// `ω_v` at `t`, `None` before the first step.
+    fn no_load_speed(&self, t: f64) -> Option<f64> {
+        self.steps
+            .iter()
+            .take_while(|(from, _)| *from <= t)
+            .last()
+            .map(|&(_, w)| w)
+    }
+}
+
+/// The coasting (or driven) shaft: the ODE's parameters and the integration's current grid
+/// point.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Coast {
     /// `c₀, c₁, c₂`.
     friction: [f64; 3],
+    drive: Option<ConstantVoltage>,
     drag: FastSeries,
     powers: Powers,
     step: f64,
@@ -57,14 +81,20 @@ impl Coast {
         duration: f64,
         friction: [f64; 3],
         drag: &[Term],
+        drive: Option<ConstantVoltage>,
         rate_hz: f64,
     ) -> Self {
         let h_max = drag.iter().map(|t| t.order).fold(1.0, f64::max);
+        let fastest = drive
+            .iter()
+            .flat_map(|d| d.steps.iter().map(|s| s.1))
+            .fold(omega0, f64::max);
         Coast {
             friction,
+            drive,
             drag: FastSeries::new(drag),
             powers: Powers::default(),
-            step: (1.0 / rate_hz).min(0.005 / (omega0 * h_max)),
+            step: (1.0 / rate_hz).min(0.005 / (fastest * h_max)),
             duration,
             at: Point {
                 t: 0.0,
@@ -83,26 +113,31 @@ impl Coast {
         self.duration
     }
 
-    /// `dω/dt` at `(θ, ω)`.
-    fn accel(&mut self, theta: f64, omega: f64) -> f64 {
+    /// `dω/dt` at `(θ, ω)` under a drive of no-load speed `driven` (`None`: coasting).
+    fn accel(&mut self, theta: f64, omega: f64, driven: Option<f64>) -> f64 {
         let [c0, c1, c2] = self.friction;
-        -(c0 + c1 * omega + c2 * omega * omega) - self.drag.eval(theta, &mut self.powers)
+        let drive = match (driven, &self.drive) {
+            (Some(wv), Some(d)) => (wv - omega) / d.time_constant,
+            _ => 0.0,
+        };
+        drive - (c0 + c1 * omega + c2 * omega * omega) - self.drag.eval(theta, &mut self.powers)
     }
 
-    /// One RK4 step of size `dt` (may be negative) from `p`.
+    /// One RK4 step of size `dt` (may be negative) from `p`, the drive's speed taken at `p.t`.
     fn rk4(&mut self, p: Point, dt: f64) -> Point {
-        let k1 = (p.omega, self.accel(p.theta, p.omega));
+        let driven = self.drive.as_ref().and_then(|d| d.no_load_speed(p.t));
+        let k1 = (p.omega, self.accel(p.theta, p.omega, driven));
         let k2 = {
             let (th, om) = (p.theta + 0.5 * dt * k1.0, p.omega + 0.5 * dt * k1.1);
-            (om, self.accel(th, om))
+            (om, self.accel(th, om, driven))
         };
         let k3 = {
             let (th, om) = (p.theta + 0.5 * dt * k2.0, p.omega + 0.5 * dt * k2.1);
-            (om, self.accel(th, om))
+            (om, self.accel(th, om, driven))
         };
         let k4 = {
             let (th, om) = (p.theta + dt * k3.0, p.omega + dt * k3.1);
-            (om, self.accel(th, om))
+            (om, self.accel(th, om, driven))
         };
         let (theta, lo) = two_sum(
             p.theta,
@@ -170,7 +205,7 @@ mod tests {
     fn viscous_coast_matches_the_closed_form() {
         // θ' = ω, ω' = −c₁ω: θ(t) = ω₀/c₁·(1 − e^{−c₁t}).
         let (w0, c1) = (62.8, 0.03);
-        let mut c = Coast::new(w0, 30.0, [0.0, c1, 0.0], &[], 1000.0);
+        let mut c = Coast::new(w0, 30.0, [0.0, c1, 0.0], &[], None, 1000.0);
         for k in 0..300 {
             let t = 0.1 * k as f64 + 0.0003;
             let exact = w0 / c1 * (1.0 - (-c1 * t).exp());
@@ -184,13 +219,32 @@ mod tests {
     fn coulomb_coast_stops_where_the_speed_reaches_zero() {
         // ω' = −c₀: stops at t = ω₀/c₀ after θ = ω₀²/(2c₀), then rests.
         let (w0, c0) = (10.0, 2.0);
-        let mut c = Coast::new(w0, 8.0, [c0, 0.0, 0.0], &[], 100.0);
+        let mut c = Coast::new(w0, 8.0, [c0, 0.0, 0.0], &[], None, 100.0);
         let exact = |t: f64| w0 * t - 0.5 * c0 * t * t;
         // RK4 is exact for this quadratic; what remains is rounding (≪ 1e-12 rad).
         assert!((c.theta(3.0) - exact(3.0)).abs() < 1e-12);
         // The linear speed profile makes the interpolated stop instant exact.
         assert!((c.theta(6.0) - 25.0).abs() < 1e-12);
         assert!((c.theta(8.0) - 25.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_drive_at_constant_voltage_settles_as_the_closed_form() {
+        // ω' = (ω_v − ω)/τ − c₁ω from ω₀: ω → ω∞ = ω_v/(1 + c₁τ) with rate k = 1/τ + c₁,
+        // θ(t) = ω∞·t + (ω₀ − ω∞)(1 − e^{−kt})/k, the voltage on from t = 0.
+        let (w0, wv, tau, c1) = (20.0, 31.4, 0.8, 0.05);
+        let drive = ConstantVoltage {
+            time_constant: tau,
+            steps: vec![(0.0, wv)],
+        };
+        let mut c = Coast::new(w0, 10.0, [0.0, c1, 0.0], &[], Some(drive), 2000.0);
+        let (k, w_inf) = (1.0 / tau + c1, wv / (1.0 + c1 * tau));
+        for i in 0..100 {
+            let t = 0.1 * i as f64 + 0.00021;
+            let exact = w_inf * t + (w0 - w_inf) * (1.0 - (-k * t).exp()) / k;
+            // RK4's error (k·step)⁵/120 per step is nil; rounding of ~300 rad remains.
+            assert!(((c.theta(t) - exact) * ARCSEC_PER_RAD).abs() < 1e-5, "{t}");
+        }
     }
 
     #[test]
@@ -203,7 +257,7 @@ mod tests {
             phase: 0.3,
         }];
         let f = [0.05, 0.02, 1e-4];
-        let mut coarse = Coast::new(62.8, 5.0, f, &drag, 1000.0);
+        let mut coarse = Coast::new(62.8, 5.0, f, &drag, None, 1000.0);
         let mut fine = coarse.clone();
         fine.step /= 4.0;
         for k in 0..50 {

@@ -87,10 +87,41 @@
 //! strictly periodic in shaft angle (balls and cage turn at non-integer orders): what (3) cannot
 //! fit stays in the residual, whose periodic structure is checked as above.
 //!
+//! # Driven runs
+//! Nothing in (1) needs the shaft to coast: a motor driving it at constant voltage, its inertia
+//! keeping the speed smooth (mjbots moteus' "inertial" encoder calibration: ~300 r/min for
+//! ~20 s), moves it just as smoothly in time, and the fit is the same. What changes is the
+//! torque that is periodic in angle: the motor's cogging and torque ripple, at its orders
+//! `k·6·p` for `p` pole pairs ([`MotorOrders`]), shake the shaft by eq. (2) at every speed, and
+//! at one steady speed `ω⁻²` does not vary, so eq. (3) cannot separate them (nor any other
+//! angle-dependent drag; the drag fit is not tried). A driven run is found as **passes**:
+//! stretches of whole revolutions whose mean speeds change by at most [`STEADY_CHANGE`] from
+//! one to the next (a spin-up's tail included, a voltage step or a release excluded), each of
+//! at least [`TdrOptions::min_revolutions`]. Each pass is fitted on its own (its own motion, the motor's
+//! orders always in the fit), and
+//!
+//! - **at one speed** the motor's orders are named and **left out of the map**: their fitted
+//!   coefficients (encoder error and shake together) are reported
+//!   ([`DrivenRun::motor_orders`]), and the map's `u` gains their RMS `√Σ(A_k²/2 + σ_k²)` — what
+//!   the map may miss there, assuming the encoder's error and the shake do not cancel;
+//! - **at two or more speeds** each motor order's coefficient `c_s` in pass `s` is
+//!   `e_k + D_k·g_s`, `g_s = ⟨ω⁻²⟩` over the pass and `D_k = a_k e^{iφ_k}/k²` (eq. 2): a
+//!   weighted straight line in `g` (weights the inverse variances) gives the encoder's `e_k`,
+//!   put **into the map** with its `u`, and the deceleration `a_k`. As for a coast (eq. 3),
+//!   separating costs noise, by `√VIF` with `VIF = W·Σw g²/(W·Σw g² − (Σw g)²)`; above
+//!   [`MAX_DRAG_VARIANCE_INFLATION`] (passes at too close speeds) the order is treated as at one
+//!   speed. The rest of the map is the longest pass's, less the shake's sidebands: the shake
+//!   is periodic in the true angle `r − E(r)`, so in the reading it also holds `−E·δ′` at the
+//!   orders `k ± m` of the map's own orders `m`, which the fit took for encoder error there and
+//!   the separated shake gives back (to first order in `E`).
+//!
+//! With [`RunKind::Auto`] (the default) a log is a coast when it holds one (as before driven
+//! runs were accepted: a plateau before the release is skipped), else a driven run.
+//!
 //! # Other limits
 //! No absolute offset (the gauge); orders above [`TdrCalibration::max_order`] are not modelled
-//! (the residual check names them). The motion must be free: a driven constant-speed plateau is
-//! skipped, and a log without falling speed is refused ([`TdrError`]).
+//! (the residual check names them). A log with neither a coast nor a steady pass of enough
+//! revolutions is refused ([`TdrError`]).
 //!
 //! # Streaming, and the cost of the fit
 //! [`Tdr::push`] keeps of each sample only its time and unwrapped reading (16 bytes; 24 with a
@@ -122,11 +153,21 @@ use std::f64::consts::TAU;
 
 mod chebyshev;
 mod cholesky;
+mod driven;
 mod moments;
 mod residual;
 
+pub use driven::{
+    DrivenPass, DrivenRun, MotorOrder, MotorOrders, PassMeasurement, RunKind, STEADY_CHANGE,
+    Separated,
+};
+use driven::{MotorMeasure, find_passes};
+
 /// The statement of what a spin-down calibration cannot separate, for reports.
 pub const DRAG_AMBIGUITY: &str = "An angle-dependent drag torque (rolling-element bearings, motor cogging, unbalance) decelerating the shaft by a_h·cos(hθ+φ) shakes it by a_h/(h·ω)² at order h, periodic in angle like the encoder's error. TDR separates the two by their speed dependence (the drag's imprint grows as 1/ω², the encoder's error does not) when the coast sweeps the speed widely enough (1/ω² varying by ≥ 10 % RMS); otherwise the map's order h absorbs a_h/h²·⟨ω⁻²⟩. Drag not periodic in shaft angle (ball and cage orders) is not separated: check the map against a reference (the `ref` option) on rolling bearings.";
+
+/// The statement of what a driven run cannot separate, for reports.
+pub const DRIVEN_AMBIGUITY: &str = "At a steady speed a torque periodic in angle (the motor's cogging and torque ripple at its orders k·6·pole pairs, rolling bearings, unbalance) shakes the shaft by a_h/(h·ω)² at order h, periodic in angle like the encoder's error and, at one speed, not to be told from it. The motor's named orders are left out of the map (listed with what was measured there, and covered by the map's u) unless passes at two or more speeds separate them by the 1/ω² dependence of the shake; at other orders any such shake stays in the map.";
 
 /// Settings of a spin-down calibration.
 #[derive(Debug, Clone, PartialEq)]
@@ -150,6 +191,12 @@ pub struct TdrOptions {
     /// The coast ends where the speed falls below this fraction of its peak (default 0.1): at
     /// low speed drag effects (2) grow as ω⁻², and a shaft coming to rest stops abruptly.
     pub min_speed_fraction: f64,
+    /// What the log holds: a coast, a driven run, or whichever is there (default
+    /// [`RunKind::Auto`]; module docs, "Driven runs").
+    pub run: RunKind,
+    /// The motor's orders (cogging, torque ripple) of a driven run, named in the result and
+    /// left out of the map or separated by speed (default none).
+    pub motor: MotorOrders,
 }
 
 impl Default for TdrOptions {
@@ -161,6 +208,8 @@ impl Default for TdrOptions {
             points: None,
             min_revolutions: 10.0,
             min_speed_fraction: 0.1,
+            run: RunKind::Auto,
+            motor: MotorOrders::None,
         }
     }
 }
@@ -234,6 +283,16 @@ pub enum TdrError {
         speed_rpm: f64,
         /// Fall of the speed from its peak to the end of the coast, percent.
         drop_percent: f64,
+    },
+    /// No stretch of steady speed long enough for a driven run.
+    #[error(
+        "no spin-down and no driven run long enough: the longest stretch at steady speed (its speed over each revolution within 0.5 % of the next one's) covers {revolutions:.0} whole revolutions, at least {needed} needed; drive the shaft at a constant voltage for longer, or release it at speed and log the coast-down"
+    )]
+    NoSteadyRun {
+        /// Revolutions of the longest steady stretch found.
+        revolutions: f64,
+        /// [`TdrOptions::min_revolutions`].
+        needed: f64,
     },
     /// The coast is too short.
     #[error(
@@ -419,8 +478,11 @@ pub struct TdrCalibration {
     pub uncertainty: MapUncertainty,
     /// What the user should know.
     pub warnings: Vec<String>,
-    /// What the method cannot separate ([`DRAG_AMBIGUITY`]), for reports.
+    /// What the method cannot separate ([`DRAG_AMBIGUITY`], or [`DRIVEN_AMBIGUITY`] for a
+    /// driven run), for reports.
     pub ambiguity: &'static str,
+    /// A driven run's passes and the motor's orders; `None` for a coast.
+    pub driven: Option<DrivenRun>,
 }
 
 /// A spin-down calibration being fed samples.
@@ -500,14 +562,39 @@ impl Tdr {
         })
     }
 
-    /// The fit of the readings, which span `extent` (their least and greatest).
+    /// The fit of the readings, which span `extent` (their least and greatest): of the coast,
+    /// or of the driven run's passes (module docs, "Driven runs").
     fn fit(self, extent: (f64, f64)) -> Result<TdrCalibration, TdrError> {
-        let coast = find_coast(&self.t, &self.r, extent, &self.opts)?;
+        let coast = || find_coast(&self.t, &self.r, extent, &self.opts);
+        let driven = || find_passes(&self.t, &self.r, extent, &self.opts);
+        let of_coast = |c: Coast| self.fit_run(&c, false).map(|(cal, _)| cal);
+        match self.opts.run {
+            RunKind::Coast => of_coast(coast()?),
+            RunKind::Driven => self.fit_driven(driven()?),
+            RunKind::Auto => match coast() {
+                Ok(c) => of_coast(c),
+                Err(e) => match driven() {
+                    Ok(passes) => self.fit_driven(passes),
+                    // A held speed is a driven run: what it lacks is said by the driven error.
+                    Err(d) if matches!(e, TdrError::NotFalling { .. }) => Err(d),
+                    Err(_) => Err(e),
+                },
+            },
+        }
+    }
+
+    /// The fit of one coast, or of one pass of a driven run (`driven`: no drag fit, the
+    /// motor's orders in the fit and out of the map, returned as measured).
+    fn fit_run(
+        &self,
+        coast: &Coast,
+        driven: bool,
+    ) -> Result<(TdrCalibration, Vec<MotorMeasure>), TdrError> {
         let (i0, i1) = (coast.first, coast.end);
         let t = &self.t[i0..i1];
         let r = &self.r[i0..i1];
-        let mut warnings = self.coast_warnings(&coast);
-        let max_degree = self.max_degree(&coast, &mut warnings);
+        let mut warnings = self.coast_warnings(coast);
+        let max_degree = self.max_degree(coast, &mut warnings);
         let y0 = r[0];
         let span = (t[0], t[t.len() - 1]);
         let samples = Samples {
@@ -527,7 +614,17 @@ impl Tdr {
             unknowns: max_degree + 1 + 2 * h,
             samples: t.len(),
         };
-        let hd = self.opts.max_drag_order.min(h);
+        // At a steady speed ω⁻² does not vary: drag cannot be separated, and is not tried.
+        let hd = if driven {
+            0
+        } else {
+            self.opts.max_drag_order.min(h)
+        };
+        let motor_orders = if driven {
+            self.opts.motor.up_to(h)
+        } else {
+            Vec::new()
+        };
         let moments = Moments::with_preliminary(samples, preliminary, h, hd);
 
         // 1. Which orders the data hold: every order to h, the motion at its highest degree.
@@ -557,7 +654,7 @@ impl Tdr {
         };
         let drag = self.drag_step(
             &coasting,
-            &coast,
+            coast,
             &mut screen,
             screen_motion,
             &speeds,
@@ -571,8 +668,9 @@ impl Tdr {
             gain: speeds.drag_gain,
         };
 
-        // 3. The final fit: the kept orders (and the drag's), the motion's degree by BIC.
-        let orders = union(&screen.kept, &drag_orders);
+        // 3. The final fit: the kept orders (and the drag's, and the motor's), the motion's
+        // degree by BIC.
+        let orders = union(&union(&screen.kept, &drag_orders), &motor_orders);
         let mut basis = Basis {
             t0: span.0,
             t1: span.1,
@@ -592,11 +690,22 @@ impl Tdr {
         })?;
         let residual_rms = (fit.rss / t.len() as f64).sqrt();
 
-        let (series, motion) = series_and_motion(&basis, &fit, h, y0);
+        let (mut series, motion) = series_and_motion(&basis, &fit, h, y0);
+        // Points enough for the map with the motor's orders or without.
         let points = self
             .opts
             .points
             .unwrap_or_else(|| crate::csrr::table_points(&series));
+        let motor = motor_measures(&basis, &fit, &motor_orders);
+        for m in &motor {
+            series.cos[m.order - 1] = 0.0;
+            series.sin[m.order - 1] = 0.0;
+        }
+        let map_orders: Vec<usize> = orders
+            .iter()
+            .copied()
+            .filter(|k| !motor_orders.contains(k))
+            .collect();
         let map = ErrorMap::from_series(&series, points);
         let drag = drag_terms(&basis, &fit, speeds.drag_gain);
 
@@ -607,11 +716,12 @@ impl Tdr {
         warnings.extend(unresolved_warning(&unresolved, h));
 
         let floor = detection::detection_floor(screen.detection_limit);
-        let uncertainty = detection::apply_floor(
-            map_uncertainty(&basis, &fit, &series, &unresolved, screen.dropped, points),
-            floor,
-        );
-        if orders.is_empty() {
+        let mut components =
+            map_components(&basis, &fit, &series, &unresolved, screen.dropped, points);
+        components.extend(driven::left_out(&motor));
+        let uncertainty =
+            detection::apply_floor(MapUncertainty::combine(points, components), floor);
+        if map_orders.is_empty() {
             warnings.push(detection::empty_map_warning(
                 uncertainty.max(),
                 &format!("1–{h}"),
@@ -642,11 +752,11 @@ impl Tdr {
         );
         let reference = self.reference_check(i0..i1, &seen, &map, &mut warnings);
 
-        Ok(TdrCalibration {
+        let cal = TdrCalibration {
             map,
             series,
             max_order: h,
-            orders,
+            orders: map_orders,
             unresolved,
             speed_start: motion.eval(span.0).1.abs(),
             speed_end: motion.eval(span.1).1.abs(),
@@ -670,8 +780,14 @@ impl Tdr {
             reference,
             uncertainty,
             warnings,
-            ambiguity: DRAG_AMBIGUITY,
-        })
+            ambiguity: if driven {
+                DRIVEN_AMBIGUITY
+            } else {
+                DRAG_AMBIGUITY
+            },
+            driven: None,
+        };
+        Ok((cal, motor))
     }
 
     /// Step 2 of [`finish`](Self::finish): the drag orders up to `max_drag_order` fitted jointly
@@ -738,7 +854,7 @@ impl Tdr {
         }
         if coast.plateau_s > 0.0 {
             warnings.push(format!(
-                "the first {:.2} s after the peak speed hold the speed (a driven plateau?) and were not used",
+                "the first {:.2} s after the peak speed hold the speed (a driven plateau?) and were not used; to calibrate from the driven run instead, set the `run` option to driven",
                 coast.plateau_s
             ));
         }
@@ -1101,14 +1217,7 @@ fn find_coast(
     opts: &TdrOptions,
 ) -> Result<Coast, TdrError> {
     let n = t.len();
-    if n < 128 {
-        return Err(TdrError::TooFewSamples { count: n });
-    }
-    if hi - lo < TAU {
-        return Err(TdrError::Stationary {
-            travel_deg: (hi - lo).to_degrees(),
-        });
-    }
+    check_log(n, (lo, hi))?;
     let windows = (n / 8).min(256);
     let bound = |k: usize| k * (n - 1) / windows;
     let speeds: Vec<f64> = (0..windows)
@@ -1175,6 +1284,20 @@ fn find_coast(
             0.0
         },
     })
+}
+
+/// The refusals of a log before any motion is looked for: too few samples (`n`), or a travel
+/// (`extent`, the least and greatest readings) of less than a turn.
+fn check_log(n: usize, (lo, hi): (f64, f64)) -> Result<(), TdrError> {
+    if n < 128 {
+        return Err(TdrError::TooFewSamples { count: n });
+    }
+    if hi - lo < TAU {
+        return Err(TdrError::Stationary {
+            travel_deg: (hi - lo).to_degrees(),
+        });
+    }
+    Ok(())
 }
 
 /// The least and the greatest of `values`, on both cores (NaNs left out; the same whatever the
@@ -1468,22 +1591,24 @@ fn substitute(l: &[f64], n: usize, j: usize) -> Vec<f64> {
     col
 }
 
-/// The map's budget. The fit's noise: the map at `x` is `c(x)ᵀβ_E`, `c(x)` the `cos kx, sin kx`
-/// of the kept orders, so `u_fit(x)² = σ²·c(x)ᵀ[(AᵀA)⁻¹]_EE·c(x) = σ²·‖L⁻¹·c(x)‖²` (with the
-/// motion's and the drag's columns in the fit: their correlation with the map is included).
+/// The components of the map's budget. The fit's noise: the map at `x` is `c(x)ᵀβ_E`, `c(x)`
+/// the `cos kx, sin kx` of the orders fitted, so `u_fit(x)² = σ²·c(x)ᵀ[(AᵀA)⁻¹]_EE·c(x) =
+/// σ²·‖L⁻¹·c(x)‖²` (with the motion's and the drag's columns in the fit: their correlation
+/// with the map is included; a driven pass's motor orders count whether the map keeps them or
+/// not).
 /// Periodic structure the residual still holds above the fitted orders is missing from the map:
 /// each such order of amplitude `A` errs by `A·cos(kx + φ)`, RMS `A/√2`, taken as a uniform
 /// component. The orders the significance rule dropped hold, on average over the circle, what
 /// their coefficients hold beyond their noise ([`Screen::dropped`]). And the table's linear
 /// interpolation.
-fn map_uncertainty(
+fn map_components(
     basis: &Basis,
     fit: &Fit,
     series: &FourierSeries,
     unresolved: &[Harmonic],
     dropped: f64,
     points: usize,
-) -> MapUncertainty {
+) -> Vec<MapComponent> {
     let u_fit = noise_through_fit(basis, &fit.l_inv, fit.sigma, points);
     let missing = (unresolved
         .iter()
@@ -1514,11 +1639,32 @@ fn map_uncertainty(
         evaluation: Evaluation::TypeB,
         u: vec![interpolation_uncertainty(&series.harmonics(), points)],
     });
-    MapUncertainty::combine(points, components)
+    components
+}
+
+/// What the final fit measured at the motor's `orders` (each in `basis`): the coefficients
+/// and their variance, each coefficient's `σ²·[(AᵀA)⁻¹]` averaged over the pair.
+fn motor_measures(basis: &Basis, fit: &Fit, orders: &[usize]) -> Vec<MotorMeasure> {
+    let f = basis.degree + 1;
+    basis
+        .orders
+        .iter()
+        .enumerate()
+        .filter(|(_, k)| orders.contains(k))
+        .map(|(i, &order)| {
+            let (c, s) = (f + 2 * i, f + 2 * i + 1);
+            MotorMeasure {
+                order,
+                cos: fit.beta[c],
+                sin: fit.beta[s],
+                variance: fit.sigma.powi(2) * 0.5 * (fit.covariance(c, c) + fit.covariance(s, s)),
+            }
+        })
+        .collect()
 }
 
 /// `u_fit(x) = σ·‖L⁻¹c(x)‖` at `points` grid points, `c(x)` the `cos kx, sin kx` of the map's
-/// orders in `basis` and `L⁻¹` the inverse of the fit's Cholesky factor ([`map_uncertainty`]).
+/// orders in `basis` and `L⁻¹` the inverse of the fit's Cholesky factor ([`map_components`]).
 fn noise_through_fit(basis: &Basis, l_inv: &DMatrix<f64>, sigma: f64, points: usize) -> Vec<f64> {
     let f = basis.degree + 1;
     let n = basis.len();

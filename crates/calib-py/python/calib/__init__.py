@@ -669,10 +669,14 @@ def tdr(
     motion_degree: Optional[int] = None,
     min_revolutions: float = 10.0,
     points: Optional[int] = None,
+    run: str = "auto",
+    pole_pairs: Optional[int] = None,
+    cogging_orders: Optional[Sequence[int]] = None,
 ) -> Result:
-    """Self-calibration of one encoder from a free spin-down (``calib tdr``, Lu & Trumper's
-    time-domain method): the shaft coasts freely, many revolutions, and the encoder's error,
-    periodic in angle, is told from the smooth motion.
+    """Self-calibration of one encoder from a free spin-down or a driven run (``calib tdr``,
+    Lu & Trumper's time-domain method): the shaft coasts freely, or a motor drives it at steady
+    speed, many revolutions, and the encoder's error, periodic in angle, is told from the smooth
+    motion.
 
     Args:
         t: time stamps, seconds.
@@ -682,9 +686,15 @@ def tdr(
         max_order: highest harmonic order of the map (default: from the samples per turn).
         max_drag_order: highest order of the angle-periodic drag fitted with it.
         motion_degree: degree of the Chebyshev series of the motion (default: chosen).
-        min_revolutions: the shortest coast accepted, revolutions.
+        min_revolutions: the shortest coast (or driven pass) accepted, revolutions.
         points: points of the table (default: enough for linear interpolation to 0.01″,
             at least 3600).
+        run: ``"coast"``, ``"driven"`` (passes at steady speed) or ``"auto"`` (a coast where
+            there is one, else a driven run).
+        pole_pairs: the driving motor's pole pairs: its cogging and torque ripple at orders
+            k·6·pole_pairs are left out of the map at one speed, separated by their 1/ω²
+            dependence over passes at two or more (``report["details"]["driven"]``).
+        cogging_orders: the motor's orders as a list, instead of ``pole_pairs``.
     """
     return Result(
         _calib.tdr(
@@ -697,6 +707,9 @@ def tdr(
             motion_degree=motion_degree,
             min_revolutions=min_revolutions,
             points=points,
+            run=run,
+            pole_pairs=pole_pairs,
+            cogging_orders=None if cogging_orders is None else [int(k) for k in cogging_orders],
         )
     )
 
@@ -716,9 +729,12 @@ def tdr_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    run: str = "auto",
+    pole_pairs: Optional[int] = None,
+    cogging_orders: Optional[Sequence[int]] = None,
 ) -> Result:
-    """Spin-down self-calibration of a log's ``channel`` (``calib tdr LOG --channel``).
-    Options as :func:`tdr` and :func:`read`."""
+    """Spin-down or driven-run self-calibration of a log's ``channel`` (``calib tdr LOG
+    --channel``). Options as :func:`tdr` and :func:`read`."""
     return Result(
         _calib.tdr_log(
             os.fspath(path),
@@ -734,6 +750,9 @@ def tdr_log(
             max_gap=max_gap,
             time_column=time_column,
             time_unit=time_unit,
+            run=run,
+            pole_pairs=pole_pairs,
+            cogging_orders=None if cogging_orders is None else [int(k) for k in cogging_orders],
         )
     )
 

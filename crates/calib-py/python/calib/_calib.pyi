@@ -164,6 +164,9 @@ def tdr(
     motion_degree: Optional[int] = None,
     min_revolutions: float = 10.0,
     points: Optional[int] = None,
+    run: str = "auto",
+    pole_pairs: Optional[int] = None,
+    cogging_orders: Optional[Sequence[int]] = None,
 ) -> Dict[str, Any]: ...
 def tdr_log(
     path: str,
@@ -180,6 +183,9 @@ def tdr_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    run: str = "auto",
+    pole_pairs: Optional[int] = None,
+    cogging_orders: Optional[Sequence[int]] = None,
 ) -> Dict[str, Any]: ...
 def multihead(
     names: List[str],
