@@ -513,11 +513,7 @@ fn reference_options(
 
 /// The gear of `ref_ratio` (a number or `"auto"`; `None`: one shaft) and `ref_orders`, as
 /// `calib reference --ref-ratio --ref-orders` takes them.
-fn gear_of(
-    ref_ratio: Option<&Bound<'_, PyAny>>,
-    ref_orders: usize,
-    ref_kind: &str,
-) -> PyResult<Option<Gear>> {
+fn gear_of(ref_ratio: Option<&Bound<'_, PyAny>>, ref_orders: usize) -> PyResult<Option<Gear>> {
     let Some(value) = ref_ratio else {
         return Ok(None);
     };
@@ -529,11 +525,6 @@ fn gear_of(
             .parse::<Ratio>(),
     }
     .map_err(|e| usage(format!("ref_ratio: {e}")))?;
-    if ref_kind != "encoder" {
-        return Err(usage(
-            "ref_ratio is for a reference encoder through a gear, not a commanded reference: drop one of ref_ratio and ref_kind",
-        ));
-    }
     check_range("ref_orders", ref_orders as f64, 0.0, 200.0, "orders")?;
     Ok(Some(Gear {
         ratio,
@@ -602,7 +593,7 @@ pub fn reference<'py>(
     ref_ratio: Option<Bound<'py, PyAny>>,
     ref_orders: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let gear = gear_of(ref_ratio.as_ref(), ref_orders, ref_kind)?;
+    let gear = gear_of(ref_ratio.as_ref(), ref_orders)?;
     let (d, r) = (dut.as_slice()?, r#ref.as_slice()?);
     let n = d.len();
     check_readings("dut", d)?;
@@ -675,7 +666,7 @@ pub fn reference_log<'py>(
             "dut and ref both name `{dut}`: name the encoder to calibrate and the reference"
         )));
     }
-    let gear = gear_of(ref_ratio.as_ref(), ref_orders, ref_kind)?;
+    let gear = gear_of(ref_ratio.as_ref(), ref_orders)?;
     let opts = reference_options(
         ref_u,
         points,

@@ -134,7 +134,9 @@ pub struct Args {
     /// What repeats with both turns cannot be split and is put in the reference's map: DUT
     /// orders that are multiples of a whole-number R, and over a range everything that repeats
     /// every turn of the reference (named in the summary and report). Over a range with `auto`,
-    /// a scale error of the DUT is the ratio's: the map then has no straight-line part.
+    /// a scale error of the DUT is the ratio's: the map then has no straight-line part. With
+    /// --ref-kind commanded (a motor driven open loop before the gear) the reference's map is
+    /// the motor's ripple, its orders k × --pole-pairs of the motor's turn.
     #[arg(long, value_name = "R|auto", value_parser = str::parse::<Ratio>, allow_negative_numbers = true)]
     pub ref_ratio: Option<Ratio>,
     /// Orders of the reference's own error fitted through a gear (--ref-ratio), per turn of the
@@ -283,14 +285,6 @@ fn prepare(args: &Args) -> anyhow::Result<Option<ReferenceTable>> {
     }
     reference_kind(args)?;
     if args.ref_ratio.is_some() {
-        if args.ref_kind == RefKind::Commanded {
-            return Err(Usage(
-                "--ref-ratio is for a reference encoder through a gear; a commanded reference is the drive's angle: \
-                 drop one of --ref-ratio and --ref-kind commanded"
-                    .to_string(),
-            )
-            .into());
-        }
         if args.ref_file.is_some() {
             return Err(Usage(
                 "--ref-ratio needs a timed log with both encoders; --ref-file pairs point lists"

@@ -233,7 +233,7 @@ fn gear_text(g: &GearResult) -> String {
                 .collect();
             format!(
                 "the reference's own error fitted to order {} over {:.1} of its turns, orders {} significant",
-                m.terms.len(),
+                m.terms.last().map_or(0, |t| t.order),
                 g.reference_turns,
                 if kept.is_empty() {
                     "none".to_string()

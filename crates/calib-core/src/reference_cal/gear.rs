@@ -51,6 +51,12 @@
 //! point of the DUT's map gains the largest `u` of the reference's map divided by `|R|` (its
 //! correction went into every reading).
 //!
+//! # A commanded reference through a gear
+//! With [`ReferenceKind::Commanded`] the reference is a motor's commanded angle before the gear:
+//! its "error" is the motor's ripple, periodic in the motor's electrical angle, so its orders are
+//! `k·p` (`k = 1…12`, `p` pole pairs) of the motor's turn instead of `1…K`, and the reference's
+//! map is that ripple; the DUT's map is then made as against an encoder.
+//!
 //! # What cannot be separated
 //! A DUT order `h` that coincides with the reference's order `k` (`h = k·R`, `R` a whole number
 //! or a ratio of small ones, over whole turns): both are in the reference's map, and the DUT's
@@ -59,7 +65,7 @@
 //! transmission error periodic in the motor's angle is in the reference's map; periodic in the
 //! output's, in the DUT's: no run through the gear tells it from the encoder there.
 
-use super::{ReferenceCal, ReferenceCalibration, ReferenceError, ReferenceOptions};
+use super::{ReferenceCal, ReferenceCalibration, ReferenceError, ReferenceKind, ReferenceOptions};
 use crate::angle::Unwrapper;
 use crate::error_map::ErrorMap;
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
@@ -158,6 +164,20 @@ pub struct Gear {
     pub reference_orders: usize,
 }
 
+impl Gear {
+    /// The reference's orders fitted, `1..K` per turn of it; for a commanded reference with
+    /// `p` pole pairs the motor's ripple, `k·p` for `k = 1…12` (as on one shaft, module
+    /// `ripple`).
+    fn orders(&self, kind: ReferenceKind) -> Vec<u32> {
+        match kind {
+            ReferenceKind::Encoder => (1..=self.reference_orders as u32).collect(),
+            ReferenceKind::Commanded { pole_pairs } => (1..=super::ripple::MAX_HARMONIC as u32)
+                .map(|k| k * pole_pairs)
+                .collect(),
+        }
+    }
+}
+
 /// A DUT order and a reference order that are the same frequency over the run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Coincidence {
@@ -238,6 +258,13 @@ pub struct GearedCal {
     samples: Vec<(f64, f64, f64)>,
 }
 
+/// The reference's orders in the fit, and the number of its turns one of them spans at the
+/// least (1 for an encoder, the pole pairs for a commanded reference's ripple).
+struct Orders {
+    list: Vec<u32>,
+    lowest: u32,
+}
+
 impl GearedCal {
     /// A calibration with these options, the reference turning through `gear`.
     pub fn new(opts: ReferenceOptions, gear: Gear) -> Self {
@@ -272,6 +299,17 @@ impl GearedCal {
             samples,
             ..
         } = self;
+        // Through a gear a commanded reference's ripple is periodic in the motor's angle: it is
+        // the reference's map, and the shaft calibration after it takes an encoder's.
+        let list = gear.orders(opts.reference_kind);
+        let orders = Orders {
+            lowest: list.first().copied().unwrap_or(1),
+            list,
+        };
+        let opts = ReferenceOptions {
+            reference_kind: ReferenceKind::Encoder,
+            ..opts
+        };
         if gear.reference_orders == 0 {
             return Err(ReferenceError::Options(
                 "the `ref_orders` option must be at least 1".to_string(),
@@ -325,7 +363,7 @@ impl GearedCal {
         } else {
             MIN_RANGE_REFERENCE_TURNS
         };
-        let separable = reference_turns >= needed;
+        let separable = reference_turns >= needed && !orders.list.is_empty();
         let auto = gear.ratio == Ratio::Auto;
         let mut fit = None;
         let mut ratio_u = None;
@@ -338,7 +376,7 @@ impl GearedCal {
                     ratio,
                     whole,
                     (lo, hi),
-                    &gear,
+                    &orders,
                     separable,
                     auto,
                 );
@@ -365,7 +403,7 @@ impl GearedCal {
                     ratio,
                     whole,
                     (lo, hi),
-                    &gear,
+                    &orders,
                     separable,
                     auto,
                 );
@@ -537,8 +575,8 @@ enum Column {
     RefSin(u32),
     /// A probe at the reference's order `k + ½`, where neither encoder errs: what the residual
     /// puts at a frequency of the reference's.
-    ProbeCos(u32),
-    ProbeSin(u32),
+    ProbeCos(u32, f64),
+    ProbeSin(u32, f64),
 }
 
 /// The columns of the stage-1 fit for one ratio.
@@ -572,7 +610,7 @@ impl Basis {
         ratio: f64,
         whole: bool,
         (lo, hi): (f64, f64),
-        gear: &Gear,
+        orders: &Orders,
         separable: bool,
         auto: bool,
     ) -> Basis {
@@ -592,17 +630,13 @@ impl Basis {
         if auto {
             columns.push(Column::Line);
         }
-        let k_max = if separable {
-            gear.reference_orders as u32
-        } else {
-            0
-        };
+        let reference_orders: &[u32] = if separable { &orders.list } else { &[] };
         let r = ratio.abs();
         let turns = (hi - lo) / TAU;
         let mut coincident = Vec::new();
         if whole {
             let mut orders: Vec<u32> = (1..=LOW_ORDERS).collect();
-            for k in 1..=k_max {
+            for &k in reference_orders {
                 let c = (f64::from(k) * r).round() as i64;
                 orders.extend(
                     (c - i64::from(WINDOW)..=c + i64::from(WINDOW))
@@ -613,8 +647,10 @@ impl Basis {
             orders.sort_unstable();
             orders.dedup();
             for h in orders {
-                let with =
-                    (1..=k_max).find(|&k| (f64::from(h) - f64::from(k) * r).abs() * turns < 0.5);
+                let with = reference_orders
+                    .iter()
+                    .copied()
+                    .find(|&k| (f64::from(h) - f64::from(k) * r).abs() * turns < 0.5);
                 match with {
                     Some(k) => coincident.push(Coincidence {
                         dut_order: h,
@@ -625,7 +661,8 @@ impl Basis {
             }
         } else {
             // Below half the reference's lowest frequency over the range.
-            let terms = ((r * turns).floor() as usize).clamp(1, MAX_RANGE_TERMS) as u32;
+            let lowest = f64::from(orders.lowest);
+            let terms = ((lowest * r * turns).floor() as usize).clamp(1, MAX_RANGE_TERMS) as u32;
             for m in 1..=terms {
                 let cos = |u: f64| (f64::from(m) * PI * (u - lo) / (hi - lo)).cos();
                 // Its least-squares line over the samples, taken out where the line is the
@@ -642,7 +679,7 @@ impl Basis {
                 columns.push(Column::RangeCos(m, a, b));
             }
         }
-        for k in 1..=k_max {
+        for &k in reference_orders {
             columns.extend([Column::RefCos(k), Column::RefSin(k)]);
         }
         // A probe at one of the DUT's orders in the fit would measure that order: left out.
@@ -653,13 +690,15 @@ impl Basis {
                 _ => None,
             })
             .collect();
-        for k in 1..=k_max {
-            let f = (f64::from(k) + 0.5) * r;
+        // Probes half a step above each order (`k + ½` for an encoder, `k·p + p/2` for ripple).
+        let half = 0.5 * f64::from(orders.lowest);
+        for &k in reference_orders {
+            let f = (f64::from(k) + half) * r;
             if !dut_orders
                 .iter()
                 .any(|&h| (f64::from(h) - f).abs() * turns < 0.5)
             {
-                columns.extend([Column::ProbeCos(k), Column::ProbeSin(k)]);
+                columns.extend([Column::ProbeCos(k, half), Column::ProbeSin(k, half)]);
             }
         }
         Basis {
@@ -690,8 +729,8 @@ impl Basis {
                 }
                 Column::RefCos(k) => (f64::from(k) * r).cos(),
                 Column::RefSin(k) => (f64::from(k) * r).sin(),
-                Column::ProbeCos(k) => ((f64::from(k) + 0.5) * r).cos(),
-                Column::ProbeSin(k) => ((f64::from(k) + 0.5) * r).sin(),
+                Column::ProbeCos(k, half) => ((f64::from(k) + half) * r).cos(),
+                Column::ProbeSin(k, half) => ((f64::from(k) + half) * r).sin(),
             };
         }
     }
@@ -782,7 +821,7 @@ impl Basis {
             .columns
             .iter()
             .enumerate()
-            .filter(|(_, c)| matches!(c, Column::ProbeCos(_) | Column::ProbeSin(_)))
+            .filter(|(_, c)| matches!(c, Column::ProbeCos(..) | Column::ProbeSin(..)))
             .fold((0.0, 0usize), |a, (j, _)| {
                 (a.0 + beta[j] * beta[j], a.1 + 1)
             });
