@@ -131,8 +131,8 @@ pub fn suggestions(inspection: &Inspection) -> Vec<Suggestion> {
             method: "tdr".into(),
             channels,
             why: format!(
-                "`{}` turns {:.1} revolutions: if the shaft coasted freely (a spin-down), TDR \
-                 calibrates it alone",
+                "`{}` turns {:.1} revolutions: if the shaft coasted freely (a spin-down) or was \
+                 driven at a steady speed (a motor at constant voltage), TDR calibrates it alone",
                 shaft.name, shaft.travel_revolutions
             ),
             options: Vec::new(),

@@ -18,10 +18,11 @@ pub fn document(
     cal: &TdrCalibration,
     report: &Report,
 ) -> Document {
-    let kind = if cal.driven.is_some() {
-        "Driven-run"
+    let driven = cal.driven.is_some();
+    let (kind, run) = if driven {
+        ("Driven-run", "Run")
     } else {
-        "Spin-down"
+        ("Spin-down", "Coast")
     };
     let mut doc = Document::new(
         &format!("{kind} self-calibration of `{channel}` (TDR)"),
@@ -29,7 +30,7 @@ pub fn document(
     );
     doc.warnings = report.warnings.clone();
     let rpm = |w: f64| num(w.abs() * 60.0 / std::f64::consts::TAU, 1);
-    let facts = Table::new("Coast", &["quantity", "value"])
+    let facts = Table::new(run, &["quantity", "value"])
         .row(["revolutions used".to_string(), num(cal.revolutions, 1)])
         .row([
             "speed, start → end (r/min)".to_string(),
@@ -41,7 +42,7 @@ pub fn document(
             num(cal.residual_rms * ARCSEC_PER_RAD, 4),
         ]);
     doc.push(Section::new("Summary").table(facts));
-    doc.push(Section::new("Coast").figure(coast(channel, cal)));
+    doc.push(Section::new(run).figure(coast(channel, cal)));
 
     let (band_name, band) = crate::document::uncertainty_band(&cal.map, &cal.uncertainty);
     let mut layers = MapLayers::of(&cal.map).with_band(&band_name, band);
@@ -52,12 +53,22 @@ pub fn document(
         );
     }
     let mut s = Section::new(&format!("Error map of {channel}"))
-        .text(&format!(
-            "Error = {channel}'s reading − the fitted free motion (zero mean), as a function of \
-             its reading. An angle-dependent drag torque (rolling bearings, cogging) shakes the \
-             shaft periodically in angle; its imprint grows as 1/ω², so where the coast's speed range \
-             allows it is fitted and separated from the map (see the drag table)."
-        ))
+        .text(&if driven {
+            format!(
+                "Error = {channel}'s reading − the fitted smooth motion (zero mean), as a function \
+                 of its reading. The motor's cogging and torque ripple shake the shaft at its \
+                 orders (k × 6 × pole pairs): at one speed they cannot be told from the encoder's \
+                 error and are left out of the map and listed; with passes at two or more speeds \
+                 they are separated by their 1/ω² dependence (report.json details.driven)."
+            )
+        } else {
+            format!(
+                "Error = {channel}'s reading − the fitted free motion (zero mean), as a function of \
+                 its reading. An angle-dependent drag torque (rolling bearings, cogging) shakes the \
+                 shaft periodically in angle; its imprint grows as 1/ω², so where the coast's speed \
+                 range allows it is fitted and separated from the map (see the drag table)."
+            )
+        })
         .figure(plots::error_map(
             &format!("map-{channel}"),
             channel,
