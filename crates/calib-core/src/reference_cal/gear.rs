@@ -368,21 +368,25 @@ impl GearedCal {
         let mut fit = None;
         let mut ratio_u = None;
         let mut coincident = Vec::new();
+        // The stage-1 fit over `part` of the samples at `ratio`, and its coincident orders.
+        let fit_at = |part: &[usize], ratio: f64| {
+            let basis = Basis::new(
+                &samples,
+                part,
+                ratio,
+                whole,
+                (lo, hi),
+                &orders,
+                separable,
+                auto,
+            );
+            (basis.solve(&samples, part, ratio), basis.coincident)
+        };
         if separable || auto {
             for _ in 0..4 {
-                let basis = Basis::new(
-                    &samples,
-                    &used,
-                    ratio,
-                    whole,
-                    (lo, hi),
-                    &orders,
-                    separable,
-                    auto,
-                );
-                let f = basis.solve(&samples, &used, ratio);
+                let (f, c) = fit_at(&used, ratio);
                 let step = f.line.map_or(0.0, |(b, _)| b);
-                coincident = basis.coincident.clone();
+                coincident = c;
                 if auto {
                     ratio_u = f.line.map(|(_, u)| ratio.abs() * u);
                     ratio *= 1.0 - step;
@@ -396,20 +400,8 @@ impl GearedCal {
         if auto && used.len() >= 64 {
             // The ratio from each half of the run: what they differ by is what the fit's noise
             // model may miss (the motion's own structure, a lag not quite constant).
-            let half = |part: &[usize]| {
-                let basis = Basis::new(
-                    &samples,
-                    part,
-                    ratio,
-                    whole,
-                    (lo, hi),
-                    &orders,
-                    separable,
-                    auto,
-                );
-                let b = basis.solve(&samples, part, ratio).line.map_or(0.0, |l| l.0);
-                ratio * (1.0 - b)
-            };
+            let half =
+                |part: &[usize]| ratio * (1.0 - fit_at(part, ratio).0.line.map_or(0.0, |l| l.0));
             let (first, second) = used.split_at(used.len() / 2);
             let spread = 0.5 * (half(first) - half(second)).abs();
             ratio_u = ratio_u.map(|u| u.max(spread));
