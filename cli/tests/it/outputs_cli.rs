@@ -275,7 +275,9 @@ fn another_runs_results_are_replaced_only_with_force() {
 }
 
 /// A log in radians (readings in [0, 2π)) or in counts read in the default degrees was taken
-/// as a 6.3° sweep or as 45 turns; now exit 2 naming the unit, and with it the run calibrates.
+/// as a 6.3° sweep or as 45 turns; now refused naming the unit, and with it the run calibrates.
+/// A data error, exit 1, as degrees read as radians are (`unit_hints_cli`): it was exit 2, a
+/// usage error, though the same command line is right for a log in degrees.
 #[test]
 fn readings_in_another_unit_are_refused_naming_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -312,7 +314,7 @@ fn readings_in_another_unit_are_refused_naming_it() {
         args.extend_from_slice(extra);
         calib(&args)
     };
-    let err = expect_exit(&run(&rad, &[]), 2);
+    let err = expect_exit(&run(&rad, &[]), 1);
     assert_mentions(
         &err,
         &["rad.csv", "`dut`", "a whole turn in radians", "--unit rad"],
@@ -325,7 +327,7 @@ fn readings_in_another_unit_are_refused_naming_it() {
         "counts.csv",
         &convert(&|deg: f64| format!("{}", (deg / 360.0 * 16384.0).floor() as i64 % 16384)),
     );
-    let err = expect_exit(&run(&counts, &["--force"]), 2);
+    let err = expect_exit(&run(&counts, &["--force"]), 1);
     assert_mentions(
         &err,
         &[
