@@ -501,6 +501,45 @@ fn entries(dir: &Path) -> Vec<String> {
     names
 }
 
+/// `-o a/b/c` where neither `a` nor `b` exists: a run that failed after taking the folder's
+/// lock left `a/b` behind, empty (issue 52). Now a failed run removes the folders it made, for
+/// `-o` and `--plots`; a folder that was there before the run stays even when empty, and a
+/// run that succeeds keeps the folders with its outputs.
+#[test]
+fn a_failed_run_leaves_no_folder_it_made() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "run.csv", &dut_log());
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "reference",
+            "run.csv",
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            "a/b/c",
+        ];
+        args.extend_from_slice(extra);
+        calib_in(dir.path(), &args)
+    };
+    // Degrees read as radians: refused once the log is read, the lock long taken.
+    let err = expect_exit(&run(&["--unit", "rad"]), 1);
+    assert_mentions(&err, &["--unit deg"]);
+    assert_eq!(entries(dir.path()), ["run.csv"]);
+    expect_exit(&run(&["--unit", "rad", "--plots", "p/q"]), 1);
+    assert_eq!(entries(dir.path()), ["run.csv"]);
+    // The user's own (empty) folder is not calib's to remove.
+    std::fs::create_dir_all(dir.path().join("a/b")).unwrap();
+    expect_exit(&run(&["--unit", "rad"]), 1);
+    assert_eq!(entries(dir.path()), ["a", "run.csv"]);
+    assert!(entries(&dir.path().join("a/b")).is_empty());
+    std::fs::remove_dir_all(dir.path().join("a")).unwrap();
+    expect_exit(&run(&["--plots", "p/q"]), 0);
+    assert!(dir.path().join("a/b/c/report.json").is_file());
+    assert!(!entries(&dir.path().join("p/q")).is_empty());
+}
+
 /// `cd lab && calib reference run.csv --dut dut --ref ref -o .` beside the user's own
 /// `dut.csv` and `report.json` (not inputs, no calib manifest) replaced both, exit 0; now exit 2
 /// naming both and --force, before anything is written, and both as they were. With --force they
