@@ -63,3 +63,19 @@ fn a_record_overrunning_its_uncompressed_chunk_is_an_error() {
         "{errors:?}"
     );
 }
+
+/// hdf5_reader, out of memory: a MATLAB v7.3 file of 11 kB whose chunked dataset states chunks
+/// of 111 GB (0x19d00019d0 bytes); `rust-hdf5` allocates a chunk's stated size before inflating
+/// it. Now a chunk larger than the file's decompression budget is refused before any read: an
+/// error naming the dataset and the chunk size, no allocation.
+#[cfg(feature = "hdf5")]
+#[test]
+fn an_hdf5_chunk_stated_larger_than_the_file_can_hold_is_an_error() {
+    let path = input("hdf5_chunk_of_111_gb.mat");
+    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a damaged file read"),
+    };
+    assert!(err.contains("states chunks of"), "{err}");
+    assert!(err.contains("the file is damaged"), "{err}");
+}
