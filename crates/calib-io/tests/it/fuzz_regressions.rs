@@ -79,3 +79,17 @@ fn an_hdf5_chunk_stated_larger_than_the_file_can_hold_is_an_error() {
     assert!(err.contains("states chunks of"), "{err}");
     assert!(err.contains("the file is damaged"), "{err}");
 }
+
+/// parquet_reader, a panic: a footer stating a column chunk at a negative offset or length (the
+/// `parquet` crate asserts both non-negative when it opens the chunk). Now checked first: an
+/// error naming the column, no panic.
+#[cfg(feature = "parquet")]
+#[test]
+fn a_parquet_column_chunk_outside_the_file_is_an_error() {
+    let path = input("parquet_negative_chunk.parquet");
+    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a damaged file read"),
+    };
+    assert!(err.contains("the file is damaged"), "{err}");
+}
