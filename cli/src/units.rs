@@ -5,7 +5,8 @@
 //! wrong map, or a method's error that points the wrong way ("never turned a whole
 //! revolution"). So where the unit was not given, each channel read in the default unit is
 //! checked once its readings are all read ([`UnitCheck`]): readings whose span fits another
-//! unit and not degrees are a usage error that names the likely unit and the option to give.
+//! unit and not degrees are a data error (exit 1, [`WrongUnit`]: what the readings hold, not how
+//! calib was called, is at fault) that names the likely unit and the option to give.
 //!
 //! - **radians**: the readings lie within [−π, 2π] and span at least [`RAD_TURN_SPAN`] (0.9 of
 //!   a turn in radians), so they are a whole turn in radians, and 5.7° or less in degrees; no
@@ -24,10 +25,9 @@
 //! ([`UnitCheck`]): readings within [−180, 360] that either step by [`DEG_WRAP_STEP`] or more
 //! between two samples (a wrap at 360° in degrees; 28 turns between two samples in radians) or
 //! span at least [`DEG_TURN_SPAN`] (a whole turn in degrees; 51 turns in radians, within
-//! [−180, 360] rad only for a joint that turned 51 to 57 times from near zero) are a data
-//! error (exit 1) naming `--unit deg`.
+//! [−180, 360] rad only for a joint that turned 51 to 57 times from near zero) are the same
+//! data error naming `--unit deg`.
 
-use crate::exit::Usage;
 use calib_core::AngleUnit;
 use calib_io::LogReader;
 use std::f64::consts::{PI, TAU};
@@ -183,9 +183,9 @@ impl UnitCheck {
         }
     }
 
-    /// The error for the first channel whose readings fit another unit, naming it: a usage
-    /// error for readings read in degrees by default, a data error for degrees read as
-    /// radians ([`DegreesAsRadians`]).
+    /// The error for the first channel whose readings fit another unit, naming it and the
+    /// option to give: a data error ([`WrongUnit`], exit 1) for readings read in degrees by
+    /// default that are radians or counts, and for degrees read as radians.
     pub fn finish(&self, log: &Path) -> anyhow::Result<()> {
         for span in self.channels.iter().flatten() {
             if span.hi < span.lo {
@@ -201,7 +201,7 @@ impl UnitCheck {
             let r = calib_io::limits::readable;
             if span.whole && lo >= 0.0 && hi >= COUNTS_MIN {
                 let turn = (hi + 1.0).log2().ceil().exp2();
-                return Err(Usage(format!(
+                return Err(WrongUnit(format!(
                     "{shown}: the readings of `{name}` are whole numbers from {} to {}: far \
                      beyond a turn in degrees (readings are taken as degrees without --unit); \
                      if they are encoder counts, give --unit counts:N with N the counts per turn \
@@ -213,7 +213,7 @@ impl UnitCheck {
                 .into());
             }
             if lo >= -PI - 1e-9 && hi <= TAU + 1e-9 && hi - lo >= RAD_TURN_SPAN {
-                return Err(Usage(format!(
+                return Err(WrongUnit(format!(
                     "{shown}: the readings of `{name}` lie from {lo:.4} to {hi:.4}: a whole turn \
                      in radians, but only {:.2}° in degrees (readings are taken as degrees \
                      without --unit); if they are radians (as ROS logs them, REP 103), give \
@@ -227,13 +227,14 @@ impl UnitCheck {
     }
 }
 
-/// Readings read in radians that are degrees (see the [module docs](self)): exit 1.
+/// Readings that fit another unit than the one they were read in (see the
+/// [module docs](self)): a data error, exit 1.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
-pub struct DegreesAsRadians(pub String);
+pub struct WrongUnit(pub String);
 
 /// Refuses `span`, read in radians, if its readings are degrees.
-fn degrees_as_radians(span: &Span, log: &Path) -> Result<(), DegreesAsRadians> {
+fn degrees_as_radians(span: &Span, log: &Path) -> Result<(), WrongUnit> {
     let (lo, hi) = (span.lo, span.hi);
     let within = lo >= -DEG_WRAP_STEP - 1e-9 && hi <= 360.0 + 1e-9;
     let wraps = span.max_step >= DEG_WRAP_STEP;
@@ -254,7 +255,7 @@ fn degrees_as_radians(span: &Span, log: &Path) -> Result<(), DegreesAsRadians> {
             hi - lo
         )
     };
-    Err(DegreesAsRadians(format!(
+    Err(WrongUnit(format!(
         "{}: the readings of `{}`, read in radians (--unit rad or the file's units), lie from \
          {lo:.4} to {hi:.4}{why}; if they are degrees, give --unit deg",
         crate::ui::shown(log),
@@ -275,17 +276,24 @@ mod tests {
     }
 
     /// A turn in [0, 2π) or [−π, π) read as degrees is called radians; one in counts is
-    /// called counts with its power of two.
+    /// called counts with its power of two. Both are data errors (exit 1), as degrees read as
+    /// radians are: the readings, not the command line, are at fault.
     #[test]
     fn readings_that_fit_another_unit_are_named() {
         let turn: Vec<f64> = (0..1000).map(|k| k as f64 * TAU / 1000.0).collect();
-        let err = check(AngleUnit::Deg, &turn).unwrap_err().to_string();
-        assert!(err.contains("--unit rad") && err.contains("`a`"), "{err}");
+        let err = check(AngleUnit::Deg, &turn).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("--unit rad") && text.contains("`a`"),
+            "{text}"
+        );
+        assert_eq!(crate::exit::code_of(&err), crate::exit::DATA, "{text}");
         let signed: Vec<f64> = turn.iter().map(|x| x - PI).collect();
         assert!(check(AngleUnit::Deg, &signed).is_err());
         let counts: Vec<f64> = (0..16384).map(f64::from).collect();
-        let err = check(AngleUnit::Deg, &counts).unwrap_err().to_string();
-        assert!(err.contains("counts:16384"), "{err}");
+        let err = check(AngleUnit::Deg, &counts).unwrap_err();
+        assert!(err.to_string().contains("counts:16384"), "{err}");
+        assert_eq!(crate::exit::code_of(&err), crate::exit::DATA, "{err}");
     }
 
     /// Degrees over a turn, a sweep of a few degrees away from zero, accumulated degrees, and a
@@ -314,7 +322,7 @@ mod tests {
         let wrapped: Vec<f64> = (0..14_400).map(|k| (k as f64 * 0.1) % 360.0).collect();
         let err = check(AngleUnit::Rad, &wrapped).unwrap_err();
         let text = err.to_string();
-        assert!(err.downcast_ref::<DegreesAsRadians>().is_some(), "{text}");
+        assert!(err.downcast_ref::<WrongUnit>().is_some(), "{text}");
         assert!(
             text.contains("--unit deg") && text.contains("`a`") && text.contains("wrap at 360"),
             "{text}"

@@ -59,73 +59,43 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         fields: [&args.a, &args.b].into_iter().flatten().cloned().collect(),
         ..opts
     };
-    let mut reader = open_log_with(&args.log, opts)?;
-    let names: Vec<String> = reader.names().iter().map(|n| n.display.clone()).collect();
-    let pick =
-        |given: &Option<String>, default: &str, fallback: usize| -> anyhow::Result<Option<usize>> {
-            match given {
-                Some(name) => channel(&reader, &args.log, name).map(Some),
-                None if names.iter().any(|n| n == default) => {
-                    channel(&reader, &args.log, default).map(Some)
-                }
-                None => Ok((fallback < names.len()).then_some(fallback)),
-            }
-        };
-    let a = pick(&args.a, "a", 0)?;
-    let b = pick(&args.b, "b", 1)?;
-    let pair = match (a, b) {
-        // A point list has no motion to segment.
-        (Some(a), Some(b)) if a != b && !reader.is_point_list() => Some((a, b)),
-        _ => None,
-    };
-    let point_list = reader.is_point_list();
-    // How the file was read: a CSV dialect other than the plain one, or what a columnar file
-    // holds and where its time came from.
-    let structure: Vec<String> = reader
-        .structure()
-        .iter()
-        .map(|l| crate::flags::in_cli_words(l))
-        .collect();
-    let layout = reader
-        .csv_dialect()
-        .filter(|d| !d.is_plain())
-        .map(|d| d.describe())
-        .or_else(|| (!structure.is_empty()).then(|| structure.join("\n    ")));
-    // Every channel, the pair's first (or the log's first) leading: it sets the clock.
-    let clock = pair.map_or(0, |(a, _)| a);
-    let order: Vec<usize> = std::iter::once(clock)
-        .chain((0..names.len()).filter(|&i| i != clock))
-        .collect();
-    reader.select(&order, align);
-    let at = |raw: usize| order.iter().position(|&i| i == raw).unwrap_or(0);
-    let pair = pair.map(|(a, b)| (at(a), at(b)));
-    let marks = reader.has_session_marks();
-    let mut inspector = Inspector::new(
-        reader.channels(),
-        pair,
-        SegmentOptions {
-            use_marks: marks,
-            ..SegmentOptions::default()
-        },
-    );
-    // Decoding runs ahead on a second thread.
-    let mut samples = crate::threads::prefetch(reader);
-    while let Some(batch) = samples.next_batch() {
-        let batch = batch.with_context(|| format!("cannot read {}", args.log.display()))?;
-        for s in batch.iter() {
-            inspector.push(s.t, s.values, s.session);
-        }
+    let mut pass = read(args, opts.clone(), align, &[])?;
+    // A column of a CSV file empty in every row (a sparse file's) leaves nothing to align the
+    // other channels on: it is listed, and the log read again without it. Found only once the
+    // file is read, so such a file is read twice.
+    let empty = pass.without_readings.clone();
+    if pass.result.samples == 0 && !empty.is_empty() && empty.len() < pass.names.len() {
+        pass = read(args, opts, align, &empty)?;
     }
-    let reader = samples.finish();
-    let result = inspector.finish().with_time_origin(reader.time_origin_s());
+    let Pass {
+        reader,
+        result,
+        names,
+        point_list,
+        structure,
+        layout,
+        ..
+    } = pass;
     if result.samples == 0 {
         anyhow::bail!("{}: the log holds no samples", args.log.display());
     }
     let suggestions = calib_core::purpose::suggestions(&result);
-    let warnings: Vec<String> = reader
-        .inspect_warnings(&args.log)
+    let warnings: Vec<String> = empty
         .iter()
-        .map(|w| crate::flags::in_cli_words(w))
+        .map(|&i| {
+            format!(
+                "{}: column `{}` is empty (no reading in any row): left out, the other channels \
+                 are inspected without it",
+                crate::ui::shown(&args.log),
+                names[i]
+            )
+        })
+        .chain(
+            reader
+                .inspect_warnings(&args.log)
+                .iter()
+                .map(|w| crate::flags::in_cli_words(w)),
+        )
         .collect();
     let topics = reader.topics();
     let alignment = reader.alignment();
@@ -173,6 +143,114 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         text.insert_str(at, &format!("  read as: {layout}\n"));
     }
     Ok(text + &alignment_text(alignment.as_ref()) + &render_next(&args.log, &suggestions))
+}
+
+/// One reading of the log for `calib inspect`.
+struct Pass {
+    /// The reader, read to its end.
+    reader: calib_io::LogReader,
+    result: Inspection,
+    /// Every channel of the log, read or not.
+    names: Vec<String>,
+    point_list: bool,
+    /// What a columnar file holds ([`InspectJson::structure`]).
+    structure: Vec<String>,
+    /// How the file was read, for the `read as:` line.
+    layout: Option<String>,
+    /// The channels read that had no reading at all (indices into `names`).
+    without_readings: Vec<usize>,
+}
+
+/// Reads the log of `args` with every channel but those of `skip` (indices into the log's
+/// channels), the pair's first (or the log's first) channel setting the clock.
+fn read(
+    args: &Args,
+    opts: ReadOptions,
+    align: calib_io::AlignOptions,
+    skip: &[usize],
+) -> anyhow::Result<Pass> {
+    let mut reader = open_log_with(&args.log, opts)?;
+    let names: Vec<String> = reader.names().iter().map(|n| n.display.clone()).collect();
+    let read: Vec<usize> = (0..names.len()).filter(|i| !skip.contains(i)).collect();
+    let pick =
+        |given: &Option<String>, default: &str, fallback: usize| -> anyhow::Result<Option<usize>> {
+            let found = match given {
+                Some(name) => Some(channel(&reader, &args.log, name)?),
+                None if names.iter().any(|n| n == default) => {
+                    Some(channel(&reader, &args.log, default)?)
+                }
+                None => read.get(fallback).copied(),
+            };
+            match found {
+                Some(i) if skip.contains(&i) => match given {
+                    Some(name) => anyhow::bail!(
+                        "{}: channel `{name}` is an empty column (no reading in any row); \
+                         choose another channel",
+                        crate::ui::shown(&args.log)
+                    ),
+                    // The default `a` or `b` is empty: the first channels with readings.
+                    None => Ok(read.get(fallback).copied()),
+                },
+                found => Ok(found),
+            }
+        };
+    let a = pick(&args.a, "a", 0)?;
+    let b = pick(&args.b, "b", 1)?;
+    let pair = match (a, b) {
+        // A point list has no motion to segment.
+        (Some(a), Some(b)) if a != b && !reader.is_point_list() => Some((a, b)),
+        _ => None,
+    };
+    let point_list = reader.is_point_list();
+    // How the file was read: a CSV dialect other than the plain one, or what a columnar file
+    // holds and where its time came from.
+    let structure: Vec<String> = reader
+        .structure()
+        .iter()
+        .map(|l| crate::flags::in_cli_words(l))
+        .collect();
+    let layout = reader
+        .csv_dialect()
+        .filter(|d| !d.is_plain())
+        .map(|d| d.describe())
+        .or_else(|| (!structure.is_empty()).then(|| structure.join("\n    ")));
+    // Every channel read, the pair's first (or the first read) leading: it sets the clock.
+    let clock = pair.map_or_else(|| read.first().copied().unwrap_or(0), |(a, _)| a);
+    let order: Vec<usize> = std::iter::once(clock)
+        .chain(read.iter().copied().filter(|&i| i != clock))
+        .collect();
+    reader.select(&order, align);
+    let at = |raw: usize| order.iter().position(|&i| i == raw).unwrap_or(0);
+    let pair = pair.map(|(a, b)| (at(a), at(b)));
+    let marks = reader.has_session_marks();
+    let mut inspector = Inspector::new(
+        reader.channels(),
+        pair,
+        SegmentOptions {
+            use_marks: marks,
+            ..SegmentOptions::default()
+        },
+    );
+    // Decoding runs ahead on a second thread.
+    let mut samples = crate::threads::prefetch(reader);
+    while let Some(batch) = samples.next_batch() {
+        let batch = batch.with_context(|| format!("cannot read {}", args.log.display()))?;
+        for s in batch.iter() {
+            inspector.push(s.t, s.values, s.session);
+        }
+    }
+    let reader = samples.finish();
+    let result = inspector.finish().with_time_origin(reader.time_origin_s());
+    let without_readings = reader.channels_without_readings();
+    Ok(Pass {
+        reader,
+        result,
+        names,
+        point_list,
+        structure,
+        layout,
+        without_readings,
+    })
 }
 
 /// Which command to run next: one line per method the log suits, with its channels.

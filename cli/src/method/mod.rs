@@ -146,8 +146,8 @@ pub fn run<M: Method>(m: &M) -> anyhow::Result<String> {
 /// one pushes; a progress line with the bytes read of the log's size and the time left shows on
 /// a terminal (not with `--quiet` or `--json`); a sample that cannot be read stops the loop with
 /// an error
-/// naming the log; readings that fit another unit than the default they were read in are a
-/// usage error once all are read ([`UnitCheck`]). Returns the reader, for its warnings and
+/// naming the log; readings that fit another unit than the one they were read in are a
+/// data error once all are read ([`UnitCheck`]). Returns the reader, for its warnings and
 /// alignment.
 pub fn for_each_sample(
     log: &Path,

@@ -276,3 +276,54 @@ fn inspect_names_the_method_a_log_suits() {
         }
     }
 }
+
+/// `text` (a CSV log) with an empty column `notes` added as column `at` of every line.
+fn with_empty_column(text: &str, at: usize) -> String {
+    let mut out = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut fields: Vec<&str> = line.split(',').collect();
+        fields.insert(at, if i == 0 { "notes" } else { "" });
+        out.push_str(&fields.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// A CSV log with one column empty in every row (a notes column nobody filled): `calib inspect`
+/// lists the column as empty and inspects the rest as if it were not there, wherever the
+/// column stands (after the channels, or first, where it would set the clock); naming it as a
+/// channel of the pair is a data error naming it.
+#[test]
+fn an_entirely_empty_column_is_listed_and_the_rest_inspected() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate_quick(dir.path(), "quick.csv", &[]);
+    let text = std::fs::read_to_string(&log).unwrap();
+    let rows = text.lines().count() as u64 - 1;
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let plain = inspect_json(&log, &[]);
+    assert_eq!(plain["inspection"]["samples"], rows);
+    for at in [header.len(), 1] {
+        let with = write(
+            dir.path(),
+            &format!("notes{at}.csv"),
+            &with_empty_column(&text, at),
+        );
+        let v = inspect_json(&with, &[]);
+        // What the log holds is what the log without the column holds.
+        assert_eq!(v["inspection"], plain["inspection"], "column {at}");
+        assert_eq!(v["suggestions"], plain["suggestions"], "column {at}");
+        let warnings = v["warnings"].to_string();
+        assert!(
+            warnings.contains("column `notes` is empty (no reading in any row)"),
+            "column {at}: {warnings}"
+        );
+        let out = inspect(&with, &[]);
+        assert_mentions(
+            &out,
+            &["column `notes` is empty", &format!("{rows} samples")],
+        );
+        let o = calib(&["inspect", s(&with), "--a", "notes", "--b", "b"]);
+        let err = expect_exit(&o, 1);
+        assert_mentions(&err, &["channel `notes` is an empty column"]);
+    }
+}

@@ -275,7 +275,9 @@ fn another_runs_results_are_replaced_only_with_force() {
 }
 
 /// A log in radians (readings in [0, 2π)) or in counts read in the default degrees was taken
-/// as a 6.3° sweep or as 45 turns; now exit 2 naming the unit, and with it the run calibrates.
+/// as a 6.3° sweep or as 45 turns; now refused naming the unit, and with it the run calibrates.
+/// A data error, exit 1, as degrees read as radians are (`unit_hints_cli`): it was exit 2, a
+/// usage error, though the same command line is right for a log in degrees.
 #[test]
 fn readings_in_another_unit_are_refused_naming_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -312,7 +314,7 @@ fn readings_in_another_unit_are_refused_naming_it() {
         args.extend_from_slice(extra);
         calib(&args)
     };
-    let err = expect_exit(&run(&rad, &[]), 2);
+    let err = expect_exit(&run(&rad, &[]), 1);
     assert_mentions(
         &err,
         &["rad.csv", "`dut`", "a whole turn in radians", "--unit rad"],
@@ -325,7 +327,7 @@ fn readings_in_another_unit_are_refused_naming_it() {
         "counts.csv",
         &convert(&|deg: f64| format!("{}", (deg / 360.0 * 16384.0).floor() as i64 % 16384)),
     );
-    let err = expect_exit(&run(&counts, &["--force"]), 2);
+    let err = expect_exit(&run(&counts, &["--force"]), 1);
     assert_mentions(
         &err,
         &[
@@ -497,6 +499,45 @@ fn entries(dir: &Path) -> Vec<String> {
         .collect();
     names.sort();
     names
+}
+
+/// `-o a/b/c` where neither `a` nor `b` exists: a run that failed after taking the folder's
+/// lock left `a/b` behind, empty (issue 52). Now a failed run removes the folders it made, for
+/// `-o` and `--plots`; a folder that was there before the run stays even when empty, and a
+/// run that succeeds keeps the folders with its outputs.
+#[test]
+fn a_failed_run_leaves_no_folder_it_made() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "run.csv", &dut_log());
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "reference",
+            "run.csv",
+            "--dut",
+            "dut",
+            "--ref",
+            "ref",
+            "-o",
+            "a/b/c",
+        ];
+        args.extend_from_slice(extra);
+        calib_in(dir.path(), &args)
+    };
+    // Degrees read as radians: refused once the log is read, the lock long taken.
+    let err = expect_exit(&run(&["--unit", "rad"]), 1);
+    assert_mentions(&err, &["--unit deg"]);
+    assert_eq!(entries(dir.path()), ["run.csv"]);
+    expect_exit(&run(&["--unit", "rad", "--plots", "p/q"]), 1);
+    assert_eq!(entries(dir.path()), ["run.csv"]);
+    // The user's own (empty) folder is not calib's to remove.
+    std::fs::create_dir_all(dir.path().join("a/b")).unwrap();
+    expect_exit(&run(&["--unit", "rad"]), 1);
+    assert_eq!(entries(dir.path()), ["a", "run.csv"]);
+    assert!(entries(&dir.path().join("a/b")).is_empty());
+    std::fs::remove_dir_all(dir.path().join("a")).unwrap();
+    expect_exit(&run(&["--plots", "p/q"]), 0);
+    assert!(dir.path().join("a/b/c/report.json").is_file());
+    assert!(!entries(&dir.path().join("p/q")).is_empty());
 }
 
 /// `cd lab && calib reference run.csv --dut dut --ref ref -o .` beside the user's own

@@ -245,8 +245,9 @@ fn milliseconds_at_a_plausible_step_are_named_where_a_method_finds_the_run_still
 }
 
 /// A log in radians or encoder counts read as degrees: before, `apply` corrected it with the
-/// degree map and exit 0 (a correction 57× off, at the wrong angles); now exit 2 naming the
-/// unit, and no output, as the methods refuse it. With `--unit` it is corrected as told.
+/// degree map and exit 0 (a correction 57× off, at the wrong angles); now exit 1 (a data
+/// error, as degrees read as radians are) naming the unit, and no output, as the methods refuse
+/// it. With `--unit` it is corrected as told.
 #[test]
 fn apply_checks_the_default_unit_against_the_readings() {
     let dir = tempfile::tempdir().unwrap();
@@ -280,7 +281,7 @@ fn apply_checks_the_default_unit_against_the_readings() {
         (&counts, "counts:16384", "(counts:16384 if they wrap there)"),
     ] {
         let o = calib(&["apply", s(&table), s(log), "-o", s(&out)]);
-        let err = expect_exit(&o, 2);
+        let err = expect_exit(&o, 1);
         let name = log.file_name().unwrap().to_string_lossy();
         assert_mentions(&err, &[&format!("{name}: the readings of `a`"), named]);
         assert!(!out.exists());

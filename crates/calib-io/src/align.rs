@@ -374,6 +374,19 @@ impl Aligner {
         }
     }
 
+    /// The raw channels that have had no reading so far (complete once the stream has ended):
+    /// a column empty in every row, which leaves nothing to align the others with.
+    pub(crate) fn without_readings(&self) -> Vec<usize> {
+        let clock = (self.clock_samples == 0).then_some(self.selected[0]);
+        let others = self
+            .series
+            .iter()
+            .zip(&self.selected[1..])
+            .filter(|(s, _)| s.last.is_none())
+            .map(|(_, &raw)| raw);
+        clock.into_iter().chain(others).collect()
+    }
+
     /// How the channels were aligned so far (complete once the stream has ended), the channels
     /// named by `names` (indexed by raw channel).
     pub(crate) fn report(&self, names: &[String]) -> Alignment {
@@ -469,6 +482,22 @@ mod tests {
             },
         );
         assert_eq!(run(&mut a, &records).len(), 100);
+    }
+
+    /// A channel without a single reading leaves no sample to align on, and is named: as the
+    /// clock (nothing to emit) or as another channel (every clock sample dropped).
+    #[test]
+    fn channels_without_readings_are_named() {
+        let records: Vec<(i64, [f64; 2])> = (0..50i64).map(|k| (k * 10, [k as f64, NAN])).collect();
+        for (selected, empty) in [(vec![0, 1], vec![1]), (vec![1, 0], vec![1])] {
+            let mut a = Aligner::new(selected, AlignOptions::default());
+            assert!(run(&mut a, &records).is_empty());
+            assert_eq!(a.without_readings(), empty);
+        }
+        let full: Vec<(i64, [f64; 2])> = (0..50i64).map(|k| (k * 10, [k as f64; 2])).collect();
+        let mut a = Aligner::new(vec![0, 1], AlignOptions::default());
+        assert_eq!(run(&mut a, &full).len(), 50);
+        assert!(a.without_readings().is_empty());
     }
 
     #[test]

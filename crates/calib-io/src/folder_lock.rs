@@ -10,7 +10,11 @@
 //! parent (inside the folder, `.calib-lock`, where the parent cannot be written): beside, because
 //! the folder itself is swapped whole at the end of a run. The file holds `<pid>@<host>` of the
 //! run holding it, for the message; it is removed when the lock is released, and one left by a
-//! killed run is harmless (the kernel released its lock with the process). On Linux, NFS carries
+//! killed run is harmless (the kernel released its lock with the process). The folders a run
+//! made — the output folder and any of its parents that were missing (`-o a/b/c` where only `a`
+//! exists makes `a/b`) — are removed when the lock is released if they are still empty, so a run
+//! that fails leaves no folder behind; a folder that existed before the run, or that holds
+//! anything, is never removed. On Linux, NFS carries
 //! `flock` to the server as a whole-file lock, so runs on two hosts sharing the folder exclude
 //! each other too. Elsewhere than Unix there is no lock.
 
@@ -24,6 +28,9 @@ use std::path::{Path, PathBuf};
 pub struct FolderLock {
     /// The lock file.
     path: PathBuf,
+    /// The folders missing when the lock was taken (the output folder and the parents made for
+    /// it), the deepest first: removed on release where still empty.
+    made: Vec<PathBuf>,
     /// The open lock file: the lock lasts as long as it is open.
     _file: File,
 }
@@ -53,13 +60,30 @@ pub enum LockError {
 
 impl FolderLock {
     /// Locks `folder` (which need not exist yet; its parent is created if missing) for this
-    /// run, or fails at once if another run holds it.
+    /// run, or fails at once if another run holds it. The folders it made, and `folder` if it
+    /// is made later, are removed on release if empty (see the [module docs](self)).
     pub fn acquire(folder: &Path) -> Result<Self, LockError> {
+        let folder = absolute(folder).map_err(|source| {
+            LockError::Io(Error::Io {
+                path: folder.to_path_buf(),
+                source,
+            })
+        })?;
+        let made: Vec<PathBuf> = folder
+            .ancestors()
+            .take_while(|dir| !dir.exists())
+            .map(Path::to_path_buf)
+            .collect();
+        Self::acquire_made(folder, made.clone()).inspect_err(|_| remove_empty(&made))
+    }
+
+    /// [`acquire`](Self::acquire) of the absolute `folder`, of which the folders `made` were
+    /// missing.
+    fn acquire_made(folder: PathBuf, made: Vec<PathBuf>) -> Result<Self, LockError> {
         let io_err = |path: &Path| {
             let path = path.to_path_buf();
             move |source| LockError::Io(Error::Io { path, source })
         };
-        let folder = absolute(folder).map_err(io_err(folder))?;
         let beside = folder.parent().zip(folder.file_name());
         if let Some((parent, _)) = beside {
             std::fs::create_dir_all(parent).map_err(io_err(parent))?;
@@ -75,14 +99,26 @@ impl FolderLock {
                 folder.join(".calib-lock")
             }
         };
+        // A failing run into a sibling folder removes the parent it made once empty: if that
+        // happens between making the parent here and opening the lock file, make it again.
+        let mut remake = 3;
         loop {
-            let mut file = std::fs::OpenOptions::new()
+            let opened = std::fs::OpenOptions::new()
                 .read(true)
                 .write(true)
                 .create(true)
                 .truncate(false)
-                .open(&path)
-                .map_err(io_err(&path))?;
+                .open(&path);
+            let mut file = match opened {
+                Err(e) if e.kind() == io::ErrorKind::NotFound && remake > 0 => {
+                    remake -= 1;
+                    if let Some(parent) = path.parent() {
+                        std::fs::create_dir_all(parent).map_err(io_err(parent))?;
+                    }
+                    continue;
+                }
+                opened => opened.map_err(io_err(&path))?,
+            };
             if !try_lock(&file).map_err(io_err(&path))? {
                 // The holder writes who it is right after it locks: a run that lost the race by
                 // microseconds gives it up to 100 ms to, so that the message names it.
@@ -110,7 +146,11 @@ impl FolderLock {
             file.set_len(0).map_err(io_err(&path))?;
             file.write_all(format!("{}\n", crate::atomic::owner()).as_bytes())
                 .map_err(io_err(&path))?;
-            return Ok(FolderLock { path, _file: file });
+            return Ok(FolderLock {
+                path,
+                made,
+                _file: file,
+            });
         }
     }
 
@@ -125,6 +165,19 @@ impl Drop for FolderLock {
         // Removed while still locked, so a run that opened it meanwhile finds, once it has the
         // lock, that the path names another file (or none) and opens it again.
         let _ = std::fs::remove_file(&self.path);
+        remove_empty(&self.made);
+    }
+}
+
+/// Removes the folders of `made` (the deepest first) that exist and are empty, up to the first
+/// that holds anything: a folder this run made and left empty, never one with contents.
+fn remove_empty(made: &[PathBuf]) {
+    for dir in made {
+        match std::fs::remove_dir(dir) {
+            Ok(()) => {}
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+            Err(_) => break,
+        }
     }
 }
 

@@ -560,6 +560,17 @@ impl LogReader {
         })
     }
 
+    /// The selected channels (indices into [`names`](Self::names)) of a sparse CSV log that had
+    /// no reading in any row (complete once the iterator is exhausted): an entirely empty
+    /// column. Aligned on, such a channel leaves no sample; [`select`](Self::select) the
+    /// others to read them. Empty for other logs, whose readers leave out a channel without
+    /// readings when they open the file.
+    pub fn channels_without_readings(&self) -> Vec<usize> {
+        self.csv_aligner
+            .as_ref()
+            .map_or_else(Vec::new, |(a, _)| a.without_readings())
+    }
+
     /// How the channels were aligned on the first one's clock (complete once the iterator is
     /// exhausted); `None` for a CSV log whose rows hold every channel at one stamp.
     pub fn alignment(&self) -> Option<Alignment> {

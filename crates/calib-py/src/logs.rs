@@ -141,6 +141,9 @@ pub struct LogRead {
     pub alignment: Option<calib_core::report::Alignment>,
     /// The stamp, s, from which the samples' times count ([`LogReader::time_origin_s`]).
     pub time_origin_s: f64,
+    /// What the reader decided that the user did not say (report.json's `details.reading`,
+    /// [`LogReader::reading`]): exact copies dropped, the unit of epoch stamps.
+    pub reading: Option<calib_core::report::Reading>,
 }
 
 /// How `reader`'s log was read, once it is read.
@@ -148,6 +151,7 @@ pub fn log_read(reader: &LogReader) -> LogRead {
     LogRead {
         alignment: alignment(reader),
         time_origin_s: reader.time_origin_s(),
+        reading: reader.reading(),
     }
 }
 

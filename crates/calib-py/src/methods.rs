@@ -251,6 +251,7 @@ fn csrr_result<'py>(
     let section = cal
         .report_section((a, b), reference, None)
         .with_alignment(read.alignment)
+        .with_reading(read.reading)
         .with_time_origin(read.time_origin_s);
     let (ua, ub) = match &cal.uncertainty {
         Some((ua, ub)) => (Some(ua.u.as_slice()), Some(ub.u.as_slice())),
@@ -544,6 +545,7 @@ fn reference_result<'py>(
     let section = cal
         .report_section(dut, reference, ref_u)
         .with_alignment(read.alignment)
+        .with_reading(read.reading)
         .with_time_origin(read.time_origin_s);
     let values = cal.map.values();
     let (start, step) = match &cal.map {

@@ -108,6 +108,7 @@ fn multihead_result<'py>(
     let section = cal
         .report_section(heads)
         .with_alignment(read.alignment)
+        .with_reading(read.reading)
         .with_time_origin(read.time_origin_s);
     let table = turn(&heads[0].name, &cal.map, Some(&cal.uncertainty.u));
     result(py, section, inputs, warnings, &[table])

@@ -109,6 +109,7 @@ fn tdr_result<'py>(
     let section = cal
         .report_section(channel, reference, max_drag_order)
         .with_alignment(read.alignment)
+        .with_reading(read.reading)
         .with_time_origin(read.time_origin_s);
     let table = turn(channel, &cal.map, Some(&cal.uncertainty.u));
     result(py, section, inputs, warnings, &[table])

@@ -258,3 +258,36 @@ def test_inspect_warns_of_a_time_column_in_the_wrong_unit(tmp_path):
     assert "say `--time-unit s`" in " ".join(cli["warnings"])
     cli["warnings"] = [w.replace("`--time-unit ", "`time_unit = ") for w in cli["warnings"]]
     assert got == cli
+
+
+def test_a_report_says_how_its_log_was_read(tmp_path):
+    """quick.mcap's run as a CSV log with integer nanosecond epoch stamps and every 50th row
+    recorded twice: the reader drops the copies and reads the stamps in ns by their magnitude,
+    and the result's report says so in `details.reading`, as the command line's report.json
+    does (it had no `reading` from Python)."""
+    log = calib.read(TESTDATA / "examples" / "quick.mcap")
+    epoch_ns = 1_765_000_000 * 10**9
+    rows = ["t,a,b"]
+    copies = 0
+    for k, (t, a, b) in enumerate(zip(log.t, np.degrees(log["a"]), np.degrees(log["b"]))):
+        row = f"{epoch_ns + round((t - log.t[0]) * 1e9)},{float(a)!r},{float(b)!r}"
+        rows.append(row)
+        if k % 50 == 25:
+            rows.append(row)
+            copies += 1
+    path = tmp_path / "twice.csv"
+    path.write_text("\n".join(rows) + "\n")
+    res = calib.csrr_log(path)
+    reading = res.report["details"]["reading"]
+    assert reading["duplicates_dropped"] == copies
+    assert reading["time_unit"]["column"] == "t"
+    assert reading["time_unit"]["unit"] == "ns"
+    binary = calib_binary()
+    if binary is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must set CALIB_BIN (or build target/*/calib) for this test")
+        pytest.skip("no calib command line built to compare with (set CALIB_BIN)")
+    out = tmp_path / "out"
+    subprocess.run([binary, "csrr", str(path), "-o", str(out)], check=True, capture_output=True)
+    cli = json.loads((out / "report.json").read_text())
+    assert cli["details"]["reading"] == reading

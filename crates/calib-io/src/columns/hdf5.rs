@@ -178,6 +178,25 @@ fn read_file(path: &Path, matlab: bool) -> Result<ColumnSet, Error> {
                         ),
                     ));
                 }
+                // Each chunk is decompressed into a buffer of the size its stated dimensions
+                // give, allocated before a byte is inflated: a damaged layout can state a chunk
+                // far larger than the dataset (found by fuzzing: 111 GB in an 11 kB file).
+                let chunk = ds.chunk_dims().map_or(0, |dims| {
+                    dims.iter()
+                        .try_fold(plan.size, |b, &d| b.checked_mul(d as u64))
+                        .unwrap_or(u64::MAX)
+                });
+                if chunk > budget {
+                    return Err(error(
+                        path,
+                        Some(shown),
+                        format!(
+                            "states chunks of {chunk} bytes, more than a file of {file_len} bytes \
+                             can hold (at most {} bytes in all); the file is damaged",
+                            limits::decompressed_limit(file_len),
+                        ),
+                    ));
+                }
                 budget -= bytes;
                 let unit = unit_of(&ds);
                 let first = set.columns.len();

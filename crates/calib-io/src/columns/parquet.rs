@@ -193,6 +193,28 @@ fn read_file(path: &Path) -> Result<ColumnSet, Error> {
         })?;
         let group_rows = usize::try_from(row_group.metadata().num_rows()).unwrap_or(0);
         for column in &mut taken {
+            // The crate asserts (panics) on a negative start or length of a column chunk: a
+            // damaged footer's numbers are checked here first (found by fuzzing).
+            let meta = row_group.metadata().column(column.leaf);
+            let start = meta
+                .dictionary_page_offset()
+                .unwrap_or(meta.data_page_offset());
+            let len = meta.compressed_size();
+            let end = u64::try_from(start)
+                .ok()
+                .zip(u64::try_from(len).ok())
+                .and_then(|(s, l)| s.checked_add(l));
+            if end.is_none_or(|end| end > file_len) {
+                return Err(error(
+                    path,
+                    Some(&column.name),
+                    format!(
+                        "row group {group}: the column's chunk is stated at byte {start}, \
+                         {len} bytes long, outside the file of {file_len} bytes; the file is \
+                         damaged"
+                    ),
+                ));
+            }
             let chunk = row_group.get_column_reader(column.leaf).map_err(|e| {
                 error(
                     path,
