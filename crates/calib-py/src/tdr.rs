@@ -21,7 +21,9 @@ fn options(
     motion_degree: Option<usize>,
     min_revolutions: f64,
     points: Option<usize>,
+    (run, pole_pairs, cogging_orders): (&str, Option<usize>, Option<Vec<usize>>),
 ) -> PyResult<TdrOptions> {
+    let (run, motor) = driven_options(run, pole_pairs, cogging_orders)?;
     check_points(points)?;
     if let Some(h) = max_order.filter(|h| !(1..=MAX_ORDER).contains(h)) {
         return Err(usage(format!(
@@ -50,6 +52,8 @@ fn options(
         motion_degree,
         points,
         min_revolutions,
+        run,
+        motor,
         ..TdrOptions::default()
     })
 }
@@ -143,18 +147,14 @@ pub fn tdr<'py>(
         same_length("ref", r, t.len())?;
         check_readings("ref", r)?;
     }
-    let (run, motor) = driven_options(run, pole_pairs, cogging_orders)?;
-    let opts = TdrOptions {
-        run,
-        motor,
-        ..options(
-            max_order,
-            max_drag_order,
-            motion_degree,
-            min_revolutions,
-            points,
-        )?
-    };
+    let opts = options(
+        max_order,
+        max_drag_order,
+        motion_degree,
+        min_revolutions,
+        points,
+        (run, pole_pairs, cogging_orders),
+    )?;
     let cal = py.detach(|| {
         let mut tdr = Tdr::new(opts);
         for i in 0..t.len() {
@@ -206,18 +206,14 @@ pub fn tdr_log<'py>(
              reference"
         )));
     }
-    let (run, motor) = driven_options(run, pole_pairs, cogging_orders)?;
-    let opts = TdrOptions {
-        run,
-        motor,
-        ..options(
-            max_order,
-            max_drag_order,
-            motion_degree,
-            min_revolutions,
-            points,
-        )?
-    };
+    let opts = options(
+        max_order,
+        max_drag_order,
+        motion_degree,
+        min_revolutions,
+        points,
+        (run, pole_pairs, cogging_orders),
+    )?;
     let log = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
     let mut names = vec![channel.clone()];
     names.extend(r#ref.clone());
