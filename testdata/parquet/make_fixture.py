@@ -18,6 +18,9 @@ Files (in this script's folder):
   nullable `gaps` (every 7th null), a struct `pose` {`x`: double, `n`: int64}, a list `xs`, a
   string `label`, a boolean `ok`; and `legacy.parquet`, the same stamps as the INT96 Spark writes
   (`use_deprecated_int96_timestamps`), gzip.
+- split_v1.parquet and split_v2.parquet: 200 rows in 2 row groups in BYTE_STREAM_SPLIT encoding
+  (no dictionary), data pages v1 and v2: `t` (double, s: i/100), `d` (double: i/4 - 7), `f`
+  (float: i/2), `i32` (i - 100), `i64` (3i), and a nullable `gaps` (i, null where i % 5 == 0).
 """
 
 import csv
@@ -72,6 +75,27 @@ def main():
         compression="gzip",
         use_deprecated_int96_timestamps=True,
     )
+    n = 200
+    i = np.arange(n)
+    split = pa.table(
+        {
+            "t": i / 100.0,
+            "d": i / 4.0 - 7.0,
+            "f": pa.array(i / 2.0, pa.float32()),
+            "i32": pa.array(i - 100, pa.int32()),
+            "i64": pa.array(i * 3, pa.int64()),
+            "gaps": pa.array([None if k % 5 == 0 else float(k) for k in i], pa.float64()),
+        }
+    )
+    for version in ("1", "2"):
+        pq.write_table(
+            split,
+            os.path.join(HERE, f"split_v{version}.parquet"),
+            row_group_size=100,
+            use_dictionary=False,
+            use_byte_stream_split=True,
+            data_page_version=f"{version}.0",
+        )
 
 
 if __name__ == "__main__":

@@ -15,6 +15,8 @@ pub(crate) mod hdf5;
 pub(crate) mod mat;
 #[cfg(feature = "parquet")]
 pub(crate) mod parquet;
+#[cfg(feature = "parquet")]
+mod parquet_pages;
 pub(crate) mod reader;
 pub(crate) mod tdms;
 
