@@ -255,7 +255,14 @@ pub fn open_log(
 /// Opens a log for reading with these options.
 pub fn open_log_with(path: &Path, opts: ReadOptions) -> anyhow::Result<LogReader> {
     check_log_path(path)?;
-    LogReader::open(path, &opts).with_context(|| format!("cannot read {}", crate::ui::shown(path)))
+    LogReader::open(path, &opts).map_err(|e| {
+        // Most of calib-io's errors start with the file already: said once, not twice.
+        if e.to_string().starts_with(&path.display().to_string()) {
+            anyhow::Error::from(e)
+        } else {
+            anyhow::Error::from(e).context(format!("cannot read {}", crate::ui::shown(path)))
+        }
+    })
 }
 
 /// The index of channel `name` of the log at `path` among all its channels (an unknown or

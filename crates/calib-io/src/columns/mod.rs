@@ -16,7 +16,7 @@ pub(crate) mod mat;
 #[cfg(feature = "parquet")]
 pub(crate) mod parquet;
 #[cfg(feature = "parquet")]
-mod parquet_pages;
+mod parquet_guards;
 pub(crate) mod reader;
 pub(crate) mod tdms;
 

@@ -19,7 +19,7 @@ use parquet::data_type::DataType;
 use parquet::file::reader::{FileReader, SerializedFileReader};
 use parquet::schema::types::ColumnDescriptor;
 
-use super::parquet_pages::JoinedStreams;
+use super::parquet_guards::{EndChecked, JoinedStreams};
 use super::{Column, ColumnFormat, ColumnSet, ColumnTime, Values};
 use crate::csv_log::dialect::TimeUnit;
 use crate::limits::{self, MAX_PARQUET_COLUMNS, MAX_PARQUET_FOOTER_BYTES};
@@ -111,7 +111,7 @@ struct Taken {
 fn read_file(path: &Path) -> Result<ColumnSet, Error> {
     let mut file = File::open(path).map_err(|e| io_error(path, e))?;
     let file_len = check_footer(path, &mut file)?;
-    let reader = SerializedFileReader::new(file).map_err(|e| {
+    let reader = SerializedFileReader::new(EndChecked(file)).map_err(|e| {
         error(
             path,
             None,
@@ -589,7 +589,7 @@ mod tests {
         }
     }
 
-    /// BYTE_STREAM_SPLIT pages, joined by `parquet_pages` before the crate decodes them, give
+    /// BYTE_STREAM_SPLIT pages, joined by `parquet_guards` before the crate decodes them, give
     /// pyarrow's values exactly, on data pages v1 (levels with a length prefix) and v2.
     #[test]
     fn byte_stream_split_pages_on_both_page_versions() {

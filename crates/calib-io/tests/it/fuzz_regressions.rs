@@ -97,7 +97,7 @@ fn a_parquet_column_chunk_outside_the_file_is_an_error() {
 /// parquet_reader, a panic (found 7 December 2026): a page in BYTE_STREAM_SPLIT encoding whose
 /// streams are shorter than its header's values made the `parquet` crate (59.3.3,
 /// `byte_stream_split_decoder.rs:61`; apache/arrow-rs#11121) index out of bounds. calib now joins
-/// such pages itself (`columns/parquet_pages.rs`): an error naming the file, no panic.
+/// such pages itself (`columns/parquet_guards.rs`): an error naming the file, no panic.
 #[cfg(feature = "parquet")]
 #[test]
 fn a_parquet_byte_stream_split_page_shorter_than_its_values_is_an_error() {
@@ -113,4 +113,20 @@ fn a_parquet_byte_stream_split_page_shorter_than_its_values_is_an_error() {
         err.contains("parquet_byte_stream_split_panic.parquet"),
         "{err}"
     );
+}
+
+/// parquet_reader, a hang (found 7 December 2026, a timeout of the forked run; 1.2 kB): a page
+/// header with an unknown Thrift field stating a list of about 2³¹ elements. The `parquet` crate
+/// skips such a field element by element, each a read at the end of the file that returns
+/// nothing, and took 60 s and more. calib's reader now refuses a read past the end
+/// (`columns/parquet_guards.rs`): an error at once.
+#[cfg(feature = "parquet")]
+#[test]
+fn a_parquet_page_header_skipping_past_the_end_is_an_error_at_once() {
+    let path = input("parquet_page_header_skipping_past_the_end.parquet");
+    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a damaged file read"),
+    };
+    assert!(err.contains("the file ends inside a page header"), "{err}");
 }

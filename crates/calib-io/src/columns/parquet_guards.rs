@@ -1,19 +1,27 @@
-//! The pages of a Parquet column chunk as calib hands them to the `parquet` crate's column
-//! reader: BYTE_STREAM_SPLIT data pages joined here into PLAIN ones.
+//! What calib puts between the `parquet` crate and a damaged or hostile file: two places where
+//! the crate (59.3.3; 60.2 alike) trusts a number the file states, found by fuzzing
+//! `parquet_reader`. Both are written by hand because the crate offers no option for them.
 //!
-//! Written by hand because the crate's own BYTE_STREAM_SPLIT decoder (59.3 and 60.2,
-//! apache/arrow-rs#11121, open) takes its stride from the page's bytes and its count from the
-//! page header, and indexes past the page — a panic — when a damaged or hostile header states
-//! more values than the bytes hold (found by fuzzing `parquet_reader`). The encoding is simple
-//! enough to undo here with the bounds it needs: a page of `n` values of `w` bytes holds `w`
-//! streams of `n` bytes, byte `j` of value `i` at `i + j·n`; the joined page holds the
-//! `⌊bytes / w⌋` whole values the streams give, value after value, which is PLAIN. The crate's
-//! PLAIN decoder refuses a page shorter than its header states with an error, not a panic.
+//! - [`JoinedStreams`]: the crate's BYTE_STREAM_SPLIT decoder (apache/arrow-rs#11121, open)
+//!   takes its stride from the page's bytes and its count from the page header, and indexes past
+//!   the page — a panic — when a header states more values than the bytes hold. The encoding is
+//!   simple enough to undo here with the bounds it needs: a page of `n` values of `w` bytes holds
+//!   `w` streams of `n` bytes, byte `j` of value `i` at `i + j·n`; the joined page holds the
+//!   `⌊bytes / w⌋` whole values the streams give, value after value, which is PLAIN. The crate's
+//!   PLAIN decoder refuses a page shorter than its header states with an error, not a panic.
+//! - [`EndChecked`]: the crate skips an unknown Thrift field of a page header by copying its
+//!   stated length from the reader, and takes a short copy as done; a header stating a list of
+//!   2³¹ doubles then costs 2³¹ reads at the end of the file (26 s to minutes for a 1 kB file).
+//!   A read at the end of the file is an error here, which ends the skip at once.
+
+use std::fs::File;
+use std::io::{self, BufReader, Read, Seek, SeekFrom};
 
 use bytes::Bytes;
 use parquet::basic::{Encoding, Type as Physical};
 use parquet::column::page::{Page, PageMetadata, PageReader};
 use parquet::errors::{ParquetError, Result};
+use parquet::file::reader::{ChunkReader, Length};
 use parquet::schema::types::ColumnDescriptor;
 
 /// A column chunk's pages with BYTE_STREAM_SPLIT data pages turned into PLAIN ones.
@@ -149,6 +157,44 @@ fn joined(buf: &Bytes, start: usize, width: usize) -> Bytes {
     Bytes::from(out)
 }
 
+/// A Parquet file whose readers refuse to read past its end (see the module's documentation).
+pub(super) struct EndChecked(pub(super) File);
+
+/// A reader for which reading at its end is an error, not `Ok(0)`.
+pub(super) struct NoReadPastEnd<R>(R);
+
+impl<R: Read> Read for NoReadPastEnd<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        match self.0.read(buf)? {
+            0 if !buf.is_empty() => Err(io::Error::new(
+                io::ErrorKind::UnexpectedEof,
+                "the file ends inside a page header",
+            )),
+            n => Ok(n),
+        }
+    }
+}
+
+impl Length for EndChecked {
+    fn len(&self) -> u64 {
+        self.0.len()
+    }
+}
+
+impl ChunkReader for EndChecked {
+    type T = NoReadPastEnd<BufReader<File>>;
+
+    fn get_read(&self, start: u64) -> Result<Self::T> {
+        let mut file = self.0.try_clone()?;
+        file.seek(SeekFrom::Start(start))?;
+        Ok(NoReadPastEnd(BufReader::new(file)))
+    }
+
+    fn get_bytes(&self, start: u64, length: usize) -> Result<Bytes> {
+        self.0.get_bytes(start, length)
+    }
+}
+
 impl Iterator for JoinedStreams {
     type Item = Result<Page>;
 
@@ -198,6 +244,16 @@ mod tests {
             .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
             .collect();
         assert_eq!(back, values);
+    }
+
+    #[test]
+    fn a_read_at_the_end_is_an_error() {
+        let mut r = NoReadPastEnd(&[1u8, 2][..]);
+        let mut buf = [0u8; 4];
+        assert_eq!(r.read(&mut buf).unwrap(), 2);
+        assert_eq!(r.read(&mut []).unwrap(), 0);
+        let err = r.read(&mut buf).unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::UnexpectedEof);
     }
 
     #[test]
