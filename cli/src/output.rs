@@ -38,8 +38,13 @@ pub fn prepare_folder(dir: &Path, option: &str) -> anyhow::Result<()> {
 
 /// Checks, before any reading, that a file can be written at `path` (its folder exists and is
 /// writable, it is not a folder, and it is not a file calib did not write, unless `--force`:
-/// [`check_file_replaceable`]), and removes stale temporary files beside it.
-pub fn prepare_file(path: &Path, option: &str) -> anyhow::Result<()> {
+/// [`check_file_replaceable`]), locks its folder for the run ([`lock_folder`]: the check, the
+/// write and the folder's manifest are then this run's alone), and removes stale temporary files
+/// beside it. The lock is held until the returned value is dropped.
+pub fn prepare_file(
+    path: &Path,
+    option: &str,
+) -> anyhow::Result<calib_io::folder_lock::FolderLock> {
     if path.is_dir() {
         return Err(Usage(format!(
             "{option} {}: this is a folder; name a file to write",
@@ -57,9 +62,10 @@ pub fn prepare_file(path: &Path, option: &str) -> anyhow::Result<()> {
         .into());
     }
     check_writable(parent, option)?;
+    let lock = lock(parent, path, option)?;
     check_file_replaceable(path, option)?;
     report_stale(parent);
-    Ok(())
+    Ok(lock)
 }
 
 /// Whether a file can be created in `dir` or, if it does not exist, in its nearest existing
@@ -207,14 +213,29 @@ pub fn record_written<P: AsRef<Path>>(paths: impl IntoIterator<Item = P>) {
 /// Locks `dir` for this run ([`calib_io::folder_lock`]): a second run into the same folder
 /// fails at once with a usage error naming the folder and the run that holds it.
 pub fn lock_folder(dir: &Path, option: &str) -> anyhow::Result<calib_io::folder_lock::FolderLock> {
+    lock(dir, dir, option)
+}
+
+/// Locks `dir` for a run writing `named` (the folder itself, or a file in it), as
+/// [`lock_folder`] does.
+fn lock(
+    dir: &Path,
+    named: &Path,
+    option: &str,
+) -> anyhow::Result<calib_io::folder_lock::FolderLock> {
     use calib_io::folder_lock::{FolderLock, LockError};
     FolderLock::acquire(dir).map_err(|e| match e {
         LockError::Held { holder, lock, .. } => Usage(format!(
-            "{option} {}: another calib run is writing into this folder ({holder}; lock file \
-             {}); calib does not wait: run again once it has finished, or choose another \
-             folder",
-            crate::ui::shown(dir),
-            crate::ui::shown(&lock)
+            "{option} {}: another calib run is writing into {} ({holder}; lock file {}); calib \
+             does not wait: run again once it has finished, or choose another {}",
+            crate::ui::shown(named),
+            if named == dir {
+                "this folder".to_string()
+            } else {
+                format!("its folder {}", crate::ui::shown(dir))
+            },
+            crate::ui::shown(&lock),
+            if named == dir { "folder" } else { "path" },
         ))
         .into(),
         LockError::Io(e) => anyhow::Error::new(e).context(format!(

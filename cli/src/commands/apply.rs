@@ -10,6 +10,7 @@ use calib_core::angle::ARCSEC_PER_RAD;
 use calib_core::correction::Wrapping;
 use calib_io::LogFormat;
 use calib_io::apply::{Applied, ApplyOptions, apply_scanned, scan};
+use calib_io::folder_lock::FolderLock;
 use calib_io::table::Table;
 use std::fmt::Write;
 use std::path::PathBuf;
@@ -105,7 +106,7 @@ pub struct Args {
 
 /// Runs `calib apply`: checks the arguments, corrects the log, says what was done.
 pub fn run(args: &Args) -> anyhow::Result<String> {
-    let (name, format) = validate(args)?;
+    let (name, format, _lock) = validate(args)?;
     let table = calib_io::table::read_table(&args.table)
         .with_context(|| format!("cannot read the table {}", args.table.display()))?;
     let reader = open_log(&args.log, args.unit, args.skip_damaged)?;
@@ -159,9 +160,10 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     Ok(render_summary(args, &name, format, &table, &done, &notes))
 }
 
-/// The channel to correct and the log's format, once the paths are checked: the table exists,
-/// the log is a CSV or MCAP file, and the output is another file of the same format.
-fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
+/// The channel to correct, the log's format and the lock of the output's folder (held for the
+/// run), once the paths are checked: the table exists, the log is a CSV or MCAP file, and the
+/// output is another file of the same format.
+fn validate(args: &Args) -> anyhow::Result<(String, LogFormat, FolderLock)> {
     if !args.table.exists() {
         return Err(Usage(format!(
             "{}: no such table; check the path",
@@ -182,7 +184,7 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
         &args.output,
         &format!("-o {}", crate::ui::shown(&args.output)),
     )?;
-    crate::output::prepare_file(&args.output, "-o")?;
+    let lock = crate::output::prepare_file(&args.output, "-o")?;
     let format = LogFormat::detect(&args.log)?;
     if let Some(why) = format.not_rewritten() {
         return Err(Usage(format!("{}: {why}", args.log.display())).into());
@@ -209,7 +211,7 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
         ))
         .into());
     }
-    Ok((name, format))
+    Ok((name, format, lock))
 }
 
 /// What `calib apply` did: readings corrected, their range and wrapping, what was copied,

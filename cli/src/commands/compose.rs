@@ -72,7 +72,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         &args.output,
         &format!("-o {}", crate::ui::shown(&args.output)),
     )?;
-    crate::output::prepare_file(&args.output, "-o")?;
+    let _lock = crate::output::prepare_file(&args.output, "-o")?;
     let first = load(&args.first)?;
     let residual = load(&args.residual)?;
     let points = args

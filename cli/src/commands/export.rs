@@ -175,10 +175,13 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     if args.harmonics == Some(0) {
         return Err(Usage("--harmonics 0 is outside its range: at least 1".into()).into());
     }
-    if let Some(path) = &args.output {
-        crate::overwrite::check(path, &format!("-o {}", crate::ui::shown(path)))?;
-        crate::output::prepare_file(path, "-o")?;
-    }
+    let _lock = match &args.output {
+        Some(path) => {
+            crate::overwrite::check(path, &format!("-o {}", crate::ui::shown(path)))?;
+            Some(crate::output::prepare_file(path, "-o")?)
+        }
+        None => None,
+    };
     if !args.table.exists() {
         return Err(Usage(format!(
             "{}: no such file; check the path",

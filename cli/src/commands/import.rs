@@ -119,7 +119,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         &args.output,
         &format!("-o {}", crate::ui::shown(&args.output)),
     )?;
-    crate::output::prepare_file(&args.output, "-o")?;
+    let _lock = crate::output::prepare_file(&args.output, "-o")?;
     let mut opts = ImportOptions::new(args.format.0);
     opts.moteus_source = args.source;
     opts.scale_arcsec = args.scale;

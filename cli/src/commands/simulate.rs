@@ -135,7 +135,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
 }
 
 fn run_scenario(args: &Args, scenario_path: &Path, output: &Path) -> anyhow::Result<String> {
-    crate::output::prepare_file(output, "-o")?;
+    let _lock = crate::output::prepare_file(output, "-o")?;
     if !scenario_path.exists() {
         return Err(Usage(format!(
             "{}: no such scenario file; check the path",

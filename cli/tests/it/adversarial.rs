@@ -441,6 +441,7 @@ fn dev_zero_and_endless_lines_fail_within_seconds() {
             "-c",
             &format!("yes y | tr -d '\\n' | head -c 2000000000 > '{}'", s(&pipe)),
         ])
+        .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
@@ -451,6 +452,11 @@ fn dev_zero_and_endless_lines_fail_within_seconds() {
     assert!(started.elapsed() < Duration::from_secs(10));
     let _ = writer.kill();
     let _ = writer.wait();
+    // calib refuses the pipe without opening it, so the shell's `head` still waits to open it
+    // for writing: opened and closed here, it ends (SIGPIPE) instead of outliving the test. On
+    // a thread, in case it has already ended and the open would wait for a writer forever.
+    let fifo = pipe.clone();
+    std::thread::spawn(move || drop(std::fs::File::open(fifo)));
 
     // A file of one 8 MB line: refused at the limit, naming the line, without reading it all.
     let long = dir.path().join("long.csv");

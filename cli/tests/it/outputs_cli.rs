@@ -730,6 +730,49 @@ fn two_runs_into_one_folder_exclude_each_other() {
     }
 }
 
+/// A single output file (`export`, `apply`, `import`, `compose`, `simulate -o FILE`) took no
+/// lock: a run writing into a folder while another run swapped that folder, or wrote its
+/// manifest, could lose the other's file or its listing. Now a single-file run locks its folder
+/// as a folder run does: while another run holds it, `export` and `compose` refuse at once
+/// (exit 2) naming the file, its folder and the run holding it, and write nothing; once it is
+/// released they run.
+#[test]
+fn a_single_output_file_waits_for_no_run_in_its_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows: Vec<(f64, f64)> = (0..360)
+        .map(|k| (k as f64, 3.0 * (k as f64).to_radians().sin()))
+        .collect();
+    let t = table(dir.path(), "a.csv", &rows);
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let exported = out.join("a.h");
+    let composed = out.join("sum.csv");
+    let export = ["export", s(&t), "--format", "c-array", "-o", s(&exported)];
+    let compose = ["compose", s(&t), s(&t), "-o", s(&composed)];
+    let held = calib_io::folder_lock::FolderLock::acquire(&out).unwrap();
+    for (args, file) in [(&export[..], &exported), (&compose[..], &composed)] {
+        let o = calib(args);
+        expect_exit(&o, 2);
+        assert_mentions(
+            &stderr(&o),
+            &[
+                &format!("-o {}", file.display()),
+                "another calib run is writing into its folder",
+                &format!("(process {} on ", std::process::id()),
+            ],
+        );
+        assert!(
+            !file.exists(),
+            "{} written while the folder was held",
+            file.display()
+        );
+    }
+    drop(held);
+    expect_exit(&calib(&export), 0);
+    expect_exit(&calib(&compose), 0);
+    assert!(exported.exists() && composed.exists());
+}
+
 /// Stale cleanup removed, recursively, any `.X.calib-<pid>.Y.tmp` entry whose pid was not
 /// alive here — a live run's staging folder on another host sharing the folder too. Now: a
 /// dead run's staging folder of this host goes; another host's stays; a folder that is not
