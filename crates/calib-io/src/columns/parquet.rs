@@ -19,7 +19,7 @@ use parquet::data_type::DataType;
 use parquet::file::reader::{FileReader, SerializedFileReader};
 use parquet::schema::types::ColumnDescriptor;
 
-use super::parquet_guards::{EndChecked, JoinedStreams};
+use super::parquet_guards::{CheckedPages, EndChecked};
 use super::{Column, ColumnFormat, ColumnSet, ColumnTime, Values};
 use crate::csv_log::dialect::TimeUnit;
 use crate::limits::{self, MAX_PARQUET_COLUMNS, MAX_PARQUET_FOOTER_BYTES};
@@ -225,7 +225,7 @@ fn read_file(path: &Path) -> Result<ColumnSet, Error> {
             })?;
             let descr = meta.column_descr_ptr();
             let chunk =
-                get_column_reader(descr.clone(), Box::new(JoinedStreams::new(pages, &descr)));
+                get_column_reader(descr.clone(), Box::new(CheckedPages::new(pages, &descr)));
             let before = column.values.len();
             read_chunk(chunk, column, group_rows).map_err(|message| {
                 error(

@@ -1,8 +1,10 @@
-//! What calib puts between the `parquet` crate and a damaged or hostile file: two places where
-//! the crate (59.3.3; 60.2 alike) trusts a number the file states, found by fuzzing
-//! `parquet_reader`. Both are written by hand because the crate offers no option for them.
+//! What calib puts between the `parquet` crate and a damaged or hostile file: places where the
+//! crate (59.3.3; 60.2 alike) trusts what the file states and panics or hangs, found by fuzzing
+//! `parquet_reader`. Written by hand because the crate offers no option for them.
 //!
-//! - [`JoinedStreams`]: the crate's BYTE_STREAM_SPLIT decoder (apache/arrow-rs#11121, open)
+//! - [`CheckedPages`], a data page in a dictionary encoding with no dictionary page before it:
+//!   the crate `expect`s the dictionary's decoder (a panic); here it is an error.
+//! - [`CheckedPages`], BYTE_STREAM_SPLIT pages: the crate's decoder (apache/arrow-rs#11121, open)
 //!   takes its stride from the page's bytes and its count from the page header, and indexes past
 //!   the page — a panic — when a header states more values than the bytes hold. The encoding is
 //!   simple enough to undo here with the bounds it needs: a page of `n` values of `w` bytes holds
@@ -24,19 +26,23 @@ use parquet::errors::{ParquetError, Result};
 use parquet::file::reader::{ChunkReader, Length};
 use parquet::schema::types::ColumnDescriptor;
 
-/// A column chunk's pages with BYTE_STREAM_SPLIT data pages turned into PLAIN ones.
-pub(super) struct JoinedStreams {
+/// A column chunk's pages, checked and with BYTE_STREAM_SPLIT data pages turned into PLAIN ones
+/// (see the module's documentation).
+pub(super) struct CheckedPages {
     pages: Box<dyn PageReader>,
+    /// Whether the chunk's dictionary page has been read.
+    dictionary: bool,
     /// Bytes per value of the column's physical type; 0 where calib leaves the page alone.
     width: usize,
     max_def: i16,
     max_rep: i16,
 }
 
-impl JoinedStreams {
+impl CheckedPages {
     pub(super) fn new(pages: Box<dyn PageReader>, column: &ColumnDescriptor) -> Self {
-        JoinedStreams {
+        CheckedPages {
             pages,
+            dictionary: false,
             width: match column.physical_type() {
                 Physical::INT32 | Physical::FLOAT => 4,
                 Physical::INT64 | Physical::DOUBLE => 8,
@@ -47,8 +53,24 @@ impl JoinedStreams {
         }
     }
 
-    /// `page`, joined if it is a BYTE_STREAM_SPLIT data page of a fixed-width number.
-    fn join(&self, page: Page) -> Result<Page> {
+    /// `page`, checked, and joined if it is a BYTE_STREAM_SPLIT data page of a fixed-width
+    /// number.
+    fn check(&mut self, page: Page) -> Result<Page> {
+        if let Page::DictionaryPage { .. } = page {
+            self.dictionary = true;
+            return Ok(page);
+        }
+        #[allow(deprecated)]
+        let by_dictionary = matches!(
+            page.encoding(),
+            Encoding::PLAIN_DICTIONARY | Encoding::RLE_DICTIONARY
+        );
+        if by_dictionary && !self.dictionary {
+            return Err(ParquetError::General(format!(
+                "a data page in {} encoding with no dictionary page before it",
+                page.encoding()
+            )));
+        }
         if self.width == 0 || page.encoding() != Encoding::BYTE_STREAM_SPLIT {
             return Ok(page);
         }
@@ -195,7 +217,7 @@ impl ChunkReader for EndChecked {
     }
 }
 
-impl Iterator for JoinedStreams {
+impl Iterator for CheckedPages {
     type Item = Result<Page>;
 
     fn next(&mut self) -> Option<Self::Item> {
@@ -203,11 +225,11 @@ impl Iterator for JoinedStreams {
     }
 }
 
-impl PageReader for JoinedStreams {
+impl PageReader for CheckedPages {
     fn get_next_page(&mut self) -> Result<Option<Page>> {
         self.pages
             .get_next_page()?
-            .map(|p| self.join(p))
+            .map(|p| self.check(p))
             .transpose()
     }
 

@@ -130,3 +130,19 @@ fn a_parquet_page_header_skipping_past_the_end_is_an_error_at_once() {
     };
     assert!(err.contains("the file ends inside a page header"), "{err}");
 }
+
+/// parquet_reader, a panic (found 8 December 2026, 40 s into the run after the fixes above): a
+/// data page in a dictionary encoding in a column chunk with no dictionary page; the `parquet`
+/// crate `expect`s the dictionary's decoder (`decoder.rs:213`). calib now checks the pages
+/// before the crate decodes them (`columns/parquet_guards.rs`): an error naming the column.
+#[cfg(feature = "parquet")]
+#[test]
+fn a_parquet_dictionary_page_missing_is_an_error() {
+    let path = input("parquet_dictionary_data_without_dictionary.parquet");
+    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a damaged file read"),
+    };
+    assert!(err.contains("with no dictionary page before it"), "{err}");
+    assert!(err.contains("column `"), "{err}");
+}
