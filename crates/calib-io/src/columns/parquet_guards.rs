@@ -11,6 +11,9 @@
 //!   `w` streams of `n` bytes, byte `j` of value `i` at `i + j·n`; the joined page holds the
 //!   `⌊bytes / w⌋` whole values the streams give, value after value, which is PLAIN. The crate's
 //!   PLAIN decoder refuses a page shorter than its header states with an error, not a panic.
+//! - [`CheckedPages`], run and block headers (ULEB128 integers) of levels, dictionary indices
+//!   and DELTA_BINARY_PACKED values: the crate asserts (panics) on one longer than 10 bytes; the
+//!   headers are walked here first ([`check_hybrid`], [`check_delta`]).
 //! - [`EndChecked`]: the crate skips an unknown Thrift field of a page header by copying its
 //!   stated length from the reader, and takes a short copy as done; a header stating a list of
 //!   2³¹ doubles then costs 2³¹ reads at the end of the file (26 s to minutes for a 1 kB file).
@@ -56,92 +59,216 @@ impl CheckedPages {
     /// `page`, checked, and joined if it is a BYTE_STREAM_SPLIT data page of a fixed-width
     /// number.
     fn check(&mut self, page: Page) -> Result<Page> {
-        if let Page::DictionaryPage { .. } = page {
-            self.dictionary = true;
-            return Ok(page);
-        }
-        #[allow(deprecated)]
-        let by_dictionary = matches!(
-            page.encoding(),
-            Encoding::PLAIN_DICTIONARY | Encoding::RLE_DICTIONARY
-        );
-        if by_dictionary && !self.dictionary {
-            return Err(ParquetError::General(format!(
-                "a data page in {} encoding with no dictionary page before it",
-                page.encoding()
-            )));
-        }
-        if self.width == 0 || page.encoding() != Encoding::BYTE_STREAM_SPLIT {
-            return Ok(page);
-        }
-        match page {
+        let (buf, values_at, count) = match &page {
+            Page::DictionaryPage { .. } => {
+                self.dictionary = true;
+                return Ok(page);
+            }
             Page::DataPage {
                 buf,
                 num_values,
-                encoding: _,
                 def_level_encoding,
                 rep_level_encoding,
-                statistics,
+                ..
             } => {
-                let mut levels = 0;
-                if self.max_rep > 0 {
-                    levels += v1_levels_len(
-                        &buf[levels..],
-                        rep_level_encoding,
-                        self.max_rep,
-                        num_values,
-                    )?;
+                let mut at = 0;
+                for (max, encoding) in [
+                    (self.max_rep, *rep_level_encoding),
+                    (self.max_def, *def_level_encoding),
+                ] {
+                    if max > 0 {
+                        let len = v1_levels_len(&buf[at..], encoding, max, *num_values)?;
+                        if encoding == Encoding::RLE {
+                            check_hybrid(&buf[at + 4..at + len], bits(max), *num_values as usize)?;
+                        }
+                        at += len;
+                    }
                 }
-                if self.max_def > 0 {
-                    levels += v1_levels_len(
-                        &buf[levels..],
-                        def_level_encoding,
-                        self.max_def,
-                        num_values,
-                    )?;
-                }
-                Ok(Page::DataPage {
-                    buf: joined(&buf, levels, self.width),
-                    num_values,
-                    encoding: Encoding::PLAIN,
-                    def_level_encoding,
-                    rep_level_encoding,
-                    statistics,
-                })
+                (buf, at, *num_values as usize)
             }
             Page::DataPageV2 {
                 buf,
                 num_values,
-                encoding: _,
-                num_nulls,
-                num_rows,
                 def_levels_byte_len,
                 rep_levels_byte_len,
-                is_compressed,
-                statistics,
+                ..
             } => {
-                let levels = def_levels_byte_len as usize + rep_levels_byte_len as usize;
-                if levels > buf.len() {
+                let (rep, def) = (*rep_levels_byte_len as usize, *def_levels_byte_len as usize);
+                if rep + def > buf.len() {
                     return Err(ParquetError::General(format!(
-                        "a data page states {levels} bytes of levels in a page of {} bytes",
+                        "a data page states {} bytes of levels in a page of {} bytes",
+                        rep + def,
                         buf.len()
                     )));
                 }
-                Ok(Page::DataPageV2 {
-                    buf: joined(&buf, levels, self.width),
-                    num_values,
-                    encoding: Encoding::PLAIN,
-                    num_nulls,
-                    num_rows,
-                    def_levels_byte_len,
-                    rep_levels_byte_len,
-                    is_compressed,
-                    statistics,
-                })
+                let n = *num_values as usize;
+                if self.max_rep > 0 {
+                    check_hybrid(&buf[..rep], bits(self.max_rep), n)?;
+                }
+                if self.max_def > 0 {
+                    check_hybrid(&buf[rep..rep + def], bits(self.max_def), n)?;
+                }
+                (buf, rep + def, n)
             }
-            other => Ok(other),
+        };
+        let values = &buf[values_at..];
+        #[allow(deprecated)]
+        match page.encoding() {
+            Encoding::PLAIN_DICTIONARY | Encoding::RLE_DICTIONARY => {
+                if !self.dictionary {
+                    return Err(ParquetError::General(format!(
+                        "a data page in {} encoding with no dictionary page before it",
+                        page.encoding()
+                    )));
+                }
+                // The indices' bit width, then their runs; a width over 32 the crate refuses.
+                if let Some((&width, indices)) = values.split_first() {
+                    if width <= 32 {
+                        check_hybrid(indices, usize::from(width), count)?;
+                    }
+                }
+            }
+            Encoding::DELTA_BINARY_PACKED => check_delta(values)?,
+            Encoding::BYTE_STREAM_SPLIT if self.width > 0 => {
+                let plain = joined(buf, values_at, self.width);
+                return Ok(as_plain(page, plain));
+            }
+            _ => {}
+        }
+        Ok(page)
+    }
+}
+
+/// `page`, a data page, holding `buf` in PLAIN encoding instead of its own.
+fn as_plain(page: Page, buf: Bytes) -> Page {
+    match page {
+        Page::DataPage {
+            num_values,
+            def_level_encoding,
+            rep_level_encoding,
+            statistics,
+            ..
+        } => Page::DataPage {
+            buf,
+            num_values,
+            encoding: Encoding::PLAIN,
+            def_level_encoding,
+            rep_level_encoding,
+            statistics,
+        },
+        Page::DataPageV2 {
+            num_values,
+            num_nulls,
+            num_rows,
+            def_levels_byte_len,
+            rep_levels_byte_len,
+            is_compressed,
+            statistics,
+            ..
+        } => Page::DataPageV2 {
+            buf,
+            num_values,
+            encoding: Encoding::PLAIN,
+            num_nulls,
+            num_rows,
+            def_levels_byte_len,
+            rep_levels_byte_len,
+            is_compressed,
+            statistics,
+        },
+        other => other,
+    }
+}
+
+/// The bits a level up to `max_level` takes.
+fn bits(max_level: i16) -> usize {
+    (u16::BITS - (max_level as u16).leading_zeros()) as usize
+}
+
+/// The most bytes of a ULEB128 integer the crate reads; a longer one makes it panic (an assert
+/// in `BitReader::get_vlq_int`, found by fuzzing).
+const MAX_ULEB128_BYTES: usize = 10;
+
+/// The ULEB128 integer at `*at` in `stream`, moving `*at` past it; `Ok(None)` where the stream
+/// ends inside it (the crate's decoder then reports the end itself).
+fn uleb128(stream: &[u8], at: &mut usize) -> Result<Option<u64>> {
+    let mut value = 0u64;
+    for (i, &byte) in stream.get(*at..).unwrap_or(&[]).iter().enumerate() {
+        if i == MAX_ULEB128_BYTES {
+            return Err(ParquetError::General(format!(
+                "a run or block header longer than {MAX_ULEB128_BYTES} bytes at byte {} of its \
+                 data",
+                *at
+            )));
+        }
+        value |= u64::from(byte & 0x7f)
+            .checked_shl(7 * i as u32)
+            .unwrap_or(0);
+        if byte & 0x80 == 0 {
+            *at += i + 1;
+            return Ok(Some(value));
         }
     }
+    Ok(None)
+}
+
+/// Walks the run headers of an RLE/bit-packed hybrid stream (levels, dictionary indices) of
+/// `width`-bit values over its first `count` values, so that the crate meets no header it
+/// panics on. A bit-packed run of `g` groups holds `8g` values in `g·width` bytes; an RLE run
+/// one value in `⌈width/8⌉` bytes.
+fn check_hybrid(stream: &[u8], width: usize, count: usize) -> Result<()> {
+    let (mut at, mut left) = (0usize, count);
+    while left > 0 && at < stream.len() {
+        let Some(header) = uleb128(stream, &mut at)? else {
+            break;
+        };
+        let run = usize::try_from(header >> 1).unwrap_or(usize::MAX);
+        if header & 1 == 1 {
+            at = at.saturating_add(run.saturating_mul(width));
+            left = left.saturating_sub(run.saturating_mul(8));
+        } else {
+            at = at.saturating_add(width.div_ceil(8));
+            left = left.saturating_sub(run);
+        }
+    }
+    Ok(())
+}
+
+/// Walks the headers of a DELTA_BINARY_PACKED stream (its own header, then each block's minimum
+/// delta and miniblocks' bit widths), as [`check_hybrid`] does for runs.
+fn check_delta(stream: &[u8]) -> Result<()> {
+    let mut at = 0;
+    let mut header = [0u64; 4];
+    for field in &mut header {
+        let Some(value) = uleb128(stream, &mut at)? else {
+            return Ok(());
+        };
+        *field = value;
+    }
+    let [block, minis, total, _first] = header;
+    if minis == 0 || block % minis != 0 {
+        return Ok(()); // refused by the crate
+    }
+    let per_mini = usize::try_from(block / minis).unwrap_or(usize::MAX);
+    let minis = usize::try_from(minis).unwrap_or(usize::MAX);
+    let mut left = usize::try_from(total.saturating_sub(1)).unwrap_or(usize::MAX);
+    while left > 0 && at < stream.len() {
+        if uleb128(stream, &mut at)?.is_none() {
+            break;
+        }
+        let Some(widths) = stream.get(at..at.saturating_add(minis)) else {
+            break;
+        };
+        at += minis;
+        for &width in widths {
+            if left == 0 {
+                break;
+            }
+            at = at.saturating_add(usize::from(width).saturating_mul(per_mini) / 8);
+            left = left.saturating_sub(per_mini);
+        }
+    }
+    Ok(())
 }
 
 /// The length of a data page v1's levels at the start of `buf` (RLE: a 4-byte length, then the
@@ -152,10 +279,7 @@ fn v1_levels_len(buf: &[u8], encoding: Encoding, max_level: i16, num_values: u32
             .get(..4)
             .map(|b| 4 + u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize),
         #[allow(deprecated)]
-        Encoding::BIT_PACKED => {
-            let bits = (u16::BITS - (max_level as u16).leading_zeros()) as usize;
-            Some((num_values as usize * bits).div_ceil(8))
-        }
+        Encoding::BIT_PACKED => Some((num_values as usize * bits(max_level)).div_ceil(8)),
         other => {
             return Err(ParquetError::General(format!(
                 "levels in {other} encoding, which Parquet does not define"
@@ -266,6 +390,36 @@ mod tests {
             .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
             .collect();
         assert_eq!(back, values);
+    }
+
+    /// A run header of 11 bytes is refused wherever it is met, before the crate asserts on it;
+    /// well-formed runs and a stream ending inside a header pass.
+    #[test]
+    fn overlong_run_headers_are_errors() {
+        let mut long = vec![0x80u8; 10];
+        long.push(0x01);
+        // An RLE run of 3 values of 8 bits, then the long header.
+        let mut stream = vec![3 << 1, 7];
+        stream.extend(&long);
+        assert!(
+            check_hybrid(&stream, 8, 3).is_ok(),
+            "the long header lies past the values"
+        );
+        assert!(check_hybrid(&stream, 8, 4).is_err());
+        // A bit-packed run of one group of 8 one-bit values (1 byte), then an RLE run.
+        assert!(check_hybrid(&[0b11, 0xff, 2 << 1, 1], 1, 10).is_ok());
+        assert!(
+            check_hybrid(&[0x80, 0x80], 1, 10).is_ok(),
+            "ends inside a header"
+        );
+        // DELTA_BINARY_PACKED: block 128, 4 miniblocks, 5 values, first 0; then a long delta.
+        let mut delta = vec![0x80, 0x01, 4, 5, 0];
+        delta.extend(&long);
+        assert!(check_delta(&delta).is_err());
+        assert!(
+            check_delta(&[0x80, 0x01, 4, 1, 0]).is_ok(),
+            "one value: no block"
+        );
     }
 
     #[test]

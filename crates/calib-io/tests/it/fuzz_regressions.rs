@@ -146,3 +146,19 @@ fn a_parquet_dictionary_page_missing_is_an_error() {
     assert!(err.contains("with no dictionary page before it"), "{err}");
     assert!(err.contains("column `"), "{err}");
 }
+
+/// parquet_reader, a panic (found 8 December 2026, 4 minutes into the next run): a run header of
+/// dictionary indices longer than the 10 bytes of a ULEB128 integer; the `parquet` crate asserts
+/// on it (`bit_util.rs:870`). calib walks run and block headers before the crate decodes a page
+/// (`columns/parquet_guards.rs`): an error naming the column.
+#[cfg(feature = "parquet")]
+#[test]
+fn a_parquet_run_header_longer_than_10_bytes_is_an_error() {
+    let path = input("parquet_run_header_of_11_bytes.parquet");
+    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a damaged file read"),
+    };
+    assert!(err.contains("longer than 10 bytes"), "{err}");
+    assert!(err.contains("column `"), "{err}");
+}
