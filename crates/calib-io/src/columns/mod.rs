@@ -19,6 +19,8 @@ pub(crate) mod parquet;
 mod parquet_guards;
 pub(crate) mod reader;
 pub(crate) mod tdms;
+#[cfg(feature = "parquet")]
+mod thrift_walk;
 
 /// A log format whose channels are whole columns. One type per format, listed in [`FORMATS`];
 /// detection, `calib inspect` and the help texts take the formats from there.

@@ -20,6 +20,7 @@ use parquet::file::reader::{FileReader, SerializedFileReader};
 use parquet::schema::types::ColumnDescriptor;
 
 use super::parquet_guards::{CheckedPages, EndChecked};
+use super::thrift_walk::{self, Stop};
 use super::{Column, ColumnFormat, ColumnSet, ColumnTime, Values};
 use crate::csv_log::dialect::TimeUnit;
 use crate::limits::{self, MAX_PARQUET_COLUMNS, MAX_PARQUET_FOOTER_BYTES};
@@ -111,6 +112,7 @@ struct Taken {
 fn read_file(path: &Path) -> Result<ColumnSet, Error> {
     let mut file = File::open(path).map_err(|e| io_error(path, e))?;
     let file_len = check_footer(path, &mut file)?;
+    let headers = file.try_clone().map_err(|e| io_error(path, e))?;
     let reader = SerializedFileReader::new(EndChecked(file)).map_err(|e| {
         error(
             path,
@@ -216,6 +218,13 @@ fn read_file(path: &Path) -> Result<ColumnSet, Error> {
                     ),
                 ));
             }
+            if let Err(why) = check_page_headers(&headers, start as u64, len as u64) {
+                return Err(error(
+                    path,
+                    Some(&column.name),
+                    format!("row group {group}: {why}; the file is damaged"),
+                ));
+            }
             let pages = row_group.get_column_page_reader(column.leaf).map_err(|e| {
                 error(
                     path,
@@ -301,8 +310,45 @@ fn check_footer(path: &Path, file: &mut File) -> Result<u64, Error> {
             "its footer states {footer} bytes of metadata in a file of {len} bytes"
         )));
     }
+    let mut metadata = vec![0u8; footer as usize];
+    file.seek(SeekFrom::End(-8 - footer as i64))
+        .and_then(|_| file.read_exact(&mut metadata))
+        .map_err(|e| io_error(path, e))?;
+    match thrift_walk::walk_struct(&metadata, 0, true) {
+        Ok(_) => {}
+        Err(Stop::Short) => return Err(damaged("its footer ends inside its metadata".to_string())),
+        Err(Stop::Damaged(why)) => return Err(damaged(format!("its footer's metadata: {why}"))),
+    }
     file.rewind().map_err(|e| io_error(path, e))?;
     Ok(len)
+}
+
+/// Walks the page headers of the column chunk of `len` bytes at `start` ([`thrift_walk`]), page
+/// by page, before the crate reads them. A header the chunk ends inside is left to the crate,
+/// which reports it.
+fn check_page_headers(mut file: &File, start: u64, len: u64) -> Result<(), String> {
+    /// `compressed_page_size` in Parquet's `PageHeader`.
+    const COMPRESSED_SIZE: i16 = 3;
+    let end = start + len;
+    let (mut at, mut want) = (start, 4096u64);
+    while at < end {
+        let n = want.min(end - at);
+        let mut buf = vec![0u8; n as usize];
+        file.seek(SeekFrom::Start(at))
+            .and_then(|_| file.read_exact(&mut buf))
+            .map_err(|e| format!("cannot read the page header at byte {at}: {e}"))?;
+        match thrift_walk::walk_struct(&buf, COMPRESSED_SIZE, at + n == end) {
+            Ok((header, Some(size))) if size >= 0 => {
+                at = at.saturating_add(header as u64).saturating_add(size as u64);
+                want = 4096;
+            }
+            Ok(_) => return Err(format!("the page header at byte {at} states no page size")),
+            Err(Stop::Short) if at + n < end => want = want.saturating_mul(4),
+            Err(Stop::Short) => return Ok(()),
+            Err(Stop::Damaged(why)) => return Err(format!("the page header at byte {at}: {why}")),
+        }
+    }
+    Ok(())
 }
 
 /// The crate's message for `e`, on one line.

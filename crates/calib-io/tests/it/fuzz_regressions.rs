@@ -162,3 +162,22 @@ fn a_parquet_run_header_longer_than_10_bytes_is_an_error() {
     assert!(err.contains("longer than 10 bytes"), "{err}");
     assert!(err.contains("column `"), "{err}");
 }
+
+/// parquet_reader, a timeout (found 8 December 2026, 7 minutes into the run after the fixes
+/// above; 4.7 s in a release-like build, 14 s instrumented): a footer whose schema holds an
+/// unknown field stating a list of about 2³¹ booleans, which the `parquet` crate skips element by
+/// element without a byte to read. calib walks the footer and every page header first
+/// (`columns/thrift_walk.rs`): a list larger than the bytes left is refused at once.
+#[cfg(feature = "parquet")]
+#[test]
+fn a_parquet_footer_stating_a_list_larger_than_itself_is_an_error() {
+    let path = input("parquet_footer_list_of_2g_booleans.parquet");
+    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a damaged file read"),
+    };
+    assert!(
+        err.contains("its footer's metadata: a list states"),
+        "{err}"
+    );
+}
