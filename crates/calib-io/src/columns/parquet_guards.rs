@@ -3,7 +3,9 @@
 //! `parquet_reader`. Written by hand because the crate offers no option for them.
 //!
 //! - [`CheckedPages`], a data page in a dictionary encoding with no dictionary page before it:
-//!   the crate `expect`s the dictionary's decoder (a panic); here it is an error.
+//!   the crate `expect`s the dictionary's decoder (a panic); a dictionary page stating more
+//!   values than its bytes hold: the crate allocates the stated count first (7 GB for a 4 kB
+//!   file). Both are errors here.
 //! - [`CheckedPages`], BYTE_STREAM_SPLIT pages: the crate's decoder (apache/arrow-rs#11121, open)
 //!   takes its stride from the page's bytes and its count from the page header, and indexes past
 //!   the page — a panic — when a header states more values than the bytes hold. The encoding is
@@ -35,7 +37,10 @@ pub(super) struct CheckedPages {
     pages: Box<dyn PageReader>,
     /// Whether the chunk's dictionary page has been read.
     dictionary: bool,
-    /// Bytes per value of the column's physical type; 0 where calib leaves the page alone.
+    /// Bytes per value of the column's physical type (INT96 included); 0 for other types.
+    size: usize,
+    /// Bytes per value where BYTE_STREAM_SPLIT applies (4 or 8); 0 where calib leaves the page
+    /// alone.
     width: usize,
     max_def: i16,
     max_rep: i16,
@@ -46,6 +51,12 @@ impl CheckedPages {
         CheckedPages {
             pages,
             dictionary: false,
+            size: match column.physical_type() {
+                Physical::INT32 | Physical::FLOAT => 4,
+                Physical::INT64 | Physical::DOUBLE => 8,
+                Physical::INT96 => 12,
+                _ => 0,
+            },
             width: match column.physical_type() {
                 Physical::INT32 | Physical::FLOAT => 4,
                 Physical::INT64 | Physical::DOUBLE => 8,
@@ -60,7 +71,19 @@ impl CheckedPages {
     /// number.
     fn check(&mut self, page: Page) -> Result<Page> {
         let (buf, values_at, count) = match &page {
-            Page::DictionaryPage { .. } => {
+            Page::DictionaryPage {
+                buf, num_values, ..
+            } => {
+                // The crate sizes the dictionary by its stated count before decoding it: a count
+                // the page's bytes cannot hold (PLAIN values of `size` bytes) asked for 7 GB.
+                let stated = (*num_values as usize).saturating_mul(self.size);
+                if stated > buf.len() {
+                    return Err(ParquetError::General(format!(
+                        "a dictionary page states {num_values} values ({stated} bytes) in {} \
+                         bytes",
+                        buf.len()
+                    )));
+                }
                 self.dictionary = true;
                 return Ok(page);
             }
