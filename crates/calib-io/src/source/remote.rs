@@ -69,8 +69,9 @@ pub(super) struct ObjectSource {
     blocks: Mutex<Vec<(u64, Bytes)>>,
     /// The ranges a reader said it will read ([`ByteSource::plan`]), in file order.
     planned: Mutex<Vec<(u64, u64)>>,
-    /// Held while a planned read fetches, so that one request serves the reads it covers.
-    fetching: Mutex<()>,
+    /// Held while a planned read fetches, so that one request serves the reads it covers; the
+    /// end of the last planned range fetched.
+    fetching: Mutex<u64>,
 }
 
 impl std::fmt::Debug for ObjectSource {
@@ -252,7 +253,7 @@ impl ObjectSource {
             counter: Counter::default(),
             blocks: Mutex::new(Vec::new()),
             planned: Mutex::new(Vec::new()),
-            fetching: Mutex::new(()),
+            fetching: Mutex::new(0),
         })
     }
 
@@ -278,23 +279,32 @@ impl ObjectSource {
         0
     }
 
-    /// Where a request for the read `offset..end` ends: at `end`, or, if it is a planned range,
-    /// at the end of the last planned range after it within [`GAP`] of the one before and
-    /// [`SPAN`] of `offset`.
-    fn span_end(&self, offset: u64, end: u64) -> u64 {
+    /// The request for the read `offset..end`: itself or, if it is a planned range, from the
+    /// first planned range before it not fetched yet (at or after `fetched_until`: another
+    /// worker, a chunk behind, will want it) to the last after it, each within [`GAP`] of the
+    /// one before, [`SPAN`] bytes in all.
+    fn span(&self, offset: u64, end: u64, fetched_until: u64) -> (u64, u64) {
         let planned = self.planned.lock().unwrap_or_else(|e| e.into_inner());
         let Ok(first) = planned.binary_search_by_key(&offset, |&(at, _)| at) else {
-            return end;
+            return (offset, end);
         };
+        let mut start = offset;
+        for &(at, n) in planned[..first].iter().rev() {
+            let prev_end = at.saturating_add(n);
+            if at < fetched_until || prev_end > start || start - prev_end > GAP || end - at > SPAN {
+                break;
+            }
+            start = at;
+        }
         let mut span_end = end;
         for &(at, n) in &planned[first + 1..] {
             let next_end = at.saturating_add(n);
-            if at < span_end || at - span_end > GAP || next_end - offset > SPAN {
+            if at < span_end || at - span_end > GAP || next_end - start > SPAN {
                 break;
             }
             span_end = next_end;
         }
-        span_end.min(self.len)
+        (start, span_end.min(self.len))
     }
 
     /// Keeps `bytes`, fetched from `offset`, in place of the oldest block kept.
@@ -342,14 +352,17 @@ impl ByteSource for ObjectSource {
         if buf.is_empty() || self.kept(offset, buf, true) > 0 {
             return Ok(());
         }
-        let _turn = self.fetching.lock().unwrap_or_else(|e| e.into_inner());
+        let mut fetched_until = self.fetching.lock().unwrap_or_else(|e| e.into_inner());
         // Another read may have fetched it meanwhile.
         if self.kept(offset, buf, true) > 0 {
             return Ok(());
         }
-        let bytes = self.fetch(offset..self.span_end(offset, end))?;
-        buf.copy_from_slice(&bytes[..buf.len()]);
-        self.keep(offset, bytes);
+        let (start, span_end) = self.span(offset, end, *fetched_until);
+        let bytes = self.fetch(start..span_end)?;
+        let from = (offset - start) as usize;
+        buf.copy_from_slice(&bytes[from..from + buf.len()]);
+        self.keep(start, bytes);
+        *fetched_until = (*fetched_until).max(span_end);
         Ok(())
     }
 
