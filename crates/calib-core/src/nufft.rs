@@ -75,6 +75,14 @@ impl Stencils {
         self.start.len()
     }
 
+    /// Moves point `i` to `x` (radians): its stencil built again, as [`Stencils::new`] builds
+    /// it.
+    pub(crate) fn set(&mut self, i: usize, x: f64) {
+        let (s, w) = stencil(x, self.grid as f64 / TAU, self.grid);
+        self.start[i] = s as u32;
+        self.weights[i] = w;
+    }
+
     /// `Σ_k w_k · grid[s + k]` for one stencil starting at `s`. A stencil that does not wrap
     /// (all but the last few points of the grid) reads one bounds-checked array of `P` values.
     #[inline(always)]
@@ -108,6 +116,22 @@ impl Stencils {
         {
             *o0 = Self::dot(grids.0, s as usize, w);
             *o1 = Self::dot(grids.1, s as usize, w);
+        }
+    }
+
+    /// [`Stencils::gather2`] at the points `which` only (indices), the other outputs left as
+    /// they are.
+    pub(crate) fn gather2_at(
+        &self,
+        which: &[usize],
+        grids: (&[f64], &[f64]),
+        out: (&mut [f64], &mut [f64]),
+    ) {
+        debug_assert!(grids.0.len() == self.grid && grids.1.len() == self.grid);
+        for &j in which {
+            let (s, w) = (self.start[j] as usize, &self.weights[j]);
+            out.0[j] = Self::dot(grids.0, s, w);
+            out.1[j] = Self::dot(grids.1, s, w);
         }
     }
 
