@@ -9,6 +9,7 @@
 #   CALIB=.../calib FLOOR=.../mcap_floor benches/end-to-end.sh   # builds nothing
 #   WRITERS=python BAG_SAMPLES=0 COAST_HZ=0 benches/end-to-end.sh   # the Python writer's log only
 #   WRITERS= COAST_HZ=0 benches/end-to-end.sh   # the bag only
+#   SPEED_RPM=190 benches/end-to-end.sh      # 3,158 samples per revolution (default 60: 10,000)
 #
 # The log: two 72-pole-pair sensors and a reference as in testdata/scenarios/csrr72.toml,
 # 5 CSRR sessions at 60 r/min sampled at 10 kHz, as ROS 2 JointState messages (joints a, b,
@@ -28,7 +29,9 @@
 # JointState's positions, one thread. Then, on each writer's log, alternating with it REPEAT
 # times each, printing one table per writer:
 #   inspect    calib inspect LOG --json
+#   inspect-j1 calib inspect LOG --json --jobs 1   (one thread: the reading and the rest)
 #   csrr       calib csrr LOG -o OUT -q
+#   csrr-j1    calib csrr LOG -o OUT -q --jobs 1
 #   reference  calib reference LOG --dut b --ref ref -o OUT -q
 #   apply      calib apply OUT/a.csv LOG --channel a -o LOG2   (reads, corrects, re-compresses),
 #              beside floor+write: `mcap_floor LOG --write COPY`, the floor plus every message
@@ -53,6 +56,8 @@
 #              BAG_FLOOR='"$VENV"/bin/python benches/db3_floor.py "$DB3"' is a Python sqlite3
 #              scan that also decodes every position with numpy.frombuffer (slower: Python's cost
 #              per row)
+#   sqlite-scan the sqlite3 tool's plain scan of the messages table (issue 51's bar for inspect):
+#              sqlite3 -readonly "$DB3" 'SELECT count(*), sum(length(data)) FROM messages'
 #   inspect    calib inspect BAG --json
 #   csrr       calib csrr BAG -o OUT -q   (its maps compared with calib csrr on the bag's CSV)
 # Then on a last log, a coast for `calib tdr`: testdata/scenarios/spindown.toml (an air-bearing
@@ -63,8 +68,9 @@
 # and, in the same rounds, the floor and `calib csrr` on the first writer's log again
 # (floor-paired, csrr-paired), so that tdr's ratio and csrr's come from the same minutes.
 # (COAST_HZ=0 leaves it out: a tdr run takes minutes, the fit and not the reading.)
-# It prints each one's median wall and CPU time, its peak RSS, and the ratio of its median wall
-# time to the floor's (apply's: to floor+write's; the bag's: to bag-floor's). Each log is read
+# It prints each one's median wall and CPU time, its peak RSS, and the ratios of its median wall
+# and CPU time to the floor's (apply's: to floor+write's; the bag's: to bag-floor's, then to
+# sqlite-scan's). Each log is read
 # from the page cache (a first, unmeasured read warms it). Logs are made again only when their
 # scenario or generator changed.
 set -euo pipefail
@@ -73,7 +79,7 @@ cd "$(dirname "$0")/.."
 samples=${SAMPLES:-10000000}
 repeat=${REPEAT:-5}
 rate_hz=10000
-speed_rpm=60
+speed_rpm=${SPEED_RPM:-60}
 
 if [[ ! -x /usr/bin/time ]]; then
   echo "installing GNU time (apt-get install time)" >&2
@@ -176,12 +182,14 @@ measure() {
 }
 median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
 
-names=(floor inspect csrr reference floor+write apply)
+names=(floor inspect inspect-j1 csrr csrr-j1 reference floor+write apply)
 run() {
   case $1 in
     floor) measure "$floor" "$log" ;;
     inspect) measure "$calib" inspect "$log" --json ;;
+    inspect-j1) measure "$calib" inspect "$log" --json --jobs 1 ;;
     csrr) measure "$calib" csrr "$log" -o "$work/out-csrr-$writer" -q ;;
+    csrr-j1) measure "$calib" csrr "$log" -o "$work/out-csrr-j1-$writer" -q --jobs 1 ;;
     reference) measure "$calib" reference "$log" --dut b --ref ref -o "$work/out-ref-$writer" -q ;;
     floor+write) rm -f "$work/floor-copy.mcap"
       measure "$floor" "$log" --write "$work/floor-copy.mcap" ;;
@@ -190,20 +198,24 @@ run() {
         -o "$work/applied.mcap" -q ;;
   esac
 }
-# Prints one line per name: its median wall and CPU time, peak RSS and wall ÷ BASE's wall,
-# from WORK/NAME.txt (apply's ratio is to floor+write's).
+# Prints one line per name: its median wall and CPU time, peak RSS, wall ÷ BASE's wall and
+# CPU ÷ BASE's CPU, from WORK/NAME.txt (apply's ratios are to floor+write's).
 table() {
-  local base=$1 name wall cpu rss f
+  local base=$1 name wall cpu rss f fc
   shift
-  printf '%-11s %10s %10s %10s %9s\n' command "wall s" "cpu s" "peak MB" "÷ floor"
+  printf '%-12s %10s %10s %10s %9s %9s\n' command "wall s" "cpu s" "peak MB" "÷ floor" "cpu ÷"
   for name in "$@"; do
     wall=$(cut -d' ' -f1 "$work/$name.txt" | median)
     cpu=$(cut -d' ' -f2 "$work/$name.txt" | median)
     rss=$(cut -d' ' -f3 "$work/$name.txt" | sort -g | tail -1)
     f=$(cut -d' ' -f1 "$work/$base.txt" | median)
-    [[ $name == apply ]] && f=$(cut -d' ' -f1 "$work/floor+write.txt" | median)
-    awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$f" \
-      'BEGIN{printf "%-11s %10.2f %10.2f %10.0f %9.2f\n", n, w, c, r / 1024, w / f}'
+    fc=$(cut -d' ' -f2 "$work/$base.txt" | median)
+    if [[ $name == apply ]]; then
+      f=$(cut -d' ' -f1 "$work/floor+write.txt" | median)
+      fc=$(cut -d' ' -f2 "$work/floor+write.txt" | median)
+    fi
+    awk -v n="$name" -v w="$wall" -v c="$cpu" -v r="$rss" -v f="$f" -v fc="$fc" \
+      'BEGIN{printf "%-12s %10.2f %10.2f %10.0f %9.2f %9.2f\n", n, w, c, r / 1024, w / f, c / fc}'
   done
 }
 size_mb() { du -sb "$1" | awk '{printf "%.0f MB", $1 / 1e6}'; }
@@ -249,18 +261,28 @@ if [[ $bag_samples != 0 ]]; then
     bag_floor_name="sqlite3 ordered scan, nothing decoded"
   fi
   bash -c "$bag_floor" >&2
+  # The issue's bar for the bag: the sqlite3 tool's plain scan of the messages table, in the
+  # table's own order, nothing decoded and no payload read (`length` of a blob is in its header).
+  sqlite_scan='sqlite3 -readonly "$DB3" "SELECT count(*), sum(length(data)) FROM messages"'
+  command -v sqlite3 > /dev/null || sqlite_scan=
   : > "$work/bag-floor.txt"
+  : > "$work/sqlite-scan.txt"
   : > "$work/inspect.txt"
   : > "$work/csrr.txt"
   for ((i = 1; i <= repeat; i++)); do
     echo "bag round $i/$repeat ($(uptime | sed 's/.*load/load/'))" >&2
     measure bash -c "$bag_floor" >> "$work/bag-floor.txt"
+    [[ -n $sqlite_scan ]] && measure bash -c "$sqlite_scan" >> "$work/sqlite-scan.txt"
     measure "$calib" inspect "$BAG" --json >> "$work/inspect.txt"
     measure "$calib" csrr "$BAG" -o "$work/out-csrr-bag" -q >> "$work/csrr.txt"
   done
   echo "# $(date -u +%Y-%m-%dT%H:%MZ), rosbag2 bag (sqlite3): $(basename "$DB3"), $(sqlite3 "$DB3" 'SELECT count(*) FROM messages' 2> /dev/null || echo "$bag_samples") messages, $(size_mb "$BAG"), $repeat runs each"
   echo "# bag-floor: $bag_floor_name"
   table bag-floor bag-floor inspect csrr
+  if [[ -n $sqlite_scan ]]; then
+    echo "# against the sqlite3 tool's plain scan (SELECT count(*), sum(length(data)) FROM messages):"
+    table sqlite-scan sqlite-scan inspect csrr
+  fi
   echo "# load after: $(uptime | sed 's/.*load/load/')"
   "$calib" csrr "$work/bag.csv" -o "$work/out-csrr-bag-csv" -q > /dev/null
   echo "# csrr's maps, the bag against its CSV (compare_tables.py):"

@@ -21,10 +21,20 @@
 //! joint Gauss–Newton solve of the binned sessions) and `uncertainty` (the tables from the solved
 //! series and their uncertainty), at the order the end-to-end case fitted.
 //!
+//! Last, the solve's growth (`csrr-solve/threads=T/samples=N/orders=H`, issue 51): the joint
+//! solve alone (`stages::solve`, as above) at orders `H` = 100, 500, 1000, 2000 and 5000 on logs of
+//! ~10⁵, 10⁶, 10⁷ and 10⁸ samples (the same sensors at 12,500 samples per revolution, enough for
+//! order 5000; short ramps, pauses and turns; each log binned as it is simulated, never held), on
+//! one and on two threads (a rayon pool of each size). Binning is linear in the samples and
+//! measured above; the solve sees only the bins (at most 65,536 per session), so its cost stops
+//! growing with the samples once they fill them, and grows with the orders as the FFT grid does.
+//! `CSRR_GROWTH=1e5,1e6` picks the logs (default 1e5, 1e6, 1e7; 1e8 takes a minute to simulate).
+//!
 //! ```text
 //! cargo bench -p calib-core --bench csrr
 //! cargo bench -p calib-core --bench csrr -- 'samples=1e5'    # the small log only
 //! cargo bench -p calib-core --bench csrr -- 'csrr-stages'    # the stages only
+//! CSRR_GROWTH=1e5,1e6,1e7,1e8 cargo bench -p calib-core --bench csrr -- 'csrr-solve'
 //! ```
 
 use std::hint::black_box;
@@ -71,10 +81,16 @@ noise_arcsec = 0.05
 
 /// A 5-session CSRR run of the two sensors at `rate_hz` and `speed_rpm`, `revolutions` per session.
 fn scenario(rate_hz: f64, speed_rpm: f64, revolutions: f64) -> Scenario {
+    scenario_with(rate_hz, speed_rpm, revolutions, [1.0, 1.0, 2.0])
+}
+
+/// [`scenario`] with its ramps, pauses and turns of `[ramp_s, pause_s, turn_s]`.
+fn scenario_with(rate_hz: f64, speed_rpm: f64, revolutions: f64, times: [f64; 3]) -> Scenario {
+    let [ramp, pause, turn] = times;
     let text = format!(
         "seed = 72\nrate_hz = {rate_hz}\nspeed_rpm = {speed_rpm}\nwrap = true\n{SENSORS}\n\
          [procedure]\nrelative_deg = [0.0, 7.3, 23.9, 61.7, 151.1]\nrevolutions = {revolutions}\n\
-         ramp_s = 1.0\npause_s = 1.0\nturn_s = 2.0\n"
+         ramp_s = {ramp}\npause_s = {pause}\nturn_s = {turn}\n"
     );
     toml::from_str(&text).expect("bench scenario")
 }
@@ -107,13 +123,15 @@ fn calibrate(readings: &[(f64, f64, f64)], max_order: Option<usize>) -> Calibrat
 
 /// Benches one log's stages at `max_order`.
 fn bench_stages(c: &mut Criterion, label: &str, readings: &[(f64, f64, f64)], max_order: usize) {
-    let binned = stages::bin(readings);
+    let binned = stages::bin(readings.iter().copied());
     eprintln!("{label}: {} bins", binned.bins());
     let mut group = c.benchmark_group(format!("csrr-stages/samples={label}"));
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(5));
-    group.bench_function("binning", |b| b.iter(|| stages::bin(black_box(readings))));
+    group.bench_function("binning", |b| {
+        b.iter(|| stages::bin(black_box(readings).iter().copied()))
+    });
     group.bench_function(format!("stencils/orders={max_order}"), |b| {
         b.iter(|| stages::stencils(black_box(&binned), max_order))
     });
@@ -168,6 +186,54 @@ fn bench_log(c: &mut Criterion, label: &str, readings: &[(f64, f64, f64)], low_o
     bench_stages(c, label, readings, auto_order);
 }
 
+/// The logs of the solve's growth: a label, revolutions per session at 12,500 samples per
+/// revolution (60 r/min at 12.5 kHz), ramps of 0.05 s, pauses of 0.05 s, turns of 0.1 s.
+const GROWTH_LOGS: [(&str, f64); 4] =
+    [("1e5", 1.3), ("1e6", 15.7), ("1e7", 159.7), ("1e8", 1599.7)];
+
+/// The orders of the solve's growth.
+const GROWTH_ORDERS: [usize; 5] = [100, 500, 1000, 2000, 5000];
+
+/// The solve alone at each of [`GROWTH_ORDERS`] on each log of [`GROWTH_LOGS`] that
+/// `CSRR_GROWTH` names, on one and on two threads (see the module docs).
+fn solve_growth(c: &mut Criterion) {
+    let chosen = std::env::var("CSRR_GROWTH").unwrap_or_else(|_| "1e5,1e6,1e7".into());
+    for (label, revolutions) in GROWTH_LOGS {
+        if !chosen.split(',').any(|l| l.trim() == label) {
+            continue;
+        }
+        let start = Instant::now();
+        let scenario = scenario_with(12_500.0, 60.0, revolutions, [0.05, 0.05, 0.1]);
+        let mut samples = 0u64;
+        let binned = stages::bin(scenario.samples().expect("valid scenario").map(|s| {
+            samples += 1;
+            (s.t, s.values[0], s.values[1])
+        }));
+        eprintln!(
+            "growth {label}: {samples} samples, {} bins, simulated and binned in {:.1} s",
+            binned.bins(),
+            start.elapsed().as_secs_f64()
+        );
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a thread pool");
+            let mut group =
+                c.benchmark_group(format!("csrr-solve/threads={threads}/samples={label}"));
+            group.sample_size(10);
+            group.warm_up_time(Duration::from_millis(500));
+            group.measurement_time(Duration::from_secs(3));
+            for orders in GROWTH_ORDERS {
+                group.bench_function(format!("orders={orders}"), |b| {
+                    b.iter(|| pool.install(|| stages::solve(black_box(&binned), orders)))
+                });
+            }
+            group.finish();
+        }
+    }
+}
+
 fn csrr(c: &mut Criterion) {
     // 5 × (7 rev × 2400 samples/rev + ramps, pauses, turns) ≈ 1e5 samples.
     let small = readings(&scenario(400.0, 10.0, 7.0));
@@ -179,5 +245,5 @@ fn csrr(c: &mut Criterion) {
     bench_log(c, "1e7", &large, 100);
 }
 
-criterion_group!(benches, csrr);
+criterion_group!(benches, csrr, solve_growth);
 criterion_main!(benches);

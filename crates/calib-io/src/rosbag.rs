@@ -41,6 +41,7 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 use calib_core::{AngleUnit, Channel, SampleBatch};
 use rusqlite::{Connection, OpenFlags};
+use rustc_hash::FxHashMap;
 
 use crate::align::{AlignOptions, Alignment};
 use crate::mcap_log::JOINT_STATE_SCHEMA;
@@ -919,7 +920,8 @@ fn scan(
         if topics.is_empty() {
             continue;
         }
-        let of_id: HashMap<i64, usize> = topics.iter().copied().collect();
+        // Looked up per row: FxHash, not SipHash (a twentieth of `calib inspect`'s CPU).
+        let of_id: FxHashMap<i64, usize> = topics.iter().copied().collect();
         let ids: Vec<String> = topics.iter().map(|(id, _)| id.to_string()).collect();
         let fail = |e: rusqlite::Error| {
             bag_error(
@@ -1487,7 +1489,8 @@ fn read_topics(db: &Connection, file: &Path) -> Result<Vec<(i64, String, String,
 /// on the topic: 0.3 s of CPU on a 1 M-message bag, more than the ordered scan of the messages
 /// that follows.)
 fn read_counts(db: &Connection, file: &Path) -> Result<HashMap<i64, (u64, u64, u64)>, Error> {
-    let mut counts: HashMap<i64, (u64, i64, i64)> = HashMap::new();
+    // Updated per row: FxHash, as in `scan`.
+    let mut counts: FxHashMap<i64, (u64, i64, i64)> = FxHashMap::default();
     let rows = db
         .prepare("SELECT topic_id, timestamp FROM messages")
         .and_then(|mut s| {

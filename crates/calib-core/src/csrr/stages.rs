@@ -26,12 +26,13 @@ pub struct Solved {
     screen: super::Screen,
 }
 
-/// Segmentation and binning of `(t, x, y)` readings with the default options.
-pub fn bin(readings: &[(f64, f64, f64)]) -> Binned {
+/// Segmentation and binning of `(t, x, y)` readings with the default options (an iterator, so
+/// that a log of 10⁸ samples can be binned as it is simulated, never held).
+pub fn bin(readings: impl IntoIterator<Item = (f64, f64, f64)>) -> Binned {
     let opts = CsrrOptions::default();
     let mut segmenter = Segmenter::new(opts.segments);
     let mut binner = SessionBinner::new(opts.bins_per_rev);
-    for &(t, x, y) in readings {
+    for (t, x, y) in readings {
         segmenter.push(t, x, y, None, &[], &mut binner);
     }
     segmenter.finish(&mut binner);
