@@ -295,7 +295,7 @@ def test_rows_results_tasks_and_errors_pickle(logs):
     back = pickle.loads(pickle.dumps(result))
     assert back.report == result.report
     assert (back.channels["a"].error_arcsec == result.channels["a"].error_arcsec).all()
-    task = fleet.Task("csrr", str(logs["r1"]), "r1", "r1/run.mcap", None, None, {"a": "a"}, fleet.Gates(max_pp=1.0))
+    task = fleet.Task("csrr", str(logs["r1"]), "r1", "r1/run.mcap", None, None, None, {"a": "a"}, fleet.Gates(max_pp=1.0))
     assert pickle.loads(pickle.dumps(task)) == task
     with pytest.raises(calib.CalibError) as raised:
         calib.csrr_log(logs["r5"])
@@ -334,3 +334,25 @@ def test_two_nights_of_map_logs_say_which_joint_moved(logs, tmp_path):
         ("r2/run.mcap", "b", "moved"),
     ]
     assert 0.45 < drift["max_abs_difference_arcsec"][3] < 0.55
+
+
+def test_ray_tasks_through_the_executor_of_docs_fleet_md(logs, tmp_path):
+    """Ray through the adapter docs/fleet.md gives (Ray has no concurrent.futures.Executor of
+    its own). CI does not install Ray (a 15 s install, 7 s to start): this runs where it is."""
+    ray = pytest.importorskip("ray")
+
+    class RayExecutor(concurrent.futures.Executor):
+        def __init__(self, **options):
+            self.options = options
+
+        def submit(self, fn, /, *args, **kwargs):
+            task = ray.remote(**self.options)(fn) if self.options else ray.remote(fn)
+            return task.remote(*args, **kwargs).future()
+
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        out = tmp_path / "out"
+        table = calib.map_logs("csrr", list(logs.values()), out=out, executor=RayExecutor(max_retries=2))
+    finally:
+        ray.shutdown()
+    check_against_cli(table, logs, out, tmp_path)

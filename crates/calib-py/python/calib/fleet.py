@@ -138,6 +138,7 @@ class Task:
     folder: str
     out: Optional[str]
     storage_options: Optional[Dict[str, Any]]
+    out_options: Optional[Dict[str, Any]]
     options: Dict[str, Any]
     gates: Gates
 
@@ -150,6 +151,7 @@ def map_logs(
     out: Optional[LogPath] = None,
     executor: Optional[concurrent.futures.Executor] = None,
     storage_options: Optional[Mapping[str, Any]] = None,
+    out_options: Optional[Mapping[str, Any]] = None,
     summary: bool = False,
     max_pp: Optional[float] = None,
     gate_on: str = "before",
@@ -168,12 +170,16 @@ def map_logs(
             where calib's readers take URLs), as ``calib.<method>_log`` takes them.
         out: where each log's tables and ``report.json`` go, under the log's path relative to
             the logs' common folder: a folder, or a URL prefix written through fsspec (with
-            ``storage_options``). None: nothing is written, the rows are all there is.
+            ``out_options``). None: nothing is written, the rows are all there is.
         executor: any ``concurrent.futures.Executor`` (Dask's ``client.get_executor()``, Ray's,
             a ``ProcessPoolExecutor``); None: a local process pool of one worker per core
             (spawned processes, which import calib afresh), shut down at the end.
-        storage_options: credentials and settings of the object store the logs (and ``out``)
-            are on, passed to ``calib.<method>_log`` and to fsspec as they are.
+        storage_options: credentials and settings of the object store the logs are on, passed
+            to ``calib.<method>_log`` as they are (its keys, object_store's: ``aws_endpoint``
+            …). None: from the environment, as the clouds' own tools take them.
+        out_options: fsspec's ``storage_options`` for an ``out`` URL (s3fs's keys: ``key``,
+            ``secret``, ``client_kwargs`` …). None: fsspec's defaults, credentials from the
+            environment.
         summary: also write the table as ``out/summary.parquet`` and ``out/summary.csv``.
         max_pp, gate_on, max_residual, fail_on_warning: the CLI's gates (``--max-pp``,
             ``--gate-on``, ``--max-residual``, ``--fail-on-warning``): a log that fails one is a
@@ -204,6 +210,8 @@ def map_logs(
     if summary and out is None:
         raise UsageError("summary=True writes the table beside the outputs: give out as well")
     check_options(method, options)
+    if storage_options is not None and "storage_options" not in inspect.signature(getattr(_package(), f"{method}_log")).parameters:
+        raise UsageError("storage_options: this build of calib reads local logs only; leave it out")
     given = [os.fspath(log) for log in logs]
     located = [log if _is_url(log) else os.path.abspath(log) for log in given]
     folders = relative_folders(located)
@@ -216,8 +224,9 @@ def map_logs(
     if target is not None and not _is_url(target):
         target = os.path.abspath(target)
     so = None if storage_options is None else dict(storage_options)
+    oo = None if out_options is None else dict(out_options)
     tasks = [
-        Task(method, log, shown, folder, target, so, dict(options), gates)
+        Task(method, log, shown, folder, target, so, oo, dict(options), gates)
         for log, shown, folder in zip(located, given, folders)
     ]
     own = executor is None
@@ -231,7 +240,7 @@ def map_logs(
             executor.shutdown()
     table = frame(rows)
     if summary:
-        write_summary(table, target, so)
+        write_summary(table, target, oo)
     return table
 
 
@@ -276,6 +285,12 @@ def check_options(method: str, options: Mapping[str, Any]) -> None:
             raise
         # pyo3's words name the argument: "argument 'points': 'str' object cannot be …".
         raise UsageError(f"{method}: {e}") from None
+
+
+def _package():
+    import calib
+
+    return calib
 
 
 def _is_url(log: str) -> bool:
@@ -335,7 +350,7 @@ def run_task(task: Task) -> Dict[str, Any]:
     failures = task.gates.failures(report)
     try:
         if task.out is not None:
-            write_outputs(result, task.out, task.folder, task.storage_options)
+            write_outputs(result, task.out, task.folder, task.out_options)
     except Exception as e:  # noqa: BLE001 - a write that fails is this log's row
         return _row(
             task,
@@ -384,7 +399,7 @@ def _table_file(name: str, channel_report: dict) -> str:
     return channel_report.get("table") or f"{name}.csv"
 
 
-def write_outputs(result, out: str, folder: str, storage_options: Optional[Dict[str, Any]]) -> None:
+def write_outputs(result, out: str, folder: str, out_options: Optional[Dict[str, Any]]) -> None:
     """Writes a result's tables and then its ``report.json`` to ``out/folder/``, each file
     whole or not at all."""
     files = []
@@ -397,17 +412,17 @@ def write_outputs(result, out: str, folder: str, storage_options: Optional[Dict[
                 files.append((file, f.read()))
     report = json.dumps(result.report, indent=2, ensure_ascii=False) + "\n"
     files.append(("report.json", report.encode("utf-8")))
-    put_files(out, folder, files, storage_options)
+    put_files(out, folder, files, out_options)
 
 
-def put_files(out: str, folder: str, files: Sequence[tuple], storage_options: Optional[Dict[str, Any]]) -> None:
+def put_files(out: str, folder: str, files: Sequence[tuple], out_options: Optional[Dict[str, Any]]) -> None:
     """Writes ``(name, bytes)`` pairs under ``out/folder/`` in order: locally to a temporary
     name and renamed over the file, to an object store with one put per file (a put is whole
     or absent)."""
     if _is_url(out):
         import fsspec
 
-        fs, root = fsspec.core.url_to_fs(out, **(storage_options or {}))
+        fs, root = fsspec.core.url_to_fs(out, **(out_options or {}))
         base = "/".join(p for p in (root.rstrip("/"), folder) if p)
         for name, data in files:
             fs.pipe_file(f"{base}/{name}", data)
@@ -428,9 +443,9 @@ def put_files(out: str, folder: str, files: Sequence[tuple], storage_options: Op
                 os.remove(temp)
 
 
-def write_summary(table, out: str, storage_options: Optional[Dict[str, Any]]) -> None:
+def write_summary(table, out: str, out_options: Optional[Dict[str, Any]]) -> None:
     """Writes the fleet's table as ``summary.parquet`` and ``summary.csv`` in ``out``."""
     parquet = io.BytesIO()
     table.to_parquet(parquet, index=False)
     csv = table.to_csv(index=False).encode("utf-8")
-    put_files(out, "", [("summary.parquet", parquet.getvalue()), ("summary.csv", csv)], storage_options)
+    put_files(out, "", [("summary.parquet", parquet.getvalue()), ("summary.csv", csv)], out_options)
