@@ -209,9 +209,7 @@ def map_logs(
     gates.check()
     if summary and out is None:
         raise UsageError("summary=True writes the table beside the outputs: give out as well")
-    check_options(method, options)
-    if storage_options is not None and "storage_options" not in inspect.signature(getattr(_package(), f"{method}_log")).parameters:
-        raise UsageError("storage_options: this build of calib reads local logs only; leave it out")
+    check_options(method, options, remote=storage_options is not None)
     given = [os.fspath(log) for log in logs]
     located = [log if _is_url(log) else os.path.abspath(log) for log in given]
     folders = relative_folders(located)
@@ -244,14 +242,15 @@ def map_logs(
     return table
 
 
-def check_options(method: str, options: Mapping[str, Any]) -> None:
+def check_options(method: str, options: Mapping[str, Any], remote: bool = False) -> None:
     """Checks ``options`` of ``calib.<method>_log`` without a log: unknown or missing keywords
     by the function's signature, values by the checks the method runs before it reads (the
-    same Rust functions). Raises :class:`UsageError` naming the option."""
-    import calib  # the package's wrappers, whose signatures are the options
-
-    function = getattr(calib, f"{method}_log")
-    params = inspect.signature(function).parameters
+    same Rust functions); with ``remote``, that it takes ``storage_options``. Raises
+    :class:`UsageError` naming the option."""
+    calib = _package()
+    params = inspect.signature(getattr(calib, f"{method}_log")).parameters
+    if remote and "storage_options" not in params:
+        raise UsageError("storage_options: this build of calib reads local logs only; leave it out")
     takes = [name for name in params if name not in ("path", "storage_options")]
     unknown = [name for name in options if name not in takes]
     if unknown:
@@ -288,6 +287,8 @@ def check_options(method: str, options: Mapping[str, Any]) -> None:
 
 
 def _package():
+    """The ``calib`` package, whose wrappers a task calls (imported when first needed: this
+    module is imported by the package's ``__init__``)."""
     import calib
 
     return calib
@@ -335,14 +336,12 @@ def _row(task: Task, status: str, **values: Any) -> Dict[str, Any]:
 def run_task(task: Task) -> Dict[str, Any]:
     """Calibrates one log and writes its outputs: the function the workers run. Never raises:
     a log that cannot be calibrated or written is a ``failed`` row naming why."""
-    import calib
-
     start = time.perf_counter()
     kwargs = dict(task.options)
     if task.storage_options is not None:
         kwargs["storage_options"] = task.storage_options
     try:
-        result = getattr(calib, f"{task.method}_log")(task.log, **kwargs)
+        result = getattr(_package(), f"{task.method}_log")(task.log, **kwargs)
     except Exception as e:  # noqa: BLE001 - one log's failure is its row, never the run's end
         message = str(e) if isinstance(e, CalibError) else f"{type(e).__name__}: {e}"
         return _row(task, "failed", error=message, elapsed_s=time.perf_counter() - start)
