@@ -26,3 +26,14 @@ def calib_binary():
 @pytest.fixture
 def testdata():
     return TESTDATA
+
+
+def required_calib_binary():
+    """`calib_binary()` for a test that compares with the command line: under CI (which sets
+    CALIB_BIN) its absence fails the test, elsewhere it skips it."""
+    binary = calib_binary()
+    if binary is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must set CALIB_BIN (or build target/*/calib) for this test")
+        pytest.skip("no calib command line built to compare with (set CALIB_BIN)")
+    return binary

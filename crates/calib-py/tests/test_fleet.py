@@ -15,18 +15,9 @@ import pytest
 
 import calib
 from calib import fleet
-from conftest import TESTDATA, calib_binary
+from conftest import TESTDATA, required_calib_binary as cli
 
 pd = pytest.importorskip("pandas")
-
-
-def cli():
-    binary = calib_binary()
-    if binary is None:
-        if os.environ.get("CI"):
-            pytest.fail("CI must set CALIB_BIN (or build target/*/calib) for this test")
-        pytest.skip("no calib command line built to compare with (set CALIB_BIN)")
-    return binary
 
 
 def simulate(binary, scenario_text, path):
