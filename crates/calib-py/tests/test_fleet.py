@@ -351,3 +351,22 @@ def test_ray_tasks_through_the_executor_of_docs_fleet_md(logs, tmp_path):
     finally:
         ray.shutdown()
     check_against_cli(table, logs, list(logs.values()), in_folder(out), tmp_path)
+
+
+def test_tdr_through_map_logs_is_the_command_lines(tmp_path):
+    """Another method, its own options and figures: a spin-down (testdata/scenarios/spindown.toml)
+    through `tdr` with `channel`, against `calib tdr LOG --channel enc`."""
+    binary = cli()
+    log = tmp_path / "coast" / "run.mcap"
+    log.parent.mkdir()
+    simulate(binary, (TESTDATA / "scenarios" / "spindown.toml").read_text(), log)
+    out = tmp_path / "out"
+    table = calib.map_logs("tdr", [log], out=out, executor=concurrent.futures.ThreadPoolExecutor(1), channel="enc", ref="ref")
+    assert list(table["status"]) == ["ok"], table["error"][0]
+    theirs = tmp_path / "cli"
+    subprocess.run([binary, "tdr", str(log), "--channel", "enc", "--ref", "ref", "-o", str(theirs)], check=True, capture_output=True)
+    assert (out / "run.mcap" / "enc.csv").read_bytes() == (theirs / "enc.csv").read_bytes()
+    report = json.loads((theirs / "report.json").read_text())
+    assert table["orders_kept"][0] == len(report["details"]["orders"]["kept"])
+    assert table["residual_rms_arcsec"][0] == report["details"]["residual_rms_arcsec"]
+    assert table["after_peak_to_peak_arcsec[enc]"][0] == report["channels"]["enc"]["after_correction"]["peak_to_peak_arcsec"]
