@@ -32,6 +32,7 @@ const FLAGS: &[(&str, &str)] = &[
     ("faces", "--faces"),
     ("max_gap", "--max-gap"),
     ("min_amplitude", "--min-amplitude"),
+    ("max_copy_bytes", "--max-copy (in MB)"),
 ];
 
 /// `text` with each option the library names (`the `max_order` option`, `a lower `max_order`

@@ -69,6 +69,11 @@ pub struct LogArgs {
     /// the report. Without it a damaged chunk is an error (exit 1): its readings may be wrong.
     #[arg(long)]
     pub skip_damaged: bool,
+    /// Largest log named by a URL that is copied to a temporary local file to be read, MB
+    /// (10⁶ bytes; default 2000): rosbag2, ROS 1 bags and the columnar formats are read from a
+    /// file (MCAP is read in place, CSV streamed).
+    #[arg(long, value_name = "MB")]
+    pub max_copy: Option<f64>,
 }
 
 /// clap value parser for `--time-unit`.
@@ -82,6 +87,9 @@ impl LogArgs {
         if self.max_gap.is_some_and(|g| !(g > 0.0 && g.is_finite())) {
             return Err(Usage("--max-gap must be a positive number of seconds".into()).into());
         }
+        if self.max_copy.is_some_and(|m| !(m >= 0.0 && m.is_finite())) {
+            return Err(Usage("--max-copy must be a number of megabytes, 0 or more".into()).into());
+        }
         let time = match self.time {
             TimeArg::Header => TimeSource::Header,
             TimeArg::Log => TimeSource::Log,
@@ -93,6 +101,7 @@ impl LogArgs {
             time_unit: self.time_unit,
             skip_damaged: self.skip_damaged,
             one_thread: crate::threads::read_inline(),
+            max_copy_bytes: self.max_copy.map(|mb| (mb * 1e6) as u64),
             ..ReadOptions::default()
         };
         Ok((

@@ -39,6 +39,13 @@ fn global() -> &'static Global {
     GLOBAL.get_or_init(Global::default)
 }
 
+/// A note for the user on standard error (`calib: note: …`), unless `--quiet`.
+pub fn note(text: &str) {
+    if !global().quiet {
+        eprintln!("calib: note: {}", escape_controls(text));
+    }
+}
+
 /// A path as a message shows it: control characters (a NUL, an escape sequence, a line end in a
 /// file name) escaped, so that a message is one readable line that cannot drive the terminal.
 pub fn shown(path: &Path) -> String {

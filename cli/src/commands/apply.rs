@@ -177,6 +177,13 @@ fn validate(args: &Args) -> anyhow::Result<(String, LogFormat)> {
             .map(|s| s.to_string_lossy().into_owned())
             .ok_or_else(|| Usage("name the channel to correct with --channel".into()))?,
     };
+    if calib_io::source::url_of(&args.log).is_some() {
+        return Err(Usage(format!(
+            "{}: calib apply rewrites a local log; download it first and name the copy",
+            crate::ui::shown(&args.log)
+        ))
+        .into());
+    }
     crate::input::check_log_path(&args.log)?;
     crate::overwrite::check(
         &args.output,

@@ -25,7 +25,8 @@ use std::path::PathBuf;
 #[derive(Debug, clap::Args, PartialEq)]
 #[command(after_long_help = crate::input::channel_names())]
 pub struct Args {
-    /// The log (.csv, .mcap, a rosbag2 bag: its directory or a .db3 file, or a ROS 1 .bag).
+    /// The log (.csv, .mcap, a rosbag2 bag: its directory or a .db3 file, or a ROS 1 .bag), or
+    /// its URL (s3://, gs://, az://, http(s)://; see docs/recordings.md).
     pub log: PathBuf,
     /// Unit of CSV, JSON and std_msgs readings: deg (the default), rad, arcsec, rev, counts:N.
     /// JointState positions are radians.

@@ -28,7 +28,10 @@ use std::path::{Path, PathBuf};
 #[command(next_help_heading = "Logs and outputs")]
 pub struct MethodArgs {
     /// The logs (.csv, .mcap, a rosbag2 bag: its directory or a .db3 file, or a ROS 1 .bag),
-    /// calibrated independently and in parallel.
+    /// calibrated independently and in parallel. A log may be a URL — s3://BUCKET/KEY,
+    /// gs://BUCKET/KEY, az://CONTAINER/KEY, http(s)://HOST/PATH — read where it is, with the
+    /// credentials the cloud's own tools take from the environment (docs/recordings.md); the
+    /// outputs stay local.
     #[arg(required = true, value_name = "LOG")]
     pub logs: Vec<PathBuf>,
     /// Output folder (created if missing): the tables, report.json and report.html.
@@ -168,7 +171,11 @@ pub fn for_each_sample(
     }
     bar.finish_and_clear();
     units.finish(log)?;
-    Ok(samples.finish())
+    let reader = samples.finish();
+    if let Some(note) = reader.remote_note() {
+        crate::ui::note(&note);
+    }
+    Ok(reader)
 }
 
 /// A method's error, with what the CSV time column's step and the readings' speed say where

@@ -30,6 +30,8 @@ mod recordings_cli;
 mod reference_cli;
 mod reference_setups_cli;
 mod reliability;
+#[cfg(feature = "remote")]
+mod remote_cli;
 mod report_cli;
 mod ros1bag_cli;
 mod rosbag_cli;

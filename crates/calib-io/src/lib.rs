@@ -26,6 +26,8 @@
 //! - [`scenario`]: simulation scenarios (TOML).
 //! - [`points`]: tolerant reader of error tables on any grid, for comparisons.
 //! - [`limits`]: the range of readings and time stamps readers accept.
+//! - [`source`]: where a log's bytes come from: a file, memory, or (feature `remote`) a URL of
+//!   object storage (`s3://`, `gs://`, `az://`, `http(s)://`), read by byte range.
 //!
 //! Every reader streams: memory stays bounded whatever the log's length. Every error names the
 //! file and the line or message it concerns ([`Error`]).
@@ -73,6 +75,7 @@ mod ros2;
 pub mod rosbag;
 pub mod scenario;
 pub mod shift_angle;
+pub mod source;
 mod stamps;
 pub mod table;
 
@@ -120,6 +123,14 @@ pub struct ReadOptions {
     /// Read on the calling thread only: MCAP chunks are not decompressed on worker threads (for
     /// a caller limited to one thread, `calib --jobs 1`).
     pub one_thread: bool,
+    /// Options of the object store a log named by a URL is read from (`aws_endpoint`,
+    /// `aws_access_key_id`, `aws_region`, `aws_allow_http`, …, as `object_store` names them),
+    /// over those the environment gives; see [`source`].
+    pub storage_options: source::StorageOptions,
+    /// The largest remote log of a format read from a file (rosbag2, ROS 1 bags, the columnar
+    /// formats) copied to a temporary local file, bytes; `None`:
+    /// [`source::DEFAULT_MAX_COPY_BYTES`].
+    pub max_copy_bytes: Option<u64>,
 }
 
 /// The time of a message: the stamp its publisher wrote, or when the recorder logged it.

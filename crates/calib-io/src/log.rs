@@ -8,10 +8,12 @@ use crate::naming::{self, ChannelLookup, ChannelName};
 use crate::ros1bag::{self, Ros1BagReader};
 use crate::ros2::samples::{OneByOne, Ros2Reader};
 use crate::rosbag::{self, BagReader, PreparedStorage, SQLITE_MAGIC};
+use crate::source::{self, ByteSource, Fetched};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::{AngleUnit, Channel, Sample, SampleBatch};
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The formats calib reads and writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -50,7 +52,12 @@ pub enum NotALog {
 impl NotALog {
     /// Why `path` cannot be a log, if it cannot: missing, or a folder other than a rosbag2 bag
     /// directory. Other files are for [`LogFormat::detect`] to judge by their content.
+    /// A URL ([`crate::source::url_of`]) is not looked at here: what is there is found when it
+    /// is opened.
     pub fn check(path: &Path) -> Option<NotALog> {
+        if crate::source::url_of(path).is_some() {
+            return None;
+        }
         match std::fs::metadata(path) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some(NotALog::Missing),
             Ok(meta) if meta.is_dir() && !rosbag::is_bag_dir(path) => Some(NotALog::Folder),
@@ -126,6 +133,10 @@ impl LogFormat {
             path: path.to_path_buf(),
             source,
         };
+        if crate::source::url_of(path).is_some() {
+            let source = crate::source::open(path, &Vec::new())?;
+            return Self::detect_source(path, &source);
+        }
         let meta = std::fs::metadata(path).map_err(io)?;
         if meta.is_dir() && rosbag::is_bag_dir(path) {
             return Ok(LogFormat::Rosbag);
@@ -151,7 +162,28 @@ impl LogFormat {
         let mut head = [0u8; columns::SNIFF_BYTES];
         let mut file = std::fs::File::open(path).map_err(io)?;
         let n = read_head(&mut file, &mut head).map_err(io)?;
-        let head = &head[..n];
+        Self::detect_head(path, &head[..n])
+    }
+
+    /// The format of the log in `source`, named `name` (a URL): by its first bytes, else its
+    /// name's extension, as [`detect`](Self::detect) judges a file.
+    pub fn detect_source(name: &Path, source: &Arc<dyn ByteSource>) -> Result<Self, Error> {
+        // Exactly the head: a front-to-back read of an object would fetch a block ahead.
+        let mut head = [0u8; columns::SNIFF_BYTES];
+        let n = head
+            .len()
+            .min(usize::try_from(source.len()).unwrap_or(usize::MAX));
+        source
+            .read_exact_at(0, &mut head[..n])
+            .map_err(|source| Error::Io {
+                path: name.to_path_buf(),
+                source,
+            })?;
+        Self::detect_head(name, &head[..n])
+    }
+
+    /// The format of a log named `path` whose first bytes are `head`.
+    fn detect_head(path: &Path, head: &[u8]) -> Result<Self, Error> {
         if head.starts_with(MCAP_MAGIC) {
             return Ok(LogFormat::Mcap);
         }
@@ -325,10 +357,33 @@ pub struct LogReader {
     /// The samples read but not yet handed on by [`Iterator::next`].
     one: OneByOne,
     /// A bag's temporary files and the splits (or bag) errors name instead.
-    renames: Vec<(std::path::PathBuf, std::path::PathBuf)>,
+    renames: Vec<(PathBuf, PathBuf)>,
     /// A bag's decompressed or merged files, removed when the reader is dropped (after it:
     /// fields drop in order).
     _temp: Option<crate::atomic::TempFolder>,
+    /// A log read from a URL: where its bytes come from, and whether they were copied to a
+    /// temporary file first (the copy, removed when the reader is dropped).
+    remote: Option<Remote>,
+}
+
+/// A log read from a URL.
+struct Remote {
+    name: PathBuf,
+    source: Arc<dyn ByteSource>,
+    /// The temporary local copy it was read from, if its format needs a file.
+    copy: Option<source::LocalCopy>,
+}
+
+/// How a log named by a URL was read: for a note, and for `calib inspect`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct RemoteRead {
+    /// The object's length, bytes.
+    pub len: u64,
+    /// Bytes fetched, and the requests that fetched them.
+    pub fetched: Fetched,
+    /// Whether the log was copied to a temporary local file first (the formats read from a
+    /// file: rosbag2, ROS 1 bags, the columnar formats).
+    pub copied: bool,
 }
 
 /// Both boxed: the readers are large, and of different sizes.
@@ -341,8 +396,94 @@ enum Inner {
 }
 
 impl LogReader {
-    /// Opens a log, choosing the reader by [`LogFormat::detect`].
+    /// Opens a log, choosing the reader by [`LogFormat::detect`]. A path that is a URL
+    /// ([`source::url_of`]) is read from object storage (the `remote` feature; see
+    /// [`crate::source`]), with [`ReadOptions::storage_options`].
     pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
+        if source::url_of(path).is_some() {
+            let source = source::open(path, &opts.storage_options)?;
+            return Self::open_source(path, source, opts);
+        }
+        Self::open_file(path, opts)
+    }
+
+    /// Opens the log whose bytes `source` holds, named `name` in messages and reports (its
+    /// extension decides where its first bytes do not). MCAP is read at the ranges it needs and
+    /// CSV streamed; the other formats need a file and are copied to a temporary one first, at
+    /// most [`ReadOptions::max_copy_bytes`] (see [`crate::source`]).
+    pub fn open_source(
+        name: &Path,
+        source: Arc<dyn ByteSource>,
+        opts: &ReadOptions,
+    ) -> Result<Self, Error> {
+        let inner = match LogFormat::detect_source(name, &source)? {
+            LogFormat::Csv => Inner::Csv(Box::new(CsvReader::open_source(
+                name,
+                Arc::clone(&source),
+                opts,
+            )?)),
+            LogFormat::Mcap => Inner::Ros2(Box::new(McapReader::open_source(
+                name,
+                Arc::clone(&source),
+                opts,
+            )?)),
+            _ => {
+                let max = opts
+                    .max_copy_bytes
+                    .unwrap_or(source::DEFAULT_MAX_COPY_BYTES);
+                let copy = source::local_copy(name, &source, max)?;
+                let mut reader = Self::open_file(&copy.path, opts)
+                    .map_err(|e| e.renamed(&[(copy.path.clone(), name.to_path_buf())]))?;
+                reader.renames.push((copy.path.clone(), name.to_path_buf()));
+                reader.remote = Some(Remote {
+                    name: name.to_path_buf(),
+                    source,
+                    copy: Some(copy),
+                });
+                return Ok(reader);
+            }
+        };
+        let mut reader = Self::with(inner, Vec::new(), Vec::new(), None);
+        reader.remote = Some(Remote {
+            name: name.to_path_buf(),
+            source,
+            copy: None,
+        });
+        Ok(reader)
+    }
+
+    /// How a log named by a URL was read so far: its length, the bytes fetched and whether it
+    /// was copied; `None` for a local file.
+    pub fn remote_read(&self) -> Option<RemoteRead> {
+        self.remote.as_ref().map(|r| RemoteRead {
+            len: r.source.len(),
+            fetched: r.source.fetched(),
+            copied: r.copy.is_some(),
+        })
+    }
+
+    /// What was fetched of a log named by a URL, as a line for the user: the bytes of its
+    /// length and the requests, and whether it was copied to a temporary file first; `None` for a
+    /// local file.
+    pub fn remote_note(&self) -> Option<String> {
+        let r = self.remote.as_ref()?;
+        let read = self.remote_read()?;
+        Some(format!(
+            "{}: fetched {} of its {} bytes in {} request(s){}",
+            r.name.display(),
+            read.fetched.bytes,
+            read.len,
+            read.fetched.requests,
+            if read.copied {
+                ", into a temporary local copy (calib reads this format from a file)"
+            } else {
+                ""
+            }
+        ))
+    }
+
+    /// Opens a local log.
+    fn open_file(path: &Path, opts: &ReadOptions) -> Result<Self, Error> {
         let mut bag_warnings = Vec::new();
         let mut temp = None;
         let mut renames = Vec::new();
@@ -382,6 +523,15 @@ impl LogReader {
                 Inner::Columns(Box::new(ColumnReader::open(path, format, opts)?))
             }
         };
+        Ok(Self::with(inner, bag_warnings, renames, temp))
+    }
+
+    fn with(
+        inner: Inner,
+        bag_warnings: Vec<String>,
+        renames: Vec<(PathBuf, PathBuf)>,
+        temp: Option<crate::atomic::TempFolder>,
+    ) -> Self {
         let names = match &inner {
             Inner::Csv(r) => r
                 .channels()
@@ -395,7 +545,7 @@ impl LogReader {
                 .map(|c| ChannelName::plain(&c.name))
                 .collect(),
         };
-        Ok(LogReader {
+        LogReader {
             inner,
             names,
             selection: None,
@@ -405,7 +555,8 @@ impl LogReader {
             one: OneByOne::default(),
             renames,
             _temp: temp,
-        })
+            remote: None,
+        }
     }
 
     /// The names of every channel of the log, selected or not: the indices
@@ -610,22 +761,26 @@ impl LogReader {
     /// Notes for the user about parts of the log that were not read (topics of other schemas),
     /// but for the ROS 2 bookkeeping topics every recording carries
     /// ([`is_bookkeeping`](crate::is_bookkeeping): `/rosout`, `/tf`, …), which are expected.
+    /// A log named by a URL adds its [`remote_note`](Self::remote_note).
     pub fn notes(&self) -> Vec<String> {
+        let mut notes: Vec<String> = self.remote_note().into_iter().collect();
         let Inner::Ros2(r) = &self.inner else {
-            return Vec::new();
+            return notes;
         };
-        r.samples()
-            .ignored_topics()
-            .iter()
-            .filter(|t| !crate::bookkeeping::is_bookkeeping(&t.topic))
-            .map(|t| {
-                format!(
-                    "topic `{}` ({}, {}) is not JointState, a std_msgs scalar or JSON and was \
+        notes.extend(
+            r.samples()
+                .ignored_topics()
+                .iter()
+                .filter(|t| !crate::bookkeeping::is_bookkeeping(&t.topic))
+                .map(|t| {
+                    format!(
+                        "topic `{}` ({}, {}) is not JointState, a std_msgs scalar or JSON and was \
                      skipped",
-                    t.topic, t.schema, t.message_encoding
-                )
-            })
-            .collect()
+                        t.topic, t.schema, t.message_encoding
+                    )
+                }),
+        );
+        notes
     }
 
     /// What a description of the log (`calib inspect`, calib-py's `inspect`) warns of once it

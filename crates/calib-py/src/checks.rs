@@ -37,7 +37,7 @@ pub fn check_csrr_log(
 ) -> PyResult<()> {
     latency_of(latency.as_ref())?;
     csrr_channels(&a, &b, r#ref.as_deref())?;
-    LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    LogOptions::new(unit, time, max_gap, time_column, time_unit, None)?;
     CsrrArgs::new(
         method,
         max_order,
@@ -89,7 +89,7 @@ pub fn check_reference_log(
         approach,
         (latency.as_ref(), ref_kind, pole_pairs),
     )?;
-    LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    LogOptions::new(unit, time, max_gap, time_column, time_unit, None)?;
     Ok(())
 }
 
@@ -123,7 +123,7 @@ pub fn check_tdr_log(
         points,
         (run, pole_pairs, cogging_orders),
     )?;
-    LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    LogOptions::new(unit, time, max_gap, time_column, time_unit, None)?;
     Ok(())
 }
 
@@ -147,6 +147,6 @@ pub fn check_multihead_log(
 ) -> PyResult<()> {
     let specs: Vec<(String, f64)> = names.into_iter().zip(nominal_deg).collect();
     crate::multihead::options(&specs, method, sets, max_order, points, min_observability)?;
-    LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    LogOptions::new(unit, time, max_gap, time_column, time_unit, None)?;
     Ok(())
 }

@@ -8,7 +8,67 @@ use calib_io::{LogReader, ReadOptions, TimeSource};
 use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use calib_io::source::{ByteSource, MemorySource};
+
+/// A log as the `*_log` functions take it: a path or a URL (`str` or `os.PathLike`), or a file
+/// object (anything with `.read()`, such as an `fsspec` file), read whole into memory.
+pub enum LogInput {
+    /// A path, or a URL ([`calib_io::source::url_of`]).
+    Path(PathBuf),
+    /// A file object's bytes, named by its `name` or `path` attribute (whose extension decides
+    /// the format where its first bytes do not).
+    Memory(PathBuf, Arc<dyn ByteSource>),
+}
+
+impl LogInput {
+    /// The log `obj` gives: a file object is read here (with the GIL: it is Python code).
+    pub fn from_py(obj: &Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Ok(path) = obj.extract::<PathBuf>() {
+            return Ok(LogInput::Path(path));
+        }
+        if !obj.hasattr("read")? {
+            return Err(usage(format!(
+                "a log is a path, a URL or a file object (with .read()), not {}",
+                obj.get_type().name()?
+            )));
+        }
+        let name = ["name", "path", "full_name"]
+            .iter()
+            .find_map(|attr| obj.getattr(*attr).ok()?.extract::<String>().ok())
+            .unwrap_or_else(|| "<file object>".to_string());
+        let read = obj.call_method0("read")?;
+        let bytes = read.extract::<&[u8]>().map_err(|_| {
+            usage(format!(
+                "{name}: its .read() gave no bytes; open it in binary mode (\"rb\")"
+            ))
+        })?;
+        Ok(LogInput::Memory(
+            PathBuf::from(name),
+            Arc::new(MemorySource::new(bytes.to_vec())),
+        ))
+    }
+
+    /// The log's name in messages and reports: its path, its URL, or the file object's name.
+    pub fn name(&self) -> &Path {
+        match self {
+            LogInput::Path(path) | LogInput::Memory(path, _) => path,
+        }
+    }
+
+    /// Opens it with `read`.
+    fn open(&self, read: &ReadOptions) -> Result<LogReader, calib_io::Error> {
+        match self {
+            LogInput::Path(path) => LogReader::open(path, read),
+            LogInput::Memory(name, source) => {
+                LogReader::open_source(name, Arc::clone(source), read)
+            }
+        }
+    }
+}
 
 /// How a log is read: the keyword arguments of the CLI's `--unit`, `--time`, `--max-gap`,
 /// `--time-column` and `--time-unit`.
@@ -25,6 +85,7 @@ impl LogOptions {
         max_gap: Option<f64>,
         time_column: Option<String>,
         time_unit: Option<&str>,
+        storage_options: Option<HashMap<String, String>>,
     ) -> PyResult<Self> {
         let unit = unit
             .map(|u| u.parse::<AngleUnit>())
@@ -53,6 +114,7 @@ impl LogOptions {
                 time,
                 time_column,
                 time_unit,
+                storage_options: storage_options.into_iter().flatten().collect(),
                 ..ReadOptions::default()
             },
             align: AlignOptions { max_gap_s: max_gap },
@@ -62,7 +124,10 @@ impl LogOptions {
 
 /// Checks that `path` can be a log, as the CLI does before opening it
 /// ([`calib_io::log::NotALog::check`]): a `UsageError` naming the path if not.
-fn check_log_path(path: &Path) -> PyResult<()> {
+fn check_log_path(input: &LogInput) -> PyResult<()> {
+    let LogInput::Path(path) = input else {
+        return Ok(());
+    };
     let shown = path.display().to_string();
     match calib_io::log::NotALog::check(path) {
         Some(not) => Err(usage(format!("{shown}: {not}"))),
@@ -72,11 +137,14 @@ fn check_log_path(path: &Path) -> PyResult<()> {
 
 /// Opens the log at `path` reading the channels `names` only (every channel if `None`), in
 /// this order, the first setting the clock.
-pub fn open(path: &Path, names: Option<&[String]>, opts: &LogOptions) -> PyResult<LogReader> {
-    check_log_path(path)?;
+/// Called without the GIL: a URL's log is fetched here.
+pub fn open(input: &LogInput, names: Option<&[String]>, opts: &LogOptions) -> PyResult<LogReader> {
+    check_log_path(input)?;
+    let path = input.name();
     let mut read = opts.read.clone();
     read.fields = names.map(<[String]>::to_vec).unwrap_or_default();
-    let mut reader = LogReader::open(path, &read)
+    let mut reader = input
+        .open(&read)
         .map_err(|e| data(format!("cannot read {}: {e}", path.display())))?;
     if let Some(names) = names {
         let indices = names
@@ -94,11 +162,13 @@ pub fn open(path: &Path, names: Option<&[String]>, opts: &LogOptions) -> PyResul
 
 /// [`open`] again for a later reading of the same log (a method that reads it twice), its
 /// errors as messages: the log was opened once already, so they are data errors.
-pub fn reopen(path: &Path, names: &[String], opts: &LogOptions) -> Result<LogReader, String> {
+pub fn reopen(input: &LogInput, names: &[String], opts: &LogOptions) -> Result<LogReader, String> {
+    let path = input.name();
     let mut read = opts.read.clone();
     read.fields = names.to_vec();
-    let mut reader =
-        LogReader::open(path, &read).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let mut reader = input
+        .open(&read)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     let indices = names
         .iter()
         .map(|n| {
@@ -157,20 +227,23 @@ pub fn log_read(reader: &LogReader) -> LogRead {
 
 /// Reads a whole log into numpy arrays (see `calib.read`).
 #[pyfunction]
-#[pyo3(signature = (path, channels=None, time="header", unit=None, max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, channels=None, time="header", unit=None, max_gap=None, time_column=None, time_unit=None, storage_options=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn read<'py>(
     py: Python<'py>,
-    path: PathBuf,
+    path: Bound<'py, PyAny>,
     channels: Option<Vec<String>>,
     time: &str,
     unit: Option<&str>,
     max_gap: Option<f64>,
     time_column: Option<String>,
     time_unit: Option<&str>,
+    storage_options: Option<HashMap<String, String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let opts = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
-    let reader = open(&path, channels.as_deref(), &opts)?;
+    let opts = LogOptions::new(unit, time, max_gap, time_column, time_unit, storage_options)?;
+    let input = LogInput::from_py(&path)?;
+    let path = input.name().to_path_buf();
+    let reader = py.detach(|| open(&input, channels.as_deref(), &opts))?;
     let names: Vec<String> = match &channels {
         Some(c) => c.clone(),
         None => reader.channels().iter().map(|c| c.name.clone()).collect(),
@@ -217,11 +290,11 @@ pub fn read<'py>(
 /// What a log holds, as `calib inspect --json` prints it (see `calib.inspect`): the keys of
 /// every object in alphabetical order.
 #[pyfunction]
-#[pyo3(signature = (path, a=None, b=None, time="header", unit=None, max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, a=None, b=None, time="header", unit=None, max_gap=None, time_column=None, time_unit=None, storage_options=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn inspect(
     py: Python<'_>,
-    path: PathBuf,
+    path: Bound<'_, PyAny>,
     a: Option<String>,
     b: Option<String>,
     time: &str,
@@ -229,16 +302,20 @@ pub fn inspect(
     max_gap: Option<f64>,
     time_column: Option<String>,
     time_unit: Option<&str>,
+    storage_options: Option<HashMap<String, String>>,
 ) -> PyResult<String> {
-    let opts = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
-    check_log_path(&path)?;
+    let opts = LogOptions::new(unit, time, max_gap, time_column, time_unit, storage_options)?;
+    let input = LogInput::from_py(&path)?;
+    let path = input.name().to_path_buf();
+    check_log_path(&input)?;
     let read = ReadOptions {
         allow_unordered_time: true,
         allow_point_list: true,
         fields: [&a, &b].into_iter().flatten().cloned().collect(),
         ..opts.read
     };
-    let mut reader = LogReader::open(&path, &read)
+    let mut reader = py
+        .detach(|| input.open(&read))
         .map_err(|e| data(format!("cannot read {}: {e}", path.display())))?;
     let names: Vec<String> = reader.names().iter().map(|n| n.display.clone()).collect();
     let resolve = |name: &str| {

@@ -20,7 +20,6 @@ use calib_core::segment::SegmentOptions;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use std::path::PathBuf;
 
 /// One output table: the channel's name, its errors on a grid starting at `start` (radians)
 /// with `step` between points, and the standard uncertainties (radians) where known.
@@ -385,11 +384,11 @@ pub fn csrr<'py>(
 
 /// CSRR self-calibration of two channels of a log (see `calib.csrr_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, a="a".to_string(), b="b".to_string(), r#ref=None, method="joint", max_order=None, points=None, session_tol=None, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0), latency=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, a="a".to_string(), b="b".to_string(), r#ref=None, method="joint", max_order=None, points=None, session_tol=None, min_speed=1.0, detect_sessions=false, min_observability=0.01, benchmarks=(0.0, 0.0), latency=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None, storage_options=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn csrr_log<'py>(
     py: Python<'py>,
-    path: PathBuf,
+    path: Bound<'py, PyAny>,
     a: String,
     b: String,
     r#ref: Option<String>,
@@ -407,13 +406,16 @@ pub fn csrr_log<'py>(
     max_gap: Option<f64>,
     time_column: Option<String>,
     time_unit: Option<&str>,
+    storage_options: Option<std::collections::HashMap<String, String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let latency = latency_of(latency.as_ref())?;
     csrr_channels(&a, &b, r#ref.as_deref())?;
-    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit, storage_options)?;
+    let input = crate::logs::LogInput::from_py(&path)?;
+    let path = input.name().to_path_buf();
     let mut names = vec![a.clone(), b.clone()];
     names.extend(r#ref.clone());
-    let reader = open(&path, Some(&names), &log)?;
+    let reader = py.detach(|| open(&input, Some(&names), &log))?;
     let args = CsrrArgs::new(
         method,
         max_order,
@@ -436,7 +438,7 @@ pub fn csrr_log<'py>(
                 calib_core::csrr::latency::calibrate(&args.opts, latency, |csrr: &mut Csrr| {
                     let reader = match first.take() {
                         Some(reader) => reader,
-                        None => reopen(&path, &names, &log)?,
+                        None => reopen(&input, &names, &log)?,
                     };
                     last = Some(for_each_sample(&path, reader, |s| {
                         let v = &s.values;
@@ -657,11 +659,11 @@ pub fn reference<'py>(
 /// Cross-calibration of a log's DUT channel against its reference channel (see
 /// `calib.reference_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, dut, r#ref, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, latency=None, ref_kind="encoder", pole_pairs=None, ref_ratio=None, ref_orders=16, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, *, dut, r#ref, ref_u=None, points=3600, min_speed=1.0, follow_tol=5.0, bridge_gap=5.0, targets=None, approach=1.0, latency=None, ref_kind="encoder", pole_pairs=None, ref_ratio=None, ref_orders=16, unit=None, time="header", max_gap=None, time_column=None, time_unit=None, storage_options=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference_log<'py>(
     py: Python<'py>,
-    path: PathBuf,
+    path: Bound<'py, PyAny>,
     dut: String,
     r#ref: String,
     ref_u: Option<f64>,
@@ -681,6 +683,7 @@ pub fn reference_log<'py>(
     max_gap: Option<f64>,
     time_column: Option<String>,
     time_unit: Option<&str>,
+    storage_options: Option<std::collections::HashMap<String, String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     reference_channels(&dut, &r#ref)?;
     let gear = gear_of(ref_ratio.as_ref(), ref_orders)?;
@@ -694,8 +697,10 @@ pub fn reference_log<'py>(
         approach,
         (latency.as_ref(), ref_kind, pole_pairs),
     )?;
-    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
-    let reader = open(&path, Some(&[dut.clone(), r#ref.clone()]), &log)?;
+    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit, storage_options)?;
+    let input = crate::logs::LogInput::from_py(&path)?;
+    let path = input.name().to_path_buf();
+    let reader = py.detach(|| open(&input, Some(&[dut.clone(), r#ref.clone()]), &log))?;
     let what = path.display().to_string();
     let (cal, reader) = py
         .detach(|| {

@@ -8,7 +8,6 @@ use calib_core::multihead::{Head, Method, Multihead, MultiheadCalibration, Multi
 use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use std::path::PathBuf;
 
 /// The heads (name, nominal angle in degrees) and options, checked as `calib multihead` checks
 /// its `--heads`, `--sets` and options.
@@ -166,11 +165,11 @@ pub fn multihead<'py>(
 
 /// Multi-head self-calibration of a log's head channels (see `calib.multihead_log`).
 #[pyfunction]
-#[pyo3(signature = (path, names, nominal_deg, *, method="joint", sets=None, max_order=None, points=None, min_observability=0.01, unit=None, time="header", max_gap=None, time_column=None, time_unit=None))]
+#[pyo3(signature = (path, names, nominal_deg, *, method="joint", sets=None, max_order=None, points=None, min_observability=0.01, unit=None, time="header", max_gap=None, time_column=None, time_unit=None, storage_options=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn multihead_log<'py>(
     py: Python<'py>,
-    path: PathBuf,
+    path: Bound<'py, PyAny>,
     names: Vec<String>,
     nominal_deg: Vec<f64>,
     method: &str,
@@ -183,12 +182,15 @@ pub fn multihead_log<'py>(
     max_gap: Option<f64>,
     time_column: Option<String>,
     time_unit: Option<&str>,
+    storage_options: Option<std::collections::HashMap<String, String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let specs: Vec<(String, f64)> = names.into_iter().zip(nominal_deg).collect();
     let (heads, opts) = options(&specs, method, sets, max_order, points, min_observability)?;
-    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit, storage_options)?;
+    let input = crate::logs::LogInput::from_py(&path)?;
+    let path = input.name().to_path_buf();
     let channel_names: Vec<String> = heads.iter().map(|h| h.name.clone()).collect();
-    let reader = open(&path, Some(&channel_names), &log)?;
+    let reader = py.detach(|| open(&input, Some(&channel_names), &log))?;
     let what = path.display().to_string();
     let (cal, reader) = py
         .detach(|| {

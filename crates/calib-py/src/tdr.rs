@@ -7,7 +7,6 @@ use calib_core::tdr::{MotorOrders, RunKind, Tdr, TdrCalibration, TdrOptions};
 use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use std::path::PathBuf;
 
 /// The largest `max_order`, `max_drag_order` and `motion_degree` (the CLI's).
 const MAX_ORDER: usize = 1000;
@@ -190,11 +189,11 @@ pub fn tdr<'py>(
 
 /// Spin-down self-calibration of a log's channel (see `calib.tdr_log`).
 #[pyfunction]
-#[pyo3(signature = (path, *, channel, r#ref=None, max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None, run="auto", pole_pairs=None, cogging_orders=None))]
+#[pyo3(signature = (path, *, channel, r#ref=None, max_order=None, max_drag_order=16, motion_degree=None, min_revolutions=10.0, points=None, unit=None, time="header", max_gap=None, time_column=None, time_unit=None, run="auto", pole_pairs=None, cogging_orders=None, storage_options=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn tdr_log<'py>(
     py: Python<'py>,
-    path: PathBuf,
+    path: Bound<'py, PyAny>,
     channel: String,
     r#ref: Option<String>,
     max_order: Option<usize>,
@@ -210,6 +209,7 @@ pub fn tdr_log<'py>(
     run: &str,
     pole_pairs: Option<usize>,
     cogging_orders: Option<Vec<usize>>,
+    storage_options: Option<std::collections::HashMap<String, String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     tdr_channels(&channel, r#ref.as_deref())?;
     let opts = options(
@@ -220,10 +220,12 @@ pub fn tdr_log<'py>(
         points,
         (run, pole_pairs, cogging_orders),
     )?;
-    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit)?;
+    let log = LogOptions::new(unit, time, max_gap, time_column, time_unit, storage_options)?;
+    let input = crate::logs::LogInput::from_py(&path)?;
+    let path = input.name().to_path_buf();
     let mut names = vec![channel.clone()];
     names.extend(r#ref.clone());
-    let reader = open(&path, Some(&names), &log)?;
+    let reader = py.detach(|| open(&input, Some(&names), &log))?;
     let what = path.display().to_string();
     let with_ref = r#ref.is_some();
     let (cal, reader) = py

@@ -12,6 +12,8 @@ pub mod long;
 pub mod multihead;
 pub mod reference;
 pub mod ros;
+#[cfg(feature = "remote")]
+pub mod servers;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -350,8 +350,9 @@ fn walk(
     let chunked = parallel
         .then(|| {
             let consumed = Arc::new(AtomicU64::new(0));
+            let source = crate::source::FileSource::new(file.try_clone().ok()?).ok()?;
             let chunked = Chunked::every_record(
-                file.try_clone().ok()?,
+                crate::source::SourceCursor::new(Arc::new(source)),
                 len,
                 Arc::clone(&consumed),
                 chunks::workers(),
@@ -1346,8 +1347,15 @@ mod tests {
             unreachable!("the streaming reader")
         };
         let consumed = Arc::new(AtomicU64::new(0));
-        let mut chunked =
-            Chunked::every_record(File::open(&path).unwrap(), len, consumed, 2).unwrap();
+        let mut chunked = Chunked::every_record(
+            crate::source::SourceCursor::new(Arc::new(
+                crate::source::FileSource::open(&path).unwrap(),
+            )),
+            len,
+            consumed,
+            2,
+        )
+        .unwrap();
         let mut opcodes = Vec::new();
         loop {
             let (opcode, data) = chunked.next_record().expect("no fallback");

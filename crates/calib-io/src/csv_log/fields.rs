@@ -20,7 +20,10 @@ pub(crate) fn csv_reader(file: File) -> csv::Reader<LineLimit<File>> {
 }
 
 /// [`csv_reader`] with another field separator.
-pub(crate) fn csv_reader_with(file: File, separator: u8) -> csv::Reader<LineLimit<File>> {
+pub(crate) fn csv_reader_with<R: std::io::Read>(
+    file: R,
+    separator: u8,
+) -> csv::Reader<LineLimit<R>> {
     csv::ReaderBuilder::new()
         .delimiter(separator)
         .has_headers(false)

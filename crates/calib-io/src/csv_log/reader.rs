@@ -5,15 +5,16 @@ use super::fields::{self, Decimal, line_of, parse_f64, parse_f64_comma, parse_in
 use super::time_step::{TimeStep, UnitFrom};
 use crate::limits::LineLimit;
 use crate::progress::ReadProgress;
+use crate::source::{ByteSource, FileSource, SourceCursor};
 use crate::stamps::{Backward, StampOrder, Step};
 use crate::{Error, ReadDiagnostics, ReadOptions};
 use calib_core::reference_points::Approach;
 use calib_core::{AngleUnit, Channel, Sample};
 use csv::ByteRecord;
-use std::fs::File;
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Read, Seek};
 use std::iter::FusedIterator;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Reads a CSV log as a stream of [`Sample`]s, one row at a time.
 ///
@@ -123,14 +124,14 @@ enum Origin {
 /// The records of the file, split as its dialect says.
 #[derive(Debug)]
 enum Records {
-    Csv(csv::Reader<LineLimit<File>>),
+    Csv(csv::Reader<LineLimit<SourceCursor>>),
     Whitespace(Words),
 }
 
 /// Records of fields separated by runs of spaces and tabs, one per non-blank line.
 #[derive(Debug)]
 struct Words {
-    input: BufReader<LineLimit<File>>,
+    input: BufReader<LineLimit<SourceCursor>>,
     line: Vec<u8>,
     /// Byte offset of the next line.
     offset: u64,
@@ -138,7 +139,7 @@ struct Words {
 }
 
 impl Records {
-    fn open(file: File, dialect: &Dialect) -> Self {
+    fn open(file: SourceCursor, dialect: &Dialect) -> Self {
         if dialect.separator == WHITESPACE {
             Records::Whitespace(Words {
                 input: BufReader::with_capacity(1 << 16, LineLimit::new(file)),
@@ -208,6 +209,40 @@ impl CsvReader {
             source,
         };
         let (file, dialect) = dialect::open(path).map_err(io)?;
+        let source: Arc<dyn ByteSource> = Arc::new(FileSource::new(file).map_err(io)?);
+        Self::open_with(path, SourceCursor::new(source), dialect, opts)
+    }
+
+    /// [`open`](Self::open) for a log whose bytes `source` holds (a URL's, streamed front to
+    /// back), named `name` in messages.
+    pub fn open_source(
+        name: &Path,
+        source: Arc<dyn ByteSource>,
+        opts: &ReadOptions,
+    ) -> Result<Self, Error> {
+        let mut cursor = SourceCursor::new(source);
+        let mut head = Vec::with_capacity(dialect::SNIFF_BYTES);
+        (&mut cursor)
+            .take(dialect::SNIFF_BYTES as u64)
+            .read_to_end(&mut head)
+            .map_err(|source| Error::Io {
+                path: name.to_path_buf(),
+                source,
+            })?;
+        cursor.rewind().map_err(|source| Error::Io {
+            path: name.to_path_buf(),
+            source,
+        })?;
+        Self::open_with(name, cursor, dialect::sniff(&head), opts)
+    }
+
+    fn open_with(
+        path: &Path,
+        file: SourceCursor,
+        dialect: Dialect,
+        opts: &ReadOptions,
+    ) -> Result<Self, Error> {
+        let size = file.source().len();
         let mut reader = Records::open(file, &dialect);
         let mut record = ByteRecord::new();
         let name_record = match &dialect.header {
@@ -467,7 +502,6 @@ impl CsvReader {
             });
         }
         let time_step = found.map(|(col, unit, from)| TimeStep::new(&names[col], unit, from));
-        let size = std::fs::metadata(path).map_or(0, |m| m.len());
         let needed = vec![true; value_cols.len()];
         Ok(CsvReader {
             progress: ReadProgress::new(size),

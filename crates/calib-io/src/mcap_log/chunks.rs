@@ -30,12 +30,19 @@
 //! too, in file order, and the records handed on are exactly the streaming reader's up to the
 //! data end record. A caller that falls back can then skip as many records as it was handed.
 //!
+//! # Only the chunks needed, from an object store
+//! A log read from an object store ([`Chunked::indexed`]) is not walked: the summary's chunk
+//! index says where the chunks are and which channels each holds, so only the chunks holding a
+//! channel the reader reads are fetched, each in one request by its worker, after the schema
+//! and channel records of the summary. The chunks' own CRCs are checked as above; the data
+//! section's CRC, which covers every byte, cannot be (the bytes between chunks are not
+//! fetched). A chunk that is not as expected falls back as above (see `McapReader`).
+//!
 //! # Memory
 //! At most [`AHEAD`] chunks per worker are in flight, each at most [`MAX_PARALLEL_CHUNK_BYTES`]
 //! compressed and decompressed; their buffers are reused from chunk to chunk.
 
 use std::collections::VecDeque;
-use std::fs::File;
 use std::io::{self, BufReader, Read, Seek, SeekFrom, Write};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -45,6 +52,7 @@ use std::thread::JoinHandle;
 use mcap::records::op;
 
 use crate::limits::MAX_PARALLEL_CHUNK_BYTES;
+use crate::source::{ByteSource, SourceCursor};
 
 /// Chunks decompressed ahead per worker: one being handed on while the next is decompressed.
 pub const AHEAD: usize = 2;
@@ -102,7 +110,10 @@ enum Planned {
 
 /// The data section's records, chunks decompressed on worker threads (see the module docs).
 pub(crate) struct Chunked {
-    file: BufReader<File>,
+    file: BufReader<SourceCursor>,
+    /// Reading from the chunk index: the chunks still to fetch (offset and length of each
+    /// chunk record), in file order; `None` when walking the data section.
+    index: Option<VecDeque<(u64, u64)>>,
     len: u64,
     /// Offset of the next top-level record.
     pos: u64,
@@ -210,26 +221,18 @@ fn decode_chunk(
     tiles(out, file_len).then_some(())
 }
 
-/// Reads a chunk record's body of `len` bytes at offset `at` of `file` into `body`; false if
-/// the file no longer holds them.
-#[cfg(unix)]
-fn read_chunk(file: &File, body: &mut Vec<u8>, at: u64, len: usize) -> bool {
-    use std::os::unix::fs::FileExt;
+/// Reads a chunk record's body of `len` bytes at offset `at` of `file` into `body` (one
+/// positioned read, or one request to an object store); false if the file no longer holds them.
+fn read_chunk(file: &dyn ByteSource, body: &mut Vec<u8>, at: u64, len: usize) -> bool {
     body.resize(len, 0);
-    file.read_exact_at(body, at).is_ok()
+    file.read_exact_at(at, body).is_ok()
 }
 
-/// Without a positioned read the walk has read the body ([`Chunked::chunk_body`]).
-#[cfg(not(unix))]
-fn read_chunk(_: &File, body: &mut Vec<u8>, _: u64, len: usize) -> bool {
-    body.len() == len
-}
-
-fn work(file: Arc<File>, jobs: Receiver<Job>, done: SyncSender<Done>, file_len: u64) {
+fn work(file: Arc<dyn ByteSource>, jobs: Receiver<Job>, done: SyncSender<Done>, file_len: u64) {
     let mut zstd = None;
     while let Ok(mut job) = jobs.recv() {
         let mut crc = crc32fast::Hasher::new();
-        let ok = read_chunk(&file, &mut job.body, job.at, job.len) && {
+        let ok = read_chunk(&*file, &mut job.body, job.at, job.len) && {
             crc.update(&job.body);
             decode_chunk(&job.body, file_len, &mut zstd, &mut job.out).is_some()
         };
@@ -263,7 +266,7 @@ impl Chunked {
     /// Walks `file` (of `len` bytes) from its start with `workers` worker threads; `None` if it
     /// does not start with the MCAP magic or no thread can be started.
     pub(crate) fn new(
-        file: File,
+        file: SourceCursor,
         len: u64,
         consumed: Arc<AtomicU64>,
         workers: usize,
@@ -271,10 +274,31 @@ impl Chunked {
         Self::walking(file, len, consumed, workers, false)
     }
 
+    /// Reads the chunk records at `chunks` (offset and length of each, in file order) of
+    /// `file` and nothing else, after handing on `definitions` (the summary's schema and channel
+    /// records), with `workers` worker threads (see the module docs); `None` if no thread can be
+    /// started.
+    pub(crate) fn indexed(
+        file: SourceCursor,
+        chunks: Vec<(u64, u64)>,
+        definitions: Vec<(u8, Vec<u8>)>,
+        consumed: Arc<AtomicU64>,
+        workers: usize,
+    ) -> Option<Self> {
+        let len = file.source().len();
+        let mut chunked = Self::start(file, len, consumed, workers, false)?;
+        chunked.index = Some(chunks.into());
+        chunked.plan = definitions
+            .into_iter()
+            .map(|(opcode, body)| Planned::Record(opcode, body))
+            .collect();
+        Some(chunked)
+    }
+
     /// [`new`](Self::new), handing on every top-level record of the data section as the streaming
     /// reader does (see the module docs).
     pub(crate) fn every_record(
-        file: File,
+        file: SourceCursor,
         len: u64,
         consumed: Arc<AtomicU64>,
         workers: usize,
@@ -283,21 +307,34 @@ impl Chunked {
     }
 
     fn walking(
-        mut file: File,
+        file: SourceCursor,
+        len: u64,
+        consumed: Arc<AtomicU64>,
+        workers: usize,
+        every: bool,
+    ) -> Option<Self> {
+        let mut chunked = Self::start(file, len, consumed, workers, every)?;
+        let mut magic = [0u8; 8];
+        chunked.file.read_exact(&mut magic).ok()?;
+        (magic == mcap::MAGIC).then_some(())?;
+        chunked.crc.update(&magic);
+        chunked.pos = magic.len() as u64;
+        chunked.consumed.store(chunked.pos, Ordering::Relaxed);
+        Some(chunked)
+    }
+
+    /// The workers started, nothing read.
+    fn start(
+        mut file: SourceCursor,
         len: u64,
         consumed: Arc<AtomicU64>,
         workers: usize,
         every: bool,
     ) -> Option<Self> {
         file.seek(SeekFrom::Start(0)).ok()?;
-        let mut file = BufReader::with_capacity(READ_BUFFER, file);
-        let mut magic = [0u8; 8];
-        file.read_exact(&mut magic).ok()?;
-        (magic == mcap::MAGIC).then_some(())?;
-        let mut crc = crc32fast::Hasher::new();
-        crc.update(&magic);
         // The workers' handle: a positioned read leaves the walk's offset alone.
-        let shared = Arc::new(file.get_ref().try_clone().ok()?);
+        let shared = Arc::clone(file.source());
+        let file = BufReader::with_capacity(READ_BUFFER, file);
         let mut pool = Vec::with_capacity(workers);
         for i in 0..workers.max(1) {
             let (jobs, job_rx) = sync_channel::<Job>(AHEAD);
@@ -309,12 +346,12 @@ impl Chunked {
                 .ok()?;
             pool.push(Worker { jobs, done, thread });
         }
-        consumed.store(magic.len() as u64, Ordering::Relaxed);
         Some(Chunked {
             file,
+            index: None,
             len,
-            pos: magic.len() as u64,
-            crc,
+            pos: 0,
+            crc: crc32fast::Hasher::new(),
             after: VecDeque::new(),
             consumed,
             workers: pool,
@@ -339,18 +376,34 @@ impl Chunked {
         (read as u64 == n).then_some(body)
     }
 
-    /// The walk's share of a chunk record's body of `n` bytes: on Unix it steps over it (its
-    /// worker reads it) and returns a buffer for it.
-    #[cfg(unix)]
+    /// The walk's share of a chunk record's body of `n` bytes: it steps over it (its worker
+    /// reads it) and returns a buffer for it.
     fn chunk_body(&mut self, n: u64) -> Option<Vec<u8>> {
         self.file.seek_relative(i64::try_from(n).ok()?).ok()?;
         Some(self.spare.pop().unwrap_or_default())
     }
 
-    /// Elsewhere it reads it.
-    #[cfg(not(unix))]
-    fn chunk_body(&mut self, n: u64) -> Option<Vec<u8>> {
-        self.read_body(n)
+    /// The next chunk the index lists, sent to a worker; the data end (unchecked) after the
+    /// last.
+    fn next_indexed(&mut self) -> Option<Planned> {
+        let Some((offset, length)) = self.index.as_mut()?.pop_front() else {
+            // No CRC recorded: the data section's cannot be checked without all its bytes.
+            return Some(Planned::End(vec![0; 4]));
+        };
+        let len = usize::try_from(length.checked_sub(PREFIX as u64)?)
+            .ok()
+            .filter(|&n| n <= MAX_PARALLEL_CHUNK_BYTES)?;
+        let body = self.spare.pop().unwrap_or_default();
+        let out = self.spare.pop().unwrap_or_default();
+        let at = offset.checked_add(PREFIX as u64)?;
+        let worker = &self.workers[self.sent % self.workers.len()];
+        worker.jobs.send(Job { at, len, body, out }).ok()?;
+        self.after.push_back(crc32fast::Hasher::new());
+        self.sent += 1;
+        self.in_flight += 1;
+        self.pos = offset + length;
+        self.consumed.store(self.pos, Ordering::Relaxed);
+        Some(Planned::Chunk)
     }
 
     /// Where the bytes the walk reads are hashed: after the last chunk in flight, if any.
@@ -361,6 +414,9 @@ impl Chunked {
     /// Walks to the next top-level record that is handed on; `None` where the streaming reader
     /// must take over.
     fn walk(&mut self) -> Option<Planned> {
+        if self.index.is_some() {
+            return self.next_indexed();
+        }
         loop {
             let mut head = [0u8; PREFIX];
             self.file.read_exact(&mut head).ok()?;
@@ -511,7 +567,12 @@ mod tests {
     use crate::mcap_log::read::McapReader;
     use crate::mcap_log::{DEFAULT_TOPIC, McapWriter};
     use calib_core::{AngleUnit, Channel, Sample};
+    use std::fs::File;
     use std::path::Path;
+
+    fn cursor(path: &Path) -> SourceCursor {
+        SourceCursor::new(Arc::new(crate::source::FileSource::open(path).unwrap()))
+    }
 
     /// A JointState log of three joints, `n` messages in 1 MiB zstd chunks (about 10 000
     /// messages each).
@@ -583,9 +644,8 @@ mod tests {
             super::super::records::Checked::new(BufReader::new(file), options, skip_damaged)
         };
         for workers in [1, 2] {
-            let file = File::open(&path).unwrap();
             let consumed = Arc::new(AtomicU64::new(0));
-            let mut chunked = Chunked::new(file, len, consumed, workers).unwrap();
+            let mut chunked = Chunked::new(cursor(&path), len, consumed, workers).unwrap();
             let mut checked = linear(false);
             let mut records = 0;
             loop {
@@ -662,10 +722,9 @@ mod tests {
             }
             // The walk itself stops at the damage: at the chunk, or at the data end record
             // for the index, after every chunk before it has been handed on.
-            let file = File::open(&bad).unwrap();
             let consumed = Arc::new(AtomicU64::new(0));
             let len = bytes.len() as u64;
-            let mut chunked = Chunked::new(file, len, consumed, 2).unwrap();
+            let mut chunked = Chunked::new(cursor(&bad), len, consumed, 2).unwrap();
             let mut messages = 0;
             let stopped = loop {
                 match chunked.next_record() {

@@ -44,6 +44,7 @@
 //! larger of the first incomplete top-level record's start and the bytes handed to the stream
 //! when it gave its last message (which lies inside a chunk cut short).
 
+use std::collections::HashSet;
 use std::fs::File;
 use std::io::{self, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -64,6 +65,7 @@ use crate::ros2::PEEK_WINDOW;
 use crate::ros2::encoding::Encoding;
 use crate::ros2::registry::{IgnoredTopic, Registry, Resolved, TopicInfo, too_many_topics};
 use crate::ros2::samples::{Failure, OneByOne, Ros2Reader, Samples};
+use crate::source::{ByteSource, FileSource, SourceCursor};
 use crate::{DamagedChunk, Error, ReadDiagnostics, ReadOptions, Truncation};
 
 /// Chunks a file's summary must list for them to be read on worker threads: a file of one chunk
@@ -90,6 +92,11 @@ pub const PARALLEL_CHUNKS: usize = 2;
 /// The iterator ends after the first error it yields.
 pub struct McapReader {
     path: PathBuf,
+    /// The file's bytes (a local file's, or an object's in a store).
+    source: Arc<dyn ByteSource>,
+    /// Chunks the chunk index let the reader leave out (an object store's log): the streaming
+    /// reader cannot take over then, as it would count their messages.
+    chunks_left_out: usize,
     /// Boxed: the stream's state is large, and the reader is moved around inside enums.
     stream: Box<Stream>,
     /// Bytes of the file handed to the stream so far (shared with its [`Source`]).
@@ -109,7 +116,7 @@ pub struct McapReader {
     /// An error was yielded: the iteration is over.
     failed: bool,
     /// Reading chunks in parallel: the file, for the streaming reader to take over with.
-    reopen: Option<File>,
+    reopen: Option<SourceCursor>,
     skip_damaged: bool,
     /// Messages the streaming reader skips after taking over: those handed on already.
     skip: u64,
@@ -123,7 +130,7 @@ const READ_BUFFER: usize = 256 * 1024;
 
 /// The file as the stream reads it, from the start, counting the bytes it hands on.
 struct Source {
-    file: BufReader<File>,
+    file: BufReader<SourceCursor>,
     consumed: Arc<AtomicU64>,
 }
 
@@ -138,7 +145,11 @@ impl Read for Source {
 type Stream = records::Stream<Source>;
 
 /// A message stream over `file` from its start, and its count of bytes read.
-fn stream(mut file: File, len: u64, skip_damaged: bool) -> io::Result<(Stream, Arc<AtomicU64>)> {
+fn stream(
+    mut file: SourceCursor,
+    len: u64,
+    skip_damaged: bool,
+) -> io::Result<(Stream, Arc<AtomicU64>)> {
     file.seek(SeekFrom::Start(0))?;
     let consumed = Arc::new(AtomicU64::new(0));
     let source = Source {
@@ -156,22 +167,40 @@ fn stream(mut file: File, len: u64, skip_damaged: bool) -> io::Result<(Stream, A
     ))
 }
 
-/// The stream of the whole file: with `parallel`, its chunks decompressed on worker threads (see
-/// [`super::chunks`]) and a second handle on the file for the streaming reader to take over
-/// with; else (or if no thread can be started) the streaming reader.
+/// How the data section is read.
+enum Plan {
+    /// Front to back by the streaming reader.
+    Streaming,
+    /// Front to back, chunks decompressed on worker threads.
+    Parallel,
+    /// Only these chunks (offset and length), after these schema and channel records, on this
+    /// many worker threads (an object store's log; see [`super::chunks`]).
+    Indexed(Vec<(u64, u64)>, Vec<(u8, Vec<u8>)>, usize),
+}
+
+/// The stream of the whole file: its chunks decompressed on worker threads (see
+/// [`super::chunks`]) — all of them, or those `plan` lists — and a second handle on the file
+/// for the streaming reader to take over with; else (or if no thread can be started) the
+/// streaming reader.
 fn main_stream(
-    file: File,
+    file: SourceCursor,
     len: u64,
     skip_damaged: bool,
-    parallel: bool,
-) -> io::Result<(Stream, Arc<AtomicU64>, Option<File>)> {
-    let spare = parallel.then(|| file.try_clone().ok()).flatten();
-    if let Some(spare) = spare {
-        let consumed = Arc::new(AtomicU64::new(0));
-        let workers = chunks::workers();
-        if let Some(chunked) = chunks::Chunked::new(spare, len, Arc::clone(&consumed), workers) {
-            return Ok((records::Stream::chunked(chunked), consumed, Some(file)));
+    plan: Plan,
+) -> io::Result<(Stream, Arc<AtomicU64>, Option<SourceCursor>)> {
+    let consumed = Arc::new(AtomicU64::new(0));
+    let spare = file.clone();
+    let chunked = match plan {
+        Plan::Streaming => None,
+        Plan::Parallel => {
+            chunks::Chunked::new(spare, len, Arc::clone(&consumed), chunks::workers())
         }
+        Plan::Indexed(chunks, definitions, workers) => {
+            chunks::Chunked::indexed(spare, chunks, definitions, Arc::clone(&consumed), workers)
+        }
+    };
+    if let Some(chunked) = chunked {
+        return Ok((records::Stream::chunked(chunked), consumed, Some(file)));
     }
     let (stream, consumed) = stream(file, len, skip_damaged)?;
     Ok((stream, consumed, None))
@@ -214,10 +243,10 @@ fn mcap_error(path: &Path, index: Option<u64>, channel: Option<&str>, message: S
 /// The offset of the first incomplete top-level record, if the data section is cut short;
 /// `None` if it is complete up to its data end record (or the file cannot be read again).
 /// Reads only the records' 9-byte headers, skipping their bodies.
-fn find_break(path: &Path) -> Option<u64> {
+fn find_break(source: &Arc<dyn ByteSource>) -> Option<u64> {
     const DATA_END: u8 = 0x0F;
-    let file = File::open(path).ok()?;
-    let len = file.metadata().ok()?.len();
+    let file = SourceCursor::new(Arc::clone(source));
+    let len = source.len();
     // Buffered: an unchunked file has a record per message, mostly skipped within the buffer.
     let mut file = BufReader::with_capacity(64 * 1024, file);
     let mut offset = mcap::MAGIC.len() as u64;
@@ -258,6 +287,23 @@ impl McapReader {
         Self::open_with(path, opts, parallel_chunks)
     }
 
+    /// [`open`](Self::open) for a file whose bytes `source` holds, named `name` in messages.
+    /// From an object store ([`ByteSource::is_remote`]) it reads the summary, the first chunks
+    /// (to learn the topics) and then only the chunks its chunk index lists for the topics calib
+    /// reads (see [`super::chunks`]).
+    pub fn open_source(
+        name: &Path,
+        source: Arc<dyn ByteSource>,
+        opts: &ReadOptions,
+    ) -> Result<Self, Error> {
+        let parallel_chunks = if opts.one_thread {
+            usize::MAX
+        } else {
+            PARALLEL_CHUNKS
+        };
+        Self::open_from(name, source, opts, parallel_chunks)
+    }
+
     /// [`open`](Self::open), reading the chunks on worker threads where the summary lists at
     /// least `parallel_chunks` of them.
     pub(crate) fn open_with(
@@ -265,11 +311,24 @@ impl McapReader {
         opts: &ReadOptions,
         parallel_chunks: usize,
     ) -> Result<Self, Error> {
+        let source = FileSource::open(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::open_from(path, Arc::new(source), opts, parallel_chunks)
+    }
+
+    fn open_from(
+        path: &Path,
+        source: Arc<dyn ByteSource>,
+        opts: &ReadOptions,
+        parallel_chunks: usize,
+    ) -> Result<Self, Error> {
         let io = |source| Error::Io {
             path: path.to_path_buf(),
             source,
         };
-        let (mut file, len) = open_mcap(path)?;
+        let (mut file, len) = open_mcap(path, &source)?;
         let mut registry = Registry::default();
         // No summary, or a truncated file (whose summary cannot be read): scan it all.
         let summary = records::read_summary(&mut file, len);
@@ -282,15 +341,38 @@ impl McapReader {
         let parallel = summary
             .as_ref()
             .is_some_and(|s| s.chunks >= parallel_chunks);
-        let expected = summary.and_then(|summary| expected_topics(&summary, &mut registry));
+        let expected = summary
+            .as_ref()
+            .and_then(|summary| expected_topics(summary, &mut registry));
         let scale = opts.unit.unwrap_or(AngleUnit::Deg).radians_per_unit();
         let mut peek = Peek::default();
         let field_topics = field_topics(&opts.fields);
         // Topics read by field path take their definitions from the data section: peek for
         // them even where the summary lists no topic calib reads otherwise.
         if expected.as_ref().is_none_or(|e| !e.is_empty()) || !field_topics.is_empty() {
-            let (stream, _) = stream(file, len, opts.skip_damaged).map_err(io)?;
-            file = peek.learn_topics(
+            // From an object store, the peek too reads only chunks of the topics it looks for.
+            let indexed = match (&summary, &expected) {
+                (Some(summary), Some(expected))
+                    if source.is_remote() && !summary.chunk_index.is_empty() =>
+                {
+                    let topics = expected
+                        .iter()
+                        .map(String::as_str)
+                        .chain(field_topics.iter().copied())
+                        .collect();
+                    let (chunks, _) = chunks_of(summary, &topics);
+                    let consumed = Arc::new(AtomicU64::new(0));
+                    let definitions = summary.definitions.clone();
+                    chunks::Chunked::indexed(file.clone(), chunks, definitions, consumed, 1)
+                        .map(records::Stream::chunked)
+                }
+                _ => None,
+            };
+            let stream = match indexed {
+                Some(stream) => stream,
+                None => stream(file, len, opts.skip_damaged).map_err(io)?.0,
+            };
+            let peeked = peek.learn_topics(
                 path,
                 stream,
                 expected.as_deref(),
@@ -298,17 +380,36 @@ impl McapReader {
                 &mut registry,
                 scale,
             )?;
+            file = peeked.unwrap_or_else(|| SourceCursor::new(Arc::clone(&source)));
         }
         registry
             .read_wanted_fields(&opts.fields, scale)
             .map_err(|(topic, m)| mcap_error(path, None, Some(&topic), m))?;
         if registry.topics.is_empty() {
-            return Err(no_topic_error(path, len, peek, &registry));
+            return Err(no_topic_error(path, &source, len, peek, &registry));
         }
+        let mut chunks_left_out = 0;
+        let plan = match summary.filter(|s| source.is_remote() && !s.chunk_index.is_empty()) {
+            Some(summary) => {
+                let read = registry.topics.iter().map(|t| t.name.as_str()).collect();
+                let (chunks, left_out) = chunks_of(&summary, &read);
+                chunks_left_out = left_out;
+                let workers = if opts.one_thread {
+                    1
+                } else {
+                    chunks::workers()
+                };
+                Plan::Indexed(chunks, summary.definitions, workers)
+            }
+            None if parallel => Plan::Parallel,
+            None => Plan::Streaming,
+        };
         let (stream, consumed, reopen) =
-            main_stream(file, len, opts.skip_damaged, parallel).map_err(io)?;
+            main_stream(file, len, opts.skip_damaged, plan).map_err(io)?;
         Ok(McapReader {
             path: path.to_path_buf(),
+            source,
+            chunks_left_out,
             stream: Box::new(stream),
             consumed,
             consumed_at_last: 0,
@@ -403,9 +504,22 @@ impl McapReader {
             path: self.path.clone(),
             source,
         };
+        if self.chunks_left_out > 0 {
+            return Err(mcap_error(
+                &self.path,
+                Some(self.index),
+                None,
+                format!(
+                    "a chunk is not as the file's chunk index describes it (damaged, or of a \
+                     kind calib reads only front to back), and {} chunk(s) without a channel \
+                     calib reads were not fetched; download the log and read the local file",
+                    self.chunks_left_out
+                ),
+            ));
+        }
         let file = match self.reopen.take() {
             Some(file) => file,
-            None => File::open(&self.path).map_err(io)?,
+            None => SourceCursor::new(Arc::clone(&self.source)),
         };
         let (stream, consumed) = stream(file, self.len, self.skip_damaged).map_err(io)?;
         *self.stream = stream;
@@ -418,7 +532,8 @@ impl McapReader {
     fn note_truncation(&mut self) -> bool {
         // Reading stopped at the first incomplete record, or inside it (a chunk cut short)
         // where the last message came out.
-        let Some(byte_offset) = find_break(&self.path).map(|b| b.max(self.consumed_at_last)) else {
+        let Some(byte_offset) = find_break(&self.source).map(|b| b.max(self.consumed_at_last))
+        else {
             return false;
         };
         self.samples.diagnostics.truncated = Some(Truncation {
@@ -539,13 +654,13 @@ impl Iterator for McapReader {
 
 /// Opens `path` and checks that it is an MCAP file: not empty, and starting with the magic.
 /// Returns the file and its length.
-fn open_mcap(path: &Path) -> Result<(File, u64), Error> {
+fn open_mcap(path: &Path, source: &Arc<dyn ByteSource>) -> Result<(SourceCursor, u64), Error> {
     let io = |source| Error::Io {
         path: path.to_path_buf(),
         source,
     };
-    let mut file = File::open(path).map_err(io)?;
-    let len = file.metadata().map_err(io)?.len();
+    let mut file = SourceCursor::new(Arc::clone(source));
+    let len = source.len();
     if len == 0 {
         return Err(mcap_error(
             path,
@@ -576,6 +691,30 @@ fn open_mcap(path: &Path) -> Result<(File, u64), Error> {
     Ok((file, len))
 }
 
+/// The chunks of `summary`'s index that hold a message of `topics` (offset and length of each
+/// chunk record; a chunk whose index names no channel may hold any), and how many others it
+/// lists.
+fn chunks_of(summary: &records::Summary, topics: &HashSet<&str>) -> (Vec<(u64, u64)>, usize) {
+    let wanted: HashSet<u16> = summary
+        .channels
+        .values()
+        .filter(|c| topics.contains(c.topic.as_str()))
+        .map(|c| c.id)
+        .collect();
+    let chunks: Vec<(u64, u64)> = summary
+        .chunk_index
+        .iter()
+        .filter(|c| {
+            c.channels
+                .as_ref()
+                .is_none_or(|ids| ids.iter().any(|id| wanted.contains(id)))
+        })
+        .map(|c| (c.offset, c.length))
+        .collect();
+    let left_out = summary.chunk_index.len() - chunks.len();
+    (chunks, left_out)
+}
+
 /// What reading the first messages of a log found besides its topics.
 #[derive(Default)]
 struct Peek {
@@ -591,7 +730,8 @@ impl Peek {
     /// Reads messages until every expected topic has shown itself and [`PEEK_WINDOW`] more
     /// messages have passed (all of them while a topic's messages carry subsets of its joints,
     /// or when the file has no summary to say which topics to expect), learning each topic
-    /// from its first message. Returns the file, to be read again from its start.
+    /// from its first message. Returns the file, to be read again from its start (`None` where
+    /// the stream read chunks by the index: the caller opens it again).
     fn learn_topics(
         &mut self,
         path: &Path,
@@ -600,7 +740,7 @@ impl Peek {
         field_topics: &[&str],
         registry: &mut Registry,
         scale: f64,
-    ) -> Result<File, Error> {
+    ) -> Result<Option<SourceCursor>, Error> {
         // Messages since every expected topic showed itself.
         let mut after_all: Option<u64> = None;
         // Expected topics not met yet, counted down as each first message comes: a check per
@@ -652,20 +792,20 @@ impl Peek {
             }
         }
         self.skipped = peek.damaged().to_vec();
-        match peek.into_inner() {
-            Some(source) => Ok(source.file.into_inner()),
-            None => File::open(path).map_err(|source| Error::Io {
-                path: path.to_path_buf(),
-                source,
-            }),
-        }
+        Ok(peek.into_inner().map(|source| source.file.into_inner()))
     }
 }
 
 /// Why a log of `len` bytes yields no channel: every usable message is in a skipped damaged
 /// chunk, the file is damaged or cut before its first usable message, it is empty, or none of
 /// its topics holds a type calib reads.
-fn no_topic_error(path: &Path, len: u64, peek: Peek, registry: &Registry) -> Error {
+fn no_topic_error(
+    path: &Path,
+    source: &Arc<dyn ByteSource>,
+    len: u64,
+    peek: Peek,
+    registry: &Registry,
+) -> Error {
     if !peek.skipped.is_empty() {
         let list: Vec<String> = peek.skipped.iter().map(|c| c.to_string()).collect();
         return mcap_error(
@@ -697,7 +837,7 @@ fn no_topic_error(path: &Path, len: u64, peek: Peek, registry: &Registry) -> Err
     }
     // A file cut before its first usable message is cut, whatever else it holds: say so
     // rather than that it holds no samples.
-    if let Some(at) = find_break(path) {
+    if let Some(at) = find_break(source) {
         return mcap_error(
             path,
             None,

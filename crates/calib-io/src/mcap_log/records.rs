@@ -21,7 +21,6 @@
 use std::borrow::Cow;
 use std::collections::{HashMap, VecDeque};
 use std::fmt;
-use std::fs::File;
 use std::io::{self, BufReader, Read, Seek, SeekFrom};
 use std::sync::Arc;
 
@@ -533,6 +532,34 @@ pub(crate) struct Summary {
     /// Chunks its chunk indexes list, each within the data section; 0 if any lies outside it
     /// (then the index is not to be trusted, and the file is read by the streaming reader).
     pub chunks: usize,
+    /// The chunk indexes, in file order (empty where `chunks` is 0): for reading from an object
+    /// store only the chunks a reader needs.
+    pub chunk_index: Vec<ChunkEntry>,
+    /// The summary's schema and channel records, opcode and body, in its order: a reader of
+    /// chunks picked by the index learns every channel from them.
+    pub definitions: Vec<(u8, Vec<u8>)>,
+}
+
+/// A chunk as the summary's chunk index lists it.
+pub(crate) struct ChunkEntry {
+    /// Offset of the chunk record in the file, and its length with opcode and length prefix.
+    pub offset: u64,
+    pub length: u64,
+    /// The channels whose messages it holds; `None` where the writer wrote no message index
+    /// (then it may hold any).
+    pub channels: Option<Vec<u16>>,
+}
+
+/// The channel IDs of a chunk index's message index offsets map (`u32` byte length, then
+/// `u16` channel ID and `u64` offset per entry); `None` if it is empty or malformed.
+fn indexed_channels(rest: &[u8]) -> Option<Vec<u16>> {
+    let n = usize::try_from(u32::from_le_bytes(rest.get(..4)?.try_into().ok()?)).ok()?;
+    let map = rest.get(4..4usize.checked_add(n)?)?;
+    (n > 0 && n % 10 == 0).then(|| {
+        map.chunks_exact(10)
+            .map(|e| u16::from_le_bytes([e[0], e[1]]))
+            .collect()
+    })
 }
 
 /// A CRC-32 as an [`io::Write`] sink.
@@ -554,7 +581,7 @@ const FOOTER_LEN: u64 = 1 + 8 + 8 + 8 + 4;
 /// Reads the summary section of a file of `len` bytes, found through its footer; `None` if it has
 /// none or it is damaged (as in a truncated file). Reads only the schema, channel and statistics
 /// records, each checked as in the data section.
-pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
+pub(crate) fn read_summary<R: Read + Seek>(file: &mut R, len: u64) -> Option<Summary> {
     let magic = mcap::MAGIC.len() as u64;
     let footer_at = len.checked_sub(magic + FOOTER_LEN)?;
     if footer_at < magic {
@@ -592,6 +619,8 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
         channels: HashMap::new(),
         message_counts: None,
         chunks: 0,
+        chunk_index: Vec::new(),
+        definitions: Vec::new(),
     };
     let mut chunk_index_ok = true;
     let mut accumulator = ChannelAccumulator::default();
@@ -608,16 +637,27 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
             // Start and end time, then the chunk's offset and length: the chunk must lie between
             // the magic and the summary.
             let mut fixed = [0u8; 32];
+            let mut entry = None;
             let within = n >= 32 && file.read_exact(&mut fixed).is_ok() && {
                 let u64_at =
                     |i: usize| u64::from_le_bytes(fixed[i..i + 8].try_into().unwrap_or_default());
                 let (offset, length) = (u64_at(16), u64_at(24));
+                entry = Some((offset, length));
                 offset >= magic && offset.checked_add(length).is_some_and(|end| end <= start)
             };
             chunk_index_ok &= within;
             summary.chunks += 1;
             let rest = if n >= 32 { n - 32 } else { n };
-            io::copy(&mut (&mut file).take(rest), &mut io::sink()).ok()?;
+            // `rest` fits: it is at most the summary's length, which is at most the file's.
+            body.resize(usize::try_from(rest).ok()?, 0);
+            file.read_exact(&mut body).ok()?;
+            if let Some((offset, length)) = entry {
+                summary.chunk_index.push(ChunkEntry {
+                    offset,
+                    length,
+                    channels: indexed_channels(&body),
+                });
+            }
             continue;
         }
         if !matches!(opcode, op::SCHEMA | op::CHANNEL | op::STATISTICS) {
@@ -628,6 +668,9 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
         body.resize(usize::try_from(n).ok()?, 0);
         file.read_exact(&mut body).ok()?;
         check(opcode, &body).ok()?;
+        if matches!(opcode, op::SCHEMA | op::CHANNEL) {
+            summary.definitions.push((opcode, body.clone()));
+        }
         match mcap::parse_record(opcode, &body).ok()? {
             Record::Schema { header, data } => accumulator
                 .add_schema(header, Cow::Owned(data.into_owned()))
@@ -647,7 +690,9 @@ pub(crate) fn read_summary(file: &mut File, len: u64) -> Option<Summary> {
     }
     if !chunk_index_ok {
         summary.chunks = 0;
+        summary.chunk_index.clear();
     }
+    summary.chunk_index.sort_by_key(|c| c.offset);
     Some(summary)
 }
 

@@ -67,6 +67,21 @@ __all__ = [
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
+# A log: a path, a URL (``s3://``, ``gs://``, ``az://``, ``http(s)://``) or a binary file object
+# (anything with ``.read()``, such as an ``fsspec`` file), which is read whole into memory.
+LogLike = Union[str, "os.PathLike[str]", Any]
+
+
+def _log(path: LogLike) -> Any:
+    """A log for the native module: a file object as it is, else its path or URL as text."""
+    return path if hasattr(path, "read") else os.fspath(path)
+
+
+def _storage(options: Optional[Mapping[str, Any]]) -> Optional[Dict[str, str]]:
+    """``storage_options`` as text, as ``object_store`` takes them (``True`` is ``"true"``)."""
+    if options is None:
+        return None
+    return {str(k): (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in options.items()}
 
 
 def _f64(name: str, values: Any) -> np.ndarray:
@@ -131,7 +146,7 @@ class Log:
 
 
 def read(
-    path: PathLike,
+    path: LogLike,
     channels: Optional[Sequence[str]] = None,
     time: str = "header",
     *,
@@ -139,11 +154,12 @@ def read(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Mapping[str, Any]] = None,
 ) -> Log:
     """Reads a log (CSV, MCAP, a rosbag2 bag: its directory or .db3 file, a ROS 1 .bag) into arrays.
 
     Args:
-        path: the log.
+        path: the log: a path, a URL or a binary file object.
         channels: the channels to read, in this order, the first setting the clock the others
             are aligned on (None: every channel). Named as on the command line: a CSV column,
             a joint name, ``TOPIC/NAME``, ``TOPIC.field.path``.
@@ -154,6 +170,9 @@ def read(
             each channel's median interval).
         time_column: the CSV time column (default ``t``, ``time`` or ``timestamp``).
         time_unit: unit of the CSV time column: ``s``, ``ms``, ``us`` or ``ns``.
+        storage_options: options of the object store a URL is read from (``object_store``
+            keys: ``aws_endpoint``, ``aws_access_key_id``, ``aws_secret_access_key``,
+            ``aws_region``, ``aws_allow_http``, …), over the credentials in the environment.
 
     Returns:
         A :class:`Log`; readings in radians.
@@ -164,13 +183,14 @@ def read(
     """
     return Log(
         _calib.read(
-            os.fspath(path),
+            _log(path),
             None if channels is None else list(channels),
             time,
             unit,
             max_gap,
             time_column,
             time_unit,
+            _storage(storage_options),
         )
     )
 
@@ -480,7 +500,7 @@ def csrr(
 
 
 def csrr_log(
-    path: PathLike,
+    path: LogLike,
     *,
     a: str = "a",
     b: str = "b",
@@ -499,6 +519,7 @@ def csrr_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Mapping[str, Any]] = None,
 ) -> Result:
     """CSRR self-calibration of channels ``a`` and ``b`` of a log, streamed through calib's
     readers (``calib csrr LOG``: the same report.json, without writing files).
@@ -506,10 +527,12 @@ def csrr_log(
     Sessions come from a CSV ``session`` column where the log has one (unless
     ``detect_sessions``), else from the motion. ``ref`` names a reference channel on B's shaft.
     The reading options are :func:`read`'s; the others :func:`csrr`'s.
+
+    ``path`` may be a URL or a file object, with ``storage_options``, as for :func:`read`.
     """
     return Result(
         _calib.csrr_log(
-            os.fspath(path),
+            _log(path),
             a=a,
             b=b,
             ref=ref,
@@ -527,6 +550,7 @@ def csrr_log(
             max_gap=max_gap,
             time_column=time_column,
             time_unit=time_unit,
+            storage_options=_storage(storage_options),
         )
     )
 
@@ -611,7 +635,7 @@ def reference(
 
 
 def reference_log(
-    path: PathLike,
+    path: LogLike,
     *,
     dut: str,
     ref: str,
@@ -632,12 +656,16 @@ def reference_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Mapping[str, Any]] = None,
 ) -> Result:
     """Cross-calibration of channel ``dut`` of a log against its channel ``ref``
-    (``calib reference LOG --dut --ref``). Options as :func:`reference` and :func:`read`."""
+    (``calib reference LOG --dut --ref``). Options as :func:`reference` and :func:`read`.
+
+    ``path`` may be a URL or a file object, with ``storage_options``, as for :func:`read`.
+    """
     return Result(
         _calib.reference_log(
-            os.fspath(path),
+            _log(path),
             dut=dut,
             ref=ref,
             ref_u=ref_u,
@@ -657,6 +685,7 @@ def reference_log(
             max_gap=max_gap,
             time_column=time_column,
             time_unit=time_unit,
+            storage_options=_storage(storage_options),
         )
     )
 
@@ -718,7 +747,7 @@ def tdr(
 
 
 def tdr_log(
-    path: PathLike,
+    path: LogLike,
     *,
     channel: str,
     ref: Optional[str] = None,
@@ -732,15 +761,19 @@ def tdr_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Mapping[str, Any]] = None,
     run: str = "auto",
     pole_pairs: Optional[int] = None,
     cogging_orders: Optional[Sequence[int]] = None,
 ) -> Result:
     """Spin-down or driven-run self-calibration of a log's ``channel`` (``calib tdr LOG
-    --channel``). Options as :func:`tdr` and :func:`read`."""
+    --channel``). Options as :func:`tdr` and :func:`read`.
+
+    ``path`` may be a URL or a file object, with ``storage_options``, as for :func:`read`.
+    """
     return Result(
         _calib.tdr_log(
-            os.fspath(path),
+            _log(path),
             channel=channel,
             ref=ref,
             max_order=max_order,
@@ -753,6 +786,7 @@ def tdr_log(
             max_gap=max_gap,
             time_column=time_column,
             time_unit=time_unit,
+            storage_options=_storage(storage_options),
             run=run,
             pole_pairs=pole_pairs,
             cogging_orders=None if cogging_orders is None else [int(k) for k in cogging_orders],
@@ -812,7 +846,7 @@ def multihead(
 
 
 def multihead_log(
-    path: PathLike,
+    path: LogLike,
     positions: Mapping[str, float],
     *,
     method: str = "joint",
@@ -825,14 +859,18 @@ def multihead_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Mapping[str, Any]] = None,
 ) -> Result:
     """Multi-head self-calibration of a log (``calib multihead LOG --heads NAME@DEG,...``):
     ``positions`` maps each head's channel to its nominal angle, degrees, the first setting the
-    clock. Options as :func:`multihead` and :func:`read`."""
+    clock. Options as :func:`multihead` and :func:`read`.
+
+    ``path`` may be a URL or a file object, with ``storage_options``, as for :func:`read`.
+    """
     names = list(positions)
     return Result(
         _calib.multihead_log(
-            os.fspath(path),
+            _log(path),
             names,
             _heads(positions, names),
             method=method,
@@ -845,6 +883,7 @@ def multihead_log(
             max_gap=max_gap,
             time_column=time_column,
             time_unit=time_unit,
+            storage_options=_storage(storage_options),
         )
     )
 
@@ -880,7 +919,7 @@ def shift_angle(
 
 
 def inspect(
-    path: PathLike,
+    path: LogLike,
     *,
     a: Optional[str] = None,
     b: Optional[str] = None,
@@ -889,13 +928,19 @@ def inspect(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Mapping[str, Any]] = None,
 ) -> dict:
     """What a log holds — timing, channels, topics, segments, the methods it suits — as the dict ``calib inspect
     --json`` prints (same schema, ``docs/inspect.schema.json``). ``a`` and ``b`` name the pair
     whose sessions are looked for (default ``a`` and ``b`` where the log has them, else its
-    first two channels)."""
+    first two channels).
+
+    ``path`` may be a URL or a file object, with ``storage_options``, as for :func:`read`.
+    """
     return json.loads(
-        _calib.inspect(os.fspath(path), a, b, time, unit, max_gap, time_column, time_unit)
+        _calib.inspect(
+            _log(path), a, b, time, unit, max_gap, time_column, time_unit, _storage(storage_options)
+        )
     )
 
 

@@ -15,13 +15,14 @@ class ArrayError(UsageError, ValueError): ...
 F64 = npt.NDArray[np.float64]
 
 def read(
-    path: str,
+    path: Any,
     channels: Optional[List[str]] = None,
     time: str = "header",
     unit: Optional[str] = None,
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Dict[str, str]] = None,
 ) -> Dict[str, Any]: ...
 def csrr(
     a: F64,
@@ -43,7 +44,7 @@ def csrr(
     latency: Union[str, float, None] = None,
 ) -> Dict[str, Any]: ...
 def csrr_log(
-    path: str,
+    path: Any,
     *,
     a: str = "a",
     b: str = "b",
@@ -62,6 +63,7 @@ def csrr_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Dict[str, str]] = None,
 ) -> Dict[str, Any]: ...
 def reference(
     dut: F64,
@@ -84,7 +86,7 @@ def reference(
     ref_orders: int = 16,
 ) -> Dict[str, Any]: ...
 def reference_log(
-    path: str,
+    path: Any,
     *,
     dut: str,
     ref: str,
@@ -105,6 +107,7 @@ def reference_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Dict[str, str]] = None,
 ) -> Dict[str, Any]: ...
 def read_table(path: str) -> Tuple[F64, Optional[F64], Optional[Tuple[float, float]]]: ...
 def check_table(
@@ -144,7 +147,7 @@ def compose(
 ) -> Tuple[F64, Optional[F64], float, float]: ...
 def simulate(text: str, is_json: bool, points: int = 36000) -> Dict[str, Any]: ...
 def inspect(
-    path: str,
+    path: Any,
     a: Optional[str] = None,
     b: Optional[str] = None,
     time: str = "header",
@@ -152,6 +155,7 @@ def inspect(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Dict[str, str]] = None,
 ) -> str: ...
 def tdr(
     t: F64,
@@ -169,7 +173,7 @@ def tdr(
     cogging_orders: Optional[Sequence[int]] = None,
 ) -> Dict[str, Any]: ...
 def tdr_log(
-    path: str,
+    path: Any,
     *,
     channel: str,
     ref: Optional[str] = None,
@@ -186,6 +190,7 @@ def tdr_log(
     run: str = "auto",
     pole_pairs: Optional[int] = None,
     cogging_orders: Optional[Sequence[int]] = None,
+    storage_options: Optional[Dict[str, str]] = None,
 ) -> Dict[str, Any]: ...
 def multihead(
     names: List[str],
@@ -199,7 +204,7 @@ def multihead(
     min_observability: float = 0.01,
 ) -> Dict[str, Any]: ...
 def multihead_log(
-    path: str,
+    path: Any,
     names: List[str],
     nominal_deg: List[float],
     *,
@@ -213,6 +218,7 @@ def multihead_log(
     max_gap: Optional[float] = None,
     time_column: Optional[str] = None,
     time_unit: Optional[str] = None,
+    storage_options: Optional[Dict[str, str]] = None,
 ) -> Dict[str, Any]: ...
 def shift_angle(
     path: str, *, method: str = "joint", faces: Optional[int] = None, budget: Optional[str] = None
