@@ -1,8 +1,11 @@
-"""`calib.map_logs` over a fleet of simulated logs on Dask and on a process pool: the maps are
-the command line's to the last digit, a file that is not a log is a failed row, options are
+"""`calib.map_logs` over a fleet of simulated logs on Dask and on a process pool, from local
+files and from an S3 endpoint on localhost (moto's server), outputs written back to it: the maps
+are the command line's to the last digit, a file that is not a log is a failed row, options are
 checked before any work is sent, and what crosses between processes pickles."""
 
 import concurrent.futures
+import contextlib
+import io
 import json
 import multiprocessing
 import os
@@ -15,7 +18,7 @@ import pytest
 
 import calib
 from calib import fleet
-from conftest import TESTDATA, required_calib_binary as cli
+from conftest import TESTDATA, moto_server, required_calib_binary as cli, s3_client, s3_storage_options
 
 pd = pytest.importorskip("pandas")
 
@@ -370,3 +373,72 @@ def test_tdr_through_map_logs_is_the_command_lines(tmp_path):
     assert table["orders_kept"][0] == len(report["details"]["orders"]["kept"])
     assert table["residual_rms_arcsec"][0] == report["details"]["residual_rms_arcsec"]
     assert table["after_peak_to_peak_arcsec[enc]"][0] == report["channels"]["enc"]["after_correction"]["peak_to_peak_arcsec"]
+
+
+@pytest.fixture(scope="module")
+def bucket(logs):
+    """The fleet on a moto S3 server: bucket `fleet` holding each log at `<robot>/<name>`, an
+    empty bucket `calib` for the outputs. Yields the endpoint and the logs' URLs."""
+    with moto_server() as endpoint:
+        s3 = s3_client(endpoint)
+        s3.create_bucket(Bucket="fleet")
+        s3.create_bucket(Bucket="calib")
+        urls = []
+        for robot, path in logs.items():
+            s3.upload_file(str(path), "fleet", f"{robot}/{path.name}")
+            urls.append(f"s3://fleet/{robot}/{path.name}")
+        yield endpoint, urls
+
+
+def fsspec_options(endpoint):
+    """s3fs's storage_options for the moto endpoint (map_logs's `out_options`)."""
+    return {"key": "testing", "secret": "testing", "client_kwargs": {"endpoint_url": endpoint, "region_name": "us-east-1"}}
+
+
+def in_bucket(endpoint, prefix):
+    """The bytes of a file under `s3://prefix/` (None if there is none), read with s3fs."""
+    s3fs = pytest.importorskip("s3fs")
+    fs = s3fs.S3FileSystem(skip_instance_cache=True, **fsspec_options(endpoint))
+
+    def read(name):
+        path = f"{prefix}/{name}"
+        return fs.cat_file(path) if fs.exists(path) else None
+
+    return read
+
+
+def dask_executor(stack):
+    distributed = pytest.importorskip("distributed")
+    cluster = stack.enter_context(
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    )
+    return stack.enter_context(distributed.Client(cluster)).get_executor()
+
+
+def process_pool(stack):
+    spawn = multiprocessing.get_context("spawn")
+    return stack.enter_context(concurrent.futures.ProcessPoolExecutor(max_workers=2, mp_context=spawn))
+
+
+@pytest.mark.parametrize("make_executor", [dask_executor, process_pool])
+def test_a_fleet_on_s3_is_calibrated_and_written_back(logs, bucket, tmp_path, make_executor):
+    """The fleet read by URL from the S3 endpoint, the outputs written back to it: the maps
+    are the CLI's on the local files, byte for byte; the file that is not a log a failed row
+    naming its URL; the summary beside the outputs."""
+    endpoint, urls = bucket
+    prefix = f"calib/{make_executor.__name__}"
+    with contextlib.ExitStack() as stack:
+        table = calib.map_logs(
+            "csrr",
+            urls,
+            out=f"s3://{prefix}",
+            executor=make_executor(stack),
+            storage_options=s3_storage_options(endpoint),
+            out_options=fsspec_options(endpoint),
+            summary=True,
+        )
+    written = in_bucket(endpoint, prefix)
+    check_against_cli(table, logs, urls, written, tmp_path)
+    summary = pd.read_parquet(io.BytesIO(written("summary.parquet")))
+    assert list(summary["status"]) == list(table["status"])
+    assert written("summary.csv").startswith(b"log,output,status,error,")
