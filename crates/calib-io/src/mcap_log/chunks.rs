@@ -286,6 +286,11 @@ impl Chunked {
         workers: usize,
     ) -> Option<Self> {
         let len = file.source().len();
+        let bodies: Vec<(u64, u64)> = chunks
+            .iter()
+            .map(|&(at, n)| (at + PREFIX as u64, n.saturating_sub(PREFIX as u64)))
+            .collect();
+        file.source().plan(&bodies);
         let mut chunked = Self::start(file, len, consumed, workers, false)?;
         chunked.index = Some(chunks.into());
         chunked.plan = definitions

@@ -290,7 +290,7 @@ impl McapReader {
     /// [`open`](Self::open) for a file whose bytes `source` holds, named `name` in messages.
     /// From an object store ([`ByteSource::is_remote`]) it reads the summary, the first chunks
     /// (to learn the topics) and then only the chunks its chunk index lists for the topics calib
-    /// reads (see [`super::chunks`]).
+    /// reads, each in one request (see [`crate::source`]).
     pub fn open_source(
         name: &Path,
         source: Arc<dyn ByteSource>,
@@ -510,9 +510,10 @@ impl McapReader {
                 Some(self.index),
                 None,
                 format!(
-                    "a chunk is not as the file's chunk index describes it (damaged, or of a \
-                     kind calib reads only front to back), and {} chunk(s) without a channel \
-                     calib reads were not fetched; download the log and read the local file",
+                    "a chunk could not be read as the file's chunk index describes it \
+                     (damaged, of a kind calib reads only front to back, or the connection \
+                     failed), and {} chunk(s) without a channel calib reads were not fetched; \
+                     try again, or download the log and read the local file",
                     self.chunks_left_out
                 ),
             ));

@@ -55,6 +55,13 @@ pub trait ByteSource: Send + Sync + fmt::Debug {
         Ok(n)
     }
 
+    /// The ranges (offset, length), in file order, that a reader is about to read with
+    /// [`read_exact_at`](Self::read_exact_at): an object store may then fetch several that lie
+    /// close together in one request. The default ignores it.
+    fn plan(&self, ranges: &[(u64, u64)]) {
+        let _ = ranges;
+    }
+
     /// Whether reads are requests to another machine: readers then ask for few, large ranges
     /// (MCAP reads only its indexed chunks), where a local file is read front to back.
     fn is_remote(&self) -> bool {

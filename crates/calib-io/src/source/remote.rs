@@ -13,7 +13,12 @@
 //! the server as it is, with the client options (`allow_http`, `timeout`, …).
 //!
 //! # Requests
-//! A chunk's read ([`ByteSource::read_exact_at`]) is one request for exactly its range. A
+//! A chunk's read ([`ByteSource::read_exact_at`]) is one request for its range and, where the
+//! reader said which ranges follow ([`ByteSource::plan`]), for those that lie within
+//! [`GAP`] of it, up to [`SPAN`] bytes in all: object stores charge per request, in latency
+//! and in money, far more than per byte (a local S3 server, moto, copies the whole object for
+//! every range it serves). The requests are made one at a time, so that the worker wanting
+//! the next chunk finds it among the kept ranges. A
 //! reader going front to back ([`ByteSource::read_at`]: the footer, the summary, a CSV's
 //! buffer) fetches [`BLOCK`] bytes from its offset, so that reading a file front to back costs
 //! one request per block, not per buffer. The last [`BLOCKS`] ranges fetched are kept: a read
@@ -41,8 +46,16 @@ use crate::Error;
 /// What a front-to-back read fetches from its offset, kept for the reads that follow.
 pub const BLOCK: usize = 1 << 20;
 
-/// Ranges kept for the reads that follow.
-pub const BLOCKS: usize = 4;
+/// Ranges kept for the reads that follow: the head, footer and summary blocks, and the spans
+/// the first pass over an MCAP file fetched, for the second to find (at most 48 MiB).
+pub const BLOCKS: usize = 6;
+
+/// The largest request for several planned ranges.
+pub const SPAN: u64 = 8 << 20;
+
+/// The largest gap between two planned ranges fetched in one request (an MCAP file's message
+/// indexes between two chunks; a chunk calib does not need is usually larger).
+pub const GAP: u64 = 512 << 10;
 
 /// An object read by byte range (see the [module docs](self)).
 pub(super) struct ObjectSource {
@@ -52,8 +65,13 @@ pub(super) struct ObjectSource {
     len: u64,
     runtime: tokio::runtime::Runtime,
     counter: Counter,
-    /// The last blocks fetched by front-to-back reads, each with its offset, the latest last.
+    /// The last ranges fetched, each with its offset, the latest last.
     blocks: Mutex<Vec<(u64, Bytes)>>,
+    /// The ranges a reader said it will read ([`ByteSource::plan`]), in file order.
+    planned: Mutex<Vec<(u64, u64)>>,
+    /// Held while a planned read fetches, so that one request serves the reads it covers; the
+    /// end of the last planned range fetched.
+    fetching: Mutex<u64>,
 }
 
 impl std::fmt::Debug for ObjectSource {
@@ -234,6 +252,8 @@ impl ObjectSource {
             runtime,
             counter: Counter::default(),
             blocks: Mutex::new(Vec::new()),
+            planned: Mutex::new(Vec::new()),
+            fetching: Mutex::new(0),
         })
     }
 
@@ -257,6 +277,34 @@ impl ObjectSource {
             return n;
         }
         0
+    }
+
+    /// The request for the read `offset..end`: itself or, if it is a planned range, from the
+    /// first planned range before it not fetched yet (at or after `fetched_until`: another
+    /// worker, a chunk behind, will want it) to the last after it, each within [`GAP`] of the
+    /// one before, [`SPAN`] bytes in all.
+    fn span(&self, offset: u64, end: u64, fetched_until: u64) -> (u64, u64) {
+        let planned = self.planned.lock().unwrap_or_else(|e| e.into_inner());
+        let Ok(first) = planned.binary_search_by_key(&offset, |&(at, _)| at) else {
+            return (offset, end);
+        };
+        let mut start = offset;
+        for &(at, n) in planned[..first].iter().rev() {
+            let prev_end = at.saturating_add(n);
+            if at < fetched_until || prev_end > start || start - prev_end > GAP || end - at > SPAN {
+                break;
+            }
+            start = at;
+        }
+        let mut span_end = end;
+        for &(at, n) in &planned[first + 1..] {
+            let next_end = at.saturating_add(n);
+            if at < span_end || at - span_end > GAP || next_end - start > SPAN {
+                break;
+            }
+            span_end = next_end;
+        }
+        (start, span_end.min(self.len))
     }
 
     /// Keeps `bytes`, fetched from `offset`, in place of the oldest block kept.
@@ -304,10 +352,22 @@ impl ByteSource for ObjectSource {
         if buf.is_empty() || self.kept(offset, buf, true) > 0 {
             return Ok(());
         }
-        let bytes = self.fetch(offset..end)?;
-        buf.copy_from_slice(&bytes);
-        self.keep(offset, bytes);
+        let mut fetched_until = self.fetching.lock().unwrap_or_else(|e| e.into_inner());
+        // Another read may have fetched it meanwhile.
+        if self.kept(offset, buf, true) > 0 {
+            return Ok(());
+        }
+        let (start, span_end) = self.span(offset, end, *fetched_until);
+        let bytes = self.fetch(start..span_end)?;
+        let from = (offset - start) as usize;
+        buf.copy_from_slice(&bytes[from..from + buf.len()]);
+        self.keep(start, bytes);
+        *fetched_until = (*fetched_until).max(span_end);
         Ok(())
+    }
+
+    fn plan(&self, ranges: &[(u64, u64)]) {
+        *self.planned.lock().unwrap_or_else(|e| e.into_inner()) = ranges.to_vec();
     }
 
     fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<usize> {
