@@ -182,7 +182,14 @@ impl Command {
                 p
             }
             Command::Uncertainty(a) => vec![(&a.budget, "budget")],
-            Command::Compare(a) => vec![(&a.map1, "table"), (&a.map2, "table")],
+            Command::Compare(a) => {
+                // With --against, MAP1 is the new run's folder.
+                let what = if a.against.is_some() { "run" } else { "table" };
+                let mut p = vec![(a.map1.as_path(), what)];
+                p.extend(a.map2.as_deref().map(|m| (m, "table")));
+                p.extend(a.against.as_deref().map(|r| (r, "run")));
+                p
+            }
             Command::Apply(a) => vec![(&a.table, "table"), (&a.log, "log")],
             Command::Compose(a) => vec![(&a.first, "table"), (&a.residual, "table")],
             Command::Export(a) => vec![(&a.table, "table")],

@@ -30,9 +30,9 @@ struct Input {
     folder: bool,
 }
 
-/// The kinds of input that may be folders: a log (a rosbag2 bag directory) and a `--truth`
-/// folder.
-const FOLDER_INPUTS: [&str; 2] = ["log", "truth"];
+/// The kinds of input that may be folders: a log (a rosbag2 bag directory), a `--truth`
+/// folder, and a run's output folder (`calib compare --against`).
+const FOLDER_INPUTS: [&str; 3] = ["log", "truth", "run"];
 
 /// The inputs of the running command, set once by [`protect`].
 static INPUTS: OnceLock<Inputs> = OnceLock::new();

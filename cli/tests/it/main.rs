@@ -6,6 +6,7 @@ mod adversarial;
 mod apply_cli;
 mod batch_cli;
 mod common;
+mod compare_against_cli;
 mod compose_cli;
 mod csrr_cli;
 mod export_cli;

@@ -7,21 +7,24 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyTuple, PyType};
 
+// The classes' module is `calib`, where the package re-exports them: pickle finds a class by its
+// module and name, so an error raised in a worker process (a process pool, Dask, Ray) is sent
+// back and raised again as the same class.
 create_exception!(
-    _calib,
+    calib,
     CalibError,
     PyException,
     "Base class of calib's errors."
 );
 create_exception!(
-    _calib,
+    calib,
     DataError,
     CalibError,
     "The data cannot be calibrated or read (the CLI's exit status 1): the message names the \
      file, line or message, and channel, and what to do."
 );
 create_exception!(
-    _calib,
+    calib,
     UsageError,
     CalibError,
     "A bad argument: an unknown channel, an option outside its range, a missing file (the CLI's \

@@ -5,6 +5,7 @@
 //! (readings in radians, tables in degrees and arcseconds as calib writes them) and JSON text;
 //! the work itself is calib-core's and calib-io's, run with the GIL released.
 
+mod checks;
 mod errors;
 mod logs;
 mod methods;
@@ -35,6 +36,10 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(shift_angle::shift_angle, m)?)?;
     m.add_function(wrap_pyfunction!(tdr::tdr, m)?)?;
     m.add_function(wrap_pyfunction!(tdr::tdr_log, m)?)?;
+    m.add_function(wrap_pyfunction!(checks::check_csrr_log, m)?)?;
+    m.add_function(wrap_pyfunction!(checks::check_reference_log, m)?)?;
+    m.add_function(wrap_pyfunction!(checks::check_tdr_log, m)?)?;
+    m.add_function(wrap_pyfunction!(checks::check_multihead_log, m)?)?;
     m.add_function(wrap_pyfunction!(tables::read_table, m)?)?;
     m.add_function(wrap_pyfunction!(tables::check_table, m)?)?;
     m.add_function(wrap_pyfunction!(tables::write_table, m)?)?;

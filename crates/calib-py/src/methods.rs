@@ -114,13 +114,13 @@ pub fn same_length(name: &str, array: &[f64], n: usize) -> PyResult<()> {
 }
 
 /// The CSRR keyword arguments (the CLI's options of `calib csrr`).
-struct CsrrArgs {
+pub(crate) struct CsrrArgs {
     opts: CsrrOptions,
 }
 
 impl CsrrArgs {
     #[allow(clippy::too_many_arguments)]
-    fn new(
+    pub(crate) fn new(
         method: &str,
         max_order: Option<usize>,
         points: Option<usize>,
@@ -175,8 +175,34 @@ impl CsrrArgs {
     }
 }
 
+/// Checks that `csrr_log`'s channels `a`, `b` and `ref` are three different channels.
+pub(crate) fn csrr_channels(a: &str, b: &str, r#ref: Option<&str>) -> PyResult<()> {
+    if a == b {
+        return Err(usage(format!(
+            "a and b both name `{a}`: name the two sensors' channels"
+        )));
+    }
+    if let Some(r) = r#ref.filter(|r| *r == a || *r == b) {
+        return Err(usage(format!(
+            "ref `{r}` is also a calibrated sensor's channel; the reference must be a third \
+             encoder on B's shaft (or leave ref out)"
+        )));
+    }
+    Ok(())
+}
+
+/// Checks that `reference_log`'s `dut` and `ref` are two different channels.
+pub(crate) fn reference_channels(dut: &str, r#ref: &str) -> PyResult<()> {
+    if dut == r#ref {
+        return Err(usage(format!(
+            "dut and ref both name `{dut}`: name the encoder to calibrate and the reference"
+        )));
+    }
+    Ok(())
+}
+
 /// `latency`: `"auto"` (or None) or the lag in seconds, within ±10, as `--latency`.
-fn latency_of(value: Option<&Bound<'_, PyAny>>) -> PyResult<Latency> {
+pub(crate) fn latency_of(value: Option<&Bound<'_, PyAny>>) -> PyResult<Latency> {
     let bad = |shown: String| {
         usage(format!(
             "latency={shown}: give \"auto\" or the lag in seconds, within ±10 (e.g. 0.02 for \
@@ -383,17 +409,7 @@ pub fn csrr_log<'py>(
     storage_options: Option<std::collections::HashMap<String, String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let latency = latency_of(latency.as_ref())?;
-    if a == b {
-        return Err(usage(format!(
-            "a and b both name `{a}`: name the two sensors' channels"
-        )));
-    }
-    if let Some(r) = r#ref.as_ref().filter(|r| **r == a || **r == b) {
-        return Err(usage(format!(
-            "ref `{r}` is also a calibrated sensor's channel; the reference must be a third \
-             encoder on B's shaft (or leave ref out)"
-        )));
-    }
+    csrr_channels(&a, &b, r#ref.as_deref())?;
     let log = LogOptions::new(unit, time, max_gap, time_column, time_unit, storage_options)?;
     let input = crate::logs::LogInput::from_py(&path)?;
     let path = input.name().to_path_buf();
@@ -473,7 +489,7 @@ fn parse_targets(targets: &Bound<'_, PyAny>) -> Option<PyResult<Targets>> {
 
 /// The reference calibration's options from its keyword arguments (`calib reference`'s).
 #[allow(clippy::too_many_arguments)]
-fn reference_options(
+pub(crate) fn reference_options(
     ref_u: Option<f64>,
     points: usize,
     min_speed: f64,
@@ -516,7 +532,10 @@ fn reference_options(
 
 /// The gear of `ref_ratio` (a number or `"auto"`; `None`: one shaft) and `ref_orders`, as
 /// `calib reference --ref-ratio --ref-orders` takes them.
-fn gear_of(ref_ratio: Option<&Bound<'_, PyAny>>, ref_orders: usize) -> PyResult<Option<Gear>> {
+pub(crate) fn gear_of(
+    ref_ratio: Option<&Bound<'_, PyAny>>,
+    ref_orders: usize,
+) -> PyResult<Option<Gear>> {
     let Some(value) = ref_ratio else {
         return Ok(None);
     };
@@ -666,11 +685,7 @@ pub fn reference_log<'py>(
     time_unit: Option<&str>,
     storage_options: Option<std::collections::HashMap<String, String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    if dut == r#ref {
-        return Err(usage(format!(
-            "dut and ref both name `{dut}`: name the encoder to calibrate and the reference"
-        )));
-    }
+    reference_channels(&dut, &r#ref)?;
     let gear = gear_of(ref_ratio.as_ref(), ref_orders)?;
     let opts = reference_options(
         ref_u,

@@ -11,7 +11,7 @@ use pyo3::types::PyDict;
 
 /// The heads (name, nominal angle in degrees) and options, checked as `calib multihead` checks
 /// its `--heads`, `--sets` and options.
-fn options(
+pub(crate) fn options(
     heads: &[(String, f64)],
     method: &str,
     sets: Option<Vec<Vec<String>>>,

@@ -14,7 +14,7 @@ const MAX_DRAG_ORDER: usize = 100;
 const MAX_DEGREE: usize = 60;
 
 /// The TDR options from the keyword arguments, checked as `calib tdr` checks its options.
-fn options(
+pub(crate) fn options(
     max_order: Option<usize>,
     max_drag_order: usize,
     motion_degree: Option<usize>,
@@ -55,6 +55,17 @@ fn options(
         motor,
         ..TdrOptions::default()
     })
+}
+
+/// Checks that `tdr_log`'s `channel` and `ref` are two different channels.
+pub(crate) fn tdr_channels(channel: &str, r#ref: Option<&str>) -> PyResult<()> {
+    if r#ref == Some(channel) {
+        return Err(usage(format!(
+            "channel and ref both name `{channel}`: name the encoder to calibrate and a different \
+             reference"
+        )));
+    }
+    Ok(())
 }
 
 /// The driven run's options (`run`, `pole_pairs`, `cogging_orders`), checked as `calib tdr`
@@ -200,12 +211,7 @@ pub fn tdr_log<'py>(
     cogging_orders: Option<Vec<usize>>,
     storage_options: Option<std::collections::HashMap<String, String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    if r#ref.as_ref() == Some(&channel) {
-        return Err(usage(format!(
-            "channel and ref both name `{channel}`: name the encoder to calibrate and a different \
-             reference"
-        )));
-    }
+    tdr_channels(&channel, r#ref.as_deref())?;
     let opts = options(
         max_order,
         max_drag_order,

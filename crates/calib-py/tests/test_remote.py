@@ -1,76 +1,24 @@
 """Logs read by URL from an S3 endpoint on localhost (moto's server, started here) and from file
 objects: the same results as the local file, to the last digit."""
 
-import os
-import shutil
-import socket
-import subprocess
-import time
-
 import numpy as np
 import pytest
 
 import calib
-from conftest import TESTDATA
+from conftest import TESTDATA, moto_server, s3_client, s3_storage_options
 
 QUICK = TESTDATA / "examples" / "quick.mcap"
-# Set to 1 to skip these tests where moto_server is not installed (locally only: CI installs it,
-# and there a missing server fails them).
-SKIP = "CALIB_SKIP_S3_TESTS"
 
 
 @pytest.fixture(scope="module")
 def moto():
-    """A moto S3 server on a free port of 127.0.0.1 with a bucket `fleet` holding quick.mcap as
-    `r1/run.mcap`; its storage_options."""
-    server = shutil.which("moto_server")
-    if server is None:
-        if os.environ.get(SKIP) == "1":
-            pytest.skip(f"moto_server is not on PATH and {SKIP}=1")
-        pytest.fail(
-            "moto_server is not on PATH: `pip install 'moto[server]'` (as .ci/run does), or set "
-            f"{SKIP}=1 to skip these tests locally"
-        )
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    proc = subprocess.Popen(
-        [server, "-H", "127.0.0.1", "-p", str(port)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=1).close()
-                break
-            except OSError:
-                assert time.monotonic() < deadline, "moto_server did not answer within 60 s"
-                time.sleep(0.1)
-        endpoint = f"http://127.0.0.1:{port}"
-        options = {
-            "aws_endpoint": endpoint,
-            "aws_access_key_id": "testing",
-            "aws_secret_access_key": "testing",
-            "aws_region": "us-east-1",
-            "aws_allow_http": True,
-        }
-        import boto3  # moto's own dependency
-
-        s3 = boto3.client(
-            "s3",
-            endpoint_url=endpoint,
-            aws_access_key_id="testing",
-            aws_secret_access_key="testing",
-            region_name="us-east-1",
-        )
+    """A moto S3 server with a bucket `fleet` holding quick.mcap as `r1/run.mcap`; its
+    storage_options."""
+    with moto_server() as endpoint:
+        s3 = s3_client(endpoint)
         s3.create_bucket(Bucket="fleet")
         s3.upload_file(str(QUICK), "fleet", "r1/run.mcap")
-        yield options
-    finally:
-        proc.kill()
-        proc.wait()
+        yield s3_storage_options(endpoint)
 
 
 def test_csrr_log_on_an_s3_url_equals_the_local_files(moto):

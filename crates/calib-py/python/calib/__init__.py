@@ -15,6 +15,8 @@ reads) in, correction tables and reports out. Conventions are the command line's
   (``a[17] is NaN``), as the CLI's readers refuse such a row.
 
 Reading and solving release the GIL: several logs calibrated on threads run in parallel.
+:func:`map_logs` calibrates a fleet of logs on any ``concurrent.futures`` executor (a process
+pool, Dask, Ray), one row per log in a pandas DataFrame (``docs/fleet.md``).
 
 Example::
 
@@ -60,6 +62,7 @@ __all__ = [
     "export",
     "compose",
     "simulate",
+    "map_logs",
     "__version__",
 ]
 
@@ -1067,3 +1070,7 @@ def simulate(scenario: Union[PathLike, str, Mapping[str, Any]], *, points: int =
         with open(text, encoding="utf-8") as f:
             text = f.read()
     return Simulation(_calib.simulate(text, False, points))
+
+
+# Last: the fleet module uses the classes and wrappers above.
+from .fleet import map_logs  # noqa: E402

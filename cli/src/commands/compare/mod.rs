@@ -1,5 +1,7 @@
 //! `calib compare`: load two maps → En comparison → render; exit 3 (a gate) when a point fails.
 
+mod against;
+
 use crate::summary::TextTable;
 use anyhow::Context as _;
 use calib_core::compare::{self, Comparison, MapPoint};
@@ -29,13 +31,27 @@ use std::path::{Path, PathBuf};
 /// Exit status: 0 when every En ≤ 1; 3 (a failed gate, for pipelines that check a calibration
 /// against a stored one) when some En > 1, with the points that fail listed and compare.csv
 /// written all the same; 1 bad or insufficient data; 2 bad usage.
+///
+/// Two runs over a fleet: `calib compare NEW --against OLD`, NEW and OLD the output folders of
+/// two runs over the same logs (`calib <method> LOG... -o DIR`, or Python's calib.map_logs).
+/// Every folder with a report.json is a log's; a log's channel in NEW is compared with the
+/// same channel of the log at the same place in OLD, as MAP1 with MAP2 above (--U1, --U2, --k,
+/// --remove-mean apply to every pair). Writes DIR/drift.csv, one row per channel: log,
+/// channel, status (moved: some En > 1; steady; new: not in OLD; gone: only in OLD), points,
+/// max_abs_difference_arcsec, rms_difference_arcsec, mean_difference_arcsec, max_en,
+/// points_over_1. Exit 3 when a channel moved, the moved ones listed.
 #[derive(Debug, clap::Args, PartialEq)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
     /// The first map (its angles are the comparison's grid).
     pub map1: PathBuf,
-    /// The second map.
-    pub map2: PathBuf,
+    /// The second map (with --against: none; MAP1 is a run's output folder).
+    #[arg(required_unless_present = "against", conflicts_with = "against")]
+    pub map2: Option<PathBuf>,
+    /// Compare the run in the folder MAP1 with the earlier run in PREFIX, channel by channel
+    /// (see above): which joints moved.
+    #[arg(long, value_name = "PREFIX")]
+    pub against: Option<PathBuf>,
     /// Expanded uncertainty of MAP1 at every point, arcsec (overrides its columns).
     #[arg(long = "U1", value_name = "ARCSEC")]
     pub u1: Option<f64>,
@@ -74,6 +90,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             return Err(crate::exit::Usage(format!("{flag} {v}: give a number ≥ 0")).into());
         }
     }
+    let map2 = match (&args.map2, &args.against) {
+        (_, Some(against)) => return against::run(args, against),
+        (Some(map2), None) => map2,
+        (None, None) => unreachable!("clap requires MAP2 unless --against is given"),
+    };
     let csv_path = args.output.join("compare.csv");
     crate::overwrite::check(&csv_path, &format!("-o {}", crate::ui::shown(&args.output)))?;
     crate::output::check_replaces_only_calibs(
@@ -81,39 +102,11 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         ["compare.csv"],
         &format!("-o {}", crate::ui::shown(&args.output)),
     )?;
-    let t1 = calib_io::points::read_points(&args.map1)?;
-    let t2 = calib_io::points::read_points(&args.map2)?;
-    let mut m1 = with_expanded(&t1, &args.map1, args.u1, args.k, "--U1")?;
-    let m2 = with_expanded(&t2, &args.map2, args.u2, args.k, "--U2")?;
-    let common = common_range(&t1, &t2);
-    if let Some((lo, hi)) = common {
-        let before = m1.len();
-        m1.retain(|p| inside(p.angle_deg, lo, hi));
-        if m1.is_empty() {
-            return Err(crate::exit::Usage(format!(
-                "{} and {} have no range in common ({}): nothing to compare",
-                args.map1.display(),
-                args.map2.display(),
-                describe(&t1, &t2)
-            ))
-            .into());
-        }
-        if m1.len() < before {
-            eprintln!(
-                "note: comparing over the common range {lo:.6}° to {hi:.6}° ({} of MAP1's {before} points)",
-                m1.len()
-            );
-        }
-    }
-    // Range maps are zero-mean over their own ranges: over another range they differ by a constant.
-    let forced = common.is_some() && !args.remove_mean && !same_range(&t1, &t2);
-    let c = compare::compare(&m1, &m2, args.remove_mean || forced).with_context(|| {
-        format!(
-            "comparing {} with {}",
-            args.map1.display(),
-            args.map2.display()
-        )
-    })?;
+    let Pair {
+        comparison: c,
+        common,
+        forced,
+    } = compare_files(args, &args.map1, map2)?;
     std::fs::create_dir_all(&args.output).with_context(|| {
         format!(
             "cannot create the output directory {}",
@@ -128,7 +121,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
     let stdout = if args.json {
         serde_json::to_string_pretty(&c)? + "\n"
     } else {
-        let mut s = render_summary(args, &c, &csv_path);
+        let mut s = render_summary(args, map2, &c, &csv_path);
         if let Some((lo, hi)) = common {
             s.insert_str(
                 0,
@@ -158,6 +151,53 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         .into());
     }
     Ok(stdout)
+}
+
+/// Two maps compared: the comparison, the range common to both where either is a range table,
+/// and whether the mean difference was removed because their ranges differ.
+struct Pair {
+    comparison: Comparison,
+    common: Option<(f64, f64)>,
+    forced: bool,
+}
+
+/// Reads the maps `map1` and `map2` and compares them with `args`' uncertainties and options:
+/// MAP2 interpolated at MAP1's angles, over their common range where either is a range table.
+fn compare_files(args: &Args, map1: &Path, map2: &Path) -> anyhow::Result<Pair> {
+    let t1 = calib_io::points::read_points(map1)?;
+    let t2 = calib_io::points::read_points(map2)?;
+    let mut m1 = with_expanded(&t1, map1, args.u1, args.k, "--U1")?;
+    let m2 = with_expanded(&t2, map2, args.u2, args.k, "--U2")?;
+    let common = common_range(&t1, &t2);
+    if let Some((lo, hi)) = common {
+        let before = m1.len();
+        m1.retain(|p| inside(p.angle_deg, lo, hi));
+        if m1.is_empty() {
+            return Err(crate::exit::Usage(format!(
+                "{} and {} have no range in common ({}): nothing to compare",
+                map1.display(),
+                map2.display(),
+                describe(&t1, &t2)
+            ))
+            .into());
+        }
+        if m1.len() < before {
+            eprintln!(
+                "note: {}: comparing over the common range {lo:.6}° to {hi:.6}° ({} of MAP1's {before} points)",
+                map1.display(),
+                m1.len()
+            );
+        }
+    }
+    // Range maps are zero-mean over their own ranges: over another range they differ by a constant.
+    let forced = common.is_some() && !args.remove_mean && !same_range(&t1, &t2);
+    let comparison = compare::compare(&m1, &m2, args.remove_mean || forced)
+        .with_context(|| format!("comparing {} with {}", map1.display(), map2.display()))?;
+    Ok(Pair {
+        comparison,
+        common,
+        forced,
+    })
 }
 
 /// A table's range, degrees: its own for a range table, the whole turn otherwise.
@@ -229,14 +269,14 @@ fn with_expanded(
         .collect()
 }
 
-fn render_summary(args: &Args, c: &Comparison, csv_path: &Path) -> String {
+fn render_summary(args: &Args, map2: &Path, c: &Comparison, csv_path: &Path) -> String {
     let mut s = String::new();
     let interpolated = c.points.iter().filter(|p| p.interpolated).count();
     let _ = writeln!(
         s,
         "compare {} − {}: {} points ({} interpolated in the second map)",
         args.map1.display(),
-        args.map2.display(),
+        map2.display(),
         c.points.len(),
         interpolated
     );
