@@ -12,6 +12,14 @@ fn input(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// The error opening the damaged input `name` gives; it must not open.
+fn refused(name: &str) -> String {
+    match calib_io::LogReader::open(&input(name), &ReadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("{name}: a damaged file read"),
+    }
+}
+
 /// Every error an MCAP file gives, opening and reading it to the end.
 fn mcap_errors(path: &Path) -> Vec<String> {
     match McapReader::open(path, &ReadOptions::default()) {
@@ -71,11 +79,7 @@ fn a_record_overrunning_its_uncompressed_chunk_is_an_error() {
 #[cfg(feature = "hdf5")]
 #[test]
 fn an_hdf5_chunk_stated_larger_than_the_file_can_hold_is_an_error() {
-    let path = input("hdf5_chunk_of_111_gb.mat");
-    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(_) => panic!("a damaged file read"),
-    };
+    let err = refused("hdf5_chunk_of_111_gb.mat");
     assert!(err.contains("states chunks of"), "{err}");
     assert!(err.contains("the file is damaged"), "{err}");
 }
@@ -86,11 +90,7 @@ fn an_hdf5_chunk_stated_larger_than_the_file_can_hold_is_an_error() {
 #[cfg(feature = "parquet")]
 #[test]
 fn a_parquet_column_chunk_outside_the_file_is_an_error() {
-    let path = input("parquet_negative_chunk.parquet");
-    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(_) => panic!("a damaged file read"),
-    };
+    let err = refused("parquet_negative_chunk.parquet");
     assert!(err.contains("the file is damaged"), "{err}");
 }
 
@@ -123,11 +123,7 @@ fn a_parquet_byte_stream_split_page_shorter_than_its_values_is_an_error() {
 #[cfg(feature = "parquet")]
 #[test]
 fn a_parquet_page_header_skipping_past_the_end_is_an_error_at_once() {
-    let path = input("parquet_page_header_skipping_past_the_end.parquet");
-    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(_) => panic!("a damaged file read"),
-    };
+    let err = refused("parquet_page_header_skipping_past_the_end.parquet");
     assert!(err.contains("the file ends inside a page header"), "{err}");
 }
 
@@ -138,11 +134,7 @@ fn a_parquet_page_header_skipping_past_the_end_is_an_error_at_once() {
 #[cfg(feature = "parquet")]
 #[test]
 fn a_parquet_dictionary_page_missing_is_an_error() {
-    let path = input("parquet_dictionary_data_without_dictionary.parquet");
-    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(_) => panic!("a damaged file read"),
-    };
+    let err = refused("parquet_dictionary_data_without_dictionary.parquet");
     assert!(err.contains("with no dictionary page before it"), "{err}");
     assert!(err.contains("column `"), "{err}");
 }
@@ -154,11 +146,7 @@ fn a_parquet_dictionary_page_missing_is_an_error() {
 #[cfg(feature = "parquet")]
 #[test]
 fn a_parquet_run_header_longer_than_10_bytes_is_an_error() {
-    let path = input("parquet_run_header_of_11_bytes.parquet");
-    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(_) => panic!("a damaged file read"),
-    };
+    let err = refused("parquet_run_header_of_11_bytes.parquet");
     assert!(err.contains("longer than 10 bytes"), "{err}");
     assert!(err.contains("column `"), "{err}");
 }
@@ -171,11 +159,7 @@ fn a_parquet_run_header_longer_than_10_bytes_is_an_error() {
 #[cfg(feature = "parquet")]
 #[test]
 fn a_parquet_footer_stating_a_list_larger_than_itself_is_an_error() {
-    let path = input("parquet_footer_list_of_2g_booleans.parquet");
-    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(_) => panic!("a damaged file read"),
-    };
+    let err = refused("parquet_footer_list_of_2g_booleans.parquet");
     assert!(
         err.contains("its footer's metadata: a list states"),
         "{err}"
@@ -189,10 +173,6 @@ fn a_parquet_footer_stating_a_list_larger_than_itself_is_an_error() {
 #[cfg(feature = "parquet")]
 #[test]
 fn a_parquet_dictionary_larger_than_its_page_is_an_error_not_an_allocation() {
-    let path = input("parquet_dictionary_of_7_gb.parquet");
-    let err = match calib_io::LogReader::open(&path, &ReadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(_) => panic!("a damaged file read"),
-    };
+    let err = refused("parquet_dictionary_of_7_gb.parquet");
     assert!(err.contains("a dictionary page states"), "{err}");
 }
