@@ -252,6 +252,52 @@ fn http_logs_are_read_by_range_and_every_byte_is_counted() {
     assert!(!work.path().join("x").exists());
 }
 
+/// A static server that ignores byte ranges (Python's `http.server`, as many are) made calib say
+/// "`URL`: `URL`: cannot read it: Operation not supported: Range request not supported …", the
+/// URL twice and nothing to do. Now: exit 1, the URL once, what the server lacks and to download
+/// the file.
+#[test]
+fn an_http_server_without_ranges_is_told_to_download_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        testdata("examples/quick.mcap"),
+        dir.path().join("quick.mcap"),
+    )
+    .unwrap();
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let mut server = Command::new("python3")
+        .args([
+            "-m",
+            "http.server",
+            &port.to_string(),
+            "--bind",
+            "127.0.0.1",
+        ])
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("python3 -m http.server");
+    let url = format!("http://127.0.0.1:{port}/quick.mcap");
+    // Up to 10 s for the server to listen.
+    for _ in 0..100 {
+        if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let o = calib_env(&["inspect", &url], &[]);
+    let _ = server.kill();
+    let _ = server.wait();
+    let err = expect_exit(&o, 1);
+    assert_mentions(&err, &["does not answer byte-range requests", "curl -O"]);
+    assert_eq!(err.matches(&url).count(), 1, "{err}");
+}
+
 #[test]
 fn a_missing_object_bucket_or_credentials_is_exit_1_naming_the_url() {
     let Some(moto) = Moto::start() else { return };

@@ -134,8 +134,13 @@ const CREDENTIALS: &str = "set them in the environment as the cloud's own tools 
 
 /// What a failed request means for the user, and what to do.
 fn explain(url: &str, e: &object_store::Error) -> Error {
+    remote_error(url, what_failed(e))
+}
+
+/// [`explain`]'s message, without the URL (for an I/O error the reader names the URL with).
+fn what_failed(e: &object_store::Error) -> String {
     use object_store::Error as E;
-    let what = match e {
+    match e {
         E::NotFound { .. } => "there is no object at this URL (404); check the bucket and the \
                                key (or the address) — a log's name is case-sensitive"
             .to_string(),
@@ -146,6 +151,11 @@ fn explain(url: &str, e: &object_store::Error) -> Error {
         E::Unauthenticated { .. } => {
             format!("the request was not authenticated (401): {CREDENTIALS} ({e})")
         }
+        E::NotSupported { .. } => format!(
+            "the server does not answer byte-range requests (HTTP `Range`), by which calib reads \
+             a log where it is; download the file (e.g. `curl -O URL`) and give calib the copy \
+             ({e})"
+        ),
         _ => {
             let text = e.to_string();
             let lower = text.to_ascii_lowercase();
@@ -166,8 +176,7 @@ fn explain(url: &str, e: &object_store::Error) -> Error {
                 format!("cannot read it: {text}")
             }
         }
-    };
-    remote_error(url, what)
+    }
 }
 
 impl ObjectSource {
@@ -321,15 +330,14 @@ impl ObjectSource {
         let bytes = self
             .runtime
             .block_on(self.store.get_range(&self.location, range.clone()))
-            .map_err(|e| io::Error::other(explain(&self.url, &e).to_string()))?;
+            .map_err(|e| io::Error::other(what_failed(&e)))?;
         self.counter.add(bytes.len());
         if bytes.len() as u64 != range.end - range.start {
             return Err(io::Error::new(
                 io::ErrorKind::UnexpectedEof,
                 format!(
-                    "{}: the server sent {} bytes for a range of {}; the object changed while \
-                     it was read?",
-                    self.url,
+                    "the server sent {} bytes for a range of {}; the object changed while it \
+                     was read?",
                     bytes.len(),
                     range.end - range.start
                 ),
